@@ -1,0 +1,65 @@
+"""Frequency responses ``H(i omega) = C (-omega^2 M + i omega D + (1 + i eta) K)^{-1} B``.
+
+Full (sparse) systems: one sparse factorization per frequency, all inputs solved in one block,
+never a dense inverse. Reduced (dense) systems: batched dense solves, or a closed form when the
+reduced model is in modal form (identity mass, diagonal stiffness and damping).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pymorembs.linalg.factorization import Factorization
+from pymorembs.system import SecondOrderSystem
+
+
+def transfer_function(system: SecondOrderSystem, frequencies_hz: np.ndarray) -> np.ndarray:
+    """Frequency response matrix at each frequency.
+
+    Parameters
+    ----------
+    system : SecondOrderSystem
+        Full sparse or reduced dense system.
+    frequencies_hz : ndarray, shape (n_f,)
+        Frequencies in Hz (omega = 2 pi f).
+
+    Returns
+    -------
+    ndarray, complex, shape (n_f, n_outputs, n_inputs)
+    """
+    frequencies_hz = np.asarray(frequencies_hz, dtype=float).ravel()
+    if system.is_sparse:
+        return _sparse_response(system, frequencies_hz)
+    return _dense_response(system, frequencies_hz)
+
+
+def _sparse_response(system: SecondOrderSystem, frequencies_hz: np.ndarray) -> np.ndarray:
+    out = np.empty((frequencies_hz.size, system.n_outputs, system.n_inputs), dtype=complex)
+    b = system.input_matrix
+    c = system.output_matrix
+    for k, f in enumerate(frequencies_hz):
+        matrix, scale = system.dynamic_matrix(2j * np.pi * f)
+        factorization = Factorization(matrix, label=f"dynamic stiffness at {f:g} Hz")
+        out[k] = (c @ factorization.solve(b)) / scale
+    return out
+
+
+def _dense_response(system: SecondOrderSystem, frequencies_hz: np.ndarray) -> np.ndarray:
+    s = 2j * np.pi * frequencies_hz
+    m, k, d = system.mass, system.stiffness, system.damping
+    k_factor = 1.0 + 1j * system.loss_factor
+    b, c = system.input_matrix, system.output_matrix
+    diagonal = _is_diagonal(m) and _is_diagonal(k) and (d is None or _is_diagonal(d))
+    if diagonal:
+        dd = np.zeros(m.shape[0]) if d is None else np.diag(d)
+        denom = s[:, None] ** 2 * np.diag(m) + s[:, None] * dd + k_factor * np.diag(k)
+        return np.einsum("ri,fi,ip->frp", c, 1.0 / denom, b)
+    a = s[:, None, None] ** 2 * m + k_factor * k
+    if d is not None:
+        a = a + s[:, None, None] * d
+    x = np.linalg.solve(a, np.broadcast_to(b.astype(complex), (s.size, *b.shape)))
+    return np.einsum("ri,fip->frp", c, x)
+
+
+def _is_diagonal(matrix: np.ndarray) -> bool:
+    return not np.any(matrix - np.diag(np.diag(matrix)))

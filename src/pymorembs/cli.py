@@ -1,0 +1,197 @@
+"""Command line: ``pymorembs example | info | reduce``.
+
+Exit codes: 0 success; 2 a user mistake (one line on stderr naming the file or key and the
+problem); 3 a numerical failure on valid input (one line with the cause); 1 a bug (traceback).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any, NoReturn
+
+import numpy as np
+import scipy.linalg as sla
+
+from pymorembs import __version__
+from pymorembs.body import ElasticBody
+from pymorembs.config import load_job
+from pymorembs.errors import PymorembsError, UserError
+from pymorembs.examples import EXAMPLES, build_example
+from pymorembs.io.matrix_market import read_matrix_files, write_matrix_files
+from pymorembs.io.native import read_body_h5, write_body_h5
+from pymorembs.pipeline import run_job
+from pymorembs.prepare import Frame, prepare
+from pymorembs.reduce.modal import eigenmodes
+
+#: Below this size ``info`` solves the eigenproblem densely.
+DENSE_LIMIT = 600
+#: Eigenvalues below this fraction of max(diag K)/max(diag M) count as rigid-body modes.
+RIGID_TOLERANCE = 1e-11
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors and exit code 2."""
+
+    def error(self, message: str) -> NoReturn:
+        sys.stderr.write(f"{self.prog}: error: {message} (see --help)\n")
+        raise SystemExit(2)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="pymorembs", description=__doc__.splitlines()[0])
+    parser.add_argument("--version", action="version", version=f"pymorembs {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    ex = sub.add_parser("example", help="write a built-in example model")
+    ex.add_argument("name", help=f"example name: {', '.join(EXAMPLES)}")
+    ex.add_argument("--out", required=True, type=Path, help="output folder")
+
+    info = sub.add_parser("info", help="facts and eigenfrequencies of a model")
+    info.add_argument("model", nargs="?", type=Path, help="native .h5 model file")
+    info.add_argument("--stiffness", type=Path, help="stiffness matrix (Matrix Market)")
+    info.add_argument("--mass", type=Path, help="mass matrix (Matrix Market)")
+    info.add_argument("--damping", type=Path, help="damping matrix (Matrix Market)")
+    info.add_argument("--dofs", type=Path, help="dof table CSV (node,direction)")
+    info.add_argument("--nodes", type=Path, help="nodes CSV (id,x,y,z)")
+    info.add_argument("--constraints", type=Path, help="constraint equations CSV")
+    info.add_argument("--fixed", type=Path, help="fixed dofs CSV (node,direction)")
+    info.add_argument("--modes", type=int, default=10, help="number of eigenfrequencies (10)")
+    info.add_argument("--json", action="store_true", help="print JSON")
+
+    red = sub.add_parser("reduce", help="run a reduction job (TOML)")
+    red.add_argument("job", type=Path, help="job file")
+    red.add_argument("--out", type=Path, help="output folder (default: out/<job name>)")
+    red.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``pymorembs`` command; returns the exit code."""
+    args = build_parser().parse_args(argv)
+    try:
+        if args.command == "example":
+            return _example(args)
+        if args.command == "info":
+            return _info(args)
+        return _reduce(args)
+    except PymorembsError as exc:
+        message = " ".join(str(exc).split())  # always one line
+        sys.stderr.write(f"pymorembs: error: {message}\n")
+        return exc.exit_code
+
+
+def _example(args: argparse.Namespace) -> int:
+    body = build_example(args.name)
+    out: Path = args.out
+    if out.exists() and not out.is_dir():
+        raise UserError(f"{out}: exists and is not a folder")
+    out.mkdir(parents=True, exist_ok=True)
+    write_body_h5(body, out / "model.h5")
+    written = write_matrix_files(body, out)
+    names = ["model.h5", *sorted(p.name for p in written.values())]
+    print(f"{args.name}: {body.n_dof} dofs, {body.n_nodes} nodes -> {out}/ ({', '.join(names)})")
+    return 0
+
+
+def _load_for_info(args: argparse.Namespace) -> ElasticBody:
+    files = {
+        key: getattr(args, key)
+        for key in ("stiffness", "mass", "damping", "dofs", "nodes", "constraints", "fixed")
+    }
+    given = {k: v for k, v in files.items() if v is not None}
+    if args.model is not None:
+        if given:
+            raise UserError("info: give either a model file or --stiffness/--mass, not both")
+        return read_body_h5(args.model)
+    if "stiffness" not in given or "mass" not in given:
+        raise UserError("info: give a model file (.h5) or both --stiffness and --mass")
+    return read_matrix_files(**given)
+
+
+def model_facts(body: ElasticBody, modes: int) -> dict[str, Any]:
+    """Sizes, mass and the lowest eigenfrequencies (Hz) of a body with its own constraints."""
+    if modes < 1:
+        raise UserError(f"--modes must be at least 1, got {modes}")
+    prepared = prepare(body, Frame("none"))
+    system = prepared.system
+    n = system.order
+    count = min(modes, n - 1) if n > DENSE_LIMIT else min(modes, n)
+    if n <= DENSE_LIMIT:
+        values = sla.eigh(
+            system.stiffness.toarray(),
+            system.mass.toarray(),
+            eigvals_only=True,
+            subset_by_index=[0, count - 1],
+        )
+    else:
+        values, _ = eigenmodes(system, count)
+    scale = system.stiffness.diagonal().max() / max(system.mass.diagonal().max(), 1e-300)
+    rigid = np.abs(values) < RIGID_TOLERANCE * scale
+    frequencies = np.where(rigid, 0.0, np.sqrt(np.clip(values, 0.0, None)) / (2 * np.pi))
+    return {
+        "name": body.name,
+        "n_dof": body.n_dof,
+        "n_nodes": body.n_nodes,
+        "n_dependent": int(prepared.elimination.dependent.size),
+        "n_fixed": int(prepared.elimination.fixed.size),
+        "n_independent": n,
+        "total_mass": body.total_mass(),
+        "rigid_body_modes": int(np.count_nonzero(rigid)),
+        "eigenfrequencies_hz": frequencies.tolist(),
+    }
+
+
+def _info(args: argparse.Namespace) -> int:
+    facts = model_facts(_load_for_info(args), args.modes)
+    if args.json:
+        print(json.dumps(facts, indent=2))
+        return 0
+    print(f"model             {facts['name']}")
+    print(
+        f"dofs              {facts['n_dof']} ({facts['n_independent']} independent, "
+        f"{facts['n_dependent']} dependent, {facts['n_fixed']} fixed)"
+    )
+    print(f"nodes             {facts['n_nodes']}")
+    print(f"total mass        {facts['total_mass']:.6g} (model mass unit)")
+    print(f"rigid-body modes  {facts['rigid_body_modes']}")
+    print("eigenfrequencies [Hz]:")
+    for k, f in enumerate(facts["eigenfrequencies_hz"], start=1):
+        print(f"  {k:4d}  {f:12.4f}" + ("  (rigid-body mode)" if f == 0.0 else ""))
+    return 0
+
+
+def _reduce(args: argparse.Namespace) -> int:
+    job = load_job(args.job)
+    out = args.out or Path("out") / args.job.stem
+    start = time.perf_counter()
+
+    def progress(message: str) -> None:
+        if not args.quiet:
+            print(f"[{time.perf_counter() - start:7.2f} s] {message}", flush=True)
+
+    summary = run_job(job, out, progress)
+    if not args.quiet:
+        print()
+        print(
+            f"{'reduction':<20} {'method':<8} {'order':>5} {'max rel. error':>15} "
+            f"{'error at 0 Hz':>14} {'time [s]':>9}"
+        )
+        for r in summary["reductions"]:
+            static = "-" if r["static_rel_error"] is None else f"{r['static_rel_error']:.2e}"
+            print(
+                f"{r['name']:<20} {r['method']:<8} {r['order']:>5} "
+                f"{r['max_rel_error']:>15.3e} {static:>14} {r['time_s']:>9.2f}"
+            )
+        print(
+            f"\nband {summary['band_hz'][0]:g}-{summary['band_hz'][1]:g} Hz, "
+            f"{summary['n_frequencies']} frequencies; results in {out}/summary.json"
+        )
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,304 @@
+"""Reduction jobs from TOML files.
+
+A job names a model, a damping model, a reference frame, inputs and outputs, a frequency band and
+one or more reductions to compare. Every key is checked: an unknown or misspelled key is an
+error that suggests the nearest valid key, never silently ignored. See ``examples/*.toml`` and the
+README for the full list.
+"""
+
+from __future__ import annotations
+
+import difflib
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from pymorembs.body import Damping
+from pymorembs.errors import UserError
+from pymorembs.prepare import Frame, Port
+
+#: Options each method accepts besides ``name``, ``method`` and ``order``.
+METHOD_OPTIONS: dict[str, tuple[str, ...]] = {
+    "modal": ("shift_hz",),
+    "krylov": ("expansion_points_hz", "moments", "tol"),
+}
+
+MODEL_FILE_KEYS = ("stiffness", "mass", "damping", "dofs", "nodes", "constraints", "fixed")
+_NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$")
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """Where the body comes from: a built-in example, a native ``.h5`` file, or matrix files."""
+
+    example: str | None = None
+    file: Path | None = None
+    matrix_files: dict[str, Path] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class ReductionSpec:
+    """One reduction of a job: a unique name, a method, an order and method options."""
+
+    name: str
+    method: str
+    order: int | None
+    options: dict[str, Any]
+
+
+@dataclass(frozen=True)
+class Job:
+    """A parsed reduction job."""
+
+    path: Path
+    model: ModelSpec
+    damping: Damping | None
+    frame: Frame
+    inputs: tuple[Port, ...]
+    outputs: tuple[Port, ...]
+    band_hz: tuple[float, float]
+    points: int
+    reductions: tuple[ReductionSpec, ...]
+    title: str = ""
+
+
+class _Table:
+    """A TOML table read key by key; :meth:`done` rejects the keys nobody asked for."""
+
+    def __init__(self, data: Any, where: str, path: Path) -> None:
+        if not isinstance(data, dict):
+            raise UserError(f"{path}: {where} must be a table")
+        self.data, self.where, self.path = data, where, path
+        self.known: set[str] = set()
+
+    def error(self, key: str, problem: str) -> UserError:
+        return UserError(f"{self.path}: {self.where}.{key}: {problem}")
+
+    def get(self, key: str, default: Any = None, required: bool = False) -> Any:
+        self.known.add(key)
+        if key not in self.data:
+            if required:
+                raise UserError(f"{self.path}: {self.where}: missing key '{key}'")
+            return default
+        return self.data[key]
+
+    def number(
+        self,
+        key: str,
+        default: float | None = None,
+        required: bool = False,
+        minimum: float | None = None,
+    ) -> float | None:
+        value = self.get(key, default, required)
+        if value is None:
+            return None
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise self.error(key, f"must be a number, got {value!r}")
+        if minimum is not None and value < minimum:
+            raise self.error(key, f"must be >= {minimum}, got {value!r}")
+        return float(value)
+
+    def integer(
+        self, key: str, default: int | None = None, required: bool = False, minimum: int = 1
+    ) -> int | None:
+        value = self.get(key, default, required)
+        if value is None:
+            return None
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise self.error(key, f"must be a whole number, got {value!r}")
+        if value < minimum:
+            raise self.error(key, f"must be >= {minimum}, got {value!r}")
+        return int(value)
+
+    def string(self, key: str, default: str | None = None, required: bool = False) -> str | None:
+        value = self.get(key, default, required)
+        if value is not None and not isinstance(value, str):
+            raise self.error(key, f"must be a string, got {value!r}")
+        return value
+
+    def done(self, extra: tuple[str, ...] = ()) -> None:
+        allowed = self.known | set(extra)
+        for key in self.data:
+            if key not in allowed:
+                hint = difflib.get_close_matches(key, sorted(allowed), n=1)
+                suggestion = (
+                    f"; did you mean '{hint[0]}'?"
+                    if hint
+                    else (f"; valid keys: {', '.join(sorted(allowed))}" if allowed else "")
+                )
+                raise UserError(f"{self.path}: {self.where}: unknown key '{key}'{suggestion}")
+
+
+def load_job(path: str | Path) -> Job:
+    """Read and check a job file. All problems are :class:`UserError` naming file and key."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise UserError(f"{path}: job file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UserError(f"{path}: cannot read job file ({exc})") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise UserError(f"{path}: invalid TOML: {exc}") from None
+    return parse_job(data, path)
+
+
+def parse_job(data: dict[str, Any], path: Path) -> Job:
+    """Check a job given as a dictionary (the parsed TOML) read from ``path``."""
+    top = _Table(data, "job", path)
+    base = path.parent
+    title = top.string("title", "") or ""
+    model = _model(_Table(top.get("model", required=True), "[model]", path), base)
+    damping = _damping(top.get("damping"), path)
+    frame = _frame(_Table(top.get("frame", required=True), "[frame]", path))
+    inputs = _ports(top.get("inputs", required=True), "inputs", path)
+    outputs_data = top.get("outputs")
+    outputs = inputs if outputs_data is None else _ports(outputs_data, "outputs", path)
+    band = _Table(top.get("band", required=True), "[band]", path)
+    f_min = band.number("f_min_hz", 0.0, minimum=0.0)
+    f_max = band.number("f_max_hz", required=True)
+    points = band.integer("points", 400, minimum=200)
+    band.done()
+    if not f_max > f_min:
+        raise UserError(
+            f"{path}: [band]: f_max_hz ({f_max}) must be greater than f_min_hz ({f_min})"
+        )
+    reductions = _reductions(top.get("reduction", required=True), path)
+    top.done()
+    return Job(
+        path, model, damping, frame, inputs, outputs, (f_min, f_max), points, reductions, title
+    )
+
+
+def _model(table: _Table, base: Path) -> ModelSpec:
+    example = table.string("example")
+    file = table.string("file")
+    files = {key: table.string(key) for key in MODEL_FILE_KEYS}
+    files = {key: base / value for key, value in files.items() if value is not None}
+    table.done()
+    given = sum(x is not None and x != {} for x in (example, file, files or None))
+    if given != 1:
+        raise UserError(
+            f"{table.path}: [model]: give exactly one of 'example', 'file' (a .h5 model) or "
+            "'stiffness' and 'mass' (Matrix Market files)"
+        )
+    if files and not ("stiffness" in files and "mass" in files):
+        raise UserError(f"{table.path}: [model]: matrix files need both 'stiffness' and 'mass'")
+    return ModelSpec(
+        example=example, file=None if file is None else base / file, matrix_files=files
+    )
+
+
+def _damping(data: Any, path: Path) -> Damping | None:
+    if data is None:
+        return None
+    table = _Table(data, "[damping]", path)
+    kind = table.string("kind", required=True)
+    if kind not in ("none", "rayleigh", "modal"):
+        raise table.error("kind", f"must be 'none', 'rayleigh' or 'modal', got {kind!r}")
+    alpha = beta = ratio = 0.0
+    if kind == "rayleigh":
+        alpha = table.number("alpha", 0.0, minimum=0.0)
+        beta = table.number("beta", 0.0, minimum=0.0)
+    elif kind == "modal":
+        ratio = table.number("ratio", required=True, minimum=0.0)
+    table.done()
+    try:
+        return Damping(kind, alpha, beta, ratio)
+    except UserError as exc:
+        raise UserError(f"{path}: [damping]: {exc}") from None
+
+
+def _frame(table: _Table) -> Frame:
+    kind = table.string("type", "tangent")
+    if kind == "tangent":
+        node = table.integer("node", required=True, minimum=-(2**62))
+        table.done()
+        return Frame("tangent", node)
+    if kind == "none":
+        table.done()
+        return Frame("none")
+    raise table.error("type", f"must be 'tangent' or 'none', got {kind!r}")
+
+
+def _ports(data: Any, key: str, path: Path) -> tuple[Port, ...]:
+    if not isinstance(data, list) or not data:
+        raise UserError(f"{path}: {key}: expected one or more [[{key}]] tables")
+    ports = []
+    for k, item in enumerate(data, start=1):
+        table = _Table(item, f"[[{key}]] #{k}", path)
+        node = table.integer("node", required=True, minimum=-(2**62))
+        directions = table.get("directions", required=True)
+        table.done()
+        if not isinstance(directions, str | list):
+            raise table.error("directions", f"must be a string like 'ux uy uz', got {directions!r}")
+        try:
+            ports.append(Port.parse(node, directions))
+        except UserError as exc:
+            raise table.error("directions", str(exc)) from None
+    return tuple(ports)
+
+
+def _reductions(data: Any, path: Path) -> tuple[ReductionSpec, ...]:
+    if not isinstance(data, list) or not data:
+        raise UserError(f"{path}: expected one or more [[reduction]] tables")
+    specs: list[ReductionSpec] = []
+    for k, item in enumerate(data, start=1):
+        table = _Table(item, f"[[reduction]] #{k}", path)
+        method = table.string("method", required=True)
+        if method not in METHOD_OPTIONS:
+            hint = difflib.get_close_matches(method, list(METHOD_OPTIONS), n=1)
+            more = f"; did you mean '{hint[0]}'?" if hint else ""
+            raise table.error(
+                "method",
+                f"unknown method {method!r}{more} (available: {', '.join(METHOD_OPTIONS)})",
+            )
+        name = table.string("name", method)
+        if not _NAME_PATTERN.match(name):
+            raise table.error("name", f"{name!r} is not a valid name (letters, digits, _ . + -)")
+        if any(spec.name == name for spec in specs):
+            raise table.error("name", f"{name!r} is used by another reduction")
+        order = table.integer("order")
+        options = {key: table.get(key) for key in METHOD_OPTIONS[method] if key in table.data}
+        table.done(METHOD_OPTIONS[method])
+        _check_options(table, method, order, options)
+        specs.append(ReductionSpec(name, method, order, options))
+    return tuple(specs)
+
+
+def _check_options(table: _Table, method: str, order: int | None, options: dict[str, Any]) -> None:
+    if method == "modal":
+        if order is None:
+            raise UserError(f"{table.path}: {table.where}: modal reduction needs 'order'")
+        table.number("shift_hz", 1.0, minimum=0.0)
+    elif method == "krylov":
+        points = table.get("expansion_points_hz", required=True)
+        if isinstance(points, int | float) and not isinstance(points, bool):
+            points = [points]
+            options["expansion_points_hz"] = points
+        if (
+            not isinstance(points, list)
+            or not points
+            or not all(
+                isinstance(p, int | float) and not isinstance(p, bool) and p >= 0 for p in points
+            )
+        ):
+            raise table.error(
+                "expansion_points_hz", f"must be a list of frequencies >= 0 in Hz, got {points!r}"
+            )
+        moments = options.get("moments")
+        if moments is None and order is None:
+            raise UserError(f"{table.path}: {table.where}: krylov needs 'moments' or 'order'")
+        if moments is not None:
+            values = moments if isinstance(moments, list) else [moments]
+            if not all(isinstance(m, int) and not isinstance(m, bool) and m >= 1 for m in values):
+                raise table.error("moments", f"must be whole numbers >= 1, got {moments!r}")
+            if isinstance(moments, list) and len(moments) != len(points):
+                raise table.error(
+                    "moments", f"{len(moments)} values for {len(points)} expansion points"
+                )
+        table.number("tol", 1e-10, minimum=0.0)

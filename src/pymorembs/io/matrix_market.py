@@ -1,0 +1,812 @@
+"""An elastic body as Matrix Market matrices plus CSV tables.
+
+One directory holds one body (:func:`write_matrix_files`, :func:`read_matrix_files`,
+:func:`read_matrix_directory`):
+
+``K.mtx``, ``M.mtx``
+    Stiffness and mass matrix, Matrix Market ``coordinate real``. Written with ``symmetric``
+    storage (lower triangle) when the matrix is exactly symmetric, otherwise ``general``. Values
+    are written as the shortest decimal that reads back to the same float, so a round trip is
+    bit-exact.
+``D.mtx``
+    Viscous damping matrix (only if the body has one): the explicit damping matrix plus the
+    Rayleigh part, ``body.viscous_damping()``. It reads back as the explicit damping matrix of a
+    body without damping model; modal damping ratios are not kept (the HDF5 format of
+    :mod:`pymorembs.io.native` keeps the damping model itself).
+``dofs.csv``
+    Header ``node,direction``; one row per equation in matrix order; direction ``ux uy uz rx ry
+    rz``.
+``nodes.csv``
+    Header ``id,x,y,z``; coordinates in full precision.
+``constraints.csv`` (only if the body has constraint equations ``q_d = G q + g``)
+    Header ``dependent_node,dependent_direction,offset,node,direction,coefficient``. One row per
+    non-zero term ``G[d, j]``: the dependent dof ``d``, its offset ``g_d`` (repeated, identical on
+    every row of the same equation), the dof ``j`` and the coefficient. A dependent dof whose row
+    of ``G`` is empty (``q_d = g_d``) is one row with empty ``node``, ``direction`` and
+    ``coefficient``::
+
+        dependent_node,dependent_direction,offset,node,direction,coefficient
+        12,uz,0.0,7,uz,0.5
+        12,uz,0.0,9,uz,0.5
+        15,rx,0.001,,,
+
+    The equations keep the order of first appearance of their dependent dof.
+``fixed.csv`` (only if the body has fixed dofs ``q_c = 0``)
+    Header ``node,direction``.
+
+Reading CSV files tolerates blank lines, lines starting with ``#``, whitespace around fields and
+upper-case directions; the header line is required. Reading Matrix Market accepts ``coordinate``
+and ``array`` files with ``real``/``integer`` values and ``general``/``symmetric`` storage; a
+symmetric coordinate file may store either triangle (not both). Every mistake raises
+:class:`~pymorembs.errors.UserError` with one line ``file:line: what is wrong``.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+import warnings
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+import scipy.sparse as sp
+
+from pymorembs.body import DIRECTIONS, ConstraintEquations, DofTable, ElasticBody, direction_code
+from pymorembs.errors import UserError
+from pymorembs.io.atomic import write_text
+
+__all__ = [
+    "FILE_NAMES",
+    "SYMMETRY_TOLERANCE",
+    "check_symmetric",
+    "read_matrix_directory",
+    "read_matrix_files",
+    "read_matrix_market",
+    "write_matrix_files",
+    "write_matrix_market",
+]
+
+PathLike = str | os.PathLike[str]
+
+#: File name of each part of a body in a directory, keyed like the arguments of
+#: :func:`read_matrix_files`.
+FILE_NAMES: dict[str, str] = {
+    "stiffness": "K.mtx",
+    "mass": "M.mtx",
+    "damping": "D.mtx",
+    "dofs": "dofs.csv",
+    "nodes": "nodes.csv",
+    "constraints": "constraints.csv",
+    "fixed": "fixed.csv",
+}
+
+#: Largest accepted ``|A[i, j] - A[j, i]|`` relative to the largest ``|A[i, j]|``.
+SYMMETRY_TOLERANCE = 1e-10
+
+_DOF_HEADER = ("node", "direction")
+_NODE_HEADER = ("id", "x", "y", "z")
+_CONSTRAINT_HEADER = (
+    "dependent_node",
+    "dependent_direction",
+    "offset",
+    "node",
+    "direction",
+    "coefficient",
+)
+_INT64_MAX = 2**63 - 1
+
+
+# ============================================================================ body <-> directory
+def write_matrix_files(body: ElasticBody, directory: PathLike) -> dict[str, Path]:
+    """Write ``body`` as Matrix Market and CSV files into ``directory`` (created if needed).
+
+    Parameters
+    ----------
+    body : ElasticBody
+        The body; its mass, stiffness and damping matrices must be symmetric (see
+        :func:`check_symmetric`).
+    directory : path-like
+        Target directory. Optional files of an earlier write (``D.mtx``, ``constraints.csv``,
+        ``fixed.csv``) that this body does not need are removed, so the directory always
+        describes exactly this body.
+
+    Returns
+    -------
+    dict of str to Path
+        The written files keyed like the arguments of :func:`read_matrix_files` (``"stiffness"``,
+        ``"mass"``, ``"damping"``, ``"dofs"``, ``"nodes"``, ``"constraints"``, ``"fixed"``), so
+        ``read_matrix_files(**write_matrix_files(body, d))`` reads the body back.
+    """
+    directory = Path(directory)
+    damping = body.viscous_damping()
+    matrices = {"stiffness": body.stiffness, "mass": body.mass}
+    if damping is not None:
+        matrices["damping"] = damping
+    for key, matrix in matrices.items():
+        check_symmetric(matrix, f"body {body.name!r}: {key} matrix")
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise UserError(f"{directory}: cannot create the directory: {err.strerror}") from None
+
+    paths: dict[str, Path] = {}
+    label = " ".join(str(body.name).split())
+    for key, matrix in matrices.items():
+        paths[key] = write_matrix_market(
+            directory / FILE_NAMES[key], matrix, comment=f"pymorembs body {label}: {key} matrix"
+        )
+    table = body.dofs
+    paths["dofs"] = _write_csv(directory / FILE_NAMES["dofs"], _DOF_HEADER, _dof_rows(table))
+    paths["nodes"] = _write_csv(
+        directory / FILE_NAMES["nodes"],
+        _NODE_HEADER,
+        (
+            f"{node},{x!r},{y!r},{z!r}"
+            for node, (x, y, z) in zip(
+                body.node_ids.tolist(), body.coordinates.tolist(), strict=True
+            )
+        ),
+    )
+    if len(body.constraints):
+        paths["constraints"] = _write_csv(
+            directory / FILE_NAMES["constraints"],
+            _CONSTRAINT_HEADER,
+            _constraint_rows(body.constraints, table),
+        )
+    if body.fixed.size:
+        paths["fixed"] = _write_csv(
+            directory / FILE_NAMES["fixed"], _DOF_HEADER, _dof_rows(table, body.fixed)
+        )
+    for key in ("damping", "constraints", "fixed"):
+        if key not in paths:
+            (directory / FILE_NAMES[key]).unlink(missing_ok=True)
+    return paths
+
+
+def read_matrix_files(
+    stiffness: PathLike,
+    mass: PathLike,
+    damping: PathLike | None = None,
+    dofs: PathLike | None = None,
+    nodes: PathLike | None = None,
+    constraints: PathLike | None = None,
+    fixed: PathLike | None = None,
+    name: str | None = None,
+) -> ElasticBody:
+    """Read a body from Matrix Market matrices and CSV tables (layout in the module docstring).
+
+    Parameters
+    ----------
+    stiffness, mass : path-like
+        Matrix Market files of ``K`` and ``M``; square, real, of equal size and symmetric to a
+        relative tolerance of :data:`SYMMETRY_TOLERANCE`.
+    damping : path-like, optional
+        Matrix Market file of an explicit viscous damping matrix (becomes
+        ``ElasticBody.damping_matrix``); symmetric like ``K`` and ``M``.
+    dofs : path-like, optional
+        ``dofs.csv``. Without it the dof table is generic: equation ``i`` (from 0) is direction
+        ``ux`` of node ``i + 1``.
+    nodes : path-like, optional
+        ``nodes.csv``; it must list every node of the dof table. Without it, every node of the dof
+        table lies at the origin.
+    constraints, fixed : path-like, optional
+        ``constraints.csv`` and ``fixed.csv``.
+    name : str, optional
+        Label of the body; default: the name of the directory holding the stiffness file.
+
+    Returns
+    -------
+    ElasticBody
+
+    Raises
+    ------
+    UserError
+        Any missing, malformed or inconsistent file, with file and line in one line.
+    """
+    k_path, m_path = Path(stiffness), Path(mass)
+    k_matrix = _read_symmetric(k_path)
+    n = k_matrix.shape[0]
+    m_matrix = _read_symmetric(m_path, like=(k_path, n))
+    d_matrix = None if damping is None else _read_symmetric(Path(damping), like=(k_path, n))
+
+    dof_lines: list[int] | None = None
+    if dofs is None:
+        table = DofTable(np.arange(1, n + 1), np.zeros(n, dtype=np.int64))
+    else:
+        dofs_path = Path(dofs)
+        table, dof_lines = _read_dofs(dofs_path)
+        if len(table) != n:
+            raise _fail(dofs_path, None, f"{len(table)} dofs but {k_path} is a {n} x {n} matrix")
+
+    if nodes is None:
+        _, first = np.unique(table.nodes, return_index=True)
+        node_ids = table.nodes[np.sort(first)]
+        coordinates = np.zeros((node_ids.size, 3))
+    else:
+        nodes_path = Path(nodes)
+        node_ids, coordinates = _read_nodes(nodes_path)
+        missing = np.flatnonzero(~np.isin(table.nodes, node_ids))
+        if missing.size:
+            first_missing = int(missing[0])
+            node = int(table.nodes[first_missing])
+            if dof_lines is None:
+                raise _fail(
+                    nodes_path,
+                    None,
+                    f"node {node} (equation {first_missing + 1} of the generic dof table) "
+                    "is not listed",
+                )
+            raise _fail(
+                Path(dofs), dof_lines[first_missing], f"node {node} is not listed in {nodes_path}"
+            )
+
+    equations = None if constraints is None else _read_constraints(Path(constraints), table)
+    fixed_dofs = np.zeros(0, dtype=np.int64) if fixed is None else _read_fixed(Path(fixed), table)
+    if name is None:
+        name = k_path.resolve().parent.name or "body"
+    try:
+        return ElasticBody(
+            node_ids=node_ids,
+            coordinates=coordinates,
+            dofs=table,
+            mass=m_matrix,
+            stiffness=k_matrix,
+            damping_matrix=d_matrix,
+            constraints=equations,
+            fixed=fixed_dofs,
+            name=name,
+        )
+    except UserError as err:
+        raise UserError(f"{k_path}: {err}") from None
+
+
+def read_matrix_directory(directory: PathLike, name: str | None = None) -> ElasticBody:
+    """Read a body written by :func:`write_matrix_files` from ``directory``.
+
+    ``K.mtx`` and ``M.mtx`` are required; ``D.mtx``, ``dofs.csv``, ``nodes.csv``,
+    ``constraints.csv`` and ``fixed.csv`` are read when present (see :func:`read_matrix_files`
+    for what their absence means). ``name`` defaults to the directory name.
+    """
+    directory = Path(directory)
+    if not directory.is_dir():
+        raise UserError(f"{directory}: not a directory of Matrix Market and CSV files")
+    paths = {key: directory / file for key, file in FILE_NAMES.items()}
+    optional = {
+        key: path
+        for key, path in paths.items()
+        if key not in ("stiffness", "mass") and path.exists()
+    }
+    return read_matrix_files(paths["stiffness"], paths["mass"], name=name, **optional)
+
+
+# ============================================================================ Matrix Market
+def write_matrix_market(
+    path: PathLike,
+    matrix: sp.spmatrix | sp.sparray | np.ndarray,
+    *,
+    symmetry: Literal["auto", "general", "symmetric"] = "auto",
+    comment: str | None = None,
+) -> Path:
+    """Write a real matrix atomically as Matrix Market ``coordinate real``.
+
+    Parameters
+    ----------
+    path : path-like
+        Target file.
+    matrix : sparse matrix or ndarray
+        Finite real matrix. Duplicate entries are summed; explicit zeros are kept.
+    symmetry : {"auto", "general", "symmetric"}
+        ``"symmetric"`` stores the lower triangle and requires an exactly symmetric matrix;
+        ``"auto"`` (default) does so whenever the matrix is exactly symmetric.
+    comment : str, optional
+        One comment line after the header.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    path = Path(path)
+    if symmetry not in ("auto", "general", "symmetric"):
+        raise ValueError(f"symmetry must be 'auto', 'general' or 'symmetric', not {symmetry!r}")
+    if np.iscomplexobj(matrix.data if sp.issparse(matrix) else np.asarray(matrix)):
+        raise UserError(f"{path}: cannot write a complex matrix")
+    a = sp.csr_matrix(matrix, dtype=float, copy=True)
+    a.sum_duplicates()
+    if not np.all(np.isfinite(a.data)):
+        raise UserError(f"{path}: cannot write a matrix with NaN or infinite entries")
+    exact = _exactly_symmetric(a)
+    if symmetry == "symmetric" and not exact:
+        raise UserError(f"{path}: symmetric storage requested but the matrix is not symmetric")
+    symmetric = exact and symmetry != "general"
+    coo = sp.tril(a, format="coo") if symmetric else a.tocoo()
+    header = [f"%%MatrixMarket matrix coordinate real {'symmetric' if symmetric else 'general'}"]
+    if comment:
+        header.append("% " + " ".join(comment.split()))
+    header.append(f"{a.shape[0]} {a.shape[1]} {coo.nnz}")
+    entries = (
+        f"{i} {j} {v!r}"
+        for i, j, v in zip(
+            (coo.row + 1).tolist(), (coo.col + 1).tolist(), coo.data.tolist(), strict=True
+        )
+    )
+    return write_text(path, "\n".join([*header, *entries]) + "\n")
+
+
+def read_matrix_market(path: PathLike) -> sp.csr_matrix:
+    """Read a real Matrix Market file (coordinate or array; general or symmetric storage).
+
+    Parameters
+    ----------
+    path : path-like
+        The file.
+
+    Returns
+    -------
+    scipy.sparse.csr_matrix
+        The full matrix (a symmetric file is mirrored), canonical (sorted, no duplicates).
+
+    Raises
+    ------
+    UserError
+        Not a Matrix Market file, complex or pattern-only values, skew/hermitian storage, an
+        entry out of range, duplicated or non-finite, both triangles in a symmetric file, or a
+        wrong number of entries; the message names file and line.
+    """
+    path = Path(path)
+    lines = _read_lines(path, "a Matrix Market file")
+    banner = lines[0].split()
+    if not banner or banner[0].lower() != "%%matrixmarket":
+        raise _fail(path, 1, "not a Matrix Market file (the first line must be %%MatrixMarket ...)")
+    if len(banner) != 5:
+        raise _fail(
+            path,
+            1,
+            "header must read %%MatrixMarket matrix coordinate|array real general|symmetric",
+        )
+    obj, layout, field, storage = (word.lower() for word in banner[1:])
+    if obj != "matrix":
+        raise _fail(path, 1, f"object {banner[1]!r} is not supported, expected 'matrix'")
+    if layout not in ("coordinate", "array"):
+        raise _fail(path, 1, f"format {banner[2]!r} is unknown, expected coordinate or array")
+    if field == "complex":
+        raise _fail(path, 1, "complex matrix; mass, stiffness and damping must be real")
+    if field == "pattern":
+        raise _fail(path, 1, "pattern-only matrix: the file holds positions but no values")
+    if field not in ("real", "double", "integer"):
+        raise _fail(path, 1, f"value type {banner[3]!r} is unknown, expected real or integer")
+    if storage not in ("general", "symmetric"):
+        raise _fail(
+            path, 1, f"{banner[4]!r} storage is not supported, expected general or symmetric"
+        )
+    symmetric = storage == "symmetric"
+
+    size_index = next(
+        (k for k in range(1, len(lines)) if lines[k].split("%", 1)[0].strip()),
+        None,
+    )
+    if size_index is None:
+        raise _fail(path, None, "no size line after the header")
+    size_line = size_index + 1
+    size_words = lines[size_index].split()
+    expected_words = 3 if layout == "coordinate" else 2
+    if len(size_words) != expected_words:
+        what = "rows columns entries" if layout == "coordinate" else "rows columns"
+        raise _fail(path, size_line, f"size line must hold {expected_words} integers ({what})")
+    sizes = [_to_int(w, path, size_line, "size", minimum=0) for w in size_words]
+    n_rows, n_cols = sizes[0], sizes[1]
+    if n_rows != n_cols:
+        raise _fail(path, size_line, f"matrix is {n_rows} x {n_cols}, not square")
+    n = n_rows
+
+    data = _DataLines(path, lines, size_index + 1)
+    if layout == "coordinate":
+        table = data.parse((("row", int), ("column", int), ("value", float)))
+        if table.size != sizes[2]:
+            raise _fail(
+                path,
+                size_line,
+                f"size line announces {sizes[2]} entries but the file holds {table.size}",
+            )
+        return _coordinate_matrix(
+            data, table["row"] - 1, table["column"] - 1, table["value"], n, symmetric
+        )
+
+    values = data.parse((("value", float),))["value"]
+    expected = n * (n + 1) // 2 if symmetric else n * n
+    if values.size != expected:
+        raise _fail(
+            path, size_line, f"{n} x {n} array needs {expected} values, found {values.size}"
+        )
+    data.require_finite(values)
+    dense = np.zeros((n, n))
+    if symmetric:  # lower triangle, column by column
+        cols, rows = np.triu_indices(n)
+        dense[rows, cols] = values
+        dense[cols, rows] = values
+    else:
+        dense[:] = values.reshape((n, n), order="F")
+    return sp.csr_matrix(dense)
+
+
+def check_symmetric(
+    matrix: sp.spmatrix | sp.sparray, where: str, tolerance: float = SYMMETRY_TOLERANCE
+) -> None:
+    """Raise :class:`UserError` if ``matrix`` is not symmetric to ``tolerance``.
+
+    The test is ``max |A - A^T| <= tolerance * max |A|``. The message starts with ``where`` and
+    names the worst entry (rows and columns counted from 1).
+    """
+    a = sp.csr_matrix(matrix)
+    if a.shape[0] != a.shape[1]:
+        raise UserError(f"{where}: matrix is {a.shape[0]} x {a.shape[1]}, not square")
+    if _exactly_symmetric(a):
+        return
+    diff = (a - a.T).tocoo()
+    worst = int(np.argmax(np.abs(diff.data)))
+    gap = float(abs(diff.data[worst]))
+    largest = float(np.max(np.abs(a.data)))
+    if gap <= tolerance * largest:
+        return
+    r, c = int(diff.row[worst]), int(diff.col[worst])
+    raise UserError(
+        f"{where}: matrix is not symmetric: entry ({r + 1}, {c + 1}) = {float(a[r, c])!r} but "
+        f"({c + 1}, {r + 1}) = {float(a[c, r])!r}; the difference {gap:.3g} exceeds {tolerance:g} "
+        f"times the largest entry {largest:.3g} (rows and columns count from 1)"
+    )
+
+
+def _exactly_symmetric(a: sp.csr_matrix) -> bool:
+    return a.shape[0] == a.shape[1] and (a != a.T).nnz == 0
+
+
+def _read_symmetric(path: Path, like: tuple[Path, int] | None = None) -> sp.csr_matrix:
+    """Read a Matrix Market file, check symmetry and, with ``like``, its size."""
+    matrix = read_matrix_market(path)
+    if like is not None and matrix.shape[0] != like[1]:
+        n = matrix.shape[0]
+        raise _fail(path, None, f"matrix is {n} x {n} but {like[0]} is {like[1]} x {like[1]}")
+    check_symmetric(matrix, str(path))
+    return matrix
+
+
+def _coordinate_matrix(
+    data: _DataLines,
+    rows: np.ndarray,
+    cols: np.ndarray,
+    values: np.ndarray,
+    n: int,
+    symmetric: bool,
+) -> sp.csr_matrix:
+    """Check the entries of a coordinate file and assemble the full matrix."""
+    outside = np.flatnonzero((rows < 0) | (rows >= n) | (cols < 0) | (cols >= n))
+    if outside.size:
+        k = int(outside[0])
+        data.fail(k, f"entry ({rows[k] + 1}, {cols[k] + 1}) lies outside the {n} x {n} matrix")
+    data.require_finite(values)
+    if symmetric:
+        below, above = np.flatnonzero(rows > cols), np.flatnonzero(rows < cols)
+        if below.size and above.size:
+            k = int(max(below[0], above[0]))
+            side = "above" if rows[k] < cols[k] else "below"
+            data.fail(
+                k,
+                f"entry ({rows[k] + 1}, {cols[k] + 1}) lies {side} the diagonal but earlier "
+                "entries lie on the other side; a symmetric file stores one triangle only",
+            )
+    if symmetric:
+        key = np.minimum(rows, cols) * (n + 1) + np.maximum(rows, cols)
+    else:
+        key = rows * (n + 1) + cols
+    order = np.argsort(key, kind="stable")
+    repeated = np.flatnonzero(key[order][1:] == key[order][:-1])
+    if repeated.size:
+        second = order[repeated + 1]
+        k = int(second.min())
+        first = int(order[repeated[np.argmin(second)]])
+        data.fail(
+            k,
+            f"entry ({rows[k] + 1}, {cols[k] + 1}) is given twice "
+            f"(first on line {data.line_of(first)})",
+        )
+    if symmetric:
+        off = rows != cols
+        rows, cols = np.concatenate([rows, cols[off]]), np.concatenate([cols, rows[off]])
+        values = np.concatenate([values, values[off]])
+    matrix = sp.csr_matrix((values, (rows, cols)), shape=(n, n))
+    matrix.sum_duplicates()
+    matrix.sort_indices()
+    return matrix
+
+
+class _DataLines:
+    """The entry lines of a Matrix Market file (after the size line), with line numbers."""
+
+    def __init__(self, path: Path, lines: list[str], start: int) -> None:
+        self.path = path
+        self.lines = lines
+        self.start = start  # index in ``lines`` of the first line after the size line
+        self._numbers: np.ndarray | None = None
+
+    def parse(self, columns: tuple[tuple[str, type], ...]) -> np.ndarray:
+        """Structured array of the entries; a malformed line raises :class:`UserError`."""
+        dtype = [(name, np.int64 if kind is int else np.float64) for name, kind in columns]
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # "input contained no data"
+                return np.loadtxt(self.lines[self.start :], dtype=dtype, comments="%", ndmin=1)
+        except ValueError as err:
+            self._locate_bad_line(columns)
+            raise _fail(self.path, None, f"cannot read the entries: {err}") from None
+
+    def _locate_bad_line(self, columns: tuple[tuple[str, type], ...]) -> None:
+        names = " ".join(name for name, _ in columns)
+        for number, text in self._content():
+            words = text.split()
+            if len(words) != len(columns):
+                raise _fail(
+                    self.path, number, f"{len(words)} values, expected {len(columns)} ({names})"
+                )
+            for word, (name, kind) in zip(words, columns, strict=True):
+                if kind is int:
+                    _to_int(word, self.path, number, name)
+                else:
+                    _to_float(word, self.path, number, name, finite=False)
+
+    def _content(self) -> list[tuple[int, str]]:
+        """(line number, text without comment) of every non-blank line."""
+        out = []
+        for index in range(self.start, len(self.lines)):
+            text = self.lines[index].split("%", 1)[0]
+            if text.strip():
+                out.append((index + 1, text))
+        return out
+
+    def line_of(self, entry: int) -> int:
+        """Line number of entry ``entry`` (counted from 0)."""
+        if self._numbers is None:
+            self._numbers = np.array([number for number, _ in self._content()], dtype=np.int64)
+        return int(self._numbers[entry])
+
+    def fail(self, entry: int, message: str) -> None:
+        """Raise :class:`UserError` about entry ``entry``."""
+        raise _fail(self.path, self.line_of(entry), message)
+
+    def require_finite(self, values: np.ndarray) -> None:
+        """Raise :class:`UserError` at the first NaN or infinite value."""
+        bad = np.flatnonzero(~np.isfinite(values))
+        if bad.size:
+            k = int(bad[0])
+            self.fail(k, f"value {values[k]!r} is not a finite number")
+
+
+# ============================================================================ CSV tables
+def _write_csv(path: Path, header: tuple[str, ...], rows: Iterable[str]) -> Path:
+    """Write a header and pre-formatted rows atomically."""
+    return write_text(path, "\n".join([",".join(header), *rows]) + "\n")
+
+
+def _dof_fields(table: DofTable, index: int) -> str:
+    """``node,direction`` of equation ``index``."""
+    return f"{table.nodes[index]},{DIRECTIONS[table.directions[index]]}"
+
+
+def _dof_rows(table: DofTable, indices: np.ndarray | None = None) -> list[str]:
+    """``node,direction`` rows of the equations ``indices`` (default: all)."""
+    if indices is None:
+        indices = np.arange(len(table))
+    return [_dof_fields(table, index) for index in indices.tolist()]
+
+
+def _constraint_rows(equations: ConstraintEquations, table: DofTable) -> list[str]:
+    """Rows of ``constraints.csv`` (layout in the module docstring)."""
+    g = equations.matrix.copy()
+    g.sum_duplicates()
+    g.sort_indices()
+    rows = []
+    for k, (dependent, offset) in enumerate(
+        zip(equations.dependent.tolist(), equations.offset.tolist(), strict=True)
+    ):
+        prefix = f"{_dof_fields(table, dependent)},{offset!r}"
+        start, stop = g.indptr[k], g.indptr[k + 1]
+        if start == stop:
+            rows.append(f"{prefix},,,")
+        for j, coefficient in zip(
+            g.indices[start:stop].tolist(), g.data[start:stop].tolist(), strict=True
+        ):
+            rows.append(f"{prefix},{_dof_fields(table, j)},{coefficient!r}")
+    return rows
+
+
+def _read_csv(path: Path, header: tuple[str, ...]) -> list[tuple[int, list[str]]]:
+    """Rows (line number, stripped fields) of a CSV file after its required header."""
+    lines = _read_lines(path, "a CSV file")
+    content = [
+        (number, text)
+        for number, text in enumerate(lines, start=1)
+        if text.strip() and not text.lstrip().startswith("#")
+    ]
+    expected = ",".join(header)
+    if not content:
+        raise _fail(path, None, f"empty file; expected the header line {expected!r}")
+    reader = csv.reader(text for _, text in content)
+    rows: list[tuple[int, list[str]]] = []
+    try:
+        for fields in reader:
+            rows.append((content[reader.line_num - 1][0], [field.strip() for field in fields]))
+    except csv.Error as err:
+        raise _fail(path, content[reader.line_num - 1][0], f"malformed CSV: {err}") from None
+    (header_line, header_fields), *body = rows
+    if [field.lower() for field in header_fields] != list(header):
+        raise _fail(path, header_line, f"header {','.join(header_fields)!r}, expected {expected!r}")
+    for number, fields in body:
+        if len(fields) != len(header):
+            raise _fail(path, number, f"{len(fields)} fields, expected {len(header)} ({expected})")
+    return body
+
+
+def _read_dofs(path: Path) -> tuple[DofTable, list[int]]:
+    """Dof table from ``dofs.csv`` and the line number of each equation."""
+    seen: dict[tuple[int, int], int] = {}
+    for number, (node_text, direction_text) in _read_csv(path, _DOF_HEADER):
+        dof = (
+            _to_int(node_text, path, number, "node id"),
+            _to_direction(direction_text, path, number),
+        )
+        if dof in seen:
+            raise _fail(
+                path,
+                number,
+                f"dof {dof[0]}:{DIRECTIONS[dof[1]]} is listed twice (first on line {seen[dof]})",
+            )
+        seen[dof] = number
+    nodes = np.array([node for node, _ in seen], dtype=np.int64)
+    directions = np.array([code for _, code in seen], dtype=np.int64)
+    return DofTable(nodes, directions), list(seen.values())
+
+
+def _read_nodes(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Node ids and coordinates from ``nodes.csv``."""
+    seen: dict[int, int] = {}
+    coordinates = []
+    for number, (id_text, *xyz) in _read_csv(path, _NODE_HEADER):
+        node = _to_int(id_text, path, number, "node id")
+        if node in seen:
+            raise _fail(path, number, f"node {node} is listed twice (first on line {seen[node]})")
+        seen[node] = number
+        coordinates.append(
+            [_to_float(text, path, number, axis) for text, axis in zip(xyz, "xyz", strict=True)]
+        )
+    return np.array(list(seen), dtype=np.int64), np.array(coordinates, dtype=float).reshape(-1, 3)
+
+
+def _read_fixed(path: Path, table: DofTable) -> np.ndarray:
+    """Equation indices of the dofs in ``fixed.csv``."""
+    return np.array(
+        [
+            _to_dof(node, direction, table, path, number)
+            for number, (node, direction) in _read_csv(path, _DOF_HEADER)
+        ],
+        dtype=np.int64,
+    )
+
+
+def _read_constraints(path: Path, table: DofTable) -> ConstraintEquations:
+    """Constraint equations from ``constraints.csv`` (layout in the module docstring)."""
+    equations: dict[int, tuple[float, int]] = {}  # dependent -> (offset, line)
+    terms: dict[tuple[int, int], tuple[float, int]] = {}  # (dependent, dof) -> (coefficient, line)
+    for number, fields in _read_csv(path, _CONSTRAINT_HEADER):
+        dependent = _to_dof(fields[0], fields[1], table, path, number)
+        offset = _to_float(fields[2], path, number, "offset")
+        if dependent not in equations:
+            equations[dependent] = (offset, number)
+        elif equations[dependent][0] != offset:
+            first_offset, first_line = equations[dependent]
+            raise _fail(
+                path,
+                number,
+                f"offset {offset!r} of {table.label(dependent)} differs from {first_offset!r} "
+                f"on line {first_line}",
+            )
+        term = fields[3:]
+        if not any(term):
+            continue
+        if not all(term):
+            raise _fail(
+                path,
+                number,
+                "node, direction and coefficient must be all given or all empty (q_d = offset)",
+            )
+        column = _to_dof(term[0], term[1], table, path, number)
+        if (dependent, column) in terms:
+            raise _fail(
+                path,
+                number,
+                f"term {table.label(column)} of {table.label(dependent)} is given twice "
+                f"(first on line {terms[dependent, column][1]})",
+            )
+        terms[dependent, column] = (_to_float(term[2], path, number, "coefficient"), number)
+    row_of = {dependent: k for k, dependent in enumerate(equations)}
+    rows = np.array([row_of[d] for d, _ in terms], dtype=np.int64)
+    cols = np.array([c for _, c in terms], dtype=np.int64)
+    values = np.array([v for v, _ in terms.values()], dtype=float)
+    matrix = sp.csr_matrix((values, (rows, cols)), shape=(len(equations), len(table)))
+    matrix.sort_indices()
+    return ConstraintEquations(
+        np.array(list(equations), dtype=np.int64),
+        matrix,
+        np.array([offset for offset, _ in equations.values()], dtype=float),
+    )
+
+
+# ============================================================================ small helpers
+def _read_lines(path: Path, kind: str) -> list[str]:
+    """The lines of a text file (at least one); :class:`UserError` if it cannot be read."""
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except FileNotFoundError:
+        raise _fail(path, None, f"file not found (expected {kind})") from None
+    except IsADirectoryError:
+        raise _fail(path, None, f"is a directory, expected {kind}") from None
+    except UnicodeDecodeError:
+        raise _fail(path, None, f"not a text file (expected {kind})") from None
+    except OSError as err:
+        raise _fail(path, None, f"cannot read: {err.strerror or err}") from None
+    return text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
+
+
+def _fail(path: Path, line: int | None, message: str) -> UserError:
+    """A one-line :class:`UserError` ``path:line: message``."""
+    where = str(path) if line is None else f"{path}:{line}"
+    return UserError(f"{where}: {' '.join(message.splitlines())}")
+
+
+def _to_int(text: str, path: Path, line: int, what: str, minimum: int | None = None) -> int:
+    """An integer field (within int64)."""
+    try:
+        if "_" in text:
+            raise ValueError
+        value = int(text)
+    except ValueError:
+        raise _fail(path, line, f"{what} {text!r} is not an integer") from None
+    if not -_INT64_MAX <= value <= _INT64_MAX:
+        raise _fail(path, line, f"{what} {text!r} is out of range")
+    if minimum is not None and value < minimum:
+        raise _fail(path, line, f"{what} {text!r} must be at least {minimum}")
+    return value
+
+
+def _to_float(text: str, path: Path, line: int, what: str, finite: bool = True) -> float:
+    """A real-number field; with ``finite``, NaN and infinity are rejected."""
+    try:
+        if "_" in text:
+            raise ValueError
+        value = float(text)
+    except ValueError:
+        raise _fail(path, line, f"{what} {text!r} is not a number") from None
+    if finite and not math.isfinite(value):
+        raise _fail(path, line, f"{what} {text!r} is not a finite number")
+    return value
+
+
+def _to_direction(text: str, path: Path, line: int) -> int:
+    """A direction field (``ux`` ... ``rz``, any case)."""
+    try:
+        return direction_code(text)
+    except UserError:
+        raise _fail(
+            path, line, f"unknown direction {text!r}, expected one of {' '.join(DIRECTIONS)}"
+        ) from None
+
+
+def _to_dof(node_text: str, direction_text: str, table: DofTable, path: Path, line: int) -> int:
+    """Equation index of the dof named by a node field and a direction field."""
+    node = _to_int(node_text, path, line, "node id")
+    code = _to_direction(direction_text, path, line)
+    try:
+        return table.index(node, code)
+    except UserError as err:
+        raise _fail(path, line, str(err)) from None

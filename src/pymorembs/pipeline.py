@@ -1,0 +1,256 @@
+"""A reduction job end to end: model -> prepare -> reduce (each method) -> check -> write.
+
+All files of a run are written into a temporary folder next to the output folder, which replaces
+the output folder only when the whole job succeeded: a failed run leaves no partial output.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import scipy.io
+
+from pymorembs import __version__
+from pymorembs.analysis.error import frequency_grid, relative_error
+from pymorembs.analysis.transfer import transfer_function
+from pymorembs.body import ElasticBody
+from pymorembs.config import Job, ModelSpec, ReductionSpec
+from pymorembs.errors import UserError
+from pymorembs.examples import build_example
+from pymorembs.io.atomic import atomic_path, write_text
+from pymorembs.io.matrix_market import read_matrix_files
+from pymorembs.io.native import read_body_h5
+from pymorembs.prepare import PreparedModel, prepare
+from pymorembs.reduce.krylov import krylov_reduction
+from pymorembs.reduce.modal import modal_reduction
+from pymorembs.reduce.projection import Projection, ReducedModel, reduced_model
+from pymorembs.report.plots import plot_relative_errors
+from pymorembs.system import SecondOrderSystem
+
+Progress = Callable[[str], None]
+
+
+def load_model(spec: ModelSpec) -> ElasticBody:
+    """The body a job's ``[model]`` names."""
+    if spec.example is not None:
+        return build_example(spec.example)
+    if spec.file is not None:
+        return read_body_h5(spec.file)
+    return read_matrix_files(**spec.matrix_files)
+
+
+def run_reduction(system: SecondOrderSystem, spec: ReductionSpec) -> Projection:
+    """Run one reduction method on a prepared system."""
+    options = spec.options
+    if spec.method == "modal":
+        return modal_reduction(system, spec.order, shift_hz=options.get("shift_hz", 1.0))
+    if spec.method == "krylov":
+        return krylov_reduction(
+            system,
+            options["expansion_points_hz"],
+            moments=options.get("moments"),
+            order=spec.order,
+            tol=options.get("tol", 1e-10),
+        )
+    raise UserError(f"unknown method {spec.method!r}")  # config rejects it earlier
+
+
+def run_job(job: Job, out_dir: str | Path, progress: Progress | None = None) -> dict[str, Any]:
+    """Run ``job`` and write its results into ``out_dir``; return the summary.
+
+    Written: ``summary.json``, ``error.png`` (all reductions), and per reduction a folder with
+    ``reduced.npz``, the reduced matrices as Matrix Market files, ``error.csv`` and
+    ``error.png``.
+    """
+    say = progress or (lambda _msg: None)
+    out_dir = Path(out_dir)
+    timings: dict[str, float] = {}
+    clock = time.perf_counter()
+
+    say("loading model")
+    body = load_model(job.model)
+    if job.damping is not None:
+        body = body.with_damping(job.damping)
+    timings["load_s"] = time.perf_counter() - clock
+
+    tick = time.perf_counter()
+    say("preparing: frame, constraint elimination, inputs and outputs")
+    prepared = prepare(body, job.frame, list(job.inputs), list(job.outputs))
+    system = prepared.system
+    timings["prepare_s"] = time.perf_counter() - tick
+    for warning in prepared.warnings:
+        say(f"warning: {warning}")
+
+    tick = time.perf_counter()
+    frequencies = frequency_grid(*job.band_hz, job.points)
+    say(f"frequency response of the full model at {frequencies.size} frequencies")
+    full_response = transfer_function(system, frequencies)
+    timings["full_response_s"] = time.perf_counter() - tick
+
+    parent = out_dir.resolve().parent
+    parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=parent))
+    try:
+        entries, errors = [], {}
+        for spec in job.reductions:
+            say(f"reduction '{spec.name}' ({spec.method})")
+            entry, eps = _reduce_one(prepared, spec, frequencies, full_response, staging)
+            entries.append(entry)
+            errors[spec.name] = eps
+        plot_relative_errors(
+            frequencies,
+            errors,
+            staging / "error.png",
+            title=job.title or "Relative error of the reduced models",
+        )
+        timings["total_s"] = time.perf_counter() - clock
+        summary = {
+            "pymorembs_version": __version__,
+            "job": str(job.path),
+            "model": {
+                "name": body.name,
+                "n_dof": body.n_dof,
+                "n_nodes": body.n_nodes,
+                "n_independent": system.order,
+                "n_dependent": int(prepared.elimination.dependent.size),
+                "n_fixed": int(prepared.elimination.fixed.size),
+                "n_inputs": system.n_inputs,
+                "n_outputs": system.n_outputs,
+                "inputs": list(system.input_labels),
+                "outputs": list(system.output_labels),
+                "total_mass": body.total_mass(),
+                "damping": {
+                    "kind": body.damping.kind,
+                    "alpha": body.damping.alpha,
+                    "beta": body.damping.beta,
+                    "ratio": body.damping.ratio,
+                },
+                "frame": {"type": job.frame.kind, "node": job.frame.node},
+            },
+            "band_hz": list(job.band_hz),
+            "n_frequencies": int(frequencies.size),
+            "reductions": entries,
+            "warnings": list(prepared.warnings),
+            "timings_s": timings,
+            "files": ["summary.json", "error.png"],
+        }
+        write_text(staging / "summary.json", json.dumps(summary, indent=2) + "\n")
+        _replace_folder(staging, out_dir)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+    return summary
+
+
+def _reduce_one(
+    prepared: PreparedModel,
+    spec: ReductionSpec,
+    frequencies: np.ndarray,
+    full_response: np.ndarray,
+    staging: Path,
+) -> tuple[dict[str, Any], np.ndarray]:
+    tick = time.perf_counter()
+    projection = run_reduction(prepared.system, spec)
+    model = reduced_model(prepared.system, projection)  # checked before anything is written
+    elapsed = time.perf_counter() - tick
+    eps = relative_error(full_response, transfer_function(model.system, frequencies))
+    static = float(eps[0]) if frequencies[0] == 0.0 else None
+    folder = staging / spec.name
+    folder.mkdir()
+    files = _write_reduced(model, prepared, folder)
+    plot_relative_errors(
+        frequencies,
+        {spec.name: eps},
+        folder / "error.png",
+        title=f"Relative error of '{spec.name}' ({spec.method}, n = {projection.order})",
+    )
+    table = np.column_stack([frequencies, eps])
+    with atomic_path(folder / "error.csv") as tmp:
+        np.savetxt(tmp, table, delimiter=",", header="frequency_hz,relative_error", comments="")
+    files += ["error.png", "error.csv"]
+    entry = {
+        "name": spec.name,
+        "method": spec.method,
+        "order": model.projection.order,
+        "max_rel_error": float(np.max(eps)),
+        "static_rel_error": static,
+        "error_estimate": projection.error_estimate,
+        "error_bound": projection.error_bound,
+        "time_s": elapsed,
+        "parameters": _jsonable(projection.parameters),
+        "eigenfrequencies_hz": model.eigenfrequencies_hz.tolist(),
+        "files": [f"{spec.name}/{name}" for name in files],
+    }
+    return entry, eps
+
+
+def _write_reduced(model: ReducedModel, prepared: PreparedModel, folder: Path) -> list[str]:
+    """``reduced.npz`` and Matrix Market files of the reduced matrices."""
+    system = model.system
+    basis = prepared.expand(model.projection.V)  # eq. 18: all dofs
+    dofs = prepared.body.dofs
+    arrays = {
+        "M": system.mass,
+        "K": system.stiffness,
+        "D": model.damping_matrix,
+        "B": system.input_matrix,
+        "C": system.output_matrix,
+        "V": basis,
+        "eigenfrequencies_hz": model.eigenfrequencies_hz,
+        "dof_nodes": dofs.nodes,
+        "dof_directions": dofs.directions,
+        "input_labels": np.array(system.input_labels),
+        "output_labels": np.array(system.output_labels),
+    }
+    with atomic_path(folder / "reduced.npz") as tmp, open(tmp, "wb") as fh:
+        np.savez_compressed(fh, **arrays)
+    names = ["reduced.npz"]
+    for key in ("M", "K", "D", "B", "C"):
+        name = f"{key}.mtx"
+        with atomic_path(folder / name) as tmp:
+            scipy.io.mmwrite(str(tmp), np.asarray(arrays[key]), precision=17)
+        names.append(name)
+    return names
+
+
+def _replace_folder(staging: Path, target: Path) -> None:
+    """Move the finished files of ``staging`` into ``target``; remove ``staging``.
+
+    Entries of an earlier run with the same names are replaced; other files in ``target`` are
+    left alone. ``summary.json`` moves last, so its presence marks a complete result.
+    """
+    if target.exists() and not target.is_dir():
+        raise UserError(f"{target}: output path exists and is not a folder")
+    target.mkdir(parents=True, exist_ok=True)
+    entries = sorted(staging.iterdir(), key=lambda p: p.name == "summary.json")
+    for entry in entries:
+        destination = target / entry.name
+        if destination.is_dir() and not destination.is_symlink():
+            old = staging / f".old-{entry.name}"
+            destination.rename(old)
+        elif destination.exists() or destination.is_symlink():
+            destination.unlink()
+        entry.rename(destination)
+    shutil.rmtree(staging, ignore_errors=True)
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+__all__ = ["load_model", "run_job", "run_reduction"]

@@ -1,0 +1,131 @@
+"""Preparation of a body for reduction (paper section 2): frame, ports, elimination.
+
+:func:`prepare` turns an :class:`~pymorembs.body.ElasticBody` into the second-order system of its
+independent dofs, ``M* q'' + D* q' + K* q = B* u + f*,  y = C* q`` (eqs. 11-17), and keeps the map
+back to all dofs (eq. 18).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pymorembs.body import ElasticBody
+from pymorembs.errors import UserError
+from pymorembs.prepare.elimination import Elimination, eliminate
+from pymorembs.prepare.ports import Port, selection_matrix
+from pymorembs.prepare.tangent_frame import tangent_frame
+from pymorembs.system import SecondOrderSystem
+
+__all__ = ["Frame", "Port", "PreparedModel", "eliminate", "prepare", "tangent_frame"]
+
+
+@dataclass(frozen=True)
+class Frame:
+    """Choice of the reference frame.
+
+    ``kind = "tangent"`` with ``node``: tangent frame at that node (paper section 2.1).
+    ``kind = "none"``: the body as given (its own fixed dofs only).
+    """
+
+    kind: str = "tangent"
+    node: int | None = None
+
+    def apply(self, body: ElasticBody) -> ElasticBody:
+        if self.kind == "tangent":
+            if self.node is None:
+                raise UserError("tangent frame needs a node")
+            return tangent_frame(body, self.node)
+        if self.kind == "none":
+            return body
+        raise UserError(f"frame type {self.kind!r} is unknown; use 'tangent' or 'none'")
+
+
+@dataclass(frozen=True, eq=False)
+class PreparedModel:
+    """A body ready for reduction.
+
+    Attributes
+    ----------
+    body : ElasticBody
+        The body in its reference frame (translated coordinates, frame dofs fixed).
+    elimination : Elimination
+        ``q = T q_i + t``.
+    system : SecondOrderSystem
+        The sparse system of the independent dofs.
+    warnings : tuple of str
+        Facts the user should know (e.g. a port on fixed dofs).
+    """
+
+    body: ElasticBody
+    elimination: Elimination
+    system: SecondOrderSystem
+    warnings: tuple[str, ...] = ()
+
+    def expand(self, basis: np.ndarray) -> np.ndarray:
+        """A basis of the independent dofs expanded to all dofs (eq. 18), shape (n_dof, n)."""
+        return self.elimination.expand(basis)
+
+
+def prepare(
+    body: ElasticBody,
+    frame: Frame,
+    inputs: list[Port] | None = None,
+    outputs: list[Port] | None = None,
+) -> PreparedModel:
+    """Apply the frame, eliminate dependent and fixed dofs and assemble ``B*`` and ``C*``.
+
+    Parameters
+    ----------
+    body : ElasticBody
+    frame : Frame
+    inputs, outputs : list of Port, optional
+        Forces/moments in and displacements/rotations out. Without inputs (outputs), the system
+        gets an empty input (output) matrix.
+    """
+    framed = frame.apply(body)
+    elimination = eliminate(framed)
+    if elimination.n_independent == 0:
+        raise UserError("the model has no independent dofs left after fixing and elimination")
+    warnings: list[str] = []
+    n_i = elimination.n_independent
+    if inputs:
+        b_all, input_labels = selection_matrix(framed, inputs)
+        b = elimination.inputs(b_all)
+        warnings += _zero_ports(b, input_labels, "input", axis=0)
+    else:
+        b, input_labels = np.zeros((n_i, 0)), []
+    if outputs:
+        c_all, output_labels = selection_matrix(framed, outputs)
+        c = elimination.outputs(c_all.T)
+        warnings += _zero_ports(c, output_labels, "output", axis=1)
+    else:
+        c, output_labels = np.zeros((0, n_i)), []
+
+    damping = framed.damping
+    modal = damping.kind == "modal"
+    system = SecondOrderSystem(
+        mass=elimination.matrix(framed.mass),
+        stiffness=elimination.matrix(framed.stiffness),
+        damping=elimination.matrix(framed.viscous_damping()),
+        input_matrix=b,
+        output_matrix=c,
+        loss_factor=2.0 * damping.ratio if modal else 0.0,
+        modal_damping_ratio=damping.ratio if modal else 0.0,
+        input_labels=tuple(input_labels),
+        output_labels=tuple(output_labels),
+        static_load=elimination.load(framed.stiffness),
+    )
+    return PreparedModel(framed, elimination, system, tuple(warnings))
+
+
+def _zero_ports(matrix: np.ndarray, labels: list[str], what: str, axis: int) -> list[str]:
+    """Warnings for ports that act only on fixed dofs (zero column of B / row of C)."""
+    norms = np.abs(matrix).max(axis=axis) if matrix.size else np.zeros(len(labels))
+    return [
+        f"{what} {label} acts on a fixed dof of the frame: its elastic transfer is zero "
+        "(it moves the reference frame only)"
+        for label, norm in zip(labels, norms, strict=True)
+        if norm == 0.0
+    ]

@@ -1,0 +1,209 @@
+"""Moment matching by projection on second-order Krylov subspaces (paper section 3.1).
+
+At an expansion point ``s_k`` the input Krylov subspace is (eqs. 19-21)
+
+    G_r(A_1, A_2, P_0) = span{P_0, ..., P_{r-1}},
+    P_0 = -K_k^{-1} B,  P_1 = A_1 P_0,  P_i = A_1 P_{i-1} + A_2 P_{i-2},
+    A_1 = -K_k^{-1} D_k,  A_2 = -K_k^{-1} M,
+    K_k = s_k^2 M + s_k D + K,  D_k = 2 s_k M + D.
+
+A one-sided projection ``V = W`` whose span contains the union of these subspaces over all
+points matches the first ``r_k`` moments of ``H(s)`` about every ``s_k``; for ``C = B^T`` (inputs
+and outputs at the same dofs) and symmetric matrices, ``2 r_k`` moments match.
+
+The basis is built by a block second-order Arnoldi process: the pairs ``(P_i, gamma P_{i-1})`` are
+orthonormalised in the 2n-dimensional linearised space, with reorthogonalisation and
+rank-revealing deflation, and the span of their upper halves -- exactly
+``span{P_0, ..., P_{r-1}}`` -- is orthonormalised again into ``V``. One factorization of ``K_k``
+serves all moments at a point.
+
+Expansion points are frequencies ``f_k`` in Hz, ``s_k = i 2 pi f_k``. Real arithmetic is used
+wherever possible: at 0 Hz, and for systems without viscous damping, where with
+``P_i = i^i R_i`` the recurrence ``R_i = -2 omega K_k^{-1} M R_{i-1} + K_k^{-1} M R_{i-2}`` is real
+(``K_k = K - omega^2 M``). With viscous damping at ``f_k > 0`` the recurrence is complex and the
+real and imaginary parts of each block enter ``V``. A structural loss factor is not part of the
+recurrence.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from pymorembs.errors import UserError
+from pymorembs.linalg.factorization import Factorization
+from pymorembs.linalg.orthogonalization import OrthonormalBasis
+from pymorembs.reduce.projection import Projection
+from pymorembs.system import SecondOrderSystem
+
+#: Safety cap on the number of moments per point when only an order is requested.
+MAX_MOMENTS = 500
+
+
+class SecondOrderArnoldi:
+    """Block second-order Arnoldi at one expansion point.
+
+    Parameters
+    ----------
+    system : SecondOrderSystem
+        Sparse full system (its viscous damping is used, the loss factor is not).
+    frequency_hz : float
+        Expansion point ``s = i 2 pi f``, f >= 0.
+    tol : float
+        Deflation tolerance of the orthonormalisation.
+    """
+
+    def __init__(self, system: SecondOrderSystem, frequency_hz: float, tol: float) -> None:
+        self.frequency_hz = float(frequency_hz)
+        omega = 2.0 * np.pi * self.frequency_hz
+        self.n = system.order
+        self.mass = system.mass
+        self.stiffness = system.stiffness
+        damping = system.damping
+        k_hat = system.stiffness - omega**2 * system.mass
+        if omega == 0.0 or damping is None:
+            # real recurrence; rotated (R_i) for f > 0 without damping
+            self.kind = "real"
+            self.d_hat = damping if omega == 0.0 else system.mass
+            self.coef_d, self.coef_m = (-1.0, -1.0) if omega == 0.0 else (-2.0 * omega, 1.0)
+            dtype: type = float
+        else:
+            self.kind = "complex"
+            s = 1j * omega
+            k_hat = k_hat + s * damping
+            self.d_hat = 2.0 * s * system.mass + damping
+            self.coef_d, self.coef_m = -1.0, -1.0
+            dtype = complex
+        self.factorization = Factorization(
+            k_hat, label=f"K(s) at expansion point {self.frequency_hz:g} Hz"
+        )
+        self.basis = OrthonormalBasis(2 * self.n, tol, dtype=dtype)
+        self.block: np.ndarray | None = None
+        self.gamma = 1.0
+        self.input_matrix = system.input_matrix
+        self.moments = 0
+
+    def next_block(self) -> np.ndarray:
+        """Directions of the next moment, as a real block of shape (n, k); (n, 0) when exhausted."""
+        n = self.n
+        if self.block is None:
+            top = self.factorization.solve(self.input_matrix)  # P_0 up to sign
+            self.gamma = 1.0 / self._frequency_scale(top)
+            candidate = np.vstack([top, np.zeros_like(top)])
+        elif self.block.shape[1] == 0:
+            return np.zeros((n, 0))
+        else:
+            top, bottom = self.block[:n], self.block[n:]
+            rhs = self.coef_m * (self.mass @ bottom) / self.gamma
+            if self.d_hat is not None:
+                rhs = rhs + self.coef_d * (self.d_hat @ top)
+            candidate = np.vstack([self.factorization.solve(rhs), self.gamma * top])
+        self.block = self.basis.add(candidate)
+        self.moments += 1
+        top = self.block[:n]
+        return np.hstack([top.real, top.imag]) if self.kind == "complex" else top
+
+    def _frequency_scale(self, p0: np.ndarray) -> float:
+        """A circular frequency (rad/s) that balances the halves of the linearised vectors.
+
+        ``max(omega_k, omega_R)`` with ``omega_R`` the Rayleigh quotient frequency of ``P_0``.
+        """
+        p = np.real(p0) if np.any(np.real(p0)) else np.imag(p0)
+        num = float(np.sum(p * (self.stiffness @ p)))
+        den = float(np.sum(p * (self.mass @ p)))
+        omega_r = np.sqrt(num / den) if den > 0 and num > 0 else 1.0
+        return max(2.0 * np.pi * self.frequency_hz, omega_r)
+
+
+def krylov_reduction(
+    system: SecondOrderSystem,
+    expansion_points_hz: Sequence[float],
+    moments: int | Sequence[int] | None = None,
+    order: int | None = None,
+    tol: float = 1e-10,
+) -> Projection:
+    """One-sided second-order Krylov reduction (``V = W``) at several expansion points.
+
+    Parameters
+    ----------
+    system : SecondOrderSystem
+        Sparse full system with input matrix ``B``.
+    expansion_points_hz : sequence of float
+        Frequencies ``f_k >= 0`` in Hz; ``s_k = i 2 pi f_k``.
+    moments : int or sequence of int, optional
+        Number of moments (blocks) per point: ``r_k``. One number applies to all points.
+    order : int, optional
+        Size of the reduced model. Without ``moments``, blocks are added round-robin over the
+        points, lowest moments first, until the basis has this size (the last block is cut to
+        its dominant directions). With ``moments`` too, it caps the size.
+    tol : float
+        Deflation tolerance (relative).
+
+    Returns
+    -------
+    Projection
+        ``parameters`` holds the points, the moments computed per point and the factorizations.
+    """
+    points = [float(f) for f in expansion_points_hz]
+    if not points:
+        raise UserError("krylov: at least one expansion point is needed")
+    if any(not np.isfinite(f) or f < 0 for f in points):
+        raise UserError(
+            f"krylov: expansion points must be finite frequencies >= 0 Hz, got {points}"
+        )
+    if len(set(points)) != len(points):
+        raise UserError(f"krylov: expansion points repeat: {points}")
+    if moments is None and order is None:
+        raise UserError("krylov: give 'moments' (per expansion point) or 'order'")
+    if isinstance(moments, int | np.integer):
+        moments = [int(moments)] * len(points)
+    if moments is not None:
+        moments = [int(m) for m in moments]
+        if len(moments) != len(points):
+            raise UserError(
+                f"krylov: {len(moments)} moment counts for {len(points)} expansion points"
+            )
+        if any(m < 1 for m in moments):
+            raise UserError("krylov: every expansion point needs at least 1 moment")
+    if order is not None and order < 1:
+        raise UserError(f"krylov: order must be at least 1, got {order}")
+    if order is not None and order > system.order:
+        raise UserError(f"krylov: order {order} exceeds the {system.order} independent dofs")
+    if system.n_inputs == 0:
+        raise UserError("krylov: the system has no inputs")
+
+    limits = moments or [MAX_MOMENTS] * len(points)
+    arnoldi = [SecondOrderArnoldi(system, f, tol) for f in points]
+    basis = OrthonormalBasis(system.order, tol)
+    exhausted = [False] * len(points)
+    for step in range(max(limits)):
+        for k, process in enumerate(arnoldi):
+            if exhausted[k] or step >= limits[k]:
+                continue
+            block = process.next_block()
+            if block.shape[1] == 0:
+                exhausted[k] = True
+                continue
+            room = None if order is None else order - basis.size
+            basis.add(block, limit=room, reference=1.0)  # tops of unit 2n-vectors
+            if order is not None and basis.size >= order:
+                break
+        if (order is not None and basis.size >= order) or all(
+            exhausted[k] or step + 1 >= limits[k] for k in range(len(points))
+        ):
+            break
+    v = basis.matrix
+    if v.shape[1] == 0:
+        raise UserError("krylov: the input matrix is zero on the independent dofs")
+    return Projection(
+        V=v,
+        W=v,
+        method="krylov",
+        parameters={
+            "expansion_points_hz": points,
+            "moments": [p.moments for p in arnoldi],
+            "factorizations": len(points),
+            "order": int(v.shape[1]),
+        },
+    )

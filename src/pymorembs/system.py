@@ -1,0 +1,174 @@
+"""Linear second-order input/output systems, full (sparse) and reduced (dense).
+
+``M q'' + D q' + (1 + i eta) K q = B u,  y = C q``  (paper eq. 4, with ``eta`` the loss factor
+used for a modal damping ratio, see :class:`pymorembs.body.Damping`).
+
+The transfer matrix is ``H(s) = C (s^2 M + s D + (1 + i eta) K)^{-1} B`` with ``s = i omega``,
+omega in rad/s.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from pymorembs.errors import NumericalError
+from pymorembs.linalg.products import extended_product
+
+
+@dataclass(frozen=True, eq=False)
+class SecondOrderSystem:
+    """A second-order MIMO system.
+
+    Parameters
+    ----------
+    mass, stiffness : sparse matrix or ndarray, shape (n, n)
+        Symmetric ``M`` and ``K``. Sparse for full models, dense for reduced ones.
+    damping : sparse matrix or ndarray, shape (n, n), or None
+        Viscous damping ``D`` (None: no viscous damping).
+    input_matrix : ndarray, shape (n, p)
+        ``B``.
+    output_matrix : ndarray, shape (r, n)
+        ``C``.
+    loss_factor : float
+        Structural loss factor ``eta`` on the stiffness in the frequency domain (0: none).
+    modal_damping_ratio : float
+        Damping ratio for the viscous modal damping of a reduced model in the time domain
+        (0: none). Kept alongside ``loss_factor = 2 * ratio``.
+    input_labels, output_labels : tuple of str
+        Names of the inputs and outputs, e.g. ``"1:ux"``.
+    static_load : ndarray, shape (n,), optional
+        Constant load ``f*`` from constraint offsets (eq. 16).
+    """
+
+    mass: sp.csr_matrix | np.ndarray
+    stiffness: sp.csr_matrix | np.ndarray
+    damping: sp.csr_matrix | np.ndarray | None
+    input_matrix: np.ndarray
+    output_matrix: np.ndarray
+    loss_factor: float = 0.0
+    modal_damping_ratio: float = 0.0
+    input_labels: tuple[str, ...] = ()
+    output_labels: tuple[str, ...] = ()
+    static_load: np.ndarray | None = field(default=None)
+
+    def __post_init__(self) -> None:
+        n = self.mass.shape[0]
+        for label, matrix in (("stiffness", self.stiffness), ("damping", self.damping)):
+            if matrix is not None and matrix.shape != (n, n):
+                raise ValueError(f"{label} has shape {matrix.shape}, expected ({n}, {n})")
+        b = np.asarray(self.input_matrix)
+        c = np.asarray(self.output_matrix)
+        if b.ndim != 2 or b.shape[0] != n:
+            raise ValueError(f"input matrix has shape {b.shape}, expected ({n}, p)")
+        if c.ndim != 2 or c.shape[1] != n:
+            raise ValueError(f"output matrix has shape {c.shape}, expected (r, {n})")
+        object.__setattr__(self, "input_matrix", b)
+        object.__setattr__(self, "output_matrix", c)
+        if not self.input_labels:
+            object.__setattr__(self, "input_labels", tuple(f"u{i}" for i in range(b.shape[1])))
+        if not self.output_labels:
+            object.__setattr__(self, "output_labels", tuple(f"y{i}" for i in range(c.shape[0])))
+
+    @property
+    def order(self) -> int:
+        """Number of (independent) coordinates ``n``."""
+        return int(self.mass.shape[0])
+
+    @property
+    def n_inputs(self) -> int:
+        return int(self.input_matrix.shape[1])
+
+    @property
+    def n_outputs(self) -> int:
+        return int(self.output_matrix.shape[0])
+
+    @property
+    def is_sparse(self) -> bool:
+        return sp.issparse(self.stiffness)
+
+    def dynamic_matrix(self, s: complex) -> tuple[sp.csc_matrix | np.ndarray, complex]:
+        """``s^2 M + s D + (1 + i eta) K`` at one Laplace variable ``s`` (rad/s), factored.
+
+        Returns ``(A, c)`` with the dynamic stiffness equal to ``c * A``,
+        ``A = K + (s^2 M + s D) / c`` and ``c = 1 + i eta``. The stiffness enters ``A`` unrounded:
+        FE stiffness matrices are so ill-conditioned (cond ~1e11 for beam models) that rounding
+        ``(1 + i eta) K`` entry by entry already moves the static response by ~1e-10. ``A`` is
+        real when ``s`` is real and ``eta = 0``.
+        """
+        s = complex(s)
+        c = 1.0 + 1j * self.loss_factor
+        if s.imag == 0.0 and self.loss_factor == 0.0:
+            s, c = s.real, 1.0
+        a = self.stiffness
+        if s != 0:
+            a = a + ((s * s) / c) * self.mass
+            if self.damping is not None:
+                a = a + (s / c) * self.damping
+        return (sp.csc_matrix(a) if self.is_sparse else np.asarray(a)), c
+
+    def project(self, basis_v: np.ndarray, basis_w: np.ndarray | None = None) -> SecondOrderSystem:
+        """Petrov-Galerkin projection ``W^T (.) V`` (paper eq. 3-4); ``W = V`` if not given.
+
+        Returns a dense reduced system; for ``W = V`` the reduced matrices are symmetrised
+        exactly (they are symmetric up to round-off).
+        """
+        v = np.asarray(basis_v)
+        w = v if basis_w is None else np.asarray(basis_w)
+        one_sided = basis_w is None or basis_w is basis_v
+
+        def reduce(matrix: sp.csr_matrix | np.ndarray | None) -> np.ndarray | None:
+            if matrix is None:
+                return None
+            reduced = w.T @ extended_product(matrix, v)
+            return 0.5 * (reduced + reduced.T) if one_sided else reduced
+
+        return SecondOrderSystem(
+            mass=reduce(self.mass),
+            stiffness=reduce(self.stiffness),
+            damping=reduce(self.damping),
+            input_matrix=w.T @ self.input_matrix,
+            output_matrix=self.output_matrix @ v,
+            loss_factor=self.loss_factor,
+            modal_damping_ratio=self.modal_damping_ratio,
+            input_labels=self.input_labels,
+            output_labels=self.output_labels,
+            static_load=None if self.static_load is None else w.T @ self.static_load,
+        )
+
+    def check_reduced(self) -> None:
+        """Check a dense reduced model before it is written.
+
+        Finite entries, symmetric ``M``, ``K`` (and ``D``), positive definite ``M``, positive
+        semidefinite ``K`` (stability). Raises :class:`NumericalError` naming the failure.
+        """
+        if self.is_sparse:
+            raise ValueError("check_reduced is for dense reduced models")
+        named = {"mass": self.mass, "stiffness": self.stiffness, "damping": self.damping}
+        for label, matrix in named.items():
+            if matrix is None:
+                continue
+            if not np.all(np.isfinite(matrix)):
+                raise NumericalError(f"reduced {label} matrix has NaN or infinite entries")
+            scale = max(float(np.max(np.abs(matrix))), np.finfo(float).tiny)
+            asym = float(np.max(np.abs(matrix - matrix.T))) / scale
+            if asym > 1e-8:
+                raise NumericalError(
+                    f"reduced {label} matrix is not symmetric (relative asymmetry {asym:.1e})"
+                )
+        if not (np.all(np.isfinite(self.input_matrix)) and np.all(np.isfinite(self.output_matrix))):
+            raise NumericalError("reduced input or output matrix has NaN or infinite entries")
+        mass_eig = np.linalg.eigvalsh(self.mass)
+        if mass_eig[0] <= 1e-12 * max(mass_eig[-1], 0.0):
+            raise NumericalError(
+                f"reduced mass matrix is not positive definite (smallest eigenvalue "
+                f"{mass_eig[0]:.3e}, largest {mass_eig[-1]:.3e})"
+            )
+        stiff_eig = np.linalg.eigvalsh(self.stiffness)
+        if stiff_eig[0] < -1e-8 * max(abs(stiff_eig[-1]), np.finfo(float).tiny):
+            raise NumericalError(
+                f"reduced stiffness matrix is indefinite (smallest eigenvalue {stiff_eig[0]:.3e}):"
+                " the reduced model is unstable"
+            )

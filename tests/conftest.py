@@ -1,0 +1,67 @@
+"""Small models for the tests, built independently of the code under test."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from pymorembs.body import ConstraintEquations, Damping, DofTable, ElasticBody
+
+
+def spring_lattice(
+    n_nodes: int = 12,
+    seed: int = 0,
+    constraints: bool = True,
+    offsets: bool = False,
+    damping: Damping | None = None,
+) -> ElasticBody:
+    """A chain of point masses in 3-D (3 translational dofs each) joined by random springs.
+
+    Node ids are 10, 20, 30, ... (not contiguous). Node 10 is anchored by springs to ground so the
+    stiffness matrix is positive definite. With ``constraints``, the dofs of the last node are
+    dependent: a linear combination of dofs of two other nodes (plus offsets if asked).
+    """
+    rng = np.random.default_rng(seed)
+    n = 3 * n_nodes
+    ids = 10 * np.arange(1, n_nodes + 1)
+    coords = np.column_stack([np.arange(n_nodes), rng.normal(size=n_nodes), np.zeros(n_nodes)])
+    k = np.zeros((n, n))
+    for i in range(n_nodes - 1):
+        for j in (i + 1, min(i + 2, n_nodes - 1)):
+            if j == i:
+                continue
+            a = rng.normal(size=(3, 3))
+            spring = 1e5 * (a @ a.T + np.eye(3))
+            blk_i, blk_j = slice(3 * i, 3 * i + 3), slice(3 * j, 3 * j + 3)
+            k[blk_i, blk_i] += spring
+            k[blk_j, blk_j] += spring
+            k[blk_i, blk_j] -= spring
+            k[blk_j, blk_i] -= spring
+    k[:3, :3] += 2e5 * np.eye(3)  # anchor
+    m = np.diag(rng.uniform(0.5, 2.0, size=n))
+    m[3:6, 6:9] = m[6:9, 3:6] = 0.05 * np.eye(3)  # a little consistent-mass coupling
+    dofs = DofTable(np.repeat(ids, 3), np.tile([0, 1, 2], n_nodes))
+    equations = None
+    if constraints:
+        dependent = np.arange(n - 3, n)
+        g = np.zeros((3, n))
+        g[:, 3 * (n_nodes - 2) : 3 * (n_nodes - 1)] = np.eye(3)  # follows the previous node
+        g[:, 3 * 2 : 3 * 3] = 0.3 * rng.normal(size=(3, 3))  # and partly node 30
+        offset = rng.normal(size=3) * 1e-3 if offsets else np.zeros(3)
+        equations = ConstraintEquations(dependent, sp.csr_matrix(g), offset)
+    return ElasticBody(
+        node_ids=ids,
+        coordinates=coords,
+        dofs=dofs,
+        mass=sp.csr_matrix(m),
+        stiffness=sp.csr_matrix(k),
+        constraints=equations,
+        damping=damping or Damping(),
+        name="lattice",
+    )
+
+
+@pytest.fixture
+def lattice() -> ElasticBody:
+    return spring_lattice()
