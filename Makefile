@@ -14,6 +14,7 @@ $(STAMP): pyproject.toml
 
 demo: $(STAMP)
 	$(BIN)/pymorembs example rack-beams --out out/demo/model
+	$(BIN)/pymorembs info out/demo/model/model.h5 --modes 12
 	$(BIN)/pymorembs reduce examples/rack-beams-demo.toml --out out/demo
 
 test: $(STAMP)

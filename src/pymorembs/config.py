@@ -80,6 +80,11 @@ class _Table:
         self.known.add(key)
         if key not in self.data:
             if required:
+                typo = difflib.get_close_matches(key, [k for k in self.data if k not in self.known])
+                if typo:  # a misspelled required key: name the misspelling
+                    raise UserError(
+                        f"{self.path}: {self.where}: unknown key '{typo[0]}'; did you mean '{key}'?"
+                    )
                 raise UserError(f"{self.path}: {self.where}: missing key '{key}'")
             return default
         return self.data[key]

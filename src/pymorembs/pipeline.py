@@ -82,7 +82,10 @@ def run_job(job: Job, out_dir: str | Path, progress: Progress | None = None) -> 
 
     tick = time.perf_counter()
     say("preparing: frame, constraint elimination, inputs and outputs")
-    prepared = prepare(body, job.frame, list(job.inputs), list(job.outputs))
+    try:
+        prepared = prepare(body, job.frame, list(job.inputs), list(job.outputs))
+    except UserError as exc:
+        raise UserError(f"{job.path}: {exc}") from None
     system = prepared.system
     timings["prepare_s"] = time.perf_counter() - tick
     for warning in prepared.warnings:

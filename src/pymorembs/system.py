@@ -10,6 +10,7 @@ omega in rad/s.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -89,25 +90,26 @@ class SecondOrderSystem:
     def is_sparse(self) -> bool:
         return sp.issparse(self.stiffness)
 
-    def dynamic_matrix(self, s: complex) -> tuple[sp.csc_matrix | np.ndarray, complex]:
-        """``s^2 M + s D + (1 + i eta) K`` at one Laplace variable ``s`` (rad/s), factored.
+    def dynamic_terms(self, s: complex) -> tuple[list[tuple[complex, Any]], complex]:
+        """The dynamic stiffness ``s^2 M + s D + (1 + i eta) K`` at ``s`` (rad/s), factored.
 
-        Returns ``(A, c)`` with the dynamic stiffness equal to ``c * A``,
-        ``A = K + (s^2 M + s D) / c`` and ``c = 1 + i eta``. The stiffness enters ``A`` unrounded:
-        FE stiffness matrices are so ill-conditioned (cond ~1e11 for beam models) that rounding
-        ``(1 + i eta) K`` entry by entry already moves the static response by ~1e-10. ``A`` is
-        real when ``s`` is real and ``eta = 0``.
+        Returns ``(terms, c)``: the dynamic stiffness equals ``c * sum(coef * matrix)`` with
+        ``c = 1 + i eta`` and terms ``[(1, K), (s^2 / c, M), (s / c, D)]``. The stiffness keeps
+        the coefficient 1, so it is never rounded by a scaling: FE stiffness matrices are so
+        ill-conditioned (cond ~1e11 for beam models) that rounding ``(1 + i eta) K`` entry by
+        entry already moves the static response by ~1e-10. All coefficients are real when ``s``
+        is real and ``eta = 0``.
         """
         s = complex(s)
         c = 1.0 + 1j * self.loss_factor
         if s.imag == 0.0 and self.loss_factor == 0.0:
             s, c = s.real, 1.0
-        a = self.stiffness
+        terms: list[tuple[complex, Any]] = [(1.0, self.stiffness)]
         if s != 0:
-            a = a + ((s * s) / c) * self.mass
+            terms.append(((s * s) / c, self.mass))
             if self.damping is not None:
-                a = a + (s / c) * self.damping
-        return (sp.csc_matrix(a) if self.is_sparse else np.asarray(a)), c
+                terms.append((s / c, self.damping))
+        return terms, c
 
     def project(self, basis_v: np.ndarray, basis_w: np.ndarray | None = None) -> SecondOrderSystem:
         """Petrov-Galerkin projection ``W^T (.) V`` (paper eq. 3-4); ``W = V`` if not given.

@@ -38,8 +38,8 @@ def _sparse_response(system: SecondOrderSystem, frequencies_hz: np.ndarray) -> n
     b = system.input_matrix
     c = system.output_matrix
     for k, f in enumerate(frequencies_hz):
-        matrix, scale = system.dynamic_matrix(2j * np.pi * f)
-        factorization = Factorization(matrix, label=f"dynamic stiffness at {f:g} Hz")
+        terms, scale = system.dynamic_terms(2j * np.pi * f)
+        factorization = Factorization(terms, label=f"dynamic stiffness at {f:g} Hz")
         out[k] = (c @ factorization.solve(b)) / scale
     return out
 

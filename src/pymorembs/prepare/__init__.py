@@ -84,20 +84,23 @@ def prepare(
         Forces/moments in and displacements/rotations out. Without inputs (outputs), the system
         gets an empty input (output) matrix.
     """
-    framed = frame.apply(body)
+    try:
+        framed = frame.apply(body)
+    except UserError as exc:
+        raise UserError(f"[frame]: {exc}") from None
     elimination = eliminate(framed)
     if elimination.n_independent == 0:
         raise UserError("the model has no independent dofs left after fixing and elimination")
     warnings: list[str] = []
     n_i = elimination.n_independent
     if inputs:
-        b_all, input_labels = selection_matrix(framed, inputs)
+        b_all, input_labels = _selection(framed, inputs, "inputs")
         b = elimination.inputs(b_all)
         warnings += _zero_ports(b, input_labels, "input", axis=0)
     else:
         b, input_labels = np.zeros((n_i, 0)), []
     if outputs:
-        c_all, output_labels = selection_matrix(framed, outputs)
+        c_all, output_labels = _selection(framed, outputs, "outputs")
         c = elimination.outputs(c_all.T)
         warnings += _zero_ports(c, output_labels, "output", axis=1)
     else:
@@ -118,6 +121,13 @@ def prepare(
         static_load=elimination.load(framed.stiffness),
     )
     return PreparedModel(framed, elimination, system, tuple(warnings))
+
+
+def _selection(body: ElasticBody, ports: list[Port], what: str) -> tuple:
+    try:
+        return selection_matrix(body, ports)
+    except UserError as exc:
+        raise UserError(f"[[{what}]]: {exc}") from None
 
 
 def _zero_ports(matrix: np.ndarray, labels: list[str], what: str, axis: int) -> list[str]:

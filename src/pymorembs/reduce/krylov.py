@@ -61,7 +61,7 @@ class SecondOrderArnoldi:
         self.mass = system.mass
         self.stiffness = system.stiffness
         damping = system.damping
-        k_hat = system.stiffness - omega**2 * system.mass
+        k_hat = [(1.0, system.stiffness), (-(omega**2), system.mass)]
         if omega == 0.0 or damping is None:
             # real recurrence; rotated (R_i) for f > 0 without damping
             self.kind = "real"
@@ -71,7 +71,7 @@ class SecondOrderArnoldi:
         else:
             self.kind = "complex"
             s = 1j * omega
-            k_hat = k_hat + s * damping
+            k_hat.append((s, damping))
             self.d_hat = 2.0 * s * system.mass + damping
             self.coef_d, self.coef_m = -1.0, -1.0
             dtype = complex

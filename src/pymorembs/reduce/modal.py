@@ -46,7 +46,7 @@ def eigenmodes(
     if count >= n:
         raise UserError(f"{count} modes requested but the model has only {n} independent dofs")
     sigma = -((2.0 * np.pi * shift_hz) ** 2)
-    shifted = Factorization(system.stiffness - sigma * system.mass, label="K - sigma M")
+    shifted = Factorization([(1.0, system.stiffness), (-sigma, system.mass)], label="K - sigma M")
     try:
         values, vectors = spla.eigsh(
             system.stiffness,

@@ -1,0 +1,265 @@
+"""The command line: outputs of example/info/reduce, and exit code 2 with one line on bad input."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.linalg as sla
+from conftest import spring_lattice
+
+from pymorembs.cli import main
+from pymorembs.io.matrix_market import read_matrix_files, write_matrix_files
+from pymorembs.io.native import read_body_h5, write_body_h5
+
+ROOT = Path(__file__).resolve().parents[1]
+DEMO = ROOT / "examples" / "rack-beams-demo.toml"
+
+SMALL_JOB = """
+[model]
+{model}
+
+[frame]
+type = "tangent"
+node = 10
+
+[[inputs]]
+node = 60
+directions = "ux uy"
+
+[[inputs]]
+node = 120
+directions = "uz"
+
+[band]
+f_max_hz = 200
+
+[[reduction]]
+name = "modal-6"
+method = "modal"
+order = 6
+
+[[reduction]]
+name = "kry"
+method = "krylov"
+expansion_points_hz = [0, 100]
+moments = 2
+{extra}
+"""
+
+
+@pytest.fixture
+def lattice_files(tmp_path):
+    body = spring_lattice()
+    folder = tmp_path / "lattice"
+    write_matrix_files(body, folder)
+    write_body_h5(body, folder / "model.h5")
+    return folder
+
+
+def write_job(tmp_path, model='file = "lattice/model.h5"', extra="", name="job.toml"):
+    path = tmp_path / name
+    path.write_text(SMALL_JOB.format(model=model, extra=extra))
+    return path
+
+
+def run(argv, capsys):
+    code = main([str(a) for a in argv])
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def test_demo_job_meets_the_foundation_targets(tmp_path, capsys):
+    """Issue #2: Krylov max eps <= 1e-4 with order <= 48, exact static response."""
+    code, out, err = run(["reduce", DEMO, "--out", tmp_path / "demo"], capsys)
+    assert code == 0, err
+    summary = json.loads((tmp_path / "demo" / "summary.json").read_text())
+    assert summary["model"]["n_dof"] == 3996
+    assert summary["model"]["n_inputs"] == 6 and summary["model"]["n_outputs"] == 6
+    assert summary["band_hz"] == [0.0, 1000.0]
+    assert summary["n_frequencies"] >= 201
+    entries = {r["name"]: r for r in summary["reductions"]}
+    krylov = entries["krylov"]
+    assert krylov["order"] <= 48
+    assert krylov["max_rel_error"] <= 1e-4
+    assert krylov["static_rel_error"] <= 1e-10
+    assert entries["modal-40"]["order"] == 40
+    for entry in summary["reductions"]:
+        assert entry["error_estimate"] is None and entry["error_bound"] is None
+        for name in entry["files"]:
+            assert (tmp_path / "demo" / name).is_file()
+        npz = np.load(tmp_path / "demo" / entry["name"] / "reduced.npz")
+        assert npz["V"].shape == (3996, entry["order"])
+        assert np.allclose(npz["M"], np.eye(entry["order"]))
+    assert (tmp_path / "demo" / "error.png").read_bytes()[:4] == b"\x89PNG"
+    assert "krylov" in out and "max rel. error" in out
+
+
+def test_example_writes_model_files_that_read_back_equal(tmp_path, capsys):
+    code, out, _ = run(["example", "rack-beams", "--out", tmp_path / "rack"], capsys)
+    assert code == 0
+    folder = tmp_path / "rack"
+    for name in ("model.h5", "K.mtx", "M.mtx", "dofs.csv", "nodes.csv", "constraints.csv"):
+        assert (folder / name).is_file(), name
+    native = read_body_h5(folder / "model.h5")
+    plain = read_matrix_files(
+        stiffness=folder / "K.mtx",
+        mass=folder / "M.mtx",
+        dofs=folder / "dofs.csv",
+        nodes=folder / "nodes.csv",
+        constraints=folder / "constraints.csv",
+    )
+    assert (native.stiffness != plain.stiffness).nnz == 0
+    assert (native.mass != plain.mass).nnz == 0
+    assert np.array_equal(native.dofs.nodes, plain.dofs.nodes)
+    assert np.array_equal(native.constraints.dependent, plain.constraints.dependent)
+
+
+def test_info_matches_a_dense_eigensolution(tmp_path, capsys):
+    body = spring_lattice(constraints=False)
+    write_matrix_files(body, tmp_path)
+    code, out, _ = run(
+        ["info", "--stiffness", tmp_path / "K.mtx", "--mass", tmp_path / "M.mtx", "--dofs",
+         tmp_path / "dofs.csv", "--modes", 5, "--json"],
+        capsys,
+    )
+    assert code == 0
+    facts = json.loads(out)
+    expected = np.sqrt(sla.eigh(body.stiffness.toarray(), body.mass.toarray(),
+                                eigvals_only=True)[:5]) / (2 * np.pi)
+    assert np.allclose(facts["eigenfrequencies_hz"], expected, rtol=1e-10)
+    assert facts["n_dof"] == body.n_dof
+    m = body.mass.toarray()
+    translations = [np.arange(axis, body.n_dof, 3) for axis in range(3)]
+    expected_mass = np.mean([m[np.ix_(t, t)].sum() for t in translations])
+    assert facts["total_mass"] == pytest.approx(expected_mass, rel=1e-12)
+
+
+def test_info_reports_six_rigid_body_modes_of_the_free_rack(tmp_path, capsys):
+    run(["example", "rack-beams", "--out", tmp_path], capsys)
+    code, out, _ = run(["info", tmp_path / "model.h5", "--modes", 8], capsys)
+    assert code == 0
+    assert "rigid-body modes  6" in out
+    assert out.count("(rigid-body mode)") == 6
+    assert "1.38" in out  # total mass about 1.39 kg
+
+
+def test_job_with_matrix_files_and_relative_paths(tmp_path, lattice_files, capsys):
+    model = 'stiffness = "lattice/K.mtx"\nmass = "lattice/M.mtx"\ndofs = "lattice/dofs.csv"\n' \
+            'nodes = "lattice/nodes.csv"\nconstraints = "lattice/constraints.csv"'
+    job = write_job(tmp_path, model=model)
+    code, _, err = run(["reduce", job, "--out", tmp_path / "out", "--quiet"], capsys)
+    assert code == 0, err
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["model"]["n_dependent"] == 3
+
+
+def test_second_run_replaces_results_and_keeps_other_files(tmp_path, lattice_files, capsys):
+    job = write_job(tmp_path)
+    out = tmp_path / "out"
+    assert run(["reduce", job, "--out", out, "--quiet"], capsys)[0] == 0
+    (out / "notes.txt").write_text("mine")
+    (out / "kry" / "stale.txt").write_text("old")
+    assert run(["reduce", job, "--out", out, "--quiet"], capsys)[0] == 0
+    assert (out / "notes.txt").read_text() == "mine"
+    assert not (out / "kry" / "stale.txt").exists()
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+
+
+BAD_JOBS = [
+    ("[band]\nf_max_hz = 200\n[[[", "invalid TOML"),
+    (None, "unknown key 'f_max'; did you mean 'f_max_hz'"),
+    (None, "node 77"),
+    (None, "unknown example"),
+    (None, "unknown method 'krilov'; did you mean 'krylov'"),
+    (None, "modes requested"),
+    (None, "f_max_hz"),
+    (None, "used by another reduction"),
+    (None, "moments: 2 values for 3 expansion points"),
+    (None, "[frame]: node 999 does not exist"),
+    (None, "not a valid name"),
+    (None, "must be a whole number"),
+    (None, "missing key 'node'"),
+    (None, "unknown direction"),
+]
+
+
+def mutate(text: str, case: int) -> str:
+    """The small job, broken in one way per case (same order as BAD_JOBS)."""
+    edits = {
+        1: ("f_max_hz = 200", "f_max = 200"),
+        2: ("node = 120", "node = 77"),
+        3: ('file = "lattice/model.h5"', 'example = "rack-bems"'),
+        4: ('method = "krylov"', 'method = "krilov"'),
+        5: ("order = 6", "order = 5000"),
+        6: ("f_max_hz = 200", "f_max_hz = 0"),
+        7: ('name = "kry"', 'name = "modal-6"'),
+        8: ("expansion_points_hz = [0, 100]\nmoments = 2",
+            "expansion_points_hz = [0, 100, 150]\nmoments = [1, 2]"),
+        9: ("node = 10", "node = 999"),
+        10: ('name = "kry"', 'name = "../escape"'),
+        11: ("order = 6", 'order = "six"'),
+        12: ("node = 60\n", ""),
+        13: ('directions = "uz"', 'directions = "uw"'),
+    }
+    old, new = edits[case]
+    assert old in text
+    return text.replace(old, new, 1)
+
+
+@pytest.mark.parametrize("case", range(len(BAD_JOBS)))
+def test_bad_job_exits_2_with_one_line_and_no_output(case, tmp_path, lattice_files, capsys):
+    text, message = BAD_JOBS[case]
+    job = tmp_path / "bad.toml"
+    job.write_text(text if text is not None else mutate(SMALL_JOB.format(
+        model='file = "lattice/model.h5"', extra=""), case))
+    out = tmp_path / "out"
+    code, stdout, err = run(["reduce", job, "--out", out, "--quiet"], capsys)
+    assert code == 2
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert message in err
+    assert str(job) in err or "rack-bems" in err or "node" in err or "modes" in err
+    assert not out.exists()
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["reduce", "missing.toml"], "job file not found"),
+        (["reduce", "job.toml", "--bogus"], "unrecognized arguments"),
+        (["frobnicate"], "invalid choice"),
+        (["example", "rack-solidd", "--out", "x"], "unknown example"),
+        (["info", "nothing.h5"], "nothing.h5"),
+        (["info", "--stiffness", "K.mtx"], "both --stiffness and --mass"),
+        (["info", "--stiffness", "bad.mtx", "--mass", "bad.mtx"], "bad.mtx"),
+        (["info", "text.h5"], "text.h5"),
+        (["info", "--stiffness", "K.mtx", "--mass", "M.mtx", "--modes", "0"], "--modes"),
+        (["example", "rack-beams", "--out", "afile"], "afile"),
+    ],
+)
+def test_bad_command_line_exits_2_with_one_line(argv, message, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    write_matrix_files(spring_lattice(constraints=False), tmp_path)
+    (tmp_path / "bad.mtx").write_text("%%MatrixMarket matrix coordinate real general\n3 3 1\n1 1 x\n")
+    (tmp_path / "text.h5").write_text("not hdf5")
+    (tmp_path / "afile").write_text("")
+    with pytest.raises(SystemExit) as exit_info:
+        raise SystemExit(main(argv))
+    err = capsys.readouterr().err
+    assert exit_info.value.code == 2
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert message in err
+
+
+def test_reduced_folder_is_written_only_on_success(tmp_path, lattice_files, capsys):
+    """A job whose second reduction fails leaves nothing behind, not even the first one."""
+    job = write_job(tmp_path, extra="\n[[reduction]]\nname = \"big\"\nmethod = \"modal\"\n"
+                                    "order = 100000\n")
+    code, _, err = run(["reduce", job, "--out", tmp_path / "out"], capsys)
+    assert code == 2 and "modes requested" in err
+    assert not (tmp_path / "out").exists()
+    shutil.rmtree(lattice_files)
