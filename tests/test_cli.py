@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import scipy.linalg as sla
-from conftest import spring_lattice
 
+from conftest import spring_lattice
 from pymorembs.cli import main
 from pymorembs.io.matrix_market import read_matrix_files, write_matrix_files
 from pymorembs.io.native import read_body_h5, write_body_h5
@@ -99,7 +99,7 @@ def test_demo_job_meets_the_foundation_targets(tmp_path, capsys):
 
 
 def test_example_writes_model_files_that_read_back_equal(tmp_path, capsys):
-    code, out, _ = run(["example", "rack-beams", "--out", tmp_path / "rack"], capsys)
+    code, _out, _ = run(["example", "rack-beams", "--out", tmp_path / "rack"], capsys)
     assert code == 0
     folder = tmp_path / "rack"
     for name in ("model.h5", "K.mtx", "M.mtx", "dofs.csv", "nodes.csv", "constraints.csv"):
@@ -122,14 +122,25 @@ def test_info_matches_a_dense_eigensolution(tmp_path, capsys):
     body = spring_lattice(constraints=False)
     write_matrix_files(body, tmp_path)
     code, out, _ = run(
-        ["info", "--stiffness", tmp_path / "K.mtx", "--mass", tmp_path / "M.mtx", "--dofs",
-         tmp_path / "dofs.csv", "--modes", 5, "--json"],
+        [
+            "info",
+            "--stiffness",
+            tmp_path / "K.mtx",
+            "--mass",
+            tmp_path / "M.mtx",
+            "--dofs",
+            tmp_path / "dofs.csv",
+            "--modes",
+            5,
+            "--json",
+        ],
         capsys,
     )
     assert code == 0
     facts = json.loads(out)
-    expected = np.sqrt(sla.eigh(body.stiffness.toarray(), body.mass.toarray(),
-                                eigvals_only=True)[:5]) / (2 * np.pi)
+    expected = np.sqrt(
+        sla.eigh(body.stiffness.toarray(), body.mass.toarray(), eigvals_only=True)[:5]
+    ) / (2 * np.pi)
     assert np.allclose(facts["eigenfrequencies_hz"], expected, rtol=1e-10)
     assert facts["n_dof"] == body.n_dof
     m = body.mass.toarray()
@@ -148,8 +159,10 @@ def test_info_reports_six_rigid_body_modes_of_the_free_rack(tmp_path, capsys):
 
 
 def test_job_with_matrix_files_and_relative_paths(tmp_path, lattice_files, capsys):
-    model = 'stiffness = "lattice/K.mtx"\nmass = "lattice/M.mtx"\ndofs = "lattice/dofs.csv"\n' \
-            'nodes = "lattice/nodes.csv"\nconstraints = "lattice/constraints.csv"'
+    model = (
+        'stiffness = "lattice/K.mtx"\nmass = "lattice/M.mtx"\ndofs = "lattice/dofs.csv"\n'
+        'nodes = "lattice/nodes.csv"\nconstraints = "lattice/constraints.csv"'
+    )
     job = write_job(tmp_path, model=model)
     code, _, err = run(["reduce", job, "--out", tmp_path / "out", "--quiet"], capsys)
     assert code == 0, err
@@ -197,8 +210,10 @@ def mutate(text: str, case: int) -> str:
         5: ("order = 6", "order = 5000"),
         6: ("f_max_hz = 200", "f_max_hz = 0"),
         7: ('name = "kry"', 'name = "modal-6"'),
-        8: ("expansion_points_hz = [0, 100]\nmoments = 2",
-            "expansion_points_hz = [0, 100, 150]\nmoments = [1, 2]"),
+        8: (
+            "expansion_points_hz = [0, 100]\nmoments = 2",
+            "expansion_points_hz = [0, 100, 150]\nmoments = [1, 2]",
+        ),
         9: ("node = 10", "node = 999"),
         10: ('name = "kry"', 'name = "../escape"'),
         11: ("order = 6", 'order = "six"'),
@@ -214,10 +229,13 @@ def mutate(text: str, case: int) -> str:
 def test_bad_job_exits_2_with_one_line_and_no_output(case, tmp_path, lattice_files, capsys):
     text, message = BAD_JOBS[case]
     job = tmp_path / "bad.toml"
-    job.write_text(text if text is not None else mutate(SMALL_JOB.format(
-        model='file = "lattice/model.h5"', extra=""), case))
+    job.write_text(
+        text
+        if text is not None
+        else mutate(SMALL_JOB.format(model='file = "lattice/model.h5"', extra=""), case)
+    )
     out = tmp_path / "out"
-    code, stdout, err = run(["reduce", job, "--out", out, "--quiet"], capsys)
+    code, _stdout, err = run(["reduce", job, "--out", out, "--quiet"], capsys)
     assert code == 2
     assert err.count("\n") == 1 and "Traceback" not in err
     assert message in err
@@ -244,7 +262,9 @@ def test_bad_job_exits_2_with_one_line_and_no_output(case, tmp_path, lattice_fil
 def test_bad_command_line_exits_2_with_one_line(argv, message, tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     write_matrix_files(spring_lattice(constraints=False), tmp_path)
-    (tmp_path / "bad.mtx").write_text("%%MatrixMarket matrix coordinate real general\n3 3 1\n1 1 x\n")
+    (tmp_path / "bad.mtx").write_text(
+        "%%MatrixMarket matrix coordinate real general\n3 3 1\n1 1 x\n"
+    )
     (tmp_path / "text.h5").write_text("not hdf5")
     (tmp_path / "afile").write_text("")
     with pytest.raises(SystemExit) as exit_info:
@@ -257,8 +277,9 @@ def test_bad_command_line_exits_2_with_one_line(argv, message, tmp_path, capsys,
 
 def test_reduced_folder_is_written_only_on_success(tmp_path, lattice_files, capsys):
     """A job whose second reduction fails leaves nothing behind, not even the first one."""
-    job = write_job(tmp_path, extra="\n[[reduction]]\nname = \"big\"\nmethod = \"modal\"\n"
-                                    "order = 100000\n")
+    job = write_job(
+        tmp_path, extra='\n[[reduction]]\nname = "big"\nmethod = "modal"\norder = 100000\n'
+    )
     code, _, err = run(["reduce", job, "--out", tmp_path / "out"], capsys)
     assert code == 2 and "modes requested" in err
     assert not (tmp_path / "out").exists()

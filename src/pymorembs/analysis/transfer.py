@@ -34,13 +34,18 @@ def transfer_function(system: SecondOrderSystem, frequencies_hz: np.ndarray) -> 
 
 
 def _sparse_response(system: SecondOrderSystem, frequencies_hz: np.ndarray) -> np.ndarray:
-    out = np.empty((frequencies_hz.size, system.n_outputs, system.n_inputs), dtype=complex)
-    b = system.input_matrix
-    c = system.output_matrix
+    out = np.zeros((frequencies_hz.size, system.n_outputs, system.n_inputs), dtype=complex)
+    # inputs/outputs on fixed dofs are zero columns of B / rows of C: nothing to solve for
+    cols = np.flatnonzero(np.any(system.input_matrix != 0, axis=0))
+    rows = np.flatnonzero(np.any(system.output_matrix != 0, axis=1))
+    if cols.size == 0 or rows.size == 0:
+        return out
+    b = system.input_matrix[:, cols]
+    c = system.output_matrix[rows]
     for k, f in enumerate(frequencies_hz):
         terms, scale = system.dynamic_terms(2j * np.pi * f)
         factorization = Factorization(terms, label=f"dynamic stiffness at {f:g} Hz")
-        out[k] = (c @ factorization.solve(b)) / scale
+        out[k][np.ix_(rows, cols)] = (c @ factorization.solve(b)) / scale
     return out
 
 
