@@ -65,3 +65,50 @@ def spring_lattice(
 @pytest.fixture
 def lattice() -> ElasticBody:
     return spring_lattice()
+
+
+def space_truss(nx: int = 4, ny: int = 3, nz: int = 2, spacing: float = 0.1) -> ElasticBody:
+    """A 3-D truss of steel bars on a grid (3 translational dofs per node), free in space.
+
+    Bars join each node to its neighbours along the axes and the face and space diagonals, so
+    the truss is stiff but has exactly six rigid-body modes. Node ids are ``1 + index``.
+    """
+    grid = np.stack(np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij"), -1)
+    coords = spacing * grid.reshape(-1, 3).astype(float)
+    n_nodes = coords.shape[0]
+    index = np.arange(n_nodes).reshape(nx, ny, nz)
+    bars = []
+    for di in (0, 1):
+        for dj in (-1, 0, 1):
+            for dk in (-1, 0, 1):
+                if (di, dj, dk) <= (0, 0, 0):
+                    continue
+                for i in range(nx - di):
+                    for j in range(max(0, -dj), ny - max(0, dj)):
+                        for k in range(max(0, -dk), nz - max(0, dk)):
+                            bars.append((index[i, j, k], index[i + di, j + dj, k + dk]))
+    ea, rho_a = 2.1e11 * 1e-4, 7850 * 1e-4
+    n = 3 * n_nodes
+    k_mat, m_mat = np.zeros((n, n)), np.zeros((n, n))
+    for a, b in bars:
+        d = coords[b] - coords[a]
+        length = np.linalg.norm(d)
+        e = d / length
+        block = ea / length * np.outer(e, e)
+        ia, ib = slice(3 * a, 3 * a + 3), slice(3 * b, 3 * b + 3)
+        k_mat[ia, ia] += block
+        k_mat[ib, ib] += block
+        k_mat[ia, ib] -= block
+        k_mat[ib, ia] -= block
+        lumped = 0.5 * rho_a * length * np.eye(3)
+        m_mat[ia, ia] += lumped
+        m_mat[ib, ib] += lumped
+    dofs = DofTable(np.repeat(np.arange(1, n_nodes + 1), 3), np.tile([0, 1, 2], n_nodes))
+    return ElasticBody(
+        np.arange(1, n_nodes + 1),
+        coords,
+        dofs,
+        sp.csr_matrix(m_mat),
+        sp.csr_matrix(k_mat),
+        name="truss",
+    )

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -197,6 +198,8 @@ BAD_JOBS = [
     (None, "must be a whole number"),
     (None, "missing key 'node'"),
     (None, "unknown direction"),
+    (None, "must be a finite number"),
+    (None, "tol: must be >= 1e-15"),
 ]
 
 
@@ -219,6 +222,8 @@ def mutate(text: str, case: int) -> str:
         11: ("order = 6", 'order = "six"'),
         12: ("node = 60\n", ""),
         13: ('directions = "uz"', 'directions = "uw"'),
+        14: ("f_max_hz = 200", "f_max_hz = inf"),
+        15: ("moments = 2", "moments = 2\ntol = 0"),
     }
     old, new = edits[case]
     assert old in text
@@ -284,3 +289,31 @@ def test_reduced_folder_is_written_only_on_success(tmp_path, lattice_files, caps
     assert code == 2 and "modes requested" in err
     assert not (tmp_path / "out").exists()
     shutil.rmtree(lattice_files)
+
+
+def test_info_handles_massless_dofs(tmp_path, capsys):
+    """Zero mass on some dofs: no traceback; the finite eigenvalues of (K, M) are reported."""
+    body = spring_lattice(constraints=False)
+    m = body.mass.tolil()
+    for i in (4, 10, 11):
+        m[i, :] = 0
+        m[:, i] = 0
+    write_matrix_files(replace(body, mass=m.tocsr()), tmp_path)
+    code, out, err = run(
+        [
+            "info",
+            "--stiffness",
+            tmp_path / "K.mtx",
+            "--mass",
+            tmp_path / "M.mtx",
+            "--modes",
+            4,
+            "--json",
+        ],
+        capsys,
+    )
+    assert code == 0, err
+    values = sla.eig(body.stiffness.toarray(), m.toarray(), right=False)
+    finite = np.sort(values[np.isfinite(values)].real)
+    expected = np.sqrt(finite[:4]) / (2 * np.pi)
+    assert np.allclose(json.loads(out)["eigenfrequencies_hz"], expected, rtol=1e-8)

@@ -10,7 +10,7 @@ import scipy.sparse as sp
 
 from conftest import spring_lattice
 from pymorembs.analysis.transfer import transfer_function
-from pymorembs.body import ConstraintEquations
+from pymorembs.body import ConstraintEquations, DofTable, ElasticBody
 from pymorembs.errors import UserError
 from pymorembs.prepare import Frame, Port, prepare, tangent_frame
 
@@ -130,3 +130,65 @@ def test_port_on_fixed_dof_gives_zero_column_and_warning():
 def test_bad_preparation_is_a_user_error(frame, ports, message):
     with pytest.raises(UserError, match=message):
         prepare(spring_lattice(), frame, ports)
+
+
+def test_tangent_frame_at_a_node_without_rotations_is_a_mechanism():
+    from conftest import space_truss
+
+    truss = space_truss()
+    with pytest.raises(UserError, match="3 rigid-body motions free") as info:
+        prepare(truss, Frame("tangent", 1), [Port.parse(5, "ux")])
+    assert "rotation about" in str(info.value)
+    with pytest.raises(UserError, match="6 rigid-body motions free"):
+        prepare(truss, Frame("none"), [Port.parse(5, "ux")])
+    # three nodes not on a line hold it; a free body is fine where rigid modes are allowed
+    held = truss.with_fixed(np.concatenate([truss.dofs.of_node(n) for n in (1, 2, 4)]))
+    prepare(held, Frame("none"), [Port.parse(5, "ux")])
+    prepare(truss, Frame("none"), allow_rigid_body_modes=True)
+
+
+def test_frame_with_rotational_dofs_and_ground_springs_are_not_mechanisms():
+    from pymorembs.examples import build_example
+
+    rack = build_example("rack-beams")
+    prepare(rack, Frame("tangent", 2), [Port.parse(1, "ux")])  # 6 dofs at node 2: held
+    with pytest.raises(UserError, match="6 rigid-body motions free"):
+        prepare(rack, Frame("none"), [Port.parse(1, "ux")])
+    prepare(spring_lattice(), Frame("none"), PORTS)  # anchored by springs to ground
+
+
+def test_cyclic_constraints_are_found_whatever_the_coefficients():
+    base = spring_lattice(constraints=False)
+    a, b = base.dofs.index(110, "ux"), base.dofs.index(120, "ux")
+    c = base.dofs.index(50, "uy")
+    g = sp.lil_matrix((2, base.n_dof))
+    g[0, b] = 49.0
+    g[1, a] = 1.0 / 49.0  # nearly singular I - G_dd: not caught by a pivot test
+    g[1, c] = 1.0
+    body = replace(base, constraints=ConstraintEquations([a, b], g.tocsr(), [0.0, 0.0]))
+    with pytest.raises(UserError, match="cyclic"):
+        prepare(body, Frame("none"))
+
+
+def test_long_constraint_tables_with_a_chain_stay_sparse():
+    """15,000 tie constraints plus one chained entry: no dense n_d x n solve (was 5 GB)."""
+    import time
+
+    n = 30_000
+    nodes = np.arange(1, n + 1)
+    dofs = DofTable(nodes, np.zeros(n))
+    k = sp.diags([np.full(n - 1, -1.0), np.full(n, 2.0), np.full(n - 1, -1.0)], [-1, 0, 1])
+    body0 = ElasticBody(nodes, np.zeros((n, 3)), dofs, sp.identity(n).tocsr(), k.tocsr())
+    dependent = np.arange(1, n, 2)  # odd dofs follow their even neighbour
+    g = sp.lil_matrix((dependent.size, n))
+    g[np.arange(dependent.size), dependent - 1] = 1.0
+    g[5, dependent[7]] = 0.5  # one chain: dependent 5 also follows dependent 7
+    body = replace(
+        body0, constraints=ConstraintEquations(dependent, g.tocsr(), np.zeros(dependent.size))
+    )
+    start = time.perf_counter()
+    elim = prepare(body, Frame("none"), allow_rigid_body_modes=True).elimination
+    assert time.perf_counter() - start < 5.0
+    q_i = np.random.default_rng(2).normal(size=elim.n_independent)
+    q = elim.transform @ q_i
+    assert q[dependent[5]] == pytest.approx(q[dependent[5] - 1] + 0.5 * q[dependent[7]])

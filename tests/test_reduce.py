@@ -178,3 +178,18 @@ def test_bad_krylov_options(kwargs, message):
 def test_modal_order_larger_than_model():
     with pytest.raises(UserError, match="modes requested"):
         modal_reduction(system_of(n_nodes=8), 100)
+
+
+def test_krylov_keeps_a_weak_input():
+    """An input 1e-11 times weaker than the others still gets its moments matched."""
+    system = system_of()
+    b = system.input_matrix.copy()
+    b[:, 1] *= 1e-11
+    weak = replace(system, input_matrix=b)
+    model = reduced_model(weak, krylov_reduction(weak, [0.0, 20.0], moments=2))
+    f = np.array([0.0, 20.0])  # the expansion points: moments match there
+    full, red = transfer_function(weak, f), transfer_function(model.system, f)
+    column = np.linalg.norm(red[:, :, 1] - full[:, :, 1], axis=1) / np.linalg.norm(
+        full[:, :, 1], axis=1
+    )
+    assert column.max() < 1e-9

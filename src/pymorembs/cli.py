@@ -135,18 +135,22 @@ def model_facts(body: ElasticBody, modes: int) -> dict[str, Any]:
     """Sizes, mass and the lowest eigenfrequencies (Hz) of a body with its own constraints."""
     if modes < 1:
         raise UserError(f"--modes must be at least 1, got {modes}")
-    prepared = prepare(body, Frame("none"))
+    prepared = prepare(body, Frame("none"), allow_rigid_body_modes=True)
     system = prepared.system
     n = system.order
     count = min(modes, n - 1) if n > DENSE_LIMIT else min(modes, n)
+    values = None
     if n <= DENSE_LIMIT:
-        values = sla.eigh(
-            system.stiffness.toarray(),
-            system.mass.toarray(),
-            eigvals_only=True,
-            subset_by_index=[0, count - 1],
-        )
-    else:
+        try:
+            values = sla.eigh(
+                system.stiffness.toarray(),
+                system.mass.toarray(),
+                eigvals_only=True,
+                subset_by_index=[0, count - 1],
+            )
+        except np.linalg.LinAlgError:  # singular mass (massless dofs): shift-invert instead
+            count = min(count, n - 1)
+    if values is None:
         values, _ = eigenmodes(system, count)
     scale = system.stiffness.diagonal().max() / max(system.mass.diagonal().max(), 1e-300)
     rigid = np.abs(values) < RIGID_TOLERANCE * scale

@@ -9,6 +9,7 @@ README for the full list.
 from __future__ import annotations
 
 import difflib
+import math
 import re
 import tomllib
 from dataclasses import dataclass, field
@@ -101,6 +102,8 @@ class _Table:
             return None
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise self.error(key, f"must be a number, got {value!r}")
+        if not math.isfinite(value):
+            raise self.error(key, f"must be a finite number, got {value!r}")
         if minimum is not None and value < minimum:
             raise self.error(key, f"must be >= {minimum}, got {value!r}")
         return float(value)
@@ -306,4 +309,6 @@ def _check_options(table: _Table, method: str, order: int | None, options: dict[
                 raise table.error(
                     "moments", f"{len(moments)} values for {len(points)} expansion points"
                 )
-        table.number("tol", 1e-10, minimum=0.0)
+        tol = table.number("tol", 1e-10, minimum=1e-15)
+        if tol > 1e-3:
+            raise table.error("tol", f"must be at most 1e-3 (a deflation tolerance), got {tol!r}")

@@ -22,7 +22,7 @@ from pymorembs.analysis.error import frequency_grid, relative_error
 from pymorembs.analysis.transfer import transfer_function
 from pymorembs.body import ElasticBody
 from pymorembs.config import Job, ModelSpec, ReductionSpec
-from pymorembs.errors import UserError
+from pymorembs.errors import NumericalError, UserError
 from pymorembs.examples import build_example
 from pymorembs.io.atomic import atomic_path, write_text
 from pymorembs.io.matrix_market import read_matrix_files
@@ -88,7 +88,8 @@ def run_job(job: Job, out_dir: str | Path, progress: Progress | None = None) -> 
         raise UserError(f"{job.path}: {exc}") from None
     system = prepared.system
     timings["prepare_s"] = time.perf_counter() - tick
-    for warning in prepared.warnings:
+    warnings = list(prepared.warnings)
+    for warning in warnings:
         say(f"warning: {warning}")
 
     tick = time.perf_counter()
@@ -105,6 +106,12 @@ def run_job(job: Job, out_dir: str | Path, progress: Progress | None = None) -> 
         for spec in job.reductions:
             say(f"reduction '{spec.name}' ({spec.method})")
             entry, eps = _reduce_one(prepared, spec, frequencies, full_response, staging)
+            if spec.order is not None and entry["order"] < spec.order:
+                warnings.append(
+                    f"reduction '{spec.name}': order {entry['order']} instead of {spec.order}: "
+                    "the Krylov space is exhausted (the reduced model is exact for these ports)"
+                )
+                say(f"warning: {warnings[-1]}")
             entries.append(entry)
             errors[spec.name] = eps
         plot_relative_errors(
@@ -140,11 +147,11 @@ def run_job(job: Job, out_dir: str | Path, progress: Progress | None = None) -> 
             "band_hz": list(job.band_hz),
             "n_frequencies": int(frequencies.size),
             "reductions": entries,
-            "warnings": list(prepared.warnings),
+            "warnings": warnings,
             "timings_s": timings,
             "files": ["summary.json", "error.png"],
         }
-        write_text(staging / "summary.json", json.dumps(summary, indent=2) + "\n")
+        write_text(staging / "summary.json", json.dumps(summary, indent=2, allow_nan=False) + "\n")
         _replace_folder(staging, out_dir)
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
@@ -164,6 +171,12 @@ def _reduce_one(
     model = reduced_model(prepared.system, projection)  # checked before anything is written
     elapsed = time.perf_counter() - tick
     eps = relative_error(full_response, transfer_function(model.system, frequencies))
+    if not np.all(np.isfinite(eps)):
+        bad = frequencies[~np.isfinite(eps)][0]
+        raise NumericalError(
+            f"reduction '{spec.name}': the error at {bad:g} Hz is not finite (a frequency on an "
+            "undamped resonance? add damping or move the band)"
+        )
     static = float(eps[0]) if frequencies[0] == 0.0 else None
     folder = staging / spec.name
     folder.mkdir()

@@ -19,8 +19,8 @@ class OrthonormalBasis:
     n : int
         Length of the vectors.
     tol : float
-        A direction is deflated when its norm after orthogonalisation is below ``tol`` times the
-        norm of the largest column of the block before orthogonalisation.
+        A direction is deflated when, after scaling the block's columns to unit norm and
+        orthogonalising, its singular value is below ``tol``.
     dtype : numpy dtype
         ``float`` or ``complex``.
     """
@@ -43,7 +43,9 @@ class OrthonormalBasis:
         """The block minus its projection on the basis (twice)."""
         q = self._columns
         for _ in range(2):
-            block = block - q @ (q.conj().T @ block)
+            # (q^H b) without copying the conjugate of the whole basis
+            coefficients = (block.conj().T @ q).conj().T if np.iscomplexobj(q) else q.T @ block
+            block = block - q @ coefficients
         return block
 
     def add(
@@ -51,26 +53,26 @@ class OrthonormalBasis:
     ) -> np.ndarray:
         """Add the new directions of ``block`` (n, k); return them, shape (n, k_new).
 
-        At most ``limit`` directions are added (the dominant ones). The deflation tolerance is
-        relative to the largest column norm of the block, or to ``reference`` if that is larger
-        (a block that is itself round-off, e.g. the part of unit vectors that should be zero, must
-        not pass as new directions).
+        Every column is scaled to unit norm first, so a direction is judged new or not by its
+        own size, not by the largest column of the block (a weak input must not be deflated
+        because another input is strong). Columns whose norm is below ``tol * reference`` are
+        dropped as round-off (e.g. the part of unit vectors that should be zero). At most
+        ``limit`` directions are added (the dominant ones).
         """
         block = np.asarray(block)
         if block.ndim == 1:
             block = block[:, None]
-        if block.shape[1] == 0:
-            return block
-        scale = max(float(np.max(np.linalg.norm(block, axis=0))), reference)
-        if scale == 0.0 or not np.isfinite(scale):
+        norms = np.linalg.norm(block, axis=0)
+        keep = np.isfinite(norms) & (norms > self.tol * reference) & (norms > 0)
+        if not np.any(keep) or (limit is not None and limit <= 0):
             return block[:, :0]
+        block = block[:, keep] / norms[keep]
         rest = self.orthogonalize(block)
         u, s, _ = np.linalg.svd(rest, full_matrices=False)
-        keep = int(np.count_nonzero(s > self.tol * scale))
+        count = int(np.count_nonzero(s > self.tol))
         if limit is not None:
-            keep = min(keep, max(limit, 0))
-        new = u[:, :keep]
-        new = self.orthogonalize(new)  # guard against loss of orthogonality in the SVD step
+            count = min(count, limit)
+        new = self.orthogonalize(u[:, :count])  # guard against loss of orthogonality
         new, _ = np.linalg.qr(new)
         self._columns = np.hstack([self._columns, new])
         return new

@@ -15,6 +15,7 @@ from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
 from pymorembs.prepare.elimination import Elimination, eliminate
 from pymorembs.prepare.ports import Port, selection_matrix
+from pymorembs.prepare.rigid_modes import free_rigid_body_modes
 from pymorembs.prepare.tangent_frame import tangent_frame
 from pymorembs.system import SecondOrderSystem
 
@@ -73,6 +74,7 @@ def prepare(
     frame: Frame,
     inputs: list[Port] | None = None,
     outputs: list[Port] | None = None,
+    allow_rigid_body_modes: bool = False,
 ) -> PreparedModel:
     """Apply the frame, eliminate dependent and fixed dofs and assemble ``B*`` and ``C*``.
 
@@ -83,6 +85,10 @@ def prepare(
     inputs, outputs : list of Port, optional
         Forces/moments in and displacements/rotations out. Without inputs (outputs), the system
         gets an empty input (output) matrix.
+    allow_rigid_body_modes : bool
+        Accept a body that can still move as a rigid body (e.g. for its eigenfrequencies).
+        Otherwise such a body is a :class:`UserError` naming the free motions: the reduction
+        methods of this frame need a stiffness matrix without rigid-body modes.
     """
     try:
         framed = frame.apply(body)
@@ -120,6 +126,20 @@ def prepare(
         output_labels=tuple(output_labels),
         static_load=elimination.load(framed.stiffness),
     )
+    if not allow_rigid_body_modes:
+        free = free_rigid_body_modes(framed, elimination, system)
+        if free:
+            where = (
+                f"the tangent frame at node {frame.node}"
+                if frame.kind == "tangent"
+                else "the fixed dofs and constraints of the model"
+            )
+            raise UserError(
+                f"[frame]: {where} leave{'s' if frame.kind == 'tangent' else ''} "
+                f"{len(free)} rigid-body motion{'s' if len(free) > 1 else ''} free "
+                f"({'; '.join(free)}): the stiffness is singular; fix a node with rotational "
+                "dofs or more nodes"
+            )
     return PreparedModel(framed, elimination, system, tuple(warnings))
 
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
+from scipy.sparse.csgraph import connected_components
 
 from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
@@ -101,8 +101,6 @@ def eliminate(body: ElasticBody) -> Elimination:
     # q_d = G[:, independent] q_i + G[:, fixed] * 0 + g
     g_independent = sp.csr_matrix(g_matrix[:, independent])
 
-    column_of = np.full(n, -1, dtype=np.int64)
-    column_of[independent] = np.arange(independent.size)
     identity = sp.csr_matrix(
         (np.ones(independent.size), (independent, np.arange(independent.size))),
         shape=(n, independent.size),
@@ -123,35 +121,45 @@ def _resolve_chains(
     """``G`` and ``g`` with no dependent dof on a right-hand side.
 
     With ``G = G_dd + G_dr`` split into columns of dependent and other dofs,
-    ``(I - G_dd) q_d = G_dr q_r + g``.
+    ``q_d = G_dd q_d + G_dr q_r + g`` has the solution ``q_d = sum_k G_dd^k (G_dr q_r + g)``,
+    a finite sum when the chains are acyclic (``G_dd`` nilpotent). Cycles are found structurally
+    (strongly connected components of the graph "dependent -> dependent"), whatever the
+    coefficients; the sum is formed with sparse products, one per chain level.
     """
     constraints = body.constraints
-    g_matrix = sp.csc_matrix(constraints.matrix)
-    g_offset = constraints.offset
+    g_matrix = sp.csr_matrix(constraints.matrix)
     dependent = constraints.dependent
-    if dependent.size == 0:
-        return sp.csr_matrix(g_matrix), g_offset
-    g_dd = g_matrix[:, dependent]
+    g_dd = sp.csr_matrix(g_matrix[:, dependent])
+    g_dd.eliminate_zeros()
     if g_dd.nnz == 0:
-        return sp.csr_matrix(g_matrix), g_offset
-    if np.any(g_dd.diagonal() != 0):
-        k = int(np.flatnonzero(g_dd.diagonal() != 0)[0])
+        return g_matrix, constraints.offset
+    cycle = _cyclic_dof(g_dd)
+    if cycle is not None:
         raise UserError(
-            f"constraint equation of dof {body.dofs.label(dependent[k])} has that dof on its "
-            "right-hand side"
+            f"constraint equations are cyclic: dof {body.dofs.label(dependent[cycle])} depends "
+            "on itself through dependent dofs"
         )
-    system = sp.csc_matrix(sp.identity(dependent.size) - g_dd)
-    others = sp.diags((~is_dependent).astype(float))
-    rhs = sp.csr_matrix(g_matrix @ others)
-    rhs.eliminate_zeros()
-    try:
-        lu = spla.splu(system)
-    except RuntimeError:
-        raise UserError(
-            "constraint equations are cyclic: dependent dofs depend on each other"
-        ) from None
-    columns = np.unique(rhs.indices)  # solve only for the columns that occur
-    solved = lu.solve(rhs[:, columns].toarray())
-    rows, k = np.nonzero(solved)
-    resolved = sp.csr_matrix((solved[rows, k], (rows, columns[k])), shape=rhs.shape)
-    return resolved, lu.solve(g_offset)
+    term = sp.csr_matrix(g_matrix @ sp.diags((~is_dependent).astype(float)))  # G_dr
+    term.eliminate_zeros()
+    offset_term = constraints.offset
+    resolved, resolved_offset = term, offset_term
+    for _ in range(dependent.size):  # acyclic: ends after the longest chain
+        term = sp.csr_matrix(g_dd @ term)
+        term.eliminate_zeros()
+        offset_term = g_dd @ offset_term
+        if term.nnz == 0 and not np.any(offset_term):
+            break
+        resolved = resolved + term
+        resolved_offset = resolved_offset + offset_term
+    return sp.csr_matrix(resolved), resolved_offset
+
+
+def _cyclic_dof(g_dd: sp.csr_matrix) -> int | None:
+    """Position of a dependent dof on a cycle of the graph "dependent -> dependent", or None."""
+    if np.any(g_dd.diagonal() != 0):
+        return int(np.flatnonzero(g_dd.diagonal() != 0)[0])
+    count, labels = connected_components(g_dd, directed=True, connection="strong")
+    if count == g_dd.shape[0]:
+        return None
+    sizes = np.bincount(labels)
+    return int(np.flatnonzero(sizes[labels] > 1)[0])

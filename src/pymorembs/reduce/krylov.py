@@ -173,26 +173,26 @@ def krylov_reduction(
     if system.n_inputs == 0:
         raise UserError("krylov: the system has no inputs")
 
-    limits = moments or [MAX_MOMENTS] * len(points)
-    arnoldi = [SecondOrderArnoldi(system, f, tol) for f in points]
     basis = OrthonormalBasis(system.order, tol)
-    exhausted = [False] * len(points)
-    for step in range(max(limits)):
-        for k, process in enumerate(arnoldi):
-            if exhausted[k] or step >= limits[k]:
-                continue
-            block = process.next_block()
-            if block.shape[1] == 0:
-                exhausted[k] = True
-                continue
-            room = None if order is None else order - basis.size
-            basis.add(block, limit=room, reference=1.0)  # tops of unit 2n-vectors
-            if order is not None and basis.size >= order:
-                break
-        if (order is not None and basis.size >= order) or all(
-            exhausted[k] or step + 1 >= limits[k] for k in range(len(points))
-        ):
-            break
+    if order is None:
+        # the moments fix the work: one point at a time, each factorization freed after use
+        computed = []
+        for f, m in zip(points, moments, strict=True):
+            process = SecondOrderArnoldi(system, f, tol)
+            _advance(basis, process, m, None)
+            computed.append(process.moments)
+    else:
+        # round-robin over the points, lowest moments first, until the basis has `order` columns
+        limits = moments or [MAX_MOMENTS] * len(points)
+        arnoldi = [SecondOrderArnoldi(system, f, tol) for f in points]
+        active = list(range(len(points)))
+        while active and basis.size < order:
+            for k in list(active):
+                if basis.size >= order:
+                    break
+                if not _advance(basis, arnoldi[k], 1, order) or arnoldi[k].moments >= limits[k]:
+                    active.remove(k)
+        computed = [process.moments for process in arnoldi]
     v = basis.matrix
     if v.shape[1] == 0:
         raise UserError("krylov: the input matrix is zero on the independent dofs")
@@ -202,8 +202,24 @@ def krylov_reduction(
         method="krylov",
         parameters={
             "expansion_points_hz": points,
-            "moments": [p.moments for p in arnoldi],
+            "moments": computed,
             "factorizations": len(points),
             "order": int(v.shape[1]),
         },
     )
+
+
+def _advance(
+    basis: OrthonormalBasis, process: SecondOrderArnoldi, blocks: int, order: int | None
+) -> bool:
+    """Add up to ``blocks`` further moments of ``process`` to ``basis`` (at most ``order``
+    columns in all); False when the Krylov space of ``process`` is exhausted."""
+    for _ in range(blocks):
+        block = process.next_block()
+        if block.shape[1] == 0:
+            return False
+        room = None if order is None else order - basis.size
+        basis.add(block, limit=room, reference=1.0)  # tops of unit 2n-vectors
+        if order is not None and basis.size >= order:
+            break
+    return True
