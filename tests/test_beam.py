@@ -8,8 +8,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as sla
 
 from pymorembs.body import DofTable, ElasticBody
+from pymorembs.elements.beam import BeamSection, assemble_beams, element_matrices
 from pymorembs.errors import UserError
-from pymorembs.examples.beam import BeamSection, assemble_beams, element_matrices
 
 E, NU, RHO = 2.1e11, 0.3, 7850.0
 G = E / (2 * (1 + NU))

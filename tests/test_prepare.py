@@ -120,7 +120,6 @@ def test_port_on_fixed_dof_gives_zero_column_and_warning():
     ("frame", "ports", "message"),
     [
         (Frame("tangent", 999), PORTS, "node 999"),
-        (Frame("tangent", 120), PORTS, "dependent"),
         (Frame("tangent", 20), [Port.parse(77, "ux")], "node 77"),
         (Frame("tangent", 20), [Port.parse(50, "rx")], "no dof rx"),
         (Frame("tangent", 20), [Port.parse(50, "ux"), Port.parse(50, "ux uy")], "twice"),

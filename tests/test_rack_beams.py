@@ -8,9 +8,10 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as sla
 
 from pymorembs.body import ElasticBody
+from pymorembs.elements.rigid import rigid_body_mass_matrix, skew
 from pymorembs.errors import UserError
 from pymorembs.examples import EXAMPLES, build_example
-from pymorembs.examples.rack_beams import Plate, RackDesign, rigid_body_mass_matrix, skew
+from pymorembs.examples.rack_beams import Plate, RackDesign
 
 DESIGN = RackDesign()
 NODE2 = np.array([0.0, 0.0, 0.004 + 0.200 + 0.0085])

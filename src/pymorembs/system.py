@@ -42,6 +42,9 @@ class SecondOrderSystem:
         Names of the inputs and outputs, e.g. ``"1:ux"``.
     static_load : ndarray, shape (n,), optional
         Constant load ``f*`` from constraint offsets (eq. 16).
+    rigid_modes : ndarray, shape (n, r), optional
+        Mass-orthonormal rigid-body modes of a free body (Buckens frame): ``K`` is singular,
+        ``B`` and ``C`` act on the elastic part only, static solves use inertia relief.
     """
 
     mass: sp.csr_matrix | np.ndarray
@@ -54,6 +57,7 @@ class SecondOrderSystem:
     input_labels: tuple[str, ...] = ()
     output_labels: tuple[str, ...] = ()
     static_load: np.ndarray | None = field(default=None)
+    rigid_modes: np.ndarray | None = field(default=None)
 
     def __post_init__(self) -> None:
         n = self.mass.shape[0]

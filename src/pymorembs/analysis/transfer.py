@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from pymorembs.linalg.factorization import Factorization
+from pymorembs.linalg.inertia_relief import InertiaRelief
 from pymorembs.system import SecondOrderSystem
 
 
@@ -44,7 +45,11 @@ def _sparse_response(system: SecondOrderSystem, frequencies_hz: np.ndarray) -> n
     c = system.output_matrix[rows]
     for k, f in enumerate(frequencies_hz):
         terms, scale = system.dynamic_terms(2j * np.pi * f)
-        factorization = Factorization(terms, label=f"dynamic stiffness at {f:g} Hz")
+        label = f"dynamic stiffness at {f:g} Hz"
+        if f == 0 and system.rigid_modes is not None:  # free body: static solve by inertia relief
+            factorization = InertiaRelief(system.stiffness, system.mass, system.rigid_modes, label)
+        else:
+            factorization = Factorization(terms, label=label)
         out[k][np.ix_(rows, cols)] = (c @ factorization.solve(b)) / scale
     return out
 

@@ -2,7 +2,7 @@
 
 The lower plate hangs below the upper plate on four vertical rods (``z`` axis vertical, lower
 plate at the bottom). Each rod is a line of 3-D Euler–Bernoulli beam elements
-(:mod:`pymorembs.examples.beam`). The plates are rigid bodies: each is represented by its
+(:mod:`pymorembs.elements.beam`). The plates are rigid bodies: each is represented by its
 reference node, which carries the plate's 6×6 rigid-body mass matrix and no stiffness; the rod end
 nodes are dependent dofs tied rigidly to the reference node by constraint equations
 ``q_d = G q`` (paper eq. 9, offset ``g = 0``)::
@@ -65,8 +65,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from pymorembs.body import ConstraintEquations, Damping, DofTable, ElasticBody
-from pymorembs.examples.beam import BeamSection, assemble_beams
+from pymorembs.body import Damping, DofTable, ElasticBody
+from pymorembs.elements.beam import BeamSection, assemble_beams
+from pymorembs.elements.rigid import rigid_body_mass_matrix
+from pymorembs.prepare.interface import rigid_links
 
 #: Steel of rods and plates: Young's modulus (N/m²), Poisson's ratio, density (kg/m³).
 STEEL_E = 2.1e11
@@ -159,38 +161,6 @@ class RackDesign:
         return self.lower_plate.thickness / 2.0 + self.rod_length + self.upper_plate.thickness / 2.0
 
 
-def skew(v: np.ndarray) -> np.ndarray:
-    """Cross-product matrices ``[v]x`` (``[v]x w = v x w``), shape (..., 3) -> (..., 3, 3)."""
-    v = np.asarray(v, dtype=float)
-    zero = np.zeros(v.shape[:-1])
-    x, y, z = v[..., 0], v[..., 1], v[..., 2]
-    return np.stack(
-        [np.stack([zero, -z, y], -1), np.stack([z, zero, -x], -1), np.stack([-y, x, zero], -1)],
-        axis=-2,
-    )
-
-
-def rigid_body_mass_matrix(mass: float, inertia: np.ndarray, offset: np.ndarray) -> np.ndarray:
-    """6×6 mass matrix of a rigid body in the dofs (u, theta) of a reference node.
-
-    Parameters
-    ----------
-    mass : float
-        Mass ``m`` (kg).
-    inertia : ndarray, shape (3, 3)
-        Inertia tensor ``J_G`` about the centre of gravity (kg·m²).
-    offset : ndarray, shape (3,)
-        Centre of gravity minus reference node position, ``c`` (m).
-
-    Returns
-    -------
-    ndarray, shape (6, 6)
-        ``[[m I, -m [c]x], [m [c]x, J_G - m [c]x [c]x]]`` (kg, kg·m, kg·m²).
-    """
-    c = skew(offset)
-    return np.block([[mass * np.eye(3), -mass * c], [mass * c, np.asarray(inertia) - mass * c @ c]])
-
-
 def block_matrix(
     row_starts: np.ndarray, col_starts: np.ndarray, blocks: np.ndarray, shape: tuple[int, int]
 ) -> sp.csr_matrix:
@@ -217,36 +187,6 @@ def block_matrix(
     matrix = sp.csr_matrix((np.ravel(blocks), (i.ravel(), j.ravel())), shape=shape)
     matrix.eliminate_zeros()
     return matrix
-
-
-def rigid_link_constraints(
-    dependent_rows: np.ndarray, reference_rows: np.ndarray, arms: np.ndarray, n_dof: int
-) -> ConstraintEquations:
-    """Constraint equations tying nodes rigidly to reference nodes (6 dofs per node).
-
-    Parameters
-    ----------
-    dependent_rows, reference_rows : ndarray of int, shape (n,)
-        First equation index (ux) of each dependent node and of its reference node; the six dofs
-        of a node are consecutive in the order ux uy uz rx ry rz.
-    arms : ndarray, shape (n, 3)
-        ``r_dependent - r_reference`` (m).
-    n_dof : int
-        Number of equations of the body.
-
-    Returns
-    -------
-    ConstraintEquations
-        ``u_d = u_ref - [arm]x theta_ref``, ``theta_d = theta_ref``, offset zero.
-    """
-    n = len(dependent_rows)
-    blocks = np.zeros((n, 6, 6))
-    blocks[:, :3, :3] = np.eye(3)
-    blocks[:, :3, 3:] = -skew(arms)
-    blocks[:, 3:, 3:] = np.eye(3)
-    dependent = (np.asarray(dependent_rows)[:, None] + np.arange(6)).ravel()
-    matrix = block_matrix(6 * np.arange(n), reference_rows, blocks, (6 * n, n_dof))
-    return ConstraintEquations(dependent=dependent, matrix=matrix, offset=np.zeros(6 * n))
 
 
 def rack_beams(design: RackDesign | None = None) -> ElasticBody:
@@ -297,20 +237,15 @@ def rack_beams(design: RackDesign | None = None) -> ElasticBody:
     )
     mass = mass + block_matrix(first_dof[:2], first_dof[:2], plate_blocks, (n_dof, n_dof))
 
-    # Rod end nodes (rows 2 + 4 rods: first and last node of each) follow the plates.
-    rod_rows = 2 + np.arange(4 * n_per_rod).reshape(4, n_per_rod)
-    ends = np.concatenate([rod_rows[:, 0], rod_rows[:, -1]])
-    refs = np.repeat([0, 1], 4)
-    constraints = rigid_link_constraints(
-        first_dof[ends], first_dof[refs], coordinates[ends] - coordinates[refs], n_dof
-    )
-    return ElasticBody(
+    body = ElasticBody(
         node_ids=node_ids,
         coordinates=coordinates,
         dofs=dofs,
         mass=mass,
         stiffness=stiffness,
-        constraints=constraints,
         damping=Damping(),
         name="rack-beams",
     )
+    # Rod end nodes (first and last node of each rod) follow the plates rigidly (eq. 9).
+    body = rigid_links(body, 1, rod_ids[:, 0].tolist())
+    return rigid_links(body, 2, rod_ids[:, -1].tolist())

@@ -7,19 +7,29 @@ back to all dofs (eq. 18).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
+from pymorembs.prepare.buckens_frame import buckens_frame, centre_of_gravity
 from pymorembs.prepare.elimination import Elimination, eliminate
 from pymorembs.prepare.ports import Port, selection_matrix
 from pymorembs.prepare.rigid_modes import free_rigid_body_modes
 from pymorembs.prepare.tangent_frame import tangent_frame
 from pymorembs.system import SecondOrderSystem
 
-__all__ = ["Frame", "Port", "PreparedModel", "eliminate", "prepare", "tangent_frame"]
+__all__ = [
+    "Frame",
+    "Port",
+    "PreparedModel",
+    "buckens_frame",
+    "centre_of_gravity",
+    "eliminate",
+    "prepare",
+    "tangent_frame",
+]
 
 
 @dataclass(frozen=True)
@@ -27,6 +37,8 @@ class Frame:
     """Choice of the reference frame.
 
     ``kind = "tangent"`` with ``node``: tangent frame at that node (paper section 2.1).
+    ``kind = "buckens"``: Buckens frame, origin in the centre of gravity, shape functions
+    mass-orthogonal to the rigid-body modes (free body).
     ``kind = "none"``: the body as given (its own fixed dofs only).
     """
 
@@ -38,9 +50,11 @@ class Frame:
             if self.node is None:
                 raise UserError("tangent frame needs a node")
             return tangent_frame(body, self.node)
+        if self.kind == "buckens":
+            return buckens_frame(body)
         if self.kind == "none":
             return body
-        raise UserError(f"frame type {self.kind!r} is unknown; use 'tangent' or 'none'")
+        raise UserError(f"frame type {self.kind!r} is unknown; use 'tangent', 'buckens' or 'none'")
 
 
 @dataclass(frozen=True, eq=False)
@@ -126,6 +140,10 @@ def prepare(
         output_labels=tuple(output_labels),
         static_load=elimination.load(framed.stiffness),
     )
+    if frame.kind == "buckens":
+        return PreparedModel(
+            framed, elimination, _elastic_system(framed, elimination, system), tuple(warnings)
+        )
     if not allow_rigid_body_modes:
         free = free_rigid_body_modes(framed, elimination, system)
         if free:
@@ -141,6 +159,34 @@ def prepare(
                 "dofs or more nodes"
             )
     return PreparedModel(framed, elimination, system, tuple(warnings))
+
+
+def _elastic_system(
+    body: ElasticBody, elimination: Elimination, system: SecondOrderSystem
+) -> SecondOrderSystem:
+    """The system of a free body in the Buckens frame: elastic inputs and outputs only.
+
+    With the mass-orthonormal rigid-body modes ``R`` (independent dofs), loads act through their
+    self-equilibrated part ``B_e = (I - M R R^T) B`` and outputs read the deformation relative to
+    the frame, ``C_e = C (I - R R^T M)``; ``H_e(s) = C_e (s^2 M + s D + K)^-1 B_e`` is then finite
+    at ``s = 0`` (inertia relief).
+    """
+    free = free_rigid_body_modes(body, elimination, system)
+    if len(free) != 6:
+        raise UserError(
+            f"[frame]: the Buckens frame needs a free body with six rigid-body modes; this one "
+            f"has {len(free)}" + (f" ({'; '.join(free)})" if free else "")
+        )
+    rigid = body.rigid_body_modes()[elimination.independent]
+    gram = rigid.T @ (system.mass @ rigid)
+    rigid = rigid @ np.linalg.inv(np.linalg.cholesky(gram)).T  # R^T M R = I
+    mass_rigid = system.mass @ rigid
+    return replace(
+        system,
+        input_matrix=system.input_matrix - mass_rigid @ (rigid.T @ system.input_matrix),
+        output_matrix=system.output_matrix - (system.output_matrix @ rigid) @ mass_rigid.T,
+        rigid_modes=rigid,
+    )
 
 
 def _selection(body: ElasticBody, ports: list[Port], what: str) -> tuple:

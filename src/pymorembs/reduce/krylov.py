@@ -33,6 +33,7 @@ import numpy as np
 
 from pymorembs.errors import UserError
 from pymorembs.linalg.factorization import Factorization
+from pymorembs.linalg.inertia_relief import InertiaRelief
 from pymorembs.linalg.orthogonalization import OrthonormalBasis
 from pymorembs.reduce.projection import Projection
 from pymorembs.system import SecondOrderSystem
@@ -75,9 +76,14 @@ class SecondOrderArnoldi:
             self.d_hat = 2.0 * s * system.mass + damping
             self.coef_d, self.coef_m = -1.0, -1.0
             dtype = complex
-        self.factorization = Factorization(
-            k_hat, label=f"K(s) at expansion point {self.frequency_hz:g} Hz"
-        )
+        label = f"K(s) at expansion point {self.frequency_hz:g} Hz"
+        if omega == 0.0 and system.rigid_modes is not None:
+            # free body (Buckens frame): K is singular; static solves by inertia relief
+            self.factorization = InertiaRelief(
+                system.stiffness, system.mass, system.rigid_modes, label
+            )
+        else:
+            self.factorization = Factorization(k_hat, label=label)
         self.basis = OrthonormalBasis(2 * self.n, tol, dtype=dtype)
         self.block: np.ndarray | None = None
         self.gamma = 1.0

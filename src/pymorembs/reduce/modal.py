@@ -20,7 +20,10 @@ DEFAULT_SHIFT_HZ = 1.0
 
 
 def eigenmodes(
-    system: SecondOrderSystem, count: int, shift_hz: float = DEFAULT_SHIFT_HZ
+    system: SecondOrderSystem,
+    count: int,
+    shift_hz: float = DEFAULT_SHIFT_HZ,
+    elastic_only: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The ``count`` lowest eigenpairs of ``(K, M)``.
 
@@ -32,6 +35,9 @@ def eigenmodes(
         Number of modes.
     shift_hz : float
         The shift is ``sigma = -(2 pi shift_hz)^2``.
+    elastic_only : bool
+        For a free body (``system.rigid_modes`` set): skip its rigid-body modes, return the
+        ``count`` lowest elastic modes.
 
     Returns
     -------
@@ -43,8 +49,10 @@ def eigenmodes(
     n = system.order
     if count < 1:
         raise UserError(f"number of modes must be at least 1, got {count}")
-    if count >= n:
+    rigid = 0 if system.rigid_modes is None or not elastic_only else system.rigid_modes.shape[1]
+    if count + rigid >= n:
         raise UserError(f"{count} modes requested but the model has only {n} independent dofs")
+    count = count + rigid
     sigma = -((2.0 * np.pi * shift_hz) ** 2)
     # ARPACK needs no refined solves: its own tolerance governs the eigenpairs
     shifted = Factorization(
@@ -66,6 +74,9 @@ def eigenmodes(
         ) from None
     order = np.argsort(values)
     values, vectors = values[order], vectors[:, order]
+    if elastic_only and system.rigid_modes is not None:
+        rigid = system.rigid_modes.shape[1]
+        values, vectors = values[rigid:], vectors[:, rigid:]
     # eigsh returns M-orthonormal vectors; normalise again against round-off.
     scale = np.sqrt(np.einsum("ij,ij->j", vectors, system.mass @ vectors))
     return values, vectors / scale
@@ -75,7 +86,7 @@ def modal_reduction(
     system: SecondOrderSystem, order: int, shift_hz: float = DEFAULT_SHIFT_HZ
 ) -> Projection:
     """Projection on the ``order`` lowest eigenmodes (``V = W``)."""
-    values, modes = eigenmodes(system, order, shift_hz)
+    values, modes = eigenmodes(system, order, shift_hz, elastic_only=True)
     frequencies = np.sqrt(np.clip(values, 0.0, None)) / (2.0 * np.pi)
     return Projection(
         V=modes,

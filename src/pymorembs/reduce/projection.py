@@ -14,6 +14,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from pymorembs.errors import NumericalError
+from pymorembs.linalg.products import extended_product
 from pymorembs.system import SecondOrderSystem
 
 
@@ -99,6 +100,8 @@ def reduced_model(system: SecondOrderSystem, projection: Projection) -> ReducedM
     v = projection.V
     if not np.all(np.isfinite(v)):
         raise NumericalError(f"{projection.method}: basis has NaN or infinite entries")
+    if system.rigid_modes is not None:
+        v = _elastic_part(v, system, projection.method)
     first = system.project(v)
     eigenvalues, vectors = _reduced_eigenproblem(first.stiffness, first.mass, projection.method)
     v = v @ vectors
@@ -109,9 +112,33 @@ def reduced_model(system: SecondOrderSystem, projection: Projection) -> ReducedM
     )
     reduced = replace(reduced, mass=np.eye(v.shape[1]), stiffness=np.diag(eigenvalues))
     reduced.check_reduced()
+    if system.rigid_modes is not None:
+        # once more on the final, mass-normalised basis: the eigen-transformation amplifies the
+        # round-off of stiff directions. K R = 0, R^T B_e = 0 and C_e R = 0, so this changes
+        # none of the reduced matrices (V^T M V only by the square of the removed part).
+        v = v - system.rigid_modes @ (system.rigid_modes.T @ extended_product(system.mass, v))
     new_projection = replace(projection, V=v, W=v)
     frequencies = np.sqrt(np.clip(eigenvalues, 0.0, None)) / (2.0 * np.pi)
     return ReducedModel(new_projection, reduced, frequencies)
+
+
+def _elastic_part(v: np.ndarray, system: SecondOrderSystem, method: str) -> np.ndarray:
+    """The basis made mass-orthogonal to the rigid-body modes (Buckens frame, eq. 6).
+
+    ``V <- V - R R^T M V`` twice (reorthogonalisation), then orthonormalised again; a direction
+    that was (nearly) rigid is an error, not silently dropped.
+    """
+    rigid = system.rigid_modes
+    for _ in range(2):
+        v = v - rigid @ (rigid.T @ extended_product(system.mass, v))
+    q, r = np.linalg.qr(v)
+    diagonal = np.abs(np.diag(r))
+    if diagonal.min() < 1e-8 * diagonal.max():
+        raise NumericalError(
+            f"{method}: the basis contains (nearly) rigid-body motions; it has only "
+            f"{int(np.count_nonzero(diagonal >= 1e-8 * diagonal.max()))} elastic directions"
+        )
+    return q
 
 
 def _reduced_eigenproblem(

@@ -1,0 +1,58 @@
+"""Static solves of free bodies by inertia relief, without factorizing a singular matrix.
+
+The stiffness ``K`` of a free body is singular: ``K R = 0`` for its rigid-body modes ``R``. For a
+load with no rigid-body part (``R^T f = 0``, self-equilibrated) ``K x = f`` has one solution that
+is mass-orthogonal to the rigid-body modes (``R^T M x = 0``): the elastic deformation of the
+Buckens frame. It is found by holding six dofs that suppress the rigid motion and nothing else
+(a statically determinate support, chosen by column-pivoted QR of ``R^T`` so that ``R`` restricted
+to them is well conditioned): the support reactions of a self-equilibrated load vanish, so the
+supported solution differs from the wanted one by a rigid motion only, which is then removed.
+General loads are first made self-equilibrated, ``f - M R R^T f`` (the inertia relief: the
+d'Alembert forces of the rigid-body acceleration the load would cause).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+
+from pymorembs.linalg.factorization import Factorization
+
+
+class InertiaRelief:
+    """``x = K^+ f``: the M-orthogonal static deformation of a free body.
+
+    Parameters
+    ----------
+    stiffness, mass : sparse matrix, shape (n, n)
+    rigid_modes : ndarray, shape (n, r)
+        Rigid-body modes, mass-orthonormal (``R^T M R = I``).
+    label : str
+        For error messages.
+    """
+
+    def __init__(
+        self, stiffness: sp.spmatrix, mass: sp.spmatrix, rigid_modes: np.ndarray, label: str
+    ) -> None:
+        self.mass = mass
+        self.rigid = rigid_modes
+        n, r = rigid_modes.shape
+        _, _, pivots = sla.qr(rigid_modes.T, mode="economic", pivoting=True)
+        self.support = np.sort(pivots[:r])
+        self.free = np.setdiff1d(np.arange(n), self.support)
+        held = sp.csr_matrix(stiffness)[self.free][:, self.free]
+        self.factorization = Factorization(held, label=f"{label} (inertia relief)")
+        self.shape = (n, n)
+
+    def equilibrate(self, loads: np.ndarray) -> np.ndarray:
+        """The self-equilibrated part ``f - M R R^T f`` of loads, shape (n,) or (n, k)."""
+        return loads - self.mass @ (self.rigid @ (self.rigid.T @ loads))
+
+    def solve(self, loads: np.ndarray) -> np.ndarray:
+        """Static deformation under the self-equilibrated part of ``loads``."""
+        loads = np.asarray(loads)
+        balanced = self.equilibrate(loads)
+        x = np.zeros_like(balanced)
+        x[self.free] = self.factorization.solve(balanced[self.free])
+        return x - self.rigid @ (self.rigid.T @ (self.mass @ x))
