@@ -65,7 +65,7 @@ def test_rigid_coupling_moves_the_face_rigidly_and_keeps_six_rigid_modes():
 
 
 def test_distributing_coupling_is_statically_equivalent_and_does_not_stiffen():
-    truss, face, body = truss_with("distributing")
+    truss, _, body = truss_with("distributing")
     c = body.constraints
     master = c.dependent  # the interface node's 6 dofs are the dependent ones
     assert sorted(body.dofs.nodes[master]) == [900] * 6
