@@ -317,3 +317,93 @@ def test_info_handles_massless_dofs(tmp_path, capsys):
     finite = np.sort(values[np.isfinite(values)].real)
     expected = np.sqrt(finite[:4]) / (2 * np.pi)
     assert np.allclose(json.loads(out)["eigenfrequencies_hz"], expected, rtol=1e-8)
+
+
+TRUSS_JOB = """
+[model]
+stiffness = "truss/K.mtx"
+mass = "truss/M.mtx"
+dofs = "truss/dofs.csv"
+nodes = "truss/nodes.csv"
+
+[[interface]]
+node = 900
+position = [0.3, 0.1, 0.05]
+kind = "beams"
+box = {{ min = [0.25, -1, -1], max = [0.35, 1, 1] }}
+youngs_modulus = 1e18
+density = 100
+diameter = 0.005
+{extra}
+[frame]
+type = "tangent"
+node = 900
+
+[[inputs]]
+node = 1
+directions = "ux uy uz"
+
+[band]
+f_max_hz = 2000
+
+[[reduction]]
+name = "kry"
+method = "krylov"
+expansion_points_hz = [0, 1000]
+moments = 3
+"""
+
+
+@pytest.fixture
+def truss_files(tmp_path):
+    from conftest import space_truss
+
+    write_matrix_files(space_truss(), tmp_path / "truss")
+    return tmp_path
+
+
+def test_job_with_an_interface_node(truss_files, capsys):
+    job = truss_files / "job.toml"
+    job.write_text(TRUSS_JOB.format(extra=""))
+    code, _, err = run(["reduce", job, "--out", truss_files / "out", "--quiet"], capsys)
+    assert code == 0, err
+    summary = json.loads((truss_files / "out" / "summary.json").read_text())
+    # 24 truss nodes x 3 + node 900 (6) + rotations of the 6 face nodes (3 each)
+    assert summary["model"]["n_dof"] == 72 + 6 + 18
+    assert summary["reductions"][0]["static_rel_error"] < 1e-10
+
+
+def test_info_on_a_buckens_job_reports_rigid_and_elastic_modes(capsys):
+    code, out, _ = run(["info", ROOT / "examples" / "rack-beams-buckens.toml", "--modes", 3,
+                        "--json"], capsys)
+    assert code == 0
+    facts = json.loads(out)
+    assert facts["rigid_body_modes"] == 6
+    assert facts["eigenfrequencies_hz"][:6] == [0.0] * 6
+    assert facts["eigenfrequencies_hz"][6] == pytest.approx(105.34, abs=0.01)
+    assert len(facts["eigenfrequencies_hz"]) == 9
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "message"),
+    [
+        ('kind = "beams"', 'kind = "glue"', "must be one of rigid"),
+        ("box = {", "boxx = {", "unknown key 'boxx'; did you mean 'box'"),
+        ("position = [0.3, 0.1, 0.05]", "position = [0.3, 0.1]", "3 finite numbers"),
+        ("max = [0.35, 1, 1]", "max = [0.35, 1, 1], mid = 1", "unknown key 'mid'"),
+        ("min = [0.25, -1, -1]", "min = [5, 5, 5]", "no node of the model"),
+        ("node = 900\nposition", "node = 1\nposition", "exists already"),
+        ('kind = "beams"', 'kind = "springs"', "unknown key 'youngs_modulus'"),
+        ('kind = "beams"\nbox = { min = [0.25, -1, -1], max = [0.35, 1, 1] }\n'
+         "youngs_modulus = 1e18\ndensity = 100\ndiameter = 0.005",
+         'kind = "springs"\nnodes = [19, 20]\ndamping = 2.0', "springs need 'stiffness'"),
+    ],
+)
+def test_bad_interface_tables(old, new, message, truss_files, capsys):
+    text = TRUSS_JOB.format(extra="")
+    assert old in text
+    job = truss_files / "bad.toml"
+    job.write_text(text.replace(old, new, 1))
+    code, _, err = run(["reduce", job, "--out", truss_files / "out", "--quiet"], capsys)
+    assert code == 2 and err.count("\n") == 1
+    assert message in err and "[[interface]] #1" in err

@@ -20,13 +20,15 @@ from threadpoolctl import threadpool_limits
 
 from pymorembs import __version__
 from pymorembs.body import ElasticBody
-from pymorembs.config import load_job
+from pymorembs.config import MODEL_FORMATS, load_job
 from pymorembs.errors import PymorembsError, UserError
 from pymorembs.examples import EXAMPLES, build_example
-from pymorembs.io.matrix_market import read_matrix_files, write_matrix_files
-from pymorembs.io.native import read_body_h5, write_body_h5
-from pymorembs.pipeline import run_job
-from pymorembs.prepare import Frame, prepare
+from pymorembs.io.formats import read_body
+from pymorembs.io.matrix_market import write_matrix_files
+from pymorembs.io.native import write_body_h5
+from pymorembs.pipeline import add_interfaces, load_model, run_job
+from pymorembs.prepare import Frame, PreparedModel, prepare
+from pymorembs.prepare.rigid_modes import free_rigid_body_modes
 from pymorembs.reduce.modal import eigenmodes
 
 #: Below this size ``info`` solves the eigenproblem densely.
@@ -51,17 +53,29 @@ def build_parser() -> argparse.ArgumentParser:
     ex = sub.add_parser("example", help="write a built-in example model")
     ex.add_argument("name", help=f"example name: {', '.join(EXAMPLES)}")
     ex.add_argument("--out", required=True, type=Path, help="output folder")
+    ex.add_argument("--dofs", type=int, help="rack-solid: about this many dofs (35000)")
+    ex.add_argument("--interface", help="rack-solid: interface variant of node 2")
 
-    info = sub.add_parser("info", help="facts and eigenfrequencies of a model")
-    info.add_argument("model", nargs="?", type=Path, help="native .h5 model file")
-    info.add_argument("--stiffness", type=Path, help="stiffness matrix (Matrix Market)")
-    info.add_argument("--mass", type=Path, help="mass matrix (Matrix Market)")
-    info.add_argument("--damping", type=Path, help="damping matrix (Matrix Market)")
+    info = sub.add_parser("info", help="facts and eigenfrequencies of a model or a job")
+    info.add_argument(
+        "model",
+        nargs="?",
+        type=Path,
+        help="model file (.h5, .full, .pch, .op4, ...) or a job file (.toml)",
+    )
+    info.add_argument("--format", choices=MODEL_FORMATS, help="file format (default: detected)")
+    info.add_argument("--stiffness", type=Path, help="stiffness matrix file")
+    info.add_argument("--mass", type=Path, help="mass matrix file")
+    info.add_argument("--damping", type=Path, help="damping matrix file")
     info.add_argument("--dofs", type=Path, help="dof table CSV (node,direction)")
-    info.add_argument("--nodes", type=Path, help="nodes CSV (id,x,y,z)")
+    info.add_argument("--nodes", type=Path, help="nodes: CSV (id,x,y,z) or FE input file")
     info.add_argument("--constraints", type=Path, help="constraint equations CSV")
     info.add_argument("--fixed", type=Path, help="fixed dofs CSV (node,direction)")
-    info.add_argument("--modes", type=int, default=10, help="number of eigenfrequencies (10)")
+    info.add_argument("--mapping", type=Path, help="Ansys dof mapping file (*SMAT MMF export)")
+    info.add_argument("--inp", type=Path, help="Abaqus input file with the *NODE data")
+    info.add_argument("--stiffness-name", help="name of the stiffness matrix (Nastran: KAAX)")
+    info.add_argument("--mass-name", help="name of the mass matrix (Nastran: MAAX)")
+    info.add_argument("--modes", type=int, default=10, help="number of elastic eigenfrequencies")
     info.add_argument("--json", action="store_true", help="print JSON")
 
     red = sub.add_parser("reduce", help="run a reduction job (TOML)")
@@ -104,7 +118,10 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _example(args: argparse.Namespace) -> int:
-    body = build_example(args.name)
+    options = {
+        key: getattr(args, key) for key in ("dofs", "interface") if getattr(args, key) is not None
+    }
+    body = build_example(args.name, **options)
     out: Path = args.out
     if out.exists() and not out.is_dir():
         raise UserError(f"{out}: exists and is not a folder")
@@ -116,29 +133,56 @@ def _example(args: argparse.Namespace) -> int:
     return 0
 
 
-def _load_for_info(args: argparse.Namespace) -> ElasticBody:
-    files = {
-        key: getattr(args, key)
-        for key in ("stiffness", "mass", "damping", "dofs", "nodes", "constraints", "fixed")
-    }
-    given = {k: v for k, v in files.items() if v is not None}
-    if args.model is not None:
-        if given:
-            raise UserError("info: give either a model file or --stiffness/--mass, not both")
-        return read_body_h5(args.model)
-    if "stiffness" not in given or "mass" not in given:
-        raise UserError("info: give a model file (.h5) or both --stiffness and --mass")
-    return read_matrix_files(**given)
+INFO_FILES = (
+    "stiffness",
+    "mass",
+    "damping",
+    "dofs",
+    "nodes",
+    "constraints",
+    "fixed",
+    "mapping",
+    "inp",
+    "stiffness_name",
+    "mass_name",
+)
 
 
-def model_facts(body: ElasticBody, modes: int) -> dict[str, Any]:
-    """Sizes, mass and the lowest eigenfrequencies (Hz) of a body with its own constraints."""
+def _prepared_for_info(args: argparse.Namespace) -> tuple[ElasticBody, PreparedModel]:
+    """The model of ``info``: a job (with its interfaces and frame) or model files as they are."""
+    given = {key: getattr(args, key) for key in INFO_FILES if getattr(args, key) is not None}
+    if args.model is not None and args.model.suffix.lower() == ".toml":
+        if given or args.format:
+            raise UserError("info: a job file brings its own model; give no file options")
+        job = load_job(args.model)
+        body = add_interfaces(load_model(job.model), job)
+        try:
+            return body, prepare(body, job.frame, allow_rigid_body_modes=True)
+        except UserError as exc:
+            raise UserError(f"{args.model}: {exc}") from None
+    if args.model is None and not ("stiffness" in given and "mass" in given):
+        raise UserError("info: give a model file, a job file, or both --stiffness and --mass")
+    if args.model is not None and ("stiffness" in given or "mass" in given):
+        raise UserError("info: give either a model file or --stiffness/--mass, not both")
+    files = {"file": args.model} if args.model is not None else {}
+    body = read_body(args.format, **files, **given)
+    return body, prepare(body, Frame("none"), allow_rigid_body_modes=True)
+
+
+def model_facts(body: ElasticBody, prepared: PreparedModel, modes: int) -> dict[str, Any]:
+    """Sizes, mass, rigid-body modes and the ``modes`` lowest elastic eigenfrequencies (Hz).
+
+    Rigid-body modes are the motions the fixed dofs and constraints leave free and unresisted
+    (:func:`pymorembs.prepare.rigid_modes.free_rigid_body_modes`), reported as 0 Hz. Massless
+    dofs are fine: the shift-invert eigensolver needs only ``K - sigma M`` to be regular, which
+    is equivalent to the static condensation of the massless dofs.
+    """
     if modes < 1:
         raise UserError(f"--modes must be at least 1, got {modes}")
-    prepared = prepare(body, Frame("none"), allow_rigid_body_modes=True)
     system = prepared.system
+    free = free_rigid_body_modes(prepared.body, prepared.elimination, system)
     n = system.order
-    count = min(modes, n - 1) if n > DENSE_LIMIT else min(modes, n)
+    count = min(modes + len(free), n - 1 if n > DENSE_LIMIT else n)
     values = None
     if n <= DENSE_LIMIT:
         try:
@@ -153,23 +197,25 @@ def model_facts(body: ElasticBody, modes: int) -> dict[str, Any]:
     if values is None:
         values, _ = eigenmodes(system, count)
     scale = system.stiffness.diagonal().max() / max(system.mass.diagonal().max(), 1e-300)
-    rigid = np.abs(values) < RIGID_TOLERANCE * scale
+    rigid = (np.arange(values.size) < len(free)) | (np.abs(values) < RIGID_TOLERANCE * scale)
     frequencies = np.where(rigid, 0.0, np.sqrt(np.clip(values, 0.0, None)) / (2 * np.pi))
     return {
         "name": body.name,
-        "n_dof": body.n_dof,
-        "n_nodes": body.n_nodes,
+        "n_dof": prepared.body.n_dof,
+        "n_nodes": prepared.body.n_nodes,
         "n_dependent": int(prepared.elimination.dependent.size),
         "n_fixed": int(prepared.elimination.fixed.size),
         "n_independent": n,
         "total_mass": body.total_mass(),
         "rigid_body_modes": int(np.count_nonzero(rigid)),
+        "rigid_body_motions": free,
         "eigenfrequencies_hz": frequencies.tolist(),
     }
 
 
 def _info(args: argparse.Namespace) -> int:
-    facts = model_facts(_load_for_info(args), args.modes)
+    body, prepared = _prepared_for_info(args)
+    facts = model_facts(body, prepared, args.modes)
     if args.json:
         print(json.dumps(facts, indent=2))
         return 0

@@ -26,17 +26,45 @@ METHOD_OPTIONS: dict[str, tuple[str, ...]] = {
     "krylov": ("expansion_points_hz", "moments", "tol"),
 }
 
-MODEL_FILE_KEYS = ("stiffness", "mass", "damping", "dofs", "nodes", "constraints", "fixed")
+MODEL_FILE_KEYS = (
+    "file", "stiffness", "mass", "damping", "dofs", "nodes", "constraints", "fixed", "mapping",
+    "inp",
+)  # fmt: skip
+MODEL_FORMATS = (
+    "native", "matrix-market", "ansys-full", "ansys-mmf", "abaqus", "nastran-dmig", "nastran-op4",
+)  # fmt: skip
+INTERFACE_KINDS = ("rigid", "distributing", "beams", "springs")
 _NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$")
 
 
 @dataclass(frozen=True)
 class ModelSpec:
-    """Where the body comes from: a built-in example, a native ``.h5`` file, or matrix files."""
+    """Where the body comes from.
+
+    Either a built-in ``example`` (with its ``options``, e.g. ``dofs`` and ``interface`` of
+    ``rack-solid``), or model files (``files``: ``file`` for one-file formats, ``stiffness`` and
+    ``mass`` with their companions otherwise) in a ``format`` (None: detected from the content),
+    with ``names`` of the matrices inside a file where the format has names (Nastran).
+    """
 
     example: str | None = None
-    file: Path | None = None
-    matrix_files: dict[str, Path] = field(default_factory=dict)
+    options: dict[str, Any] = field(default_factory=dict)
+    format: str | None = None
+    files: dict[str, Path] = field(default_factory=dict)
+    names: dict[str, str] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class InterfaceNodeSpec:
+    """An ``[[interface]]`` table: a node to add and the nodes it couples to (section 2.2)."""
+
+    node: int
+    position: tuple[float, float, float]
+    kind: str
+    ids: tuple[int, ...] | None
+    cylinder: tuple | None
+    box: tuple | None
+    parameters: dict[str, float]
 
 
 @dataclass(frozen=True)
@@ -55,6 +83,7 @@ class Job:
 
     path: Path
     model: ModelSpec
+    interfaces: tuple[InterfaceNodeSpec, ...]
     damping: Damping | None
     frame: Frame
     inputs: tuple[Port, ...]
@@ -161,6 +190,7 @@ def parse_job(data: dict[str, Any], path: Path) -> Job:
     base = path.parent
     title = top.string("title", "") or ""
     model = _model(_Table(top.get("model", required=True), "[model]", path), base)
+    interfaces = _interfaces(top.get("interface", []), path)
     damping = _damping(top.get("damping"), path)
     frame = _frame(_Table(top.get("frame", required=True), "[frame]", path))
     inputs = _ports(top.get("inputs", required=True), "inputs", path)
@@ -178,27 +208,125 @@ def parse_job(data: dict[str, Any], path: Path) -> Job:
     reductions = _reductions(top.get("reduction", required=True), path)
     top.done()
     return Job(
-        path, model, damping, frame, inputs, outputs, (f_min, f_max), points, reductions, title
+        path,
+        model,
+        interfaces,
+        damping,
+        frame,
+        inputs,
+        outputs,
+        (f_min, f_max),
+        points,
+        reductions,
+        title,
     )
 
 
 def _model(table: _Table, base: Path) -> ModelSpec:
     example = table.string("example")
-    file = table.string("file")
+    if example is not None:
+        options = {}
+        size = table.integer("dofs", minimum=1000)
+        if size is not None:
+            options["dofs"] = size
+        variant = table.string("interface")
+        if variant is not None:
+            options["interface"] = variant
+        table.done()
+        return ModelSpec(example=example, options=options)
+    fmt = table.string("format")
+    if fmt is not None and fmt not in MODEL_FORMATS:
+        hint = difflib.get_close_matches(fmt, MODEL_FORMATS, n=1)
+        more = f"; did you mean '{hint[0]}'?" if hint else f" (one of {', '.join(MODEL_FORMATS)})"
+        raise table.error("format", f"unknown format {fmt!r}{more}")
     files = {key: table.string(key) for key in MODEL_FILE_KEYS}
     files = {key: base / value for key, value in files.items() if value is not None}
+    names = {key: table.string(key) for key in ("stiffness_name", "mass_name")}
+    names = {key: value for key, value in names.items() if value is not None}
     table.done()
-    given = sum(x is not None and x != {} for x in (example, file, files or None))
-    if given != 1:
+    if not files:
         raise UserError(
-            f"{table.path}: [model]: give exactly one of 'example', 'file' (a .h5 model) or "
-            "'stiffness' and 'mass' (Matrix Market files)"
+            f"{table.path}: [model]: give 'example', or a model 'file', or 'stiffness' and 'mass'"
         )
-    if files and not ("stiffness" in files and "mass" in files):
+    if "file" not in files and not ("stiffness" in files and "mass" in files):
         raise UserError(f"{table.path}: [model]: matrix files need both 'stiffness' and 'mass'")
-    return ModelSpec(
-        example=example, file=None if file is None else base / file, matrix_files=files
-    )
+    return ModelSpec(format=fmt, files=files, names=names)
+
+
+def _interfaces(data: Any, path: Path) -> tuple[InterfaceNodeSpec, ...]:
+    if not isinstance(data, list):
+        raise UserError(f"{path}: interface: expected one or more [[interface]] tables")
+    specs = []
+    for k, item in enumerate(data, start=1):
+        table = _Table(item, f"[[interface]] #{k}", path)
+        node = table.integer("node", required=True, minimum=-(2**62))
+        position = _vector(table, "position", required=True)
+        kind = table.string("kind", required=True)
+        if kind not in INTERFACE_KINDS:
+            raise table.error("kind", f"must be one of {', '.join(INTERFACE_KINDS)}, got {kind!r}")
+        ids = table.get("nodes")
+        if ids is not None and (
+            not isinstance(ids, list)
+            or not ids
+            or not all(isinstance(i, int) and not isinstance(i, bool) for i in ids)
+        ):
+            raise table.error("nodes", f"must be a list of node ids, got {ids!r}")
+        cylinder = box = None
+        table.known.update(("cylinder", "box"))  # selections: always valid keys
+        if "cylinder" in table.data:
+            sub = _Table(table.get("cylinder"), f"[[interface]] #{k}.cylinder", path)
+            cylinder = (
+                _vector(sub, "point", required=True),
+                _vector(sub, "direction", required=True),
+                sub.number("radius", required=True, minimum=0.0),
+            )
+            tolerance = sub.number("tolerance", minimum=0.0)
+            if tolerance is not None:
+                cylinder = (*cylinder, tolerance)
+            sub.done()
+        if "box" in table.data:
+            sub = _Table(table.get("box"), f"[[interface]] #{k}.box", path)
+            box = (_vector(sub, "min", required=True), _vector(sub, "max", required=True))
+            sub.done()
+        allowed = {
+            "beams": ("youngs_modulus", "density", "diameter", "poisson"),
+            "springs": ("stiffness", "damping"),
+        }.get(kind, ())
+        parameters = {}
+        for key in allowed:
+            value = table.number(key, minimum=0.0)
+            if value is not None:
+                parameters[key] = value
+        table.done()  # unknown keys first: a misspelled key is the likely cause of what follows
+        if ids is None and cylinder is None and box is None:
+            raise UserError(
+                f"{path}: [[interface]] #{k}: give 'nodes', 'cylinder' or 'box' "
+                "to select the coupled nodes"
+            )
+        if kind == "springs" and "stiffness" not in parameters:
+            raise UserError(f"{path}: [[interface]] #{k}: springs need 'stiffness' (N/m)")
+        specs.append(
+            InterfaceNodeSpec(
+                node, position, kind, None if ids is None else tuple(ids), cylinder, box, parameters
+            )
+        )
+    return tuple(specs)
+
+
+def _vector(table: _Table, key: str, required: bool = False) -> tuple[float, float, float] | None:
+    value = table.get(key, required=required)
+    if value is None:
+        return None
+    if not (
+        isinstance(value, list)
+        and len(value) == 3
+        and all(
+            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+            for v in value
+        )
+    ):
+        raise table.error(key, f"must be 3 finite numbers [x, y, z], got {value!r}")
+    return (float(value[0]), float(value[1]), float(value[2]))
 
 
 def _damping(data: Any, path: Path) -> Damping | None:
@@ -227,10 +355,10 @@ def _frame(table: _Table) -> Frame:
         node = table.integer("node", required=True, minimum=-(2**62))
         table.done()
         return Frame("tangent", node)
-    if kind == "none":
+    if kind in ("buckens", "none"):
         table.done()
-        return Frame("none")
-    raise table.error("type", f"must be 'tangent' or 'none', got {kind!r}")
+        return Frame(kind)
+    raise table.error("type", f"must be 'tangent', 'buckens' or 'none', got {kind!r}")
 
 
 def _ports(data: Any, key: str, path: Path) -> tuple[Port, ...]:

@@ -25,9 +25,9 @@ from pymorembs.config import Job, ModelSpec, ReductionSpec
 from pymorembs.errors import NumericalError, UserError
 from pymorembs.examples import build_example
 from pymorembs.io.atomic import atomic_path, write_text
-from pymorembs.io.matrix_market import read_matrix_files
-from pymorembs.io.native import read_body_h5
+from pymorembs.io.formats import read_body
 from pymorembs.prepare import PreparedModel, prepare
+from pymorembs.prepare.interface import InterfaceSpec, add_interface_node, select_nodes
 from pymorembs.reduce.krylov import krylov_reduction
 from pymorembs.reduce.modal import modal_reduction
 from pymorembs.reduce.projection import Projection, ReducedModel, reduced_model
@@ -38,12 +38,42 @@ Progress = Callable[[str], None]
 
 
 def load_model(spec: ModelSpec) -> ElasticBody:
-    """The body a job's ``[model]`` names."""
+    """The body a job's ``[model]`` names: a built-in example or model files of any format."""
     if spec.example is not None:
-        return build_example(spec.example)
-    if spec.file is not None:
-        return read_body_h5(spec.file)
-    return read_matrix_files(**spec.matrix_files)
+        return build_example(spec.example, **spec.options)
+    return read_body(spec.format, **spec.files, **spec.names)
+
+
+def add_interfaces(body: ElasticBody, job: Job) -> ElasticBody:
+    """The body with the job's ``[[interface]]`` nodes added and coupled (paper section 2.2)."""
+    for k, spec in enumerate(job.interfaces, start=1):
+        try:
+            coupled = select_nodes(body, ids=spec.ids, cylinder=spec.cylinder, box=spec.box)
+            body = add_interface_node(
+                body,
+                InterfaceSpec(
+                    node=spec.node,
+                    position=spec.position,
+                    coupled=tuple(int(n) for n in coupled),
+                    kind=spec.kind,
+                    **spec.parameters,
+                ),
+            )
+        except UserError as exc:
+            raise UserError(f"{job.path}: [[interface]] #{k}: {exc}") from None
+    return body
+
+
+def prepare_job(job: Job) -> tuple[ElasticBody, PreparedModel]:
+    """Load the model of a job, add its interface nodes, set its damping and prepare it."""
+    body = add_interfaces(load_model(job.model), job)
+    if job.damping is not None:
+        body = body.with_damping(job.damping)
+    try:
+        prepared = prepare(body, job.frame, list(job.inputs), list(job.outputs))
+    except UserError as exc:
+        raise UserError(f"{job.path}: {exc}") from None
+    return body, prepared
 
 
 def run_reduction(system: SecondOrderSystem, spec: ReductionSpec) -> Projection:
@@ -74,20 +104,10 @@ def run_job(job: Job, out_dir: str | Path, progress: Progress | None = None) -> 
     timings: dict[str, float] = {}
     clock = time.perf_counter()
 
-    say("loading model")
-    body = load_model(job.model)
-    if job.damping is not None:
-        body = body.with_damping(job.damping)
-    timings["load_s"] = time.perf_counter() - clock
-
-    tick = time.perf_counter()
-    say("preparing: frame, constraint elimination, inputs and outputs")
-    try:
-        prepared = prepare(body, job.frame, list(job.inputs), list(job.outputs))
-    except UserError as exc:
-        raise UserError(f"{job.path}: {exc}") from None
+    say("loading the model, interfaces, frame, constraint elimination, inputs and outputs")
+    body, prepared = prepare_job(job)
     system = prepared.system
-    timings["prepare_s"] = time.perf_counter() - tick
+    timings["prepare_s"] = time.perf_counter() - clock
     warnings = list(prepared.warnings)
     for warning in warnings:
         say(f"warning: {warning}")
@@ -269,4 +289,4 @@ def _jsonable(value: Any) -> Any:
     return value
 
 
-__all__ = ["load_model", "run_job", "run_reduction"]
+__all__ = ["add_interfaces", "load_model", "prepare_job", "run_job", "run_reduction"]

@@ -1,0 +1,728 @@
+"""Which reader reads a model file: format detection and one entry point for every format.
+
+:func:`read_body` reads a body in any supported format; :func:`detect_format` tells the format of a
+file from its content (the file name is only a hint for the error message). The formats
+(:data:`FORMATS`) and what FE program writes them:
+
+``native``
+    The HDF5 file of :mod:`pymorembs.io.native` (``pymorembs`` writes it).
+``matrix-market``
+    ``K.mtx``, ``M.mtx`` plus CSV tables (:mod:`pymorembs.io.matrix_market`).
+``ansys-full``
+    The Ansys Mechanical APDL ``.full`` file of a modal analysis (:mod:`pymorembs.io.ansys`).
+``ansys-mmf``
+    Matrix Market files exported by APDL Math ``*EXPORT,...,MMF`` with the mapping file of
+    ``*SMAT,...,FULL`` (:mod:`pymorembs.io.ansys`).
+``abaqus``
+    ``*MATRIX GENERATE`` + ``*MATRIX OUTPUT`` text files ``jobname_STIFn.mtx``,
+    ``jobname_MASSn.mtx`` (:mod:`pymorembs.io.abaqus`).
+``nastran-dmig``
+    DMIG cards of a punch file written by ``PARAM,EXTOUT,DMIGPCH``
+    (:mod:`pymorembs.io.nastran_dmig`).
+``nastran-op4``
+    OUTPUT4 files, ASCII or binary (:mod:`pymorembs.io.nastran_op4`).
+
+Detection rules (:func:`detect_format`), applied to the first bytes of the file in this order:
+
+1. a directory holding ``K.mtx`` -> ``matrix-market``;
+2. the HDF5 signature ``\\x89HDF\\r\\n\\x1a\\n`` at offset 0, 512, 1024, ... -> ``native``;
+3. an Ansys binary file: the first Fortran record holds 100 words (int32 ``100`` at offset 0,
+   either byte order) and the file number at offset 8 is 4 -> ``ansys-full`` (another file number,
+   e.g. 12 for a ``.rst`` result file, is an error naming the Ansys file type);
+4. a binary OUTPUT4 header record: int32 ``24`` at offsets 0 and 28 (or ``48`` at 0 and 52) with
+   a printable matrix name -> ``nastran-op4``;
+5. first line ``%%MatrixMarket ...`` -> ``matrix-market`` (:func:`read_body` turns it into
+   ``ansys-mmf`` when a ``mapping`` file is given);
+6. first line of an ASCII OUTPUT4 file: four 8-character integers (columns, rows, form, type), the
+   matrix name and a Fortran format such as ``1P,3E23.16`` -> ``nastran-op4``;
+7. a line starting with ``DMIG`` (small, large ``DMIG*`` or free field ``DMIG,``) in the first
+   16 MB -> ``nastran-dmig``;
+8. the first data line (blank lines and ``**`` comments skipped) holds 5 comma-separated numbers
+   (``node, dof, node, dof, value``) or 3 numbers (``row, column, value``) -> ``abaqus``.
+
+Anything else is a :class:`~pymorembs.errors.UserError`
+``path: cannot tell the file format; give --format (one of ...)``.
+
+The module also holds :func:`assemble_symmetric`, the checked assembly of a symmetric sparse
+matrix from (row, column, value) entries shared by the text readers.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import re
+import struct
+from collections.abc import Callable
+from dataclasses import replace
+from pathlib import Path
+from typing import Any, BinaryIO, Literal
+
+import numpy as np
+import scipy.sparse as sp
+
+from pymorembs.body import ElasticBody
+from pymorembs.errors import UserError
+from pymorembs.io.matrix_market import SYMMETRY_TOLERANCE, _fail
+
+__all__ = [
+    "FORMATS",
+    "assemble_symmetric",
+    "detect_format",
+    "is_nodes_csv",
+    "read_body",
+    "read_text",
+]
+
+PathLike = str | os.PathLike[str]
+
+#: Every input format :func:`read_body` reads.
+FORMATS: tuple[str, ...] = (
+    "native",
+    "matrix-market",
+    "ansys-full",
+    "ansys-mmf",
+    "abaqus",
+    "nastran-dmig",
+    "nastran-op4",
+)
+
+#: Options of :func:`read_body` each format takes (``format`` itself aside).
+_OPTIONS: dict[str, frozenset[str]] = {
+    "native": frozenset({"file", "constraints", "fixed", "name"}),
+    "matrix-market": frozenset(
+        {"file", "stiffness", "mass", "damping", "dofs", "nodes", "constraints", "fixed", "name"}
+    ),
+    "ansys-full": frozenset({"file", "nodes", "constraints", "fixed", "name"}),
+    "ansys-mmf": frozenset(
+        {"stiffness", "mass", "mapping", "damping", "nodes", "constraints", "fixed", "name"}
+    ),
+    "abaqus": frozenset(
+        {"stiffness", "mass", "damping", "dofs", "inp", "constraints", "fixed", "name"}
+    ),
+    "nastran-dmig": frozenset(
+        {"file", "damping", "nodes", "stiffness_name", "mass_name", "constraints", "fixed", "name"}
+    ),
+    "nastran-op4": frozenset(
+        {
+            "file",
+            "damping",
+            "dofs",
+            "nodes",
+            "stiffness_name",
+            "mass_name",
+            "constraints",
+            "fixed",
+            "name",
+        }
+    ),
+}
+
+#: What each format needs, as a readable hint for the "missing" error.
+_NEEDS: dict[str, str] = {
+    "native": "file (the .h5 file)",
+    "matrix-market": "stiffness and mass (the .mtx files), or file (a directory holding K.mtx)",
+    "ansys-full": "file (the .full file)",
+    "ansys-mmf": "stiffness, mass (the exported .mtx files) and mapping (the mapping file)",
+    "abaqus": "stiffness and mass (the jobname_STIFn.mtx and jobname_MASSn.mtx files)",
+    "nastran-dmig": "file (the .pch punch file)",
+    "nastran-op4": "file (the .op4 file)",
+}
+
+_HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+_ANSYS_FILE_TYPES = {
+    2: "element matrix file (.emat)",
+    3: "element saved data file (.esav)",
+    8: "substructure matrices file (.sub)",
+    9: "modal results file (.mode)",
+    10: "reduced displacement file (.rdsp)",
+    12: "result file (.rst)",
+    16: "database file (.db)",
+    45: "component mode synthesis file (.cms)",
+}
+_DMIG_LINE = re.compile(rb"(?im)^DMIG[ *,]")
+_OP4_FORMAT = re.compile(r"\d+\s*[ED]\s*\d+\.\d+", re.IGNORECASE)
+_HEAD_BYTES = 1 << 16
+_DMIG_SCAN_BYTES = 16 << 20
+_EXTENSION_HINTS = {
+    ".h5": "native",
+    ".hdf5": "native",
+    ".mtx": "matrix-market or abaqus",
+    ".full": "ansys-full",
+    ".pch": "nastran-dmig",
+    ".bdf": "nastran-dmig",
+    ".dat": "nastran-dmig",
+    ".op4": "nastran-op4",
+}
+
+
+# ============================================================================ detection
+def detect_format(path: PathLike) -> str:
+    """The format of a model file (one of :data:`FORMATS`), told from its content.
+
+    Parameters
+    ----------
+    path : path-like
+        The model file (for ``native``, ``ansys-full``, ``nastran-dmig``, ``nastran-op4``), the
+        stiffness file (``matrix-market``, ``abaqus``) or a directory holding ``K.mtx``.
+
+    Returns
+    -------
+    str
+        The format name. A Matrix Market file is ``"matrix-market"``; whether it is an Ansys
+        export (``"ansys-mmf"``) depends on a mapping file and is decided by :func:`read_body`.
+
+    Raises
+    ------
+    UserError
+        The file does not exist or its content matches no format (rules in the module docstring).
+    """
+    path = Path(path)
+    if path.is_dir():
+        if (path / "K.mtx").is_file():
+            return "matrix-market"
+        raise UserError(
+            f"{path}: a directory without K.mtx; cannot tell the file format; "
+            f"give --format (one of {', '.join(FORMATS)})"
+        )
+    try:
+        with open(path, "rb") as f:
+            head = f.read(_HEAD_BYTES)
+            found = _detect_head(path, head)
+            if found is None and len(head) == _HEAD_BYTES:
+                found = _scan_for_dmig(f, head)
+    except FileNotFoundError:
+        raise UserError(f"{path}: file not found") from None
+    except OSError as err:
+        raise UserError(f"{path}: cannot read: {err.strerror or err}") from None
+    if found is not None:
+        return found
+    raise UserError(f"{path}: cannot tell the file format{_hint(path, head)}; {_give_format()}")
+
+
+def _give_format() -> str:
+    return f"give --format (one of {', '.join(FORMATS)})"
+
+
+def _hint(path: Path, head: bytes) -> str:
+    """A parenthesised remark for the "cannot tell" error."""
+    if not head:
+        return " (the file is empty)"
+    first = _first_content_line(head.decode("latin-1"))
+    if first is not None and first.lstrip().startswith("*") and not first.lstrip().startswith("**"):
+        return (
+            " (it looks like an Abaqus input file; give it as the inp option next to the "
+            "*MATRIX OUTPUT files jobname_STIFn.mtx and jobname_MASSn.mtx)"
+        )
+    hint = _EXTENSION_HINTS.get(path.suffix.lower())
+    if hint:
+        return f" (the name suggests {hint}, but the content does not match)"
+    return ""
+
+
+def _detect_head(path: Path, head: bytes) -> str | None:
+    """The format from the first bytes of a file, or None."""
+    for offset in [0] + [512 << k for k in range(8)]:
+        if head[offset : offset + 8] == _HDF5_SIGNATURE:
+            return "native"
+    binary = _detect_binary(path, head)
+    if binary is not None:
+        return binary
+    if b"\x00" in head:
+        return None
+    text = head.decode("latin-1")
+    first = _first_content_line(text, skip_abaqus_comments=False)
+    if first is None:
+        return None
+    if first.lstrip().lower().startswith("%%matrixmarket"):
+        return "matrix-market"
+    if _is_op4_ascii_header(first):
+        return "nastran-op4"
+    if _DMIG_LINE.search(head):
+        return "nastran-dmig"
+    data = _first_content_line(text)
+    if data is not None and _is_abaqus_entry(data):
+        return "abaqus"
+    return None
+
+
+def _detect_binary(path: Path, head: bytes) -> str | None:
+    """Ansys ``.full`` or binary OUTPUT4 from the first record, or None."""
+    for endian in "<>":
+        if len(head) >= 12:
+            first, _, number = struct.unpack_from(endian + "3i", head)
+            if first == 100:
+                if number == 4:
+                    return "ansys-full"
+                kind = _ANSYS_FILE_TYPES.get(number, f"binary file with file number {number}")
+                raise UserError(
+                    f"{path}: an Ansys {kind}, not the .full file of a modal analysis; "
+                    "pymorembs reads the .full file (or its *EXPORT Matrix Market files)"
+                )
+        for length in (24, 48):
+            if len(head) >= length + 8:
+                (lead,) = struct.unpack_from(endian + "i", head)
+                (trail,) = struct.unpack_from(endian + "i", head, 4 + length)
+                name = head[4 + length - (8 if length == 24 else 16) : 4 + length]
+                if lead == length and trail == length and _printable(name):
+                    return "nastran-op4"
+    return None
+
+
+def _printable(name: bytes) -> bool:
+    return bool(name.strip()) and all(32 <= b < 127 for b in name)
+
+
+def _is_op4_ascii_header(line: str) -> bool:
+    """First line of an ASCII OUTPUT4 matrix: ``%8i%8i%8i%8i%-8s`` plus a Fortran format."""
+    if len(line) < 42:
+        return False
+    try:
+        for start in range(0, 32, 8):
+            int(line[start : start + 8])
+    except ValueError:
+        return False
+    return bool(line[32:40].strip()) and bool(_OP4_FORMAT.search(line[40:]))
+
+
+def _is_abaqus_entry(line: str) -> bool:
+    """``node, dof, node, dof, value`` or ``row, column, value`` (comma or blank separated)."""
+    line = line.split("**", 1)[0]
+    fields = [f.strip() for f in line.split(",")] if "," in line else line.split()
+    if len(fields) not in (3, 5):
+        return False
+    try:
+        for field in fields[:-1]:
+            int(field)
+        float(fields[-1].replace("D", "E").replace("d", "e"))
+    except ValueError:
+        return False
+    return True
+
+
+def _scan_for_dmig(f: BinaryIO, head: bytes) -> str | None:
+    """Look for DMIG cards further into a large text file (after other punch output)."""
+    if b"\x00" in head:
+        return None
+    tail = head[head.rfind(b"\n") + 1 :]
+    read = len(head)
+    while read < _DMIG_SCAN_BYTES:
+        chunk = f.read(_HEAD_BYTES)
+        if not chunk:
+            return None
+        read += len(chunk)
+        block = tail + chunk
+        if _DMIG_LINE.search(block):
+            return "nastran-dmig"
+        tail = block[block.rfind(b"\n") + 1 :]
+    return None
+
+
+def _first_content_line(text: str, skip_abaqus_comments: bool = True) -> str | None:
+    """The first non-blank line (and, by default, not an Abaqus ``**`` comment)."""
+    for line in text.splitlines():
+        stripped = line.strip()
+        if not stripped or (skip_abaqus_comments and stripped.startswith("**")):
+            continue
+        return line
+    return None
+
+
+# ============================================================================ reading
+def read_body(
+    format: str | None = None,
+    *,
+    file: PathLike | None = None,
+    stiffness: PathLike | None = None,
+    mass: PathLike | None = None,
+    damping: PathLike | str | None = None,
+    dofs: PathLike | None = None,
+    nodes: PathLike | None = None,
+    constraints: PathLike | None = None,
+    fixed: PathLike | None = None,
+    mapping: PathLike | None = None,
+    inp: PathLike | None = None,
+    stiffness_name: str | None = None,
+    mass_name: str | None = None,
+    name: str | None = None,
+) -> ElasticBody:
+    """Read a body in any supported format.
+
+    Parameters
+    ----------
+    format : str, optional
+        One of :data:`FORMATS` (``_`` may stand for ``-``, any case). Default: told from the
+        content of ``file`` or, without it, of ``stiffness`` (:func:`detect_format`); a Matrix
+        Market file with a ``mapping`` file is ``ansys-mmf``.
+    file : path-like, optional
+        The one model file of ``native`` (``.h5``), ``ansys-full`` (``.full``), ``nastran-dmig``
+        (``.pch``) and ``nastran-op4`` (``.op4``); for ``matrix-market`` it may be a directory
+        written by :func:`~pymorembs.io.matrix_market.write_matrix_files`.
+    stiffness, mass : path-like, optional
+        The stiffness and mass files of ``matrix-market``, ``ansys-mmf`` and ``abaqus``.
+    damping : path-like or str, optional
+        The viscous damping matrix file (``matrix-market``, ``ansys-mmf``, ``abaqus``); for
+        ``nastran-dmig`` and ``nastran-op4`` the *name* of the damping matrix in ``file``
+        (e.g. ``BAAX``).
+    dofs : path-like, optional
+        ``dofs.csv`` (header ``node,direction``): the dof of every equation, for
+        ``matrix-market``, ``abaqus`` with ``FORMAT=COORDINATE`` files and ``nastran-op4``.
+    nodes : path-like, optional
+        Node coordinates: ``nodes.csv`` (header ``id,x,y,z``), for ``nastran-dmig`` also a
+        Nastran bulk data file with GRID cards, for ``ansys-full``/``ansys-mmf`` whatever
+        :mod:`pymorembs.io.ansys` reads.
+    constraints, fixed : path-like, optional
+        ``constraints.csv`` and ``fixed.csv`` (layout in :mod:`pymorembs.io.matrix_market`);
+        accepted by every format and applied to the body read.
+    mapping : path-like, optional
+        The Ansys mapping file of ``ansys-mmf``.
+    inp : path-like, optional
+        The Abaqus input file with the ``*NODE`` coordinates (``abaqus`` only).
+    stiffness_name, mass_name : str, optional
+        Matrix names in the file of ``nastran-dmig`` (default ``KAAX``, ``MAAX``) and
+        ``nastran-op4``.
+    name : str, optional
+        Label of the body.
+
+    Returns
+    -------
+    ElasticBody
+
+    Raises
+    ------
+    UserError
+        Unknown format, content of no known format, an option that does not apply to the format,
+        a missing required file, or any error of the format's reader.
+    """
+    options = {
+        "file": file,
+        "stiffness": stiffness,
+        "mass": mass,
+        "damping": damping,
+        "dofs": dofs,
+        "nodes": nodes,
+        "constraints": constraints,
+        "fixed": fixed,
+        "mapping": mapping,
+        "inp": inp,
+        "stiffness_name": stiffness_name,
+        "mass_name": mass_name,
+        "name": name,
+    }
+    given = {key: value for key, value in options.items() if value is not None}
+    if format is None:
+        source = file if file is not None else stiffness
+        if source is None:
+            raise UserError(
+                "no model given: give the model file (file) or the stiffness file (stiffness)"
+            )
+        fmt = detect_format(source)
+        if fmt == "matrix-market" and mapping is not None:
+            fmt = "ansys-mmf"
+    else:
+        fmt = str(format).strip().lower().replace("_", "-")
+        if fmt not in FORMATS:
+            raise UserError(f"unknown format {format!r}; expected one of {', '.join(FORMATS)}")
+    extra = sorted(set(given) - _OPTIONS[fmt])
+    if extra:
+        plural = "s" if len(extra) > 1 else ""
+        verb = "do" if len(extra) > 1 else "does"
+        raise UserError(
+            f"option{plural} {', '.join(extra)} {verb} not apply to format {fmt}; "
+            f"it takes {', '.join(sorted(_OPTIONS[fmt]))}"
+        )
+    body, applied = _dispatch(fmt, given)
+    return _finish(body, given, applied)
+
+
+def _require(fmt: str, given: dict[str, Any], *keys: str) -> None:
+    """Raise :class:`UserError` if one of ``keys`` is missing."""
+    missing = [key for key in keys if key not in given]
+    if missing:
+        raise UserError(f"format {fmt} needs {_NEEDS[fmt]}; missing: {', '.join(missing)}")
+
+
+def _dispatch(fmt: str, given: dict[str, Any]) -> tuple[ElasticBody, set[str]]:
+    """Call the reader of ``fmt``; return the body and the options it already applied."""
+    g = given.get
+    if fmt == "native":
+        _require(fmt, given, "file")
+        from pymorembs.io.native import read_body_h5
+
+        return read_body_h5(g("file")), set()
+    if fmt == "matrix-market":
+        from pymorembs.io.matrix_market import read_matrix_directory, read_matrix_files
+
+        if "file" in given:
+            path = Path(g("file"))
+            clash = sorted({"stiffness", "mass", "damping", "dofs", "nodes"} & set(given))
+            if clash:
+                raise UserError(
+                    f"format matrix-market: give either a directory (file) or the single files, "
+                    f"not both (file and {', '.join(clash)})"
+                )
+            if not path.is_dir():
+                raise UserError(
+                    f"{path}: format matrix-market reads a directory (file) or the files "
+                    "stiffness and mass, not a single file"
+                )
+            return read_matrix_directory(path, name=g("name")), {"name"}
+        _require(fmt, given, "stiffness", "mass")
+        keys = ("stiffness", "mass", "damping", "dofs", "nodes", "constraints", "fixed", "name")
+        return read_matrix_files(**{k: given[k] for k in keys if k in given}), set(keys)
+    if fmt == "ansys-full":
+        _require(fmt, given, "file")
+        ansys = importlib.import_module("pymorembs.io.ansys")
+        body = ansys.read_ansys_full(g("file"), nodes=g("nodes"), name=g("name"))
+        return body, {"name"}
+    if fmt == "ansys-mmf":
+        _require(fmt, given, "stiffness", "mass", "mapping")
+        ansys = importlib.import_module("pymorembs.io.ansys")
+        body = ansys.read_ansys_mmf(
+            g("stiffness"),
+            g("mass"),
+            g("mapping"),
+            damping=g("damping"),
+            nodes=g("nodes"),
+            name=g("name"),
+        )
+        return body, {"name"}
+    if fmt == "abaqus":
+        _require(fmt, given, "stiffness", "mass")
+        from pymorembs.io.abaqus import read_abaqus
+
+        body = read_abaqus(
+            g("stiffness"),
+            g("mass"),
+            inp=g("inp"),
+            damping=g("damping"),
+            name=g("name"),
+            dofs=g("dofs"),
+        )
+        return body, {"name"}
+    if fmt == "nastran-dmig":
+        _require(fmt, given, "file")
+        from pymorembs.io.nastran_dmig import read_dmig
+
+        body = read_dmig(
+            g("file"),
+            stiffness=str(g("stiffness_name") or "KAAX"),
+            mass=str(g("mass_name") or "MAAX"),
+            damping=None if g("damping") is None else str(g("damping")),
+            nodes=g("nodes"),
+            name=g("name"),
+        )
+        return body, {"name"}
+    # nastran-op4
+    _require(fmt, given, "file")
+    op4 = importlib.import_module("pymorembs.io.nastran_op4")
+    names = {
+        key: str(given[option])
+        for key, option in (
+            ("stiffness", "stiffness_name"),
+            ("mass", "mass_name"),
+            ("damping", "damping"),
+        )
+        if option in given
+    }
+    body = op4.read_op4(g("file"), dofs=g("dofs"), nodes=g("nodes"), name=g("name"), **names)
+    return body, {"name"}
+
+
+def _finish(body: ElasticBody, given: dict[str, Any], applied: set[str]) -> ElasticBody:
+    """Apply ``constraints``, ``fixed`` and ``name`` where the reader did not."""
+    from pymorembs.io.matrix_market import _read_constraints, _read_fixed
+
+    if "constraints" in given and "constraints" not in applied:
+        path = Path(given["constraints"])
+        if len(body.constraints):
+            raise UserError(
+                f"{path}: the model already holds {len(body.constraints)} constraint equations; "
+                "give them in one place"
+            )
+        body = replace(body, constraints=_read_constraints(path, body.dofs))
+    if "fixed" in given and "fixed" not in applied:
+        body = body.with_fixed(_read_fixed(Path(given["fixed"]), body.dofs))
+    if "name" in given and "name" not in applied:
+        body = replace(body, name=str(given["name"]))
+    return body
+
+
+# ============================================================================ shared assembly
+def assemble_symmetric(
+    rows: np.ndarray,
+    cols: np.ndarray,
+    values: np.ndarray,
+    n: int,
+    *,
+    path: Path,
+    line_of: Callable[[int], int | None],
+    label: Callable[[int], str],
+    storage: Literal["auto", "symmetric", "square"] = "auto",
+) -> sp.csr_matrix:
+    """Assemble a symmetric ``n x n`` matrix from entries of a text file, checking them.
+
+    Parameters
+    ----------
+    rows, cols : ndarray of int
+        Equation indices (from 0) of the entries, in file order.
+    values : ndarray of float
+        The entries.
+    n : int
+        Size of the matrix.
+    path : Path
+        The file, for messages.
+    line_of : callable
+        Line number of entry ``k`` (called only to build an error message).
+    label : callable
+        Readable name of equation ``i`` for messages, e.g. ``"12:uy"``.
+    storage : {"auto", "symmetric", "square"}
+        ``"symmetric"``: each off-diagonal pair may be given once (either triangle, mirrored) or
+        twice with equal values. ``"square"``: the file stores the full matrix, so an entry
+        without its mirror entry means the mirror is zero. ``"auto"``: ``"square"`` when some
+        off-diagonal position is given in both orientations, else ``"symmetric"``. (The side of
+        the diagonal alone says nothing: a writer stores one triangle in *its* equation order,
+        which need not be the order of the dof table.)
+
+    Returns
+    -------
+    scipy.sparse.csr_matrix
+        The full, exactly symmetric matrix without explicit zeros.
+
+    Raises
+    ------
+    UserError
+        ``path:line: problem`` for a NaN or infinite value, the same position given twice with
+        different values (both lines named), or mirror entries that differ by more than
+        :data:`~pymorembs.io.matrix_market.SYMMETRY_TOLERANCE` times the largest entry.
+        Identical repeated entries are tolerated (read once).
+    """
+    rows = np.asarray(rows, dtype=np.int64)
+    cols = np.asarray(cols, dtype=np.int64)
+    values = np.asarray(values, dtype=np.float64)
+
+    def value(k: int) -> float:
+        return float(values[k])
+
+    bad = np.flatnonzero(~np.isfinite(values))
+    if bad.size:
+        k = int(bad[0])
+        raise _fail(path, line_of(k), f"value {value(k)!r} is not a finite number")
+    if values.size == 0:
+        return sp.csr_matrix((n, n))
+    lo, hi = np.minimum(rows, cols), np.maximum(rows, cols)
+    key = (hi * n + lo) * 2 + (rows > cols)
+    order = np.argsort(key, kind="stable")
+    skey, sval = key[order], values[order]
+
+    def where(k: int) -> str:
+        return f"({label(int(rows[k]))}, {label(int(cols[k]))})"
+
+    repeat = skey[1:] == skey[:-1]
+    if repeat.any():
+        clash = np.flatnonzero(repeat & (sval[1:] != sval[:-1]))
+        if clash.size:
+            c = int(clash[np.argmin(order[clash + 1])])
+            first, second = int(order[c]), int(order[c + 1])
+            raise _fail(
+                path,
+                line_of(second),
+                f"entry {where(second)} = {value(second)!r} is given again with another value "
+                f"(line {line_of(first)} has {value(first)!r})",
+            )
+        keep = np.concatenate([[True], ~repeat])
+        order, skey, sval = order[keep], skey[keep], sval[keep]
+
+    limit = SYMMETRY_TOLERANCE * float(np.max(np.abs(values)))
+    position = skey // 2
+    pairs = np.flatnonzero(position[1:] == position[:-1])  # upper at i, lower at i + 1
+    if pairs.size:
+        gap = np.abs(sval[pairs] - sval[pairs + 1])
+        bad = pairs[gap > limit]
+        if bad.size:
+            later = np.maximum(order[bad], order[bad + 1])
+            i = int(bad[np.argmin(later)])
+            first, second = sorted((int(order[i]), int(order[i + 1])))
+            raise _fail(
+                path,
+                line_of(second),
+                f"matrix is not symmetric: entry {where(second)} = {value(second)!r} but the "
+                f"mirror entry on line {line_of(first)} is {value(first)!r}",
+            )
+        sval[pairs] = 0.5 * (sval[pairs] + sval[pairs + 1])  # exact for equal values
+    if storage == "auto":
+        storage = "square" if pairs.size else "symmetric"
+    single = np.ones(skey.size, dtype=bool)
+    single[pairs] = single[pairs + 1] = False
+    if storage == "square":
+        lonely = single & (position // n != position % n) & (np.abs(sval) > limit)
+        if lonely.any():
+            k = int(np.min(order[lonely]))
+            if pairs.size:
+                a, b = sorted((int(order[pairs[0]]), int(order[pairs[0] + 1])))
+                why = f"other entries are given in both triangles (e.g. lines {line_of(a)} and "
+                why += f"{line_of(b)}), so the file stores the square matrix and the mirror is 0"
+            else:
+                why = "the matrix is stored square (both triangles), so the mirror is 0"
+            raise _fail(
+                path,
+                line_of(k),
+                f"matrix is not symmetric: entry {where(k)} = {value(k)!r} has no mirror entry "
+                f"({label(int(cols[k]))}, {label(int(rows[k]))}); {why}",
+            )
+    keep = np.ones(skey.size, dtype=bool)
+    keep[pairs + 1] = False
+    position, sval = position[keep], sval[keep]
+    hi, lo = position // n, position % n
+    off = hi != lo
+    matrix = sp.csr_matrix(
+        (
+            np.concatenate([sval, sval[off]]),
+            (np.concatenate([hi, lo[off]]), np.concatenate([lo, hi[off]])),
+        ),
+        shape=(n, n),
+    )
+    matrix.eliminate_zeros()
+    matrix.sort_indices()
+    return matrix
+
+
+# ============================================================================ shared file helpers
+def read_text(path: Path, kind: str) -> str:
+    """The whole text of a file (newlines normalised to ``\\n``), or a one-line :class:`UserError`.
+
+    ``kind`` names what the file should be, e.g. ``"an Abaqus matrix file"``.
+    """
+    text: str | None = None
+    try:
+        with open(path, encoding="utf-8-sig", errors="strict") as f:
+            text = f.read()
+    except FileNotFoundError:
+        raise _fail(path, None, f"file not found (expected {kind})") from None
+    except IsADirectoryError:
+        raise _fail(path, None, f"is a directory, expected {kind}") from None
+    except UnicodeDecodeError:
+        pass
+    except OSError as err:
+        raise _fail(path, None, f"cannot read: {err.strerror or err}") from None
+    if text is None:  # not UTF-8: read as Latin-1, which decodes any byte
+        with open(path, "rb") as f:
+            text = f.read().decode("latin-1").replace("\r\n", "\n").replace("\r", "\n")
+    if "\x00" in text:
+        raise _fail(path, None, f"a binary file, expected {kind}")
+    return text
+
+
+def is_nodes_csv(path: Path) -> bool:
+    """Whether ``path`` looks like a ``nodes.csv`` (first content line ``id,x,y,z``)."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(4096).decode("latin-1")
+    except OSError:
+        return False
+    for line in head.splitlines():
+        text = line.strip()
+        if not text or text.startswith("#"):
+            continue
+        return "".join(text.lower().split()).startswith("id,x,y,z")
+    return False

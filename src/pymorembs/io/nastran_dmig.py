@@ -1,0 +1,693 @@
+"""Read stiffness, mass and damping matrices from Nastran DMIG cards (punch files).
+
+Export: MSC or Simcenter (NX) Nastran, normal modes (SOL 103), with every dof the reduction in
+pymorembs needs in the analysis set (``ASET``/``ASET1``) and no ``QSET`` (no component modes),
+and in the bulk data::
+
+    PARAM,EXTOUT,DMIGPCH
+
+(or the case control command ``EXTSEOUT(STIFFNESS,MASS,DMIGPCH)``). Nastran punches the a-set
+matrices to ``jobname.pch`` as DMIG matrices ``KAAX`` (stiffness), ``MAAX`` (mass), ``BAAX``
+(viscous damping) and ``K4AAX`` (structural damping), read with :func:`read_dmig` (``pymorembs``
+format ``nastran-dmig``). Other writers name the matrices differently (e.g. OptiStruct after its
+``DMIGNAME``); give the names as arguments. The matrices are those of the a-set after multipoint
+constraints (RBE2, MPC) were applied and after ``ASET`` reduction.
+
+Card layout (Nastran Quick Reference Guide, DMIG)::
+
+    DMIG  NAME  "0"  IFO  TIN  TOUT  POLAR        NCOL      header
+    DMIG  NAME  GJ   CJ         G1    C1    A1    B1        column GJ, component CJ
+          G2    C2   A2    B2   G3    C3    A3    B3        continuation: more rows
+
+``IFO`` 6 is a symmetric matrix (one triangle given, or both if equal), 1 a square one (must be
+symmetric); ``TIN`` 1 or 2 is real single or double precision (complex 3, 4 is refused).
+Small field (8 characters), large field (``DMIG*``, 16 characters, ``*`` continuation lines) and
+free field (commas) are read; columns 73-80 (continuation labels) are ignored; tabs are expanded
+to columns of 8. Numbers may use ``E`` or ``D`` exponents or Nastran's short form ``1.5+3``.
+Components 1-6 are T1 T2 T3 R1 R2 R3 = ux uy uz rx ry rz in the displacement coordinate system
+of the grid (which must be the basic system). Scalar and extra points (component 0 or blank) are
+refused: they are not nodal displacements (e.g. the modal coordinates of a ``QSET``).
+
+Matrix names are compared without regard to case. Stiffness, mass and damping may cover different
+(grid, component) sets: the dof table is their union sorted by grid and component, and a matrix is
+zero where it has no entry (a dof without mass is massless). Identical repeated entries are read
+once; the same position with two values is an error naming both lines.
+
+Large files are parsed with numpy: the lines are classified by their first byte, the fixed-width
+fields of all entry lines are cut out as one array and converted at once; only free-field lines,
+and lines whose numbers need Nastran's short exponent form, go through the line-by-line parser.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from pymorembs.body import DofTable, ElasticBody
+from pymorembs.errors import UserError
+from pymorembs.io.formats import assemble_symmetric, is_nodes_csv, read_text
+from pymorembs.io.matrix_market import _fail, _read_nodes
+
+__all__ = ["read_dmig", "read_grid_nodes"]
+
+PathLike = str | os.PathLike[str]
+
+_WIDTH = 72  # columns 1-72 hold field 1 and the eight data fields; 73-80 are ignored
+_SPACE, _STAR, _PLUS, _COMMA, _DOLLAR = (ord(c) for c in " *+,$")
+_SHORT_EXPONENT = re.compile(r"^([+-]?(?:\d+\.?\d*|\.\d+))([+-]\d+)$")
+
+
+def read_dmig(
+    path: PathLike,
+    stiffness: str = "KAAX",
+    mass: str = "MAAX",
+    damping: str | None = None,
+    nodes: PathLike | None = None,
+    name: str | None = None,
+) -> ElasticBody:
+    """Read a body from the DMIG matrices of a Nastran punch file.
+
+    Export with ``PARAM,EXTOUT,DMIGPCH`` in the bulk data of a SOL 103 run (details and the
+    accepted card layouts in the module docstring).
+
+    Parameters
+    ----------
+    path : path-like
+        The punch file (``.pch``) or any bulk data file with DMIG cards.
+    stiffness, mass : str
+        Names of the stiffness and mass matrices (any case), default ``KAAX`` and ``MAAX``.
+    damping : str, optional
+        Name of a viscous damping matrix (e.g. ``BAAX``).
+    nodes : path-like, optional
+        Coordinates: a Nastran bulk data file with GRID cards (:func:`read_grid_nodes`) or a
+        ``nodes.csv`` (header ``id,x,y,z``). Without it every grid lies at the origin.
+    name : str, optional
+        Label of the body; default: the file name without extension.
+
+    Returns
+    -------
+    ElasticBody
+
+    Raises
+    ------
+    UserError
+        A missing matrix (the message lists the matrices in the file), a malformed card, a
+        complex or rectangular matrix, a scalar point, a non-symmetric matrix, conflicting
+        duplicate entries, or a grid missing in ``nodes``; one line ``file:line: ...``.
+    """
+    path = Path(path)
+    roles = {"stiffness": stiffness, "mass": mass}
+    if damping is not None:
+        roles["damping"] = damping
+    wanted = {role: str(matrix).strip().upper() for role, matrix in roles.items()}
+    punch = _Punch(path)
+    punch.check_present(wanted)
+    names = list(dict.fromkeys(wanted.values()))
+    entries = punch.entries(names)
+    all_keys = np.unique(np.concatenate([entries.row_key, entries.col_key]))
+    if all_keys.size == 0:
+        raise _fail(path, None, f"DMIG {', '.join(names)}: header cards but no entries")
+    table = DofTable(all_keys // 8, all_keys % 8)
+    n = len(table)
+    matrices = {}
+    for role, matrix in wanted.items():
+        mine = np.flatnonzero(entries.matrix == names.index(matrix))
+        lines = entries.line[mine]
+        ifo = punch.headers[matrix][0]
+        matrices[role] = assemble_symmetric(
+            np.searchsorted(all_keys, entries.row_key[mine]),
+            np.searchsorted(all_keys, entries.col_key[mine]),
+            entries.value[mine],
+            n,
+            path=path,
+            line_of=lambda k, lines=lines: int(lines[k]) + 1,
+            label=table.label,
+            storage="symmetric" if ifo == 6 else "square",
+        )
+
+    _, first = np.unique(table.nodes, return_index=True)
+    node_ids = table.nodes[np.sort(first)]
+    if nodes is None:
+        coordinates = np.zeros((node_ids.size, 3))
+    else:
+        coordinates = _coordinates(Path(nodes), node_ids, path, entries, punch)
+    try:
+        return ElasticBody(
+            node_ids=node_ids,
+            coordinates=coordinates,
+            dofs=table,
+            mass=matrices["mass"],
+            stiffness=matrices["stiffness"],
+            damping_matrix=matrices.get("damping"),
+            name=path.stem if name is None else name,
+        )
+    except UserError as err:
+        raise UserError(f"{path}: {err}") from None
+
+
+# ============================================================================ punch file
+@dataclass
+class _Entries:
+    """Matrix entries in file order."""
+
+    matrix: np.ndarray  # index of the matrix (in the list given to _Punch.entries)
+    line: np.ndarray  # line index (from 0)
+    value: np.ndarray
+    grid: np.ndarray  # row grid
+    row_key: np.ndarray  # grid * 8 + component - 1
+    col_key: np.ndarray
+
+
+_OTHER, _COLUMN, _HEADER = 0, 1, 2
+
+
+class _Punch:
+    """The lines of a punch file, classified, and its DMIG cards.
+
+    A card starts on every line whose first character is a letter (or that is neither a comment,
+    blank, nor a continuation); continuation lines start with ``+``, ``*``, ``,`` or a blank.
+    Card ``k`` spans lines ``card_first[k]`` to ``card_end[k]`` (exclusive).
+    """
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        try:
+            raw = path.read_bytes()
+        except FileNotFoundError:
+            raise _fail(path, None, "file not found (expected a Nastran punch file)") from None
+        except IsADirectoryError:
+            raise _fail(path, None, "is a directory, expected a Nastran punch file") from None
+        except OSError as err:
+            raise _fail(path, None, f"cannot read: {err.strerror or err}") from None
+        if raw.startswith(b"\xef\xbb\xbf"):
+            raw = raw[3:]
+        if b"\x00" in raw:
+            raise _fail(path, None, "a binary file, expected a Nastran punch file with DMIG cards")
+        lines = raw.splitlines()
+        if b"\t" in raw:
+            lines = [line.expandtabs(8) if b"\t" in line else line for line in lines]
+        self.lines = lines
+        n = len(lines)
+        u = np.array(lines, dtype=f"S{_WIDTH}") if n else np.zeros(0, dtype=f"S{_WIDTH}")
+        self.u = u.view(np.uint8).reshape(n, _WIDTH).copy()
+        self.u[self.u == 0] = _SPACE
+        first = self.u[:, 0]
+        self.free = np.zeros(n, dtype=bool)
+        if b"," in raw:
+            self.free = np.fromiter((b"," in line for line in lines), dtype=bool, count=n)
+        blank = (self.u == _SPACE).all(axis=1) & ~self.free
+        self.skip = blank | (first == _DOLLAR)
+        upper = first & 0xDF  # ASCII letters to upper case
+        letter = (upper >= ord("A")) & (upper <= ord("Z"))
+        continuation = (first == _STAR) | (first == _PLUS) | (first == _SPACE) | (first == _COMMA)
+        self.start = ~self.skip & (letter | ~continuation)  # other lines start a foreign card
+        self.large_line = first == _STAR
+        self.card_of_line = np.cumsum(self.start) - 1
+        self.card_first = np.flatnonzero(self.start)
+        self.card_end = np.append(self.card_first[1:], n)
+        cards = self.card_first.size
+        self.card_kind = np.zeros(cards, dtype=np.int8)
+        self.card_matrix = np.full(cards, -1, dtype=np.int64)
+        self.card_large = np.zeros(cards, dtype=bool)
+        self.card_gj = np.zeros(cards, dtype=np.int64)
+        self.card_cj = np.zeros(cards, dtype=np.int64)
+        self.names: list[str] = []  # DMIG matrix names in order of appearance
+        self.header_cards: dict[str, list[int]] = {}  # matrix -> its header cards
+        self.headers: dict[str, tuple[int, int]] = {}  # checked: matrix -> (IFO, line index)
+        self._read_cards(letter[self.card_first])
+
+    # ---------------------------------------------------------------- cards
+    def _read_cards(self, letter: np.ndarray) -> None:
+        """Kind, matrix, column grid and component of every card (vectorised for fixed format)."""
+        starts = self.card_first
+        names = np.empty(starts.size, dtype=object)
+        fixed = np.flatnonzero(letter & ~self.free[starts])
+        word = np.char.upper(np.char.strip(self.u[starts[fixed], :8].copy().view("S8").ravel()))
+        for large in (False, True):
+            cards = fixed[word == (b"DMIG*" if large else b"DMIG")]
+            rows = starts[cards]
+            w = 16 if large else 8
+            name = np.char.strip(self.u[rows, 8 : 8 + w].copy().view(f"S{w}").ravel())
+            names[cards] = np.char.decode(np.char.upper(name), "latin-1")
+            gj_field = self.u[rows, 8 + w : 8 + 2 * w]
+            header = (gj_field == ord("0")).sum(axis=1) == 1
+            header &= ((gj_field == _SPACE) | (gj_field == ord("0"))).all(axis=1)
+            self.card_kind[cards] = np.where(header, _HEADER, _COLUMN)
+            column = cards[~header]
+            self.card_gj[column] = self._integers(
+                gj_field[~header], rows[~header], "column grid GJ (field 3)"
+            )
+            cj_field = self.u[rows[~header], 8 + 2 * w : 8 + 3 * w].copy()
+            cj_field[(cj_field == _SPACE).all(axis=1), w - 1] = ord("0")  # blank: scalar point
+            self.card_cj[column] = self._integers(
+                cj_field, rows[~header], "column component CJ (field 4)"
+            )
+            self.card_large[cards] = large
+        for k in np.flatnonzero(letter & self.free[starts]).tolist():  # free field: slow path
+            text = self.lines[starts[k]].decode("latin-1")
+            word_k = text.split(",", 1)[0].strip().upper()
+            if word_k.rstrip("*") != "DMIG":
+                continue
+            number = int(starts[k]) + 1
+            fields = _line_fields(text, word_k.endswith("*"), True, self.path, number)
+            names[k] = fields[0].upper()
+            gj = _int(fields[1], self.path, number, "column grid GJ (field 3)")
+            self.card_kind[k] = _HEADER if gj == 0 else _COLUMN
+            self.card_gj[k] = gj
+            self.card_cj[k] = _int(fields[2] or "0", self.path, number, "column component CJ")
+            self.card_large[k] = word_k.endswith("*")
+        dmig = np.flatnonzero(self.card_kind != _OTHER)
+        codes: dict[str, int] = {}
+        for k in dmig.tolist():
+            name_k = names[k]
+            if not name_k:
+                raise _fail(self.path, int(starts[k]) + 1, "DMIG card without a matrix name")
+            self.card_matrix[k] = codes.setdefault(name_k, len(codes))
+        self.names = list(codes)
+        # a line that is neither a card nor a continuation must not end a DMIG card silently
+        foreign = np.flatnonzero(~letter[1:] & (self.card_kind[:-1] != _OTHER)) + 1
+        if foreign.size:
+            raise _fail(
+                self.path,
+                int(starts[foreign[0]]) + 1,
+                "line is neither a card nor a continuation (continuation lines start with '+', "
+                "'*', ',' or a blank) after a DMIG card",
+            )
+        for k in np.flatnonzero(self.card_kind == _HEADER).tolist():
+            self.header_cards.setdefault(self.names[self.card_matrix[k]], []).append(k)
+
+    def _header(self, matrix: str) -> None:
+        """Check the header card ``DMIG NAME 0 IFO TIN TOUT POLAR - NCOL`` of a matrix."""
+        cards = self.header_cards[matrix]
+        first = int(self.card_first[cards[0]])
+        if len(cards) > 1:
+            raise _fail(
+                self.path,
+                int(self.card_first[cards[1]]) + 1,
+                f"second header card of DMIG matrix {matrix} (the first is on line {first + 1})",
+            )
+        fields = self._card_fields(cards[0])
+        number = first + 1
+        ifo = _int(fields[2], self.path, number, f"form IFO (field 4) of DMIG {matrix}")
+        tin = _int(fields[3], self.path, number, f"type TIN (field 5) of DMIG {matrix}")
+        if tin in (3, 4):
+            raise _fail(
+                self.path, number, f"DMIG {matrix} is complex (TIN={tin}); a real matrix is needed"
+            )
+        if tin not in (1, 2):
+            raise _fail(
+                self.path, number, f"DMIG {matrix} has type TIN={tin}; expected 1 or 2 (real)"
+            )
+        if ifo not in (1, 6):
+            kind = "rectangular" if ifo in (2, 9) else "of unknown form"
+            raise _fail(
+                self.path,
+                number,
+                f"DMIG {matrix} is {kind} (IFO={ifo}); a square symmetric matrix (IFO=6 or 1) "
+                "is needed",
+            )
+        self.headers[matrix] = (ifo, first)
+
+    def _card_fields(self, card: int) -> list[str]:
+        """Data fields 2... of a card (slow path, for header cards)."""
+        fields: list[str] = []
+        first, end = int(self.card_first[card]), int(self.card_end[card])
+        for i in range(first, end):
+            if self.skip[i]:
+                continue
+            text = self.lines[i].decode("latin-1")
+            large = bool(self.card_large[card]) if i == first else bool(self.large_line[i])
+            fields.extend(_line_fields(text, large, bool(self.free[i]), self.path, i + 1))
+        return fields
+
+    def check_present(self, wanted: dict[str, str]) -> None:
+        """Raise :class:`UserError` if a wanted matrix has no cards or no header."""
+        for role, matrix in wanted.items():
+            if matrix not in self.names:
+                present = ", ".join(self.names) if self.names else "no DMIG cards at all"
+                raise _fail(
+                    self.path,
+                    None,
+                    f"no DMIG matrix named {matrix} ({role}); the file holds: {present}",
+                )
+            if matrix not in self.header_cards:
+                code = self.names.index(matrix)
+                k = int(np.flatnonzero(self.card_matrix == code)[0])
+                raise _fail(
+                    self.path,
+                    int(self.card_first[k]) + 1,
+                    f"DMIG {matrix} has column cards but no header card "
+                    f"(DMIG {matrix} 0 IFO TIN ...)",
+                )
+            self._header(matrix)
+
+    def column_line(self, grid: int) -> int | None:
+        """Line index of the first column card of ``grid``, if any."""
+        hit = np.flatnonzero((self.card_kind == _COLUMN) & (self.card_gj == grid))
+        return int(self.card_first[hit[0]]) if hit.size else None
+
+    # ---------------------------------------------------------------- entries
+    def entries(self, matrices: list[str]) -> _Entries:
+        """All (row, column, value) entries of the given matrices, in file order."""
+        n = len(self.lines)
+        codes = [self.names.index(m) for m in matrices]
+        want = (self.card_kind == _COLUMN) & np.isin(self.card_matrix, codes)
+        gj, cj = self.card_gj, self.card_cj
+        bad = np.flatnonzero(want & ((gj <= 0) | (cj < 1) | (cj > 6)))
+        if bad.size:
+            k = int(bad[0])
+            _check_dof(self.path, int(self.card_first[k]) + 1, "column", int(gj[k]), int(cj[k]))
+        line_card = self.card_of_line
+        inside = line_card >= 0
+        mine = np.zeros(n, dtype=bool)
+        mine[inside] = want[line_card[inside]]
+        mine &= ~self.skip
+        fixed = mine & ~self.free
+        start_large = np.zeros(n, dtype=bool)
+        start_large[inside] = self.card_large[line_card[inside]]
+
+        # fixed format: every group of four fields (G, C, A, B) as 4 x 16 bytes
+        groups, line_index, slot = [], [], []
+        small_first = np.flatnonzero(fixed & self.start & ~start_large)
+        small_next = np.flatnonzero(fixed & ~self.start & ~self.large_line)
+        large_next = np.flatnonzero(fixed & ~self.start & self.large_line)
+        for rows, cols, k in (
+            (small_first, slice(40, 72), 1),
+            (small_next, slice(8, 40), 0),
+            (small_next, slice(40, 72), 1),
+        ):
+            block = np.full((rows.size, 4, 16), _SPACE, dtype=np.uint8)
+            block[:, :, 8:] = self.u[rows, cols].reshape(rows.size, 4, 8)  # right-aligned
+            groups.append(block)
+            line_index.append(rows)
+            slot.append(np.full(rows.size, k, dtype=np.int64))
+        groups.append(self.u[large_next, 8:72].reshape(large_next.size, 4, 16))
+        line_index.append(large_next)
+        slot.append(np.zeros(large_next.size, dtype=np.int64))
+        fields = np.concatenate(groups)
+        lines = np.concatenate(line_index).astype(np.int64)
+        slots = np.concatenate(slot)
+        used = ~(fields == _SPACE).all(axis=(1, 2))
+        fields, lines, slots = fields[used], lines[used], slots[used]
+        grid, component, value = self._convert(fields, lines)
+
+        free_lines = np.flatnonzero(mine & self.free)  # free field: slow path
+        if free_lines.size:
+            extra = self._free_entries(free_lines, start_large)
+            lines = np.concatenate([lines, extra[0]])
+            slots = np.concatenate([slots, extra[1]])
+            grid = np.concatenate([grid, extra[2]])
+            component = np.concatenate([component, extra[3]])
+            value = np.concatenate([value, extra[4]])
+
+        order = np.argsort(lines * 8 + slots, kind="stable")
+        lines, grid, component, value = lines[order], grid[order], component[order], value[order]
+        bad = np.flatnonzero((grid <= 0) | (component < 1) | (component > 6))
+        if bad.size:
+            k = int(bad[0])
+            _check_dof(self.path, int(lines[k]) + 1, "row", int(grid[k]), int(component[k]))
+        card = line_card[lines]
+        lookup = np.full(max(len(self.names), 1), -1, dtype=np.int64)
+        lookup[codes] = np.arange(len(codes))
+        matrix = lookup[self.card_matrix[card]]
+        col_key = self.card_gj[card] * 8 + self.card_cj[card] - 1
+        return _Entries(matrix, lines, value, grid, grid * 8 + component - 1, col_key)
+
+    def _convert(
+        self, fields: np.ndarray, lines: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Grid, component and value of fixed-format entry groups (vectorised)."""
+        blank = (fields == _SPACE).all(axis=2)  # (m, 4)
+        for column, what in ((0, "row grid"), (2, "value")):
+            missing = np.flatnonzero(blank[:, column])
+            if missing.size:
+                k = int(missing[0])
+                shown = " ".join(repr(_text(fields[k, j])) for j in range(3))
+                raise _fail(
+                    self.path,
+                    int(lines[k]) + 1,
+                    f"entry without a {what} (fields: {shown}); is the line cut?",
+                )
+        grid = self._integers(fields[:, 0], lines, "row grid")
+        comp_bytes = fields[:, 1].copy()
+        comp_bytes[blank[:, 1], 15] = ord("0")  # blank component: scalar point
+        component = self._integers(comp_bytes, lines, "row component")
+        values = fields[:, 2].copy()
+        values[(values == ord("D")) | (values == ord("d"))] = ord("E")
+        try:
+            value = values.view("S16").ravel().astype(np.float64)
+        except ValueError:  # Nastran short exponents (1.5+3) or a bad field
+            value = np.array(
+                [
+                    _real(_text(values[k]), self.path, int(lines[k]) + 1, "value")
+                    for k in range(values.shape[0])
+                ],
+                dtype=np.float64,
+            )
+        return grid, component, value
+
+    def _integers(self, field: np.ndarray, lines: np.ndarray, what: str) -> np.ndarray:
+        """Integers of fixed-width byte fields, shape (m, width); a bad one raises at its line."""
+        width = field.shape[1] if field.ndim == 2 else 1
+        try:
+            return np.ascontiguousarray(field).view(f"S{width}").ravel().astype(np.int64)
+        except ValueError:
+            for k in range(field.shape[0]):
+                _int(_text(field[k]), self.path, int(lines[k]) + 1, what)
+            raise  # pragma: no cover - the loop raises
+
+    def _free_entries(self, free_lines: np.ndarray, start_large: np.ndarray) -> tuple:
+        """Entries of free-field lines: (lines, slots, grids, components, values)."""
+        out: list[list] = [[], [], [], [], []]
+        for i in free_lines.tolist():
+            text = self.lines[i].decode("latin-1")
+            number = i + 1
+            if self.start[i]:
+                fields = _line_fields(text, bool(start_large[i]), True, self.path, number)[4:]
+            else:
+                fields = _line_fields(text, bool(self.large_line[i]), True, self.path, number)
+            for slot in range(len(fields) // 4):
+                g, c, a, _ = fields[4 * slot : 4 * slot + 4]
+                if not (g or c or a):
+                    continue
+                if not g or not a:
+                    what = "row grid" if not g else "value"
+                    raise _fail(self.path, number, f"entry without a {what}; is the line cut?")
+                out[0].append(i)
+                out[1].append(slot + (1 if self.start[i] else 0))
+                out[2].append(_int(g, self.path, number, "row grid"))
+                out[3].append(_int(c or "0", self.path, number, "row component"))
+                out[4].append(_real(a, self.path, number, "value"))
+        return (
+            np.array(out[0], dtype=np.int64),
+            np.array(out[1], dtype=np.int64),
+            np.array(out[2], dtype=np.int64),
+            np.array(out[3], dtype=np.int64),
+            np.array(out[4], dtype=np.float64),
+        )
+
+
+# ============================================================================ fields and numbers
+def _line_fields(text: str, large: bool, free: bool, path: Path, line: int) -> list[str]:
+    """The data fields (2-9 small, 2-5 large) of one line, stripped; missing ones are ``""``.
+
+    A free-field line may hold one more field, the continuation marker (blank or ``+...``);
+    more fields would be lost, so they are an error.
+    """
+    count = 4 if large else 8
+    if free:
+        parts = [p.strip() for p in text.split(",")][1:]
+        fields = parts[:count]
+        extra = parts[count:]
+        if len(extra) > 1 or (extra and extra[0] and extra[0][0] not in "+*"):
+            raise _fail(
+                path,
+                line,
+                f"free-field line with more than {count} data fields; continue the card on the "
+                "next line",
+            )
+    else:
+        width = 16 if large else 8
+        fields = [text[8 + k * width : 8 + (k + 1) * width].strip() for k in range(count)]
+    return fields + [""] * (count - len(fields))
+
+
+def _text(field: np.ndarray) -> str:
+    return bytes(field).decode("latin-1").strip()
+
+
+def _int(text: str, path: Path, line: int, what: str) -> int:
+    text = text.strip()
+    try:
+        return int(text)
+    except ValueError:
+        problem = "is missing" if not text else f"{text!r} is not an integer"
+        raise _fail(path, line, f"{what} {problem}") from None
+
+
+def _real(text: str, path: Path, line: int, what: str) -> float:
+    """A Nastran real: ``1.5E+3``, ``1.5D+3``, ``1.5+3``, ``-.5``, ``3.``."""
+    text = text.strip().upper().replace("D", "E")
+    try:
+        return float(text)
+    except ValueError:
+        pass
+    match = _SHORT_EXPONENT.match(text)
+    if match:
+        return float(f"{match.group(1)}E{match.group(2)}")
+    problem = "is missing" if not text else f"{text!r} is not a number"
+    raise _fail(path, line, f"{what} {problem}")
+
+
+def _check_dof(path: Path, line: int, what: str, grid: int, component: int) -> None:
+    if grid <= 0:
+        raise _fail(path, line, f"{what} grid {grid} is not a valid grid id")
+    if component == 0:
+        raise _fail(
+            path,
+            line,
+            f"{what} {grid} with component 0 (or blank) is a scalar or extra point; pymorembs "
+            "reads grid-point dofs (components 1-6) only: export without scalar points "
+            "(no QSET/SPOINT modal coordinates)",
+        )
+    if not 1 <= component <= 6:
+        raise _fail(path, line, f"{what} component {component} of grid {grid} is not 1-6")
+
+
+# ============================================================================ coordinates
+def _coordinates(
+    nodes: Path, node_ids: np.ndarray, path: Path, entries: _Entries, punch: _Punch
+) -> np.ndarray:
+    """Coordinates of ``node_ids`` from GRID cards or ``nodes.csv``."""
+    csv = is_nodes_csv(nodes)
+    ids, xyz = _read_nodes(nodes) if csv else read_grid_nodes(nodes)
+    order = np.argsort(ids, kind="stable")
+    sorted_ids = ids[order]
+    pos = np.searchsorted(sorted_ids, node_ids)
+    found = np.zeros(node_ids.size, dtype=bool)
+    inside = pos < sorted_ids.size
+    found[inside] = sorted_ids[pos[inside]] == node_ids[inside]
+    if not found.all():
+        grid = int(node_ids[np.flatnonzero(~found)[0]])
+        candidates = [int(entries.line[k]) for k in np.flatnonzero(entries.grid == grid)[:1]]
+        column = punch.column_line(grid)
+        candidates += [] if column is None else [column]
+        where = "row" if csv else "GRID card"
+        raise _fail(path, min(candidates) + 1, f"grid {grid} has no {where} in {nodes}")
+    return xyz[order[pos]]
+
+
+def read_grid_nodes(path: PathLike) -> tuple[np.ndarray, np.ndarray]:
+    """Grid ids and coordinates of the GRID cards of a Nastran bulk data file.
+
+    ``GRID ID CP X1 X2 X3 CD PS SEID`` in small, large (``GRID*``) or free field; ``INCLUDE``
+    statements (one line, quoted file name, relative to the including file) are followed. A
+    coordinate system other than the basic one (``CP`` or ``CD`` not blank or 0, also through
+    ``GRDSET``) is a :class:`UserError`: CP coordinates would need the coordinate system
+    definitions, and with CD the DMIG components would not be the global directions.
+
+    Returns
+    -------
+    ids : ndarray of int, shape (n_grids,)
+    coordinates : ndarray, shape (n_grids, 3)
+    """
+    ids: list[int] = []
+    xyz: list[tuple[float, float, float]] = []
+    seen: dict[int, tuple[Path, int]] = {}
+    _scan_bulk(Path(path), ids, xyz, seen, ())
+    return np.array(ids, dtype=np.int64), np.array(xyz, dtype=float).reshape(-1, 3)
+
+
+def _scan_bulk(
+    path: Path,
+    ids: list[int],
+    xyz: list[tuple[float, float, float]],
+    seen: dict[int, tuple[Path, int]],
+    stack: tuple[Path, ...],
+) -> None:
+    resolved = path.resolve()
+    if resolved in stack:
+        raise _fail(path, None, "INCLUDE loop: the file includes itself")
+    for card, fields, number in _bulk_cards(path):
+        if card == "INCLUDE":
+            _scan_bulk(path.parent / fields[0], ids, xyz, seen, (*stack, resolved))
+            continue
+        fields = fields + [""] * (8 - len(fields))
+        if card == "GRDSET":
+            for value, what in ((fields[1], "CP"), (fields[5], "CD")):
+                if value not in ("", "0"):
+                    raise _fail(
+                        path,
+                        number,
+                        f"GRDSET sets {what}={value}; only the basic coordinate system is "
+                        "supported (not supported: local coordinate systems)",
+                    )
+            continue
+        grid = _int(fields[0], path, number, "GRID id")
+        if fields[1] not in ("", "0"):
+            raise _fail(
+                path,
+                number,
+                f"GRID {grid} has CP={fields[1]}: coordinates in a local coordinate system are not "
+                "supported; give them in the basic system (CP blank or 0)",
+            )
+        if fields[5] not in ("", "0"):
+            raise _fail(
+                path,
+                number,
+                f"GRID {grid} has CD={fields[5]}: its dofs are in a local coordinate system, so "
+                "the matrix components are not global ux..rz; this is not supported",
+            )
+        coords = tuple(
+            0.0 if not fields[2 + a] else _real(fields[2 + a], path, number, f"X{a + 1}")
+            for a in range(3)
+        )
+        if not all(np.isfinite(coords)):
+            raise _fail(path, number, f"GRID {grid} has a coordinate that is not finite")
+        if grid in seen:
+            first_path, first_line = seen[grid]
+            raise _fail(
+                path, number, f"GRID {grid} is defined twice (first in {first_path}:{first_line})"
+            )
+        seen[grid] = (path, number)
+        ids.append(grid)
+        xyz.append((coords[0], coords[1], coords[2]))
+
+
+def _bulk_cards(path: Path) -> Iterator[tuple[str, list[str], int]]:
+    """(card name, data fields, line) of the GRID, GRDSET and INCLUDE cards of a bulk file."""
+    wanted = ("GRID", "GRDSET")
+    current: tuple[str, list[str], int] | None = None
+    for number, raw in enumerate(read_text(path, "a Nastran bulk data file").split("\n"), 1):
+        line = raw.expandtabs(8) if "\t" in raw else raw
+        if not line.strip() or line.startswith("$"):
+            continue
+        first = line[0]
+        free = "," in line
+        if first.isalpha():
+            if current is not None:
+                yield current
+                current = None
+            word = (line.split(",", 1)[0] if free else line[:8]).strip().upper()
+            if word.startswith("INCLUDE"):
+                quoted = re.search(r"'([^']*)'", line)
+                if quoted is None:
+                    raise _fail(path, number, "INCLUDE without a quoted file name on the line")
+                yield "INCLUDE", [quoted.group(1).strip()], number
+                continue
+            base = word.rstrip("*")
+            if base in wanted:
+                current = (base, _line_fields(line, word.endswith("*"), free, path, number), number)
+        elif first in "+*, ":
+            if current is not None:
+                current[1].extend(_line_fields(line, first == "*", free, path, number))
+        elif current is not None:
+            yield current
+            current = None
+    if current is not None:
+        yield current
