@@ -27,14 +27,12 @@ from pymorembs.io.formats import read_body
 from pymorembs.io.matrix_market import write_matrix_files
 from pymorembs.io.native import write_body_h5
 from pymorembs.pipeline import add_interfaces, load_model, run_job
-from pymorembs.prepare import Frame, PreparedModel, prepare
-from pymorembs.prepare.rigid_modes import free_rigid_body_modes
+from pymorembs.prepare import Frame, PreparedModel, prepare, with_rigid_modes
+from pymorembs.prepare.rigid_modes import free_rigid_body_motions
 from pymorembs.reduce.modal import eigenmodes
 
 #: Below this size ``info`` solves the eigenproblem densely.
 DENSE_LIMIT = 600
-#: Eigenvalues below this fraction of max(diag K)/max(diag M) count as rigid-body modes.
-RIGID_TOLERANCE = 1e-11
 
 
 class _Parser(argparse.ArgumentParser):
@@ -180,11 +178,11 @@ def model_facts(body: ElasticBody, prepared: PreparedModel, modes: int) -> dict[
     if modes < 1:
         raise UserError(f"--modes must be at least 1, got {modes}")
     system = prepared.system
-    free = free_rigid_body_modes(prepared.body, prepared.elimination, system)
+    free, motions = free_rigid_body_motions(prepared.body, prepared.elimination, system)
     n = system.order
-    count = min(modes + len(free), n - 1 if n > DENSE_LIMIT else n)
+    count = min(modes, n - len(free) - 1)
     values = None
-    if n <= DENSE_LIMIT:
+    if n <= DENSE_LIMIT and not free:
         try:
             values = sla.eigh(
                 system.stiffness.toarray(),
@@ -193,12 +191,13 @@ def model_facts(body: ElasticBody, prepared: PreparedModel, modes: int) -> dict[
                 subset_by_index=[0, count - 1],
             )
         except np.linalg.LinAlgError:  # singular mass (massless dofs): shift-invert instead
-            count = min(count, n - 1)
+            values = None
     if values is None:
-        values, _ = eigenmodes(system, count)
-    scale = system.stiffness.diagonal().max() / max(system.mass.diagonal().max(), 1e-300)
-    rigid = (np.arange(values.size) < len(free)) | (np.abs(values) < RIGID_TOLERANCE * scale)
-    frequencies = np.where(rigid, 0.0, np.sqrt(np.clip(values, 0.0, None)) / (2 * np.pi))
+        # a free body: elastic modes by inertia relief, never a shift next to the null space
+        elastic = with_rigid_modes(system, motions) if free else system
+        values, _ = eigenmodes(elastic, count, elastic_only=True)
+    elastic_hz = np.sqrt(np.clip(values, 0.0, None)) / (2 * np.pi)
+    frequencies = np.concatenate([np.zeros(len(free)), elastic_hz])
     return {
         "name": body.name,
         "n_dof": prepared.body.n_dof,
@@ -207,7 +206,7 @@ def model_facts(body: ElasticBody, prepared: PreparedModel, modes: int) -> dict[
         "n_fixed": int(prepared.elimination.fixed.size),
         "n_independent": n,
         "total_mass": body.total_mass(),
-        "rigid_body_modes": int(np.count_nonzero(rigid)),
+        "rigid_body_modes": len(free),
         "rigid_body_motions": free,
         "eigenfrequencies_hz": frequencies.tolist(),
     }

@@ -1,36 +1,51 @@
 """Built-in example models: generators of the rack of paper section 2.
 
-``EXAMPLES`` maps an example name to a function without arguments that builds the
-:class:`~pymorembs.body.ElasticBody`; a new example is one more entry. Importing this package
-builds nothing.
+``EXAMPLES`` maps an example name to the function that builds the
+:class:`~pymorembs.body.ElasticBody`, ``OPTIONS`` to the keyword options it takes from the
+command line and job files; a new example is one more entry. Importing this package builds
+nothing.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
 from pymorembs.examples.rack_beams import rack_beams
+from pymorembs.examples.rack_solid import rack_solid
 
 #: Example name -> model generator.
-EXAMPLES: dict[str, Callable[[], ElasticBody]] = {"rack-beams": rack_beams}
+EXAMPLES: dict[str, Callable[..., ElasticBody]] = {
+    "rack-beams": rack_beams,
+    "rack-solid": rack_solid,
+}
+#: Example name -> the options (``dofs``, ``interface``) it accepts.
+OPTIONS: dict[str, tuple[str, ...]] = {
+    "rack-beams": (),
+    "rack-solid": ("dofs", "interface"),
+}
 
 
-def build_example(name: str) -> ElasticBody:
-    """Build the built-in example model ``name`` (one of :data:`EXAMPLES`).
+def build_example(name: str, **options: Any) -> ElasticBody:
+    """Build the built-in example model ``name`` (one of :data:`EXAMPLES`) with ``options``.
 
     Raises
     ------
     UserError
-        If there is no example of that name.
+        If there is no example of that name, or it does not take one of the options.
     """
     try:
         factory = EXAMPLES[name]
     except KeyError:
         available = ", ".join(sorted(EXAMPLES))
         raise UserError(f"unknown example {name!r}; available: {available}") from None
-    return factory()
+    unknown = sorted(set(options) - set(OPTIONS[name]))
+    if unknown:
+        accepted = ", ".join(OPTIONS[name]) or "none"
+        raise UserError(f"example {name} has no option '{unknown[0]}' (options: {accepted})")
+    return factory(**options)
 
 
-__all__ = ["EXAMPLES", "build_example", "rack_beams"]
+__all__ = ["EXAMPLES", "OPTIONS", "build_example", "rack_beams", "rack_solid"]

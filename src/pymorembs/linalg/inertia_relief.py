@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 from pymorembs.linalg.factorization import Factorization
 
@@ -56,3 +57,7 @@ class InertiaRelief:
         x = np.zeros_like(balanced)
         x[self.free] = self.factorization.solve(balanced[self.free])
         return x - self.rigid @ (self.rigid.T @ (self.mass @ x))
+
+    def operator(self) -> spla.LinearOperator:
+        """``K^+`` as a :class:`scipy.sparse.linalg.LinearOperator` (for ``eigsh``)."""
+        return spla.LinearOperator(self.shape, matvec=self.solve, matmat=self.solve, dtype=float)

@@ -29,6 +29,7 @@ __all__ = [
     "eliminate",
     "prepare",
     "tangent_frame",
+    "with_rigid_modes",
 ]
 
 
@@ -177,9 +178,17 @@ def _elastic_system(
             f"[frame]: the Buckens frame needs a free body with six rigid-body modes; this one "
             f"has {len(free)}" + (f" ({'; '.join(free)})" if free else "")
         )
-    rigid = body.rigid_body_modes()[elimination.independent]
-    gram = rigid.T @ (system.mass @ rigid)
-    rigid = rigid @ np.linalg.inv(np.linalg.cholesky(gram)).T  # R^T M R = I
+    return with_rigid_modes(system, body.rigid_body_modes()[elimination.independent])
+
+
+def with_rigid_modes(system: SecondOrderSystem, motions: np.ndarray) -> SecondOrderSystem:
+    """The system restricted to its elastic part, given its rigid-body motions (n, r).
+
+    The motions are made mass-orthonormal (``R^T M R = I``); inputs and outputs act on the
+    elastic part only (see :func:`_elastic_system`); static solves then use inertia relief.
+    """
+    gram = motions.T @ (system.mass @ motions)
+    rigid = motions @ np.linalg.inv(np.linalg.cholesky(gram)).T  # R^T M R = I
     mass_rigid = system.mass @ rigid
     return replace(
         system,

@@ -34,11 +34,27 @@ def free_rigid_body_modes(
 ) -> list[str]:
     """Names of the rigid-body motions that survive fixed dofs and constraints, unresisted.
 
+    See :func:`free_rigid_body_motions`, which also returns the motions.
+    """
+    return free_rigid_body_motions(body, elimination, system)[0]
+
+
+def free_rigid_body_motions(
+    body: ElasticBody, elimination: Elimination, system: SecondOrderSystem
+) -> tuple[list[str], np.ndarray]:
+    """The rigid-body motions that survive fixed dofs and constraints, unresisted.
+
     A combination ``r = R a`` of the six rigid-body fields (about the coordinate origin) survives
     when it vanishes on the fixed dofs and satisfies the constraint equations, ``T r_i = r``; it
     is free when the stiffness of the independent dofs does no work on it, ``K* r_i = 0``
-    (springs to ground would resist it). Returns one label per free motion: the name of the
-    axis when the motion is along one, otherwise a description of the combination.
+    (springs to ground would resist it).
+
+    Returns
+    -------
+    labels : list of str
+        One per free motion: the axis when the motion is along one, else its components.
+    motions : ndarray, shape (n_independent, r)
+        The free motions on the independent dofs (orthonormal combinations of the rigid fields).
     """
     rigid = body.rigid_body_modes()
     norms = np.linalg.norm(rigid, axis=0)
@@ -58,15 +74,16 @@ def free_rigid_body_modes(
     triangle = np.linalg.qr(admissibility, mode="r")  # k x k: no n x n factor is ever formed
     _, sigma, vt = np.linalg.svd(triangle)
     null = vt[sigma < KINEMATIC_TOL].T
+    none = ([], np.zeros((elimination.n_independent, 0)))
     if null.shape[1] == 0:
-        return []
+        return none
     motions = on_independent @ null
     stiffness = system.stiffness
     scale = float(abs(stiffness).sum(axis=1).max()) or 1.0
     work = np.linalg.norm(stiffness @ motions, axis=0) / (scale * np.linalg.norm(motions, axis=0))
     free = null[:, work < ENERGY_TOL]
     if free.shape[1] == 0:
-        return []
+        return none
     # name each free motion by its axis if it is (nearly) one, else by its components
     labels = []
     basis, _ = np.linalg.qr(free)
@@ -75,5 +92,5 @@ def free_rigid_body_modes(
         axes = [names[j] for j in np.flatnonzero(weights > 0.3 * weights.max())]
         labels.append(" + ".join(axes))
     if basis.shape[1] == len(names):
-        return list(names)
-    return labels
+        labels = list(names)
+    return labels, on_independent @ basis

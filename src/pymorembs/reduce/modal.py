@@ -12,6 +12,7 @@ import scipy.sparse.linalg as spla
 
 from pymorembs.errors import NumericalError, UserError
 from pymorembs.linalg.factorization import Factorization
+from pymorembs.linalg.inertia_relief import InertiaRelief
 from pymorembs.reduce.projection import Projection
 from pymorembs.system import SecondOrderSystem
 
@@ -49,34 +50,34 @@ def eigenmodes(
     n = system.order
     if count < 1:
         raise UserError(f"number of modes must be at least 1, got {count}")
-    rigid = 0 if system.rigid_modes is None or not elastic_only else system.rigid_modes.shape[1]
-    if count + rigid >= n:
+    if count >= n:
         raise UserError(f"{count} modes requested but the model has only {n} independent dofs")
-    count = count + rigid
-    sigma = -((2.0 * np.pi * shift_hz) ** 2)
-    # ARPACK needs no refined solves: its own tolerance governs the eigenpairs
-    shifted = Factorization(
-        [(1.0, system.stiffness), (-sigma, system.mass)], label="K - sigma M", check=False
-    )
+    if elastic_only and system.rigid_modes is not None:
+        # free body: shift-invert about 0 with the inertia-relief inverse K^+, which maps the
+        # rigid-body modes to zero. A shift next to the null space of K would not do: rounding
+        # the entries of very stiff parts (light stiff beams, E = 1e18) breaks that null space,
+        # and rigid modes came out at up to 0.4 Hz, dragging the elastic ones along.
+        sigma = 0.0
+        operator = InertiaRelief(
+            system.stiffness, system.mass, system.rigid_modes, "K (free body)"
+        ).operator()
+    else:
+        sigma = -((2.0 * np.pi * shift_hz) ** 2)
+        # ARPACK needs no refined solves: its own tolerance governs the eigenpairs
+        operator = Factorization(
+            [(1.0, system.stiffness), (-sigma, system.mass)], label="K - sigma M", check=False
+        ).operator()
     try:
         values, vectors = spla.eigsh(
-            system.stiffness,
-            k=count,
-            M=system.mass,
-            sigma=sigma,
-            which="LM",
-            OPinv=shifted.operator(),
-            ncv=min(n, max(2 * count + 1, count + 20)),
-        )
+            system.stiffness, k=count, M=system.mass, sigma=sigma, which="LM",
+            OPinv=operator, ncv=min(n, max(2 * count + 1, count + 20)),
+        )  # fmt: skip
     except spla.ArpackNoConvergence as exc:
         raise NumericalError(
             f"eigenvalue solver did not converge for {count} modes ({exc})"
         ) from None
     order = np.argsort(values)
     values, vectors = values[order], vectors[:, order]
-    if elastic_only and system.rigid_modes is not None:
-        rigid = system.rigid_modes.shape[1]
-        values, vectors = values[rigid:], vectors[:, rigid:]
     # eigsh returns M-orthonormal vectors; normalise again against round-off.
     scale = np.sqrt(np.einsum("ij,ij->j", vectors, system.mass @ vectors))
     return values, vectors / scale

@@ -1,0 +1,668 @@
+"""Readers for matrices exported by Ansys Mechanical APDL.
+
+Two routes lead from an Ansys model to an :class:`~pymorembs.body.ElasticBody`:
+
+:func:`read_ansys_full`
+    The binary ``Jobname.full`` file written by a modal analysis (``WRFULL``), read with
+    ``ansys-mapdl-reader``. The file holds ``K``, ``M`` (and ``D`` of a damped analysis) over all
+    equations, the node and dof label of every equation and the constrained dofs, which become
+    fixed dofs of the body. It holds no node coordinates: give them as ``nodes.csv``.
+:func:`read_ansys_mmf`
+    Matrix Market files written by APDL Math (``*SMAT`` ... ``*EXPORT,...,MMF``) plus the dof
+    mapping file written by ``HBMAT`` with ``Mapping = YES``. These matrices are in the solver
+    ordering with the constrained dofs removed.
+
+Node coordinates (``nodes.csv``, header ``id,x,y,z``, read like :mod:`pymorembs.io.matrix_market`)
+are optional for both routes; without them every node lies at the origin, which is fine for
+frequencies and frequency responses but not for anything that needs geometry (Buckens frames,
+rigid-body modes, the search for interface nodes by position).
+
+Every mistake raises :class:`~pymorembs.errors.UserError` with one line ``file: problem`` or
+``file:line: problem``; no exception of ``ansys-mapdl-reader`` escapes.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import scipy.sparse as sp
+
+from pymorembs.body import DIRECTIONS, DofTable, ElasticBody
+from pymorembs.errors import UserError
+from pymorembs.io.matrix_market import (
+    _fail,
+    _read_lines,
+    _read_nodes,
+    _to_int,
+    check_symmetric,
+    read_matrix_market,
+)
+
+__all__ = ["ANSYS_DOF_LABELS", "read_ansys_full", "read_ansys_mmf"]
+
+PathLike = str | os.PathLike[str]
+
+#: Ansys structural dof labels and their direction codes (0..5 = ux uy uz rx ry rz).
+ANSYS_DOF_LABELS: dict[str, int] = {"UX": 0, "UY": 1, "UZ": 2, "ROTX": 3, "ROTY": 4, "ROTZ": 5}
+
+#: Ansys dof reference numbers (``fdfull``/``fdresu`` DOF record) and their labels.
+_ANSYS_DOF_NUMBERS: dict[int, str] = {
+    1: "UX",
+    2: "UY",
+    3: "UZ",
+    4: "ROTX",
+    5: "ROTY",
+    6: "ROTZ",
+    7: "AX",
+    8: "AY",
+    9: "AZ",
+    10: "VX",
+    11: "VY",
+    12: "VZ",
+    19: "PRES",
+    20: "TEMP",
+    21: "VOLT",
+    22: "MAG",
+    23: "ENKE",
+    24: "ENDS",
+    25: "EMF",
+    26: "CURR",
+    **{26 + k: f"SP0{k}" for k in range(1, 7)},
+}
+#: Other dof labels Ansys writes into mapping files (not structural).
+_OTHER_ANSYS_LABELS = {
+    *(_ANSYS_DOF_NUMBERS.values()),
+    "TBOT",
+    "TE2",
+    "TTOP",
+    "CONC",
+    "HDSP",
+    "WARP",
+    "PRES",
+}.difference(ANSYS_DOF_LABELS)
+
+_STRUCTURAL = "UX UY UZ ROTX ROTY ROTZ"
+_FULL_FILE_TYPE = 4  # item 1 of the standard header of a .full file
+_HEADER_WORDS = 100  # length of the standard header record
+
+
+# ============================================================================ .full
+def read_ansys_full(
+    path: PathLike, nodes: PathLike | None = None, name: str | None = None
+) -> ElasticBody:
+    """Read a body from an Ansys Mechanical APDL ``Jobname.full`` file.
+
+    Write the file with a modal analysis that stops after assembly (no eigensolution needed)::
+
+        /SOLU
+        ANTYPE,MODAL
+        MODOPT,LANB,1      ! any eigensolver that uses the sparse assembly
+        LUMPM,OFF          ! consistent mass; a lumped-mass .full file cannot be read
+        WRFULL,1           ! write Jobname.full and stop
+        SOLVE
+        FINISH
+
+    Apply the displacement constraints (``D``) that belong to the body; constraint equations
+    (``CE``, ``CP``, MPC contact) cannot be read from a ``.full`` file -- use
+    :func:`read_ansys_mmf` for such models. Node coordinates are not reliably in the file; write
+    them as ``nodes.csv`` (header ``id,x,y,z``), for instance with::
+
+        *GET,nnode,NODE,0,COUNT
+        *CFOPEN,nodes,csv
+        *VWRITE
+        ('id,x,y,z')
+        node = 0
+        *DO,i,1,nnode
+        node = NDNEXT(node)
+        x = NX(node)
+        y = NY(node)
+        z = NZ(node)
+        *VWRITE,node,x,y,z
+        %I,%22.15E,%22.15E,%22.15E
+        *ENDDO
+        *CFCLOS
+
+    Parameters
+    ----------
+    path : path-like
+        The ``.full`` file (symmetric matrices from the sparse (symbolic) assembly, written on a
+        little-endian machine, records not compressed).
+    nodes : path-like, optional
+        ``nodes.csv`` listing at least every node that has dofs. Without it all nodes lie at the
+        origin: frequencies and frequency responses are right, but Buckens frames, rigid-body modes
+        and the search for interface nodes by position need coordinates.
+    name : str, optional
+        Label of the body; default: the file name without extension.
+
+    Returns
+    -------
+    ElasticBody
+        Equations in the order of the file. ``K`` and ``M`` are the full symmetric matrices (the
+        file stores one triangle). Dofs constrained in Ansys become the fixed dofs of the body
+        (``ElasticBody.fixed``); their rows and columns are zero. A damped modal analysis also
+        gives the explicit damping matrix.
+
+    Raises
+    ------
+    UserError
+        The file is missing, truncated, not a ``.full`` file, or holds something pymorembs cannot
+        use (non-structural dofs such as ``TEMP``, lumped or unsymmetric matrices, constraint
+        equations, no mass matrix); the message is one line starting with the file name.
+    """
+    path = Path(path)
+    info = _scan_full_file(path)
+    try:
+        from ansys.mapdl.reader import _binary_reader, read_binary
+    except ImportError as err:  # pragma: no cover - a declared dependency
+        raise _fail(path, None, f"reading .full files needs ansys-mapdl-reader ({err})") from None
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            full = read_binary(path)
+            dof_ref, k_upper, m_upper = full.load_km(as_sparse=True, sort=False)
+            d_upper = None
+            if info.damping is not None:
+                pointer, n_terms = info.damping
+                rows, cols, values = _binary_reader.read_array(
+                    str(path), pointer, n_terms, info.neqn, info.const
+                )
+                keep = (info.const[rows] > 0) & (info.const[cols] > 0)
+                d_upper = sp.csc_matrix(
+                    (values[keep], (rows[keep], cols[keep])), shape=(info.neqn, info.neqn)
+                )
+    except UserError:
+        raise
+    except Exception as err:  # the reader's own errors (and MemoryError) become one line
+        raise _fail(path, None, f"cannot read the .full file: {_reason(err)}") from None
+
+    dof_ref = np.asarray(dof_ref)
+    if dof_ref.shape != (info.neqn, 2) or k_upper is None or m_upper is None:
+        raise _fail(path, None, "ansys-mapdl-reader returned an incomplete model")
+    try:
+        table = DofTable(dof_ref[:, 0], info.directions)
+    except UserError as err:
+        raise _fail(path, None, str(err)) from None
+    stiffness = _mirror(k_upper, path, "stiffness")
+    mass = _mirror(m_upper, path, "mass")
+    damping = None if d_upper is None else _mirror(d_upper, path, "damping")
+    fixed = np.flatnonzero(info.const < 0)
+    _check_no_empty_dofs(stiffness, mass, table, fixed, path)
+    node_ids, coordinates = _node_table(table, nodes, path)
+    return _make_body(
+        path,
+        node_ids=node_ids,
+        coordinates=coordinates,
+        dofs=table,
+        mass=mass,
+        stiffness=stiffness,
+        damping_matrix=damping,
+        fixed=fixed,
+        name=path.stem if name is None else name,
+    )
+
+
+@dataclass(frozen=True)
+class _FullInfo:
+    """What :func:`_scan_full_file` learnt about a valid ``.full`` file."""
+
+    neqn: int
+    const: np.ndarray  # per equation: dof number, negative if constrained (file order)
+    directions: np.ndarray  # per equation: direction code 0..5
+    damping: tuple[int, int] | None  # (pointer, number of terms) of the damping matrix
+
+
+def _scan_full_file(path: Path) -> _FullInfo:
+    """Check the structure of a ``.full`` file before the C reader of the library touches it.
+
+    ``ansys-mapdl-reader`` trusts the record lengths and pointers in the file; a truncated or
+    corrupt file can crash the interpreter. This walks every record the reader will use (header,
+    dof, nodal equivalence and constraint records and the matrix blocks) and checks lengths,
+    trailers and index ranges.
+    """
+    try:
+        from ansys.mapdl.reader.common import ANSYS_BINARY_FILE_TYPES, parse_header
+        from ansys.mapdl.reader.full import SYMBOLIC_FULL_HEADER_KEYS
+    except ImportError as err:  # pragma: no cover - a declared dependency
+        raise _fail(path, None, f"reading .full files needs ansys-mapdl-reader ({err})") from None
+    words = _map_words(path)
+    records = _Records(path, words)
+
+    first = int(words[0]) if words.size else None
+    if first != _HEADER_WORDS:
+        if words.size and int(words[:1].byteswap()[0]) == _HEADER_WORDS:
+            raise _fail(path, None, "big-endian Ansys files are not supported")
+        raise _fail(path, None, "not an Ansys binary file (expected a Jobname.full file)")
+    header, after = records.read(0, "standard header", expect=_HEADER_WORDS)
+    file_type = int(header[0])
+    if file_type != _FULL_FILE_TYPE:
+        kind = ANSYS_BINARY_FILE_TYPES.get(file_type, f"file of type {file_type}")
+        raise _fail(path, None, f"this is an Ansys {kind}, not a .full file")
+
+    values, after = records.read(after, ".full header")
+    if values.size < 40:
+        raise _fail(path, None, f".full header has {values.size} words; the file is damaged")
+    h = parse_header(np.asarray(values), SYMBOLIC_FULL_HEADER_KEYS)
+
+    def item(key: str) -> int:
+        return int(h.get(key, 0))
+
+    def long_item(key: str) -> int:
+        return (item(key + "h") << 32) | (item(key + "l") & 0xFFFFFFFF)
+
+    neqn, n_nodes, numdof = item("neqn"), item("nNodes"), item("numdof")
+    if item("fun04") >= 0:
+        raise _fail(path, None, "frontal-assembly .full files are not supported")
+    if item("extopt") in (3, 4):
+        raise _fail(path, None, f"extraction option {item('extopt')} has another file layout")
+    if item("keyuns"):
+        raise _fail(path, None, "the matrices are unsymmetric; pymorembs needs symmetric K and M")
+    if item("lumpm"):
+        raise _fail(
+            path,
+            None,
+            "lumped mass matrix (LUMPM,ON) cannot be read; write the file with LUMPM,OFF or "
+            "export the matrices with *SMAT/*EXPORT,...,MMF (read_ansys_mmf)",
+        )
+    if item("ncefull") or item("nceGprime"):
+        raise _fail(
+            path,
+            None,
+            "the model has constraint equations (CE, CP or MPC contact) that a .full file does "
+            "not apply; export the matrices with *SMAT/*EXPORT,...,MMF (read_ansys_mmf)",
+        )
+    if neqn <= 0 or n_nodes <= 0 or not 0 < numdof <= 32:
+        raise _fail(path, None, f"implausible .full header (neqn={neqn}, nodes={n_nodes})")
+    end = long_item("ptrEND")
+    if end > words.size:
+        raise _fail(path, None, f"file is truncated: {4 * words.size} bytes, need {4 * end}")
+
+    curdof, after = records.read(after, "dof record", expect=numdof)
+    if np.any((curdof < 1) | (curdof > 32)):
+        raise _fail(path, None, "dof record holds unknown dof numbers; the file is damaged")
+    back, _ = records.read(after, "nodal equivalence table")
+    if back.size < n_nodes or np.any(back[:n_nodes] <= 0):
+        raise _fail(path, None, "nodal equivalence table is damaged")
+    if long_item("ptrDOF") <= 0:
+        raise _fail(path, None, "the .full header has no dof information; the file is damaged")
+    ndof, after = records.read(long_item("ptrDOF"), "dofs per node", expect=n_nodes)
+    const, _ = records.read(after, "dof information", expect=neqn)
+    if np.any((ndof < 1) | (ndof > numdof)) or int(ndof.sum()) != neqn:
+        raise _fail(path, None, "dofs per node do not add up to the number of equations")
+    if np.unique(back[:n_nodes]).size != n_nodes:
+        raise _fail(path, None, "nodal equivalence table lists a node twice; the file is damaged")
+    const = np.array(const, dtype=np.int32)
+
+    n_stiffness, n_mass = long_item("ntermK"), long_item("ntermM")
+    if n_stiffness <= 0:
+        raise _fail(path, None, "the file holds no stiffness matrix")
+    if n_mass <= 0:
+        raise _fail(
+            path,
+            None,
+            "the file holds no mass matrix; write it from a modal analysis (ANTYPE,MODAL)",
+        )
+    records.matrix(long_item("ptrSTF"), neqn, n_stiffness, "stiffness matrix")
+    records.matrix(long_item("ptrMAS"), neqn, n_mass, "mass matrix")
+    damping = None
+    n_damping, damping_pointer = long_item("ntermD"), long_item("ptrDMP")
+    if n_damping > 0 and damping_pointer > 0:
+        records.matrix(damping_pointer, neqn, n_damping, "damping matrix")
+        damping = (damping_pointer, n_damping)
+    directions = _full_directions(path, np.asarray(curdof), const, np.repeat(back[:n_nodes], ndof))
+    return _FullInfo(neqn=neqn, const=const, directions=directions, damping=damping)
+
+
+def _full_directions(
+    path: Path, curdof: np.ndarray, const: np.ndarray, node_of: np.ndarray
+) -> np.ndarray:
+    """Direction code of every equation from the dof record and the per-equation dof numbers.
+
+    ``|const|`` is either the position in the dof record (1-based) or the Ansys dof number itself
+    (``UX`` = 1 ... ``ROTZ`` = 6). For structural models both readings agree or only one is
+    possible; an ambiguous file is refused rather than guessed.
+    """
+    number = np.abs(const.astype(np.int64))
+    if np.any(number == 0):
+        raise _fail(path, None, "dof information has a zero entry; the file is damaged")
+    as_position = curdof[number - 1] if number.max() <= curdof.size else None
+    as_number = number if np.all(np.isin(number, curdof)) else None
+    if as_position is not None and as_number is not None:
+        if not np.array_equal(as_position, as_number):
+            raise _fail(path, None, "cannot tell the dof label of the equations unambiguously")
+    labels = as_position if as_position is not None else as_number
+    if labels is None:
+        raise _fail(path, None, "dof information does not match the dof record; file damaged")
+    other = np.flatnonzero(labels > 6)
+    if other.size:
+        names = sorted({_ANSYS_DOF_NUMBERS.get(int(n), f"#{n}") for n in labels[other]})
+        first = int(other[0])
+        raise _fail(
+            path,
+            None,
+            f"the model has non-structural dofs ({' '.join(names)}; first: node "
+            f"{int(node_of[first])}); pymorembs reads {_STRUCTURAL} only",
+        )
+    return (labels - 1).astype(np.int64)
+
+
+class _Records:
+    """Bounds-checked access to the records ``[n, flags, n words, n]`` of an Ansys file."""
+
+    def __init__(self, path: Path, words: np.ndarray) -> None:
+        self.path = path
+        self.words = words
+
+    def read(self, pointer: int, what: str, expect: int | None = None) -> tuple[np.ndarray, int]:
+        """The data of the integer record at ``pointer`` and the pointer of the next record."""
+        words = self.words
+        if pointer < 0 or pointer + 2 > words.size:
+            raise self._truncated(what)
+        n = int(words[pointer])
+        if expect is not None and n != expect:
+            raise _fail(self.path, None, f"{what}: {n} entries, expected {expect}; file damaged")
+        end = pointer + 2 + n
+        if n < 0 or end >= words.size:
+            raise self._truncated(what)
+        if int(words[end]) != n or not int(words[pointer + 1]) & 0x80000000:
+            raise _fail(
+                self.path, None, f"{what}: unexpected record layout (damaged or compressed file)"
+            )
+        return words[pointer + 2 : end], end + 1
+
+    def matrix(self, pointer: int, neqn: int, n_terms: int, what: str) -> None:
+        """Check the block of one matrix: per equation an index and a value record."""
+        words = self.words
+        extent = 6 * neqn + 3 * n_terms
+        if pointer <= 0 or pointer + extent > words.size:
+            raise self._truncated(what)
+        block = memoryview(np.ascontiguousarray(words[pointer : pointer + extent]))
+        starts = np.empty(neqn, dtype=np.int64)
+        counts = np.empty(neqn, dtype=np.int64)
+        p = 0
+        for i in range(neqn):
+            n = block[p]
+            if not 0 <= n <= neqn or p + 3 * n + 6 > extent:
+                raise self._bad(what, i)
+            q = p + n + 3
+            if block[q - 1] != n or block[q] != 2 * n or block[q + 2 * n + 2] != 2 * n:
+                raise self._bad(what, i)
+            starts[i], counts[i] = p + 2, n
+            p = q + 2 * n + 3
+        if p != extent:
+            raise _fail(self.path, None, f"{what}: term count does not match the header")
+        total = int(counts.sum())
+        offsets = np.repeat(starts - (np.cumsum(counts) - counts), counts)
+        rows = np.asarray(block)[offsets + np.arange(total)]
+        if total and (rows.min() < 1 or rows.max() > neqn):
+            raise _fail(self.path, None, f"{what}: row index out of range; the file is damaged")
+
+    def _truncated(self, what: str) -> UserError:
+        return _fail(self.path, None, f"file is truncated or damaged (cannot read the {what})")
+
+    def _bad(self, what: str, equation: int) -> UserError:
+        return _fail(
+            self.path,
+            None,
+            f"{what}: damaged record at equation {equation + 1} (truncated or corrupt file)",
+        )
+
+
+def _map_words(path: Path) -> np.ndarray:
+    """The file as little-endian 32-bit words (memory-mapped, read-only)."""
+    try:
+        size = path.stat().st_size
+        if not path.is_file():
+            raise IsADirectoryError
+        if size < 4:
+            if size == 0:
+                raise _fail(path, None, "empty file (expected a Jobname.full file)")
+            raise _fail(path, None, "not an Ansys binary file (expected a Jobname.full file)")
+        return np.memmap(path, dtype="<i4", mode="r", shape=(size // 4,))
+    except UserError:
+        raise
+    except FileNotFoundError:
+        raise _fail(path, None, "file not found (expected a Jobname.full file)") from None
+    except IsADirectoryError:
+        raise _fail(path, None, "is a directory, expected a Jobname.full file") from None
+    except (OSError, ValueError) as err:
+        raise _fail(path, None, f"cannot read: {_reason(err)}") from None
+
+
+def _mirror(upper: sp.spmatrix, path: Path, what: str) -> sp.csr_matrix:
+    """The full symmetric matrix ``A + A^T - diag(A)`` from one stored triangle."""
+    a = sp.csr_matrix(upper, dtype=float)
+    a.sum_duplicates()
+    if not np.all(np.isfinite(a.data)):
+        raise _fail(path, None, f"{what} matrix has NaN or infinite entries")
+    below, above = sp.tril(a, -1), sp.triu(a, 1)
+    if below.nnz and above.nnz:
+        raise _fail(path, None, f"{what} matrix: both triangles are stored")
+    strict = below if below.nnz else above
+    full = sp.csr_matrix(sp.diags(a.diagonal()) + strict + strict.T)
+    full.eliminate_zeros()
+    full.sort_indices()
+    return full
+
+
+# ============================================================================ Matrix Market
+def read_ansys_mmf(
+    stiffness: PathLike,
+    mass: PathLike,
+    mapping: PathLike,
+    damping: PathLike | None = None,
+    nodes: PathLike | None = None,
+    name: str | None = None,
+) -> ElasticBody:
+    """Read a body from Matrix Market files exported by APDL Math plus the dof mapping file.
+
+    After a modal analysis that wrote ``Jobname.full`` (``WRFULL,1``, see
+    :func:`read_ansys_full`), export the matrices in the solver ordering with::
+
+        *SMAT,MatK,D,IMPORT,FULL,Jobname.full,STIFF
+        *SMAT,MatM,D,IMPORT,FULL,Jobname.full,MASS
+        *EXPORT,MatK,MMF,K.mtx
+        *EXPORT,MatM,MMF,M.mtx
+        ! optional damping matrix of a damped modal analysis:
+        ! *SMAT,MatD,D,IMPORT,FULL,Jobname.full,DAMP
+        ! *EXPORT,MatD,MMF,D.mtx
+
+    and the dof mapping of these equations with ``HBMAT`` (the Harwell-Boeing file itself is not
+    needed)::
+
+        /AUX2
+        FILE,Jobname,full
+        HBMAT,model,txt,,ASCII,STIFF,NO,YES   ! Mapping = YES writes model.mapping
+        FINISH
+
+    The constrained dofs are not part of these matrices; constraint equations are already
+    applied.
+
+    Mapping file layout (``Fname.mapping``): optional header lines such as
+    ``Matrix Eqn   Node   DOF``, then one row per equation, ``equation node label`` separated by
+    blanks (or commas), e.g. ``1   1   UX``. Equation numbers count from 1 and must cover
+    ``1 .. n`` exactly once (any order); labels are ``UX UY UZ ROTX ROTY ROTZ`` (any case). Blank
+    lines and lines starting with ``!``, ``#`` or ``%`` are ignored.
+
+    Parameters
+    ----------
+    stiffness, mass : path-like
+        Matrix Market files of ``K`` and ``M`` (``coordinate`` or ``array``, ``general`` or
+        ``symmetric`` storage with one triangle); square, of the size of the mapping, finite and
+        symmetric to :data:`~pymorembs.io.matrix_market.SYMMETRY_TOLERANCE`.
+    mapping : path-like
+        The ``.mapping`` file.
+    damping : path-like, optional
+        Matrix Market file of an explicit viscous damping matrix.
+    nodes : path-like, optional
+        ``nodes.csv`` (header ``id,x,y,z``) listing every node of the mapping. Without it all
+        nodes lie at the origin (see :func:`read_ansys_full` for what needs coordinates).
+    name : str, optional
+        Label of the body; default: the name of the mapping file without extension.
+
+    Returns
+    -------
+    ElasticBody
+        Equations in the order of the matrices (equation ``i`` is mapping row ``i``); no fixed
+        dofs.
+
+    Raises
+    ------
+    UserError
+        A malformed, non-symmetric or non-finite matrix, matrices of different sizes, a mapping
+        with the wrong number of rows, a repeated equation or (node, dof), an unknown or
+        non-structural dof label; the message is one line ``file:line: problem``.
+    """
+    k_path, m_path, map_path = Path(stiffness), Path(mass), Path(mapping)
+    table = _read_mapping(map_path)
+    n = len(table)
+    k_matrix = _read_mmf_matrix(k_path, n, map_path)
+    m_matrix = _read_mmf_matrix(m_path, n, map_path)
+    d_matrix = None if damping is None else _read_mmf_matrix(Path(damping), n, map_path)
+    _check_no_empty_dofs(k_matrix, m_matrix, table, np.zeros(0, dtype=np.int64), k_path)
+    node_ids, coordinates = _node_table(table, nodes, map_path)
+    return _make_body(
+        k_path,
+        node_ids=node_ids,
+        coordinates=coordinates,
+        dofs=table,
+        mass=m_matrix,
+        stiffness=k_matrix,
+        damping_matrix=d_matrix,
+        name=map_path.stem if name is None else name,
+    )
+
+
+def _read_mmf_matrix(path: Path, n: int, mapping: Path) -> sp.csr_matrix:
+    """A symmetric Matrix Market matrix of the size given by the mapping file."""
+    matrix = read_matrix_market(path)
+    if matrix.shape[0] != n:
+        size = matrix.shape[0]
+        raise _fail(path, None, f"matrix is {size} x {size} but {mapping} maps {n} equations")
+    check_symmetric(matrix, str(path))
+    return matrix
+
+
+def _read_mapping(path: Path) -> DofTable:
+    """Dof table from an Ansys ``.mapping`` file (layout in :func:`read_ansys_mmf`)."""
+    lines = _read_lines(path, "an Ansys dof mapping file")
+    equations: dict[int, tuple[int, int, int]] = {}  # equation -> (node, code, line)
+    dofs: dict[tuple[int, int], int] = {}  # (node, code) -> line
+    started = False
+    for number, text in enumerate(lines, start=1):
+        stripped = text.strip()
+        if not stripped or stripped[0] in "!#%":
+            continue
+        words = stripped.replace(",", " ").split()
+        if not words[0].lstrip("+-").isdigit():
+            if started:
+                raise _fail(path, number, f"expected 'equation node dof', got {stripped!r}")
+            continue  # a header line before the first equation
+        started = True
+        if len(words) != 3:
+            raise _fail(path, number, f"{len(words)} fields, expected 3 (equation node dof)")
+        equation = _to_int(words[0], path, number, "equation number", minimum=1)
+        node = _to_int(words[1], path, number, "node number")
+        code = _ansys_label(words[2], path, number)
+        if equation in equations:
+            first = equations[equation][2]
+            raise _fail(
+                path, number, f"equation {equation} is listed twice (first on line {first})"
+            )
+        if (node, code) in dofs:
+            label = f"{node}:{words[2].upper()}"
+            raise _fail(
+                path, number, f"dof {label} is listed twice (first on line {dofs[node, code]})"
+            )
+        equations[equation] = (node, code, number)
+        dofs[node, code] = number
+    if not equations:
+        raise _fail(path, None, "no equation rows (expected lines 'equation node dof')")
+    n = len(equations)
+    if max(equations) != n:
+        missing = min(set(range(1, n + 1)).difference(equations))
+        raise _fail(
+            path, None, f"equation {missing} is missing (the rows must number equations 1..{n})"
+        )
+    ordered = [equations[k] for k in range(1, n + 1)]
+    return DofTable(
+        np.array([node for node, _, _ in ordered], dtype=np.int64),
+        np.array([code for _, code, _ in ordered], dtype=np.int64),
+    )
+
+
+def _ansys_label(text: str, path: Path, line: int) -> int:
+    """Direction code of an Ansys dof label."""
+    label = text.strip().upper()
+    code = ANSYS_DOF_LABELS.get(label)
+    if code is not None:
+        return code
+    if label in _OTHER_ANSYS_LABELS:
+        raise _fail(path, line, f"dof {label} is not structural; pymorembs reads {_STRUCTURAL}")
+    raise _fail(path, line, f"unknown dof label {text!r}, expected one of {_STRUCTURAL}")
+
+
+# ============================================================================ shared helpers
+def _node_table(
+    table: DofTable, nodes: PathLike | None, source: Path
+) -> tuple[np.ndarray, np.ndarray]:
+    """Node ids and coordinates: from ``nodes.csv`` or, without it, the dof nodes at the origin."""
+    if nodes is None:
+        _, first = np.unique(table.nodes, return_index=True)
+        node_ids = table.nodes[np.sort(first)]
+        return node_ids, np.zeros((node_ids.size, 3))
+    nodes_path = Path(nodes)
+    node_ids, coordinates = _read_nodes(nodes_path)
+    missing = np.unique(table.nodes[~np.isin(table.nodes, node_ids)])
+    if missing.size:
+        more = f" and {missing.size - 1} more" if missing.size > 1 else ""
+        raise _fail(nodes_path, None, f"node {int(missing[0])}{more} of {source} is not listed")
+    return node_ids, coordinates
+
+
+def _check_no_empty_dofs(
+    stiffness: sp.csr_matrix,
+    mass: sp.csr_matrix,
+    table: DofTable,
+    fixed: np.ndarray,
+    where: Path,
+) -> None:
+    """Refuse equations with neither stiffness nor mass (e.g. rotations of solid-element nodes)."""
+    k_rows = np.asarray(abs(stiffness).sum(axis=1)).ravel()
+    m_rows = np.asarray(abs(mass).sum(axis=1)).ravel()
+    empty = (k_rows == 0) & (m_rows == 0)
+    empty[np.asarray(fixed, dtype=np.int64)] = False
+    bad = np.flatnonzero(empty)
+    if bad.size:
+        more = f" (and {bad.size - 1} more)" if bad.size > 1 else ""
+        first = int(bad[0])
+        raise _fail(
+            where,
+            None,
+            f"equation {first + 1} ({table.nodes[first]}:{DIRECTIONS[table.directions[first]]})"
+            f"{more} has neither stiffness nor mass; remove such dofs from the export",
+        )
+
+
+def _make_body(source: Path, **fields: object) -> ElasticBody:
+    """Build the body; its own consistency errors get the file name in front."""
+    try:
+        return ElasticBody(**fields)  # type: ignore[arg-type]
+    except UserError as err:
+        raise _fail(source, None, str(err)) from None
+
+
+def _reason(err: BaseException) -> str:
+    """One line describing a third-party exception."""
+    text = " ".join(str(err).split())
+    if isinstance(err, OSError) and err.strerror:
+        text = err.strerror
+    if isinstance(err, MemoryError):
+        text = "not enough memory"
+    kind = type(err).__name__
+    if kind == "error":  # e.g. struct.error
+        kind = f"{type(err).__module__}.error"
+    return f"{kind}: {text}" if text else kind

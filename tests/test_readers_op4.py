@@ -1,0 +1,275 @@
+"""Reader for Nastran OP4 files with a dof table from dofs.csv or Nastran bulk data."""
+
+from __future__ import annotations
+
+import struct
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from pymorembs.errors import UserError
+from pymorembs.io.nastran_op4 import read_op4
+
+op4_module = pytest.importorskip("pyNastran.op4.op4")
+from pyNastran.op2.result_objects.matrix import Matrix  # noqa: E402
+
+# A chain of four grids (2, 5, 7, 9) with one axial dof each plus a rotation at grid 9; the
+# rotation has stiffness but no mass (a zero column in M: a massless dof).
+K = np.array(
+    [
+        [2.0e3, -1.0e3, 0.0, 0.0, 0.0],
+        [-1.0e3, 2.0e3, -1.0e3, 0.0, 0.0],
+        [0.0, -1.0e3, 2.0e3, -1.0e3, 0.0],
+        [0.0, 0.0, -1.0e3, 1.0e3, 50.0],
+        [0.0, 0.0, 0.0, 50.0, 30.0],
+    ]
+)
+M = np.diag([1.0, 2.0, 2.0, 1.0, 0.0])
+M[0, 1] = M[1, 0] = 0.25
+B = 0.01 * K + 0.5 * M
+DOFS_CSV = "node,direction\n2,ux\n5,ux\n7,ux\n9,ux\n9,rz\n"
+NODES = [2, 5, 7, 9, 9]
+DIRS = [0, 0, 0, 0, 5]
+
+
+def _one_line_error(excinfo: pytest.ExceptionInfo[UserError], path: Path, line: int | None = None):
+    message = str(excinfo.value)
+    assert "\n" not in message
+    prefix = f"{path}:{line}: " if line is not None else f"{path}"
+    assert message.startswith(prefix), message
+    return message
+
+
+def _record(payload: bytes) -> bytes:
+    """A Fortran unformatted sequential record."""
+    return struct.pack("<i", len(payload)) + payload + struct.pack("<i", len(payload))
+
+
+def write_binary_op4(path: Path, matrices: dict[str, tuple[int, np.ndarray]], sparse: bool):
+    """Binary OUTPUT4, real double precision, in the dense (IROW > 0) or sparse (IROW = 0) form.
+
+    pyNastran's binary writer is not usable (it fails for real matrices), so the test writes the
+    records itself: header (NCOL, NROW, FORM, TYPE, NAME), one record per non-null column
+    (ICOL, IROW, NW, values; sparse: strings headed by IS = IROW + 65536 (L + 1)), and the
+    closing record for column NCOL + 1.
+    """
+    out = b""
+    for name, (form, a) in matrices.items():
+        nrows, ncols = a.shape
+        out += _record(struct.pack("<4i", ncols, nrows, form, 2) + name.ljust(8).encode())
+        for j in range(ncols):
+            nonzero = np.flatnonzero(a[:, j])
+            if nonzero.size == 0:
+                continue  # null columns are not written
+            if not sparse:
+                first, last = nonzero[0], nonzero[-1] + 1
+                values = a[first:last, j].astype("<f8")
+                head = struct.pack("<3i", j + 1, first + 1, 2 * values.size)
+                out += _record(head + values.tobytes())
+                continue
+            body, n_words = b"", 0
+            for run in np.split(nonzero, np.flatnonzero(np.diff(nonzero) != 1) + 1):
+                words = 2 * run.size
+                body += struct.pack("<i", 65536 * (words + 1) + int(run[0]) + 1)
+                body += a[run, j].astype("<f8").tobytes()
+                n_words += 1 + words
+            out += _record(struct.pack("<3i", j + 1, 0, n_words) + body)
+        out += _record(struct.pack("<3i", ncols + 1, 1, 2) + struct.pack("<d", 1.0))
+    path.write_bytes(out)
+
+
+def write_ascii_op4(path: Path, matrices: dict[str, tuple[int, object]]):
+    """ASCII OUTPUT4 with pyNastran's writer (dense for arrays, sparse for coo matrices)."""
+    op4_module.OP4(debug=None).write_op4(
+        str(path),
+        {name: Matrix(name, form, data) for name, (form, data) in matrices.items()},
+        name_order=list(matrices),
+        is_binary=False,
+    )
+
+
+@pytest.fixture
+def dofs_csv(tmp_path):
+    path = tmp_path / "dofs.csv"
+    path.write_text(DOFS_CSV)
+    return path
+
+
+def _check(body):
+    np.testing.assert_allclose(body.stiffness.toarray(), K, rtol=1e-15)
+    np.testing.assert_allclose(body.mass.toarray(), M, rtol=1e-15)
+    np.testing.assert_array_equal(body.dofs.nodes, NODES)
+    np.testing.assert_array_equal(body.dofs.directions, DIRS)
+    assert body.fixed.size == 0
+
+
+@pytest.mark.parametrize(
+    "kind", ["ascii-dense", "ascii-sparse", "binary-dense", "binary-sparse", "ascii-triangle"]
+)
+def test_op4_forms(tmp_path, dofs_csv, kind):
+    path = tmp_path / "body.op4"
+    if kind == "ascii-dense":
+        write_ascii_op4(path, {"KAAX": (6, K), "MAAX": (6, M)})
+    elif kind == "ascii-sparse":
+        write_ascii_op4(path, {"KAAX": (6, sp.coo_matrix(K)), "MAAX": (6, sp.coo_matrix(M))})
+    elif kind == "ascii-triangle":  # form 6 with only the lower triangle stored
+        write_ascii_op4(path, {"KAAX": (6, np.tril(K)), "MAAX": (6, sp.coo_matrix(np.triu(M)))})
+    else:
+        sparse = kind == "binary-sparse"
+        write_binary_op4(path, {"KAAX": (6, K), "MAAX": (6, M)}, sparse=sparse)
+    body = read_op4(path, dofs=dofs_csv)
+    _check(body)
+    assert body.name == "body" and body.damping_matrix is None
+
+
+def test_op4_names_damping_and_nodes(tmp_path, dofs_csv):
+    path = tmp_path / "model.op4"
+    write_binary_op4(
+        path,
+        {"KAAX": (6, K), "MAAX": (6, M), "BAAX": (6, B), "KGG": (1, 2 * K), "MGG": (1, 2 * M)},
+        sparse=True,
+    )
+    body = read_op4(path, dofs=dofs_csv)  # BAAX is picked up by default
+    np.testing.assert_allclose(body.damping_matrix.toarray(), B, rtol=1e-15)
+    body = read_op4(path, stiffness="kgg", mass="Mgg", damping="baax", dofs=dofs_csv, name="x")
+    np.testing.assert_allclose(body.stiffness.toarray(), 2 * K, rtol=1e-15)
+    assert body.name == "x"
+    nodes = tmp_path / "nodes.csv"
+    nodes.write_text("id,x,y,z\n2,0,0,0\n5,1,0,0\n7,2,0,0\n9,3,0,0.5\n")
+    body = read_op4(path, dofs=dofs_csv, nodes=nodes)
+    np.testing.assert_array_equal(body.node_position(9), [3.0, 0.0, 0.5])
+
+
+BULK = """$ a-set of the body (small field, free field, large field, continuation)
+SOL 103
+CEND
+EXTSEOUT(ASMBULK,EXTID=100,MATOP4=30)
+BEGIN BULK
+PARAM   OLDSEQ  -1
+GRID           9        3.0     0.0     0.5
+GRID,7,,2.,0.,0.
+{grid_large_1}
+{grid_large_2}
+GRID           2              0.      0.      0.
+ASET1   1       2       THRU    7
+ASET,9,16
+ENDDATA
+""".format(
+    grid_large_1=f"{'GRID*':<8}{'5':>16}{'':>16}{'1.+0':>16}{'0.0':>16}",
+    grid_large_2=f"{'*':<8}{'0.0':>16}",
+)
+
+
+def test_op4_dofs_from_bulk_data(tmp_path):
+    path = tmp_path / "body.op4"
+    write_ascii_op4(path, {"KAAX": (6, sp.coo_matrix(K)), "MAAX": (6, sp.coo_matrix(M))})
+    bulk = tmp_path / "body.bdf"
+    bulk.write_text(BULK)
+    body = read_op4(path, dofs=bulk)
+    _check(body)
+    np.testing.assert_array_equal(body.node_ids, [2, 5, 7, 9])
+    np.testing.assert_allclose(body.coordinates[:, 0], [0.0, 1.0, 2.0, 3.0])
+    np.testing.assert_array_equal(body.node_position(9), [3.0, 0.0, 0.5])
+    # without GRID cards the THRU range takes every id (and the size check catches the excess)
+    no_grids = tmp_path / "aset.dat"
+    no_grids.write_text("ASET1,1,2,5,7\nASET,9,61\n")
+    body = read_op4(path, dofs=no_grids)
+    _check(body)
+    assert np.all(body.coordinates == 0.0)
+    thru = tmp_path / "thru.dat"
+    thru.write_text("ASET1,1,2,THRU,7\nASET,9,61\n")
+    with pytest.raises(UserError, match=r"8 dofs but matrix KAAX in .* is 5 x 5") as excinfo:
+        read_op4(path, dofs=thru)
+    _one_line_error(excinfo, thru)
+
+
+@pytest.mark.parametrize(
+    ("text", "line", "pattern"),
+    [
+        ("ASET1,1,2,5,7\nQSET1,0,101,THRU,110\n", 2, "generalized"),
+        ("GRID,2,,0.,0.,0.,3\nASET1,1,2,5,7\nASET,9,16\n", 1, "CD=3"),
+        ("ASET1,1,2,5,7\nASET,9,0\n", 2, "scalar point"),
+        ("ASET1,1,2,5,7\nASET,9,17\n", 2, "component '17'"),
+        ("ASET1,1,2,5,7\nSEQGP,9,1\nASET,9,16\n", 2, "SEQGP"),
+        ("GRID,2,1,0.,0.,0.\nASET1,1,2,5,7\nASET,9,16\n", 1, "CP=1"),
+        ("GRID,2,,0.,abc,0.\nASET1,1,2,5,7\nASET,9,16\n", 1, "'abc' is not a number"),
+    ],
+)
+def test_op4_bad_bulk_data(tmp_path, text, line, pattern):
+    path = tmp_path / "body.op4"
+    write_ascii_op4(path, {"KAAX": (6, K), "MAAX": (6, M)})
+    bulk = tmp_path / "aset.bdf"
+    bulk.write_text(text + "GRID,5,,1.,0.,0.\nGRID,7,,2.,0.,0.\nGRID,9,,3.,0.,0.\n")
+    with pytest.raises(UserError, match=pattern) as excinfo:
+        read_op4(path, dofs=bulk)
+    _one_line_error(excinfo, bulk, line)
+
+
+def test_op4_missing_matrix_and_sizes(tmp_path, dofs_csv):
+    path = tmp_path / "body.op4"
+    write_ascii_op4(path, {"KAAX": (6, K), "MAAX": (6, M)})
+    with pytest.raises(UserError, match="no matrix named 'KGG'; the file holds KAAX, MAAX") as e:
+        read_op4(path, stiffness="KGG", dofs=dofs_csv)
+    _one_line_error(e, path)
+    with pytest.raises(UserError, match="no matrix named 'BHH'") as e:
+        read_op4(path, damping="BHH", dofs=dofs_csv)
+    with pytest.raises(UserError, match="no dof labels") as e:
+        read_op4(path)
+    _one_line_error(e, path)
+    short = tmp_path / "short.csv"
+    short.write_text("node,direction\n2,ux\n5,ux\n7,ux\n9,ux\n")
+    with pytest.raises(UserError, match="4 dofs but matrix KAAX") as e:
+        read_op4(path, dofs=short)
+    _one_line_error(e, short)
+
+    mismatch = tmp_path / "mismatch.op4"
+    write_ascii_op4(mismatch, {"KAAX": (6, K), "MAAX": (6, M[:4, :4])})
+    with pytest.raises(UserError, match="matrix MAAX is 4 x 4 but KAAX is 5 x 5") as e:
+        read_op4(mismatch, dofs=dofs_csv)
+    _one_line_error(e, mismatch)
+
+
+def test_op4_bad_matrices(tmp_path, dofs_csv):
+    unsymmetric = K.copy()
+    unsymmetric[0, 1] = -900.0
+    path = tmp_path / "bad.op4"
+    write_binary_op4(path, {"KAAX": (1, unsymmetric), "MAAX": (6, M)}, sparse=False)
+    with pytest.raises(UserError, match="matrix KAAX: matrix is not symmetric") as e:
+        read_op4(path, dofs=dofs_csv)
+    _one_line_error(e, path)
+    empty = M.copy()
+    empty[3, 3] = 0.0
+    k = K.copy()
+    k[3, :] = k[:, 3] = 0.0
+    write_binary_op4(path, {"KAAX": (6, k), "MAAX": (6, empty)}, sparse=True)
+    with pytest.raises(UserError, match=r"equation 4 \(9:ux\) has neither stiffness nor mass"):
+        read_op4(path, dofs=dofs_csv)
+    rect = tmp_path / "rect.op4"
+    write_ascii_op4(rect, {"KAAX": (2, K[:, :4]), "MAAX": (6, M)})
+    with pytest.raises(UserError, match="5 x 4, not square"):
+        read_op4(rect, dofs=dofs_csv)
+
+
+@pytest.mark.parametrize("kind", ["ascii", "binary"])
+def test_op4_truncated_and_not_op4(tmp_path, dofs_csv, kind):
+    path = tmp_path / "body.op4"
+    if kind == "ascii":
+        write_ascii_op4(path, {"KAAX": (6, sp.coo_matrix(K)), "MAAX": (6, sp.coo_matrix(M))})
+    else:
+        write_binary_op4(path, {"KAAX": (6, K), "MAAX": (6, M)}, sparse=True)
+    data = path.read_bytes()
+    cut = tmp_path / "cut.op4"
+    for size in (1, 30, len(data) // 3, len(data) - 40):
+        cut.write_bytes(data[:size])
+        with pytest.raises(UserError) as excinfo:
+            read_op4(cut, dofs=dofs_csv)
+        _one_line_error(excinfo, cut)
+    text = tmp_path / "notes.op4"
+    text.write_text("this is not an OP4 file\n")
+    with pytest.raises(UserError, match="cannot read the OP4 file") as excinfo:
+        read_op4(text, dofs=dofs_csv)
+    _one_line_error(excinfo, text)
+    with pytest.raises(UserError, match="file not found"):
+        read_op4(tmp_path / "missing.op4", dofs=dofs_csv)
