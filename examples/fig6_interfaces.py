@@ -24,17 +24,17 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from threadpoolctl import threadpool_limits  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from threadpoolctl import threadpool_limits
 
-from pymorembs.analysis.error import relative_error  # noqa: E402
-from pymorembs.analysis.transfer import transfer_function  # noqa: E402
-from pymorembs.body import Damping  # noqa: E402
-from pymorembs.examples import build_example  # noqa: E402
-from pymorembs.prepare import Frame, Port, prepare  # noqa: E402
-from pymorembs.reduce.krylov import krylov_reduction  # noqa: E402
-from pymorembs.reduce.projection import reduced_model  # noqa: E402
+from pymorembs.analysis.error import relative_error
+from pymorembs.analysis.transfer import transfer_function
+from pymorembs.body import Damping
+from pymorembs.examples import build_example
+from pymorembs.prepare import Frame, Port, prepare
+from pymorembs.reduce.krylov import krylov_reduction
+from pymorembs.reduce.projection import reduced_model
 
 VARIANTS = ("rigid", "distributing", "steel-beams", "light-beams", "springs")
 CHECK_HZ = np.array([5.0, 150.0, 400.0, 650.0, 900.0])
@@ -51,8 +51,9 @@ def response(dofs: int, variant: str, frequencies: np.ndarray) -> tuple[np.ndarr
     start = time.perf_counter()
     points = np.linspace(0.0, 1000.0, 6)
     model = reduced_model(prepared.system, krylov_reduction(prepared.system, points, moments=4))
-    check = relative_error(transfer_function(prepared.system, CHECK_HZ),
-                           transfer_function(model.system, CHECK_HZ))
+    check = relative_error(
+        transfer_function(prepared.system, CHECK_HZ), transfer_function(model.system, CHECK_HZ)
+    )
     h = transfer_function(model.system, frequencies)
     facts = {
         "n_dof": body.n_dof,
@@ -77,8 +78,11 @@ def main(argv: list[str] | None = None) -> int:
             norm, facts = response(args.dofs, variant, frequencies)
             report[variant] = facts
             worst = max(facts["check_rel_error"])
-            print(f"{variant:<13} {facts['n_dof']:>7} dofs  Krylov order {facts['order']:>3}  "
-                  f"check error {worst:.1e}  {facts['seconds']:6.1f} s", flush=True)
+            print(
+                f"{variant:<13} {facts['n_dof']:>7} dofs  Krylov order {facts['order']:>3}  "
+                f"check error {worst:.1e}  {facts['seconds']:6.1f} s",
+                flush=True,
+            )
             if worst > CHECK_LIMIT:
                 failed.append(variant)
                 continue
@@ -93,8 +97,13 @@ def main(argv: list[str] | None = None) -> int:
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(args.out / "fig6_interfaces.png")
-    np.savetxt(args.out / "fig6_interfaces.csv", np.column_stack([frequencies, *curves.values()]),
-               delimiter=",", header="frequency_hz," + ",".join(curves), comments="")
+    np.savetxt(
+        args.out / "fig6_interfaces.csv",
+        np.column_stack([frequencies, *curves.values()]),
+        delimiter=",",
+        header="frequency_hz," + ",".join(curves),
+        comments="",
+    )
     (args.out / "fig6_interfaces.json").write_text(json.dumps(report, indent=2) + "\n")
     print(f"written: {args.out}/fig6_interfaces.png, .csv, .json")
     if failed:
