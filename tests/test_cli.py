@@ -374,8 +374,9 @@ def test_job_with_an_interface_node(truss_files, capsys):
 
 
 def test_info_on_a_buckens_job_reports_rigid_and_elastic_modes(capsys):
-    code, out, _ = run(["info", ROOT / "examples" / "rack-beams-buckens.toml", "--modes", 3,
-                        "--json"], capsys)
+    code, out, _ = run(
+        ["info", ROOT / "examples" / "rack-beams-buckens.toml", "--modes", 3, "--json"], capsys
+    )
     assert code == 0
     facts = json.loads(out)
     assert facts["rigid_body_modes"] == 6
@@ -394,9 +395,12 @@ def test_info_on_a_buckens_job_reports_rigid_and_elastic_modes(capsys):
         ("min = [0.25, -1, -1]", "min = [5, 5, 5]", "no node of the model"),
         ("node = 900\nposition", "node = 1\nposition", "exists already"),
         ('kind = "beams"', 'kind = "springs"', "unknown key 'youngs_modulus'"),
-        ('kind = "beams"\nbox = { min = [0.25, -1, -1], max = [0.35, 1, 1] }\n'
-         "youngs_modulus = 1e18\ndensity = 100\ndiameter = 0.005",
-         'kind = "springs"\nnodes = [19, 20]\ndamping = 2.0', "springs need 'stiffness'"),
+        (
+            'kind = "beams"\nbox = { min = [0.25, -1, -1], max = [0.35, 1, 1] }\n'
+            "youngs_modulus = 1e18\ndensity = 100\ndiameter = 0.005",
+            'kind = "springs"\nnodes = [19, 20]\ndamping = 2.0',
+            "springs need 'stiffness'",
+        ),
     ],
 )
 def test_bad_interface_tables(old, new, message, truss_files, capsys):
