@@ -115,3 +115,22 @@ def test_buckens_needs_a_free_body(rack):
 
     with pytest.raises(UserError, match="six rigid-body modes"):
         prepare(spring_lattice(), Frame("buckens"), [Port.parse(50, "ux")])
+
+
+def test_buckens_reduction_of_rack_solid_is_mass_orthogonal_to_rigid_modes():
+    """Issue #3: rack-solid (light stiff beams at node 2), Buckens frame, V^T M R = 0."""
+    body = build_example("rack-solid", dofs=8_000)
+    ports = [Port.parse(1, "ux uy uz"), Port.parse(2, "ux uy uz")]
+    prepared = prepare(body, Frame("buckens"), ports)
+    model = reduced_model(
+        prepared.system, krylov_reduction(prepared.system, [0.0, 500.0, 1000.0], moments=3)
+    )
+    v_all = prepared.expand(model.projection.V)
+    rigid = prepared.body.rigid_body_modes()
+    mass = prepared.body.mass
+    rigid = rigid / np.sqrt(np.einsum("ij,ij->j", rigid, mass @ rigid))
+    v_all = v_all / np.sqrt(np.einsum("ij,ij->j", v_all, mass @ v_all))
+    assert np.abs(rigid.T @ (mass @ v_all)).max() < 1e-10
+    f = np.array([0.0, 200.0, 700.0])
+    eps = relative_error(transfer_function(prepared.system, f), transfer_function(model.system, f))
+    assert eps.max() < 1e-6
