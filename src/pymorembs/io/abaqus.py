@@ -57,7 +57,7 @@ import numpy as np
 
 from pymorembs.body import DIRECTIONS, DofTable, ElasticBody
 from pymorembs.errors import UserError
-from pymorembs.io.formats import assemble_symmetric, is_nodes_csv, read_text
+from pymorembs.io.formats import assemble_symmetric, collect_nodes, is_nodes_csv, read_text
 from pymorembs.io.matrix_market import _fail, _read_dofs, _read_nodes
 
 __all__ = ["read_abaqus", "read_inp_nodes"]
@@ -468,11 +468,7 @@ def read_inp_nodes(path: PathLike) -> tuple[np.ndarray, np.ndarray]:
     UserError
         ``file:line: problem`` for malformed or repeated nodes and unsupported keywords.
     """
-    ids: list[int] = []
-    xyz: list[tuple[float, float, float]] = []
-    seen: dict[int, tuple[Path, int]] = {}
-    _scan_inp(Path(path), ids, xyz, seen, ())
-    return np.array(ids, dtype=np.int64), np.array(xyz, dtype=float).reshape(-1, 3)
+    return collect_nodes(_scan_inp, path)
 
 
 def _scan_inp(

@@ -726,3 +726,17 @@ def is_nodes_csv(path: Path) -> bool:
             continue
         return "".join(text.lower().split()).startswith("id,x,y,z")
     return False
+
+
+def collect_nodes(scan: Callable[..., None], path: PathLike) -> tuple[np.ndarray, np.ndarray]:
+    """Node ids and coordinates gathered by a recursive file scanner.
+
+    ``scan(path, ids, xyz, seen, stack)`` appends to ``ids`` and ``xyz``, records where each id
+    was seen in ``seen`` (to report duplicates) and follows includes, with ``stack`` the files
+    being read (to report include loops).
+    """
+    ids: list[int] = []
+    xyz: list[tuple[float, float, float]] = []
+    seen: dict[int, tuple[Path, int]] = {}
+    scan(Path(path), ids, xyz, seen, ())
+    return np.array(ids, dtype=np.int64), np.array(xyz, dtype=float).reshape(-1, 3)

@@ -50,7 +50,7 @@ import numpy as np
 
 from pymorembs.body import DofTable, ElasticBody
 from pymorembs.errors import UserError
-from pymorembs.io.formats import assemble_symmetric, is_nodes_csv, read_text
+from pymorembs.io.formats import assemble_symmetric, collect_nodes, is_nodes_csv, read_text
 from pymorembs.io.matrix_market import _fail, _read_nodes
 
 __all__ = ["read_dmig", "read_grid_nodes"]
@@ -596,11 +596,7 @@ def read_grid_nodes(path: PathLike) -> tuple[np.ndarray, np.ndarray]:
     ids : ndarray of int, shape (n_grids,)
     coordinates : ndarray, shape (n_grids, 3)
     """
-    ids: list[int] = []
-    xyz: list[tuple[float, float, float]] = []
-    seen: dict[int, tuple[Path, int]] = {}
-    _scan_bulk(Path(path), ids, xyz, seen, ())
-    return np.array(ids, dtype=np.int64), np.array(xyz, dtype=float).reshape(-1, 3)
+    return collect_nodes(_scan_bulk, path)
 
 
 def _scan_bulk(
