@@ -36,6 +36,9 @@ class Projection:
         Estimated max relative error on the band, for methods that have one.
     error_bound : float or None
         A-priori error bound, for methods that have one.
+    error_curve : (ndarray, ndarray) or None
+        ``(frequencies_hz, estimate)``: an error estimator as a function of frequency (SOAGA),
+        both shape (n_f,), for plots next to the true error.
     """
 
     V: np.ndarray
@@ -44,6 +47,7 @@ class Projection:
     parameters: dict[str, Any] = field(default_factory=dict)
     error_estimate: float | None = None
     error_bound: float | None = None
+    error_curve: tuple[np.ndarray, np.ndarray] | None = None
 
     @property
     def order(self) -> int:
