@@ -245,13 +245,13 @@ def _reduce(args: argparse.Namespace) -> int:
     if not args.quiet:
         print()
         print(
-            f"{'reduction':<20} {'method':<8} {'order':>5} {'max rel. error':>15} "
+            f"{'reduction':<20} {'method':<14} {'order':>5} {'max rel. error':>15} "
             f"{'error at 0 Hz':>14} {'time [s]':>9}"
         )
         for r in summary["reductions"]:
             static = "-" if r["static_rel_error"] is None else f"{r['static_rel_error']:.2e}"
             print(
-                f"{r['name']:<20} {r['method']:<8} {r['order']:>5} "
+                f"{r['name']:<20} {r['method']:<14} {r['order']:>5} "
                 f"{r['max_rel_error']:>15.3e} {static:>14} {r['time_s']:>9.2f}"
             )
         print(

@@ -22,7 +22,8 @@ from pymorembs.prepare import Frame, Port
 
 #: Options each method accepts besides ``name``, ``method`` and ``order``.
 METHOD_OPTIONS: dict[str, tuple[str, ...]] = {
-    "modal": ("shift_hz",),
+    "modal": ("shift_hz", "select", "candidates", "frm_hz"),
+    "craig-bampton": ("fixed_modes", "shift_hz"),
     "krylov": ("expansion_points_hz", "moments", "tol"),
 }
 
@@ -411,21 +412,22 @@ def _check_options(table: _Table, method: str, order: int | None, options: dict[
         if order is None:
             raise UserError(f"{table.path}: {table.where}: modal reduction needs 'order'")
         table.number("shift_hz", 1.0, minimum=0.0)
+        select = table.string("select", "lowest")
+        if select not in ("lowest", "best"):
+            raise table.error("select", f"must be 'lowest' or 'best' (eq. 26), got {select!r}")
+        candidates = table.integer("candidates")
+        if candidates is not None and candidates <= order:
+            raise table.error("candidates", f"must exceed the order {order}, got {candidates}")
+        if "frm_hz" in options:
+            _frequencies(table, options, "frm_hz")
+    elif method == "craig-bampton":
+        if order is not None:
+            raise table.error("order", "is set by the inputs (boundary dofs) and 'fixed_modes'")
+        table.integer("fixed_modes", required=True, minimum=0)
+        table.number("shift_hz", 1.0, minimum=0.0)
     elif method == "krylov":
-        points = table.get("expansion_points_hz", required=True)
-        if isinstance(points, int | float) and not isinstance(points, bool):
-            points = [points]
-            options["expansion_points_hz"] = points
-        if (
-            not isinstance(points, list)
-            or not points
-            or not all(
-                isinstance(p, int | float) and not isinstance(p, bool) and p >= 0 for p in points
-            )
-        ):
-            raise table.error(
-                "expansion_points_hz", f"must be a list of frequencies >= 0 in Hz, got {points!r}"
-            )
+        table.get("expansion_points_hz", required=True)
+        points = _frequencies(table, options, "expansion_points_hz")
         moments = options.get("moments")
         if moments is None and order is None:
             raise UserError(f"{table.path}: {table.where}: krylov needs 'moments' or 'order'")
@@ -440,3 +442,21 @@ def _check_options(table: _Table, method: str, order: int | None, options: dict[
         tol = table.number("tol", 1e-10, minimum=1e-15)
         if tol > 1e-3:
             raise table.error("tol", f"must be at most 1e-3 (a deflation tolerance), got {tol!r}")
+
+
+def _frequencies(table: _Table, options: dict[str, Any], key: str) -> list[float]:
+    """A list of frequencies >= 0 in Hz (a single number is a list of one), stored back."""
+    points = options[key]
+    if isinstance(points, int | float) and not isinstance(points, bool):
+        points = [points]
+    if (
+        not isinstance(points, list)
+        or not points
+        or not all(
+            isinstance(p, int | float) and not isinstance(p, bool) and 0 <= p < math.inf
+            for p in points
+        )
+    ):
+        raise table.error(key, f"must be a list of finite frequencies >= 0 in Hz, got {points!r}")
+    options[key] = [float(p) for p in points]
+    return options[key]

@@ -30,11 +30,21 @@ from pymorembs.prepare import PreparedModel, prepare
 from pymorembs.prepare.interface import InterfaceSpec, add_interface_node, select_nodes
 from pymorembs.reduce.krylov import krylov_reduction
 from pymorembs.reduce.modal import modal_reduction
+from pymorembs.reduce.modal_family import (
+    best_modes,
+    boundary_dofs_of_inputs,
+    craig_bampton,
+    modes_with_frm,
+)
 from pymorembs.reduce.projection import Projection, ReducedModel, reduced_model
-from pymorembs.report.plots import plot_relative_errors
+from pymorembs.report.plots import plot_decay, plot_relative_errors
 from pymorembs.system import SecondOrderSystem
 
 Progress = Callable[[str], None]
+
+#: Parameters of a projection that hold descending singular values, and their labels in the
+#: decay plot (paper Fig. 11).
+DECAY_SERIES = (("approximate_hsv", "approximate HSV (eq. 26)"),)
 
 
 def load_model(spec: ModelSpec) -> ElasticBody:
@@ -80,7 +90,29 @@ def run_reduction(system: SecondOrderSystem, spec: ReductionSpec) -> Projection:
     """Run one reduction method on a prepared system."""
     options = spec.options
     if spec.method == "modal":
-        return modal_reduction(system, spec.order, shift_hz=options.get("shift_hz", 1.0))
+        shift = options.get("shift_hz", 1.0)
+        select = options.get("select", "lowest")
+        if "frm_hz" in options:  # eigenmodes + frequency-response modes
+            return modes_with_frm(
+                system,
+                spec.order,
+                options["frm_hz"],
+                modes=select,
+                candidates=options.get("candidates"),
+                shift_hz=shift,
+            )
+        if select == "best":  # the modes with the largest approximate HSVs (eq. 26)
+            return best_modes(
+                system, spec.order, candidates=options.get("candidates"), shift_hz=shift
+            )
+        return modal_reduction(system, spec.order, shift_hz=shift)
+    if spec.method == "craig-bampton":
+        return craig_bampton(
+            system,
+            boundary_dofs_of_inputs(system),
+            options["fixed_modes"],
+            shift_hz=options.get("shift_hz", 1.0),
+        )
     if spec.method == "krylov":
         return krylov_reduction(
             system,
@@ -122,10 +154,17 @@ def run_job(job: Job, out_dir: str | Path, progress: Progress | None = None) -> 
     parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=parent))
     try:
-        entries, errors = [], {}
+        entries, errors, estimates, decay = [], {}, {}, {}
         for spec in job.reductions:
             say(f"reduction '{spec.name}' ({spec.method})")
-            entry, eps = _reduce_one(prepared, spec, frequencies, full_response, staging)
+            entry, eps, projection = _reduce_one(
+                prepared, spec, frequencies, full_response, staging
+            )
+            if projection.error_curve is not None:
+                estimates[spec.name] = projection.error_curve
+            for key, label in DECAY_SERIES:
+                if key in projection.parameters:
+                    decay[f"{spec.name}: {label}"] = np.asarray(projection.parameters[key])
             if spec.order is not None and entry["order"] < spec.order:
                 warnings.append(
                     f"reduction '{spec.name}': order {entry['order']} instead of {spec.order}: "
@@ -139,7 +178,12 @@ def run_job(job: Job, out_dir: str | Path, progress: Progress | None = None) -> 
             errors,
             staging / "error.png",
             title=job.title or "Relative error of the reduced models",
+            estimates=estimates,
         )
+        overview = ["summary.json", "error.png"]
+        if decay:
+            plot_decay(decay, staging / "decay.png")
+            overview.append("decay.png")
         timings["total_s"] = time.perf_counter() - clock
         summary = {
             "pymorembs_version": __version__,
@@ -169,7 +213,7 @@ def run_job(job: Job, out_dir: str | Path, progress: Progress | None = None) -> 
             "reductions": entries,
             "warnings": warnings,
             "timings_s": timings,
-            "files": ["summary.json", "error.png"],
+            "files": overview,
         }
         write_text(staging / "summary.json", json.dumps(summary, indent=2, allow_nan=False) + "\n")
         _replace_folder(staging, out_dir)
@@ -185,7 +229,7 @@ def _reduce_one(
     frequencies: np.ndarray,
     full_response: np.ndarray,
     staging: Path,
-) -> tuple[dict[str, Any], np.ndarray]:
+) -> tuple[dict[str, Any], np.ndarray, Projection]:
     tick = time.perf_counter()
     projection = run_reduction(prepared.system, spec)
     model = reduced_model(prepared.system, projection)  # checked before anything is written
@@ -201,16 +245,28 @@ def _reduce_one(
     folder = staging / spec.name
     folder.mkdir()
     files = _write_reduced(model, prepared, folder)
+    curve = {} if projection.error_curve is None else {spec.name: projection.error_curve}
     plot_relative_errors(
         frequencies,
         {spec.name: eps},
         folder / "error.png",
         title=f"Relative error of '{spec.name}' ({spec.method}, n = {projection.order})",
+        estimates=curve,
     )
     table = np.column_stack([frequencies, eps])
     with atomic_path(folder / "error.csv") as tmp:
         np.savetxt(tmp, table, delimiter=",", header="frequency_hz,relative_error", comments="")
     files += ["error.png", "error.csv"]
+    if curve:
+        with atomic_path(folder / "error_estimate.csv") as tmp:
+            np.savetxt(
+                tmp,
+                np.column_stack(projection.error_curve),
+                delimiter=",",
+                header="frequency_hz,estimated_relative_error",
+                comments="",
+            )
+        files.append("error_estimate.csv")
     entry = {
         "name": spec.name,
         "method": spec.method,
@@ -224,7 +280,7 @@ def _reduce_one(
         "eigenfrequencies_hz": model.eigenfrequencies_hz.tolist(),
         "files": [f"{spec.name}/{name}" for name in files],
     }
-    return entry, eps
+    return entry, eps, projection
 
 
 def _write_reduced(model: ReducedModel, prepared: PreparedModel, folder: Path) -> list[str]:
