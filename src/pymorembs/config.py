@@ -24,7 +24,8 @@ from pymorembs.prepare import Frame, Port
 METHOD_OPTIONS: dict[str, tuple[str, ...]] = {
     "modal": ("shift_hz", "select", "candidates", "frm_hz"),
     "craig-bampton": ("fixed_modes", "shift_hz"),
-    "krylov": ("expansion_points_hz", "moments", "tol"),
+    "krylov": ("expansion_points_hz", "moments", "tol", "two_sided"),
+    "soaga": ("candidates_hz", "n_candidates", "tolerance", "tol"),
 }
 
 MODEL_FILE_KEYS = (
@@ -439,6 +440,22 @@ def _check_options(table: _Table, method: str, order: int | None, options: dict[
                 raise table.error(
                     "moments", f"{len(moments)} values for {len(points)} expansion points"
                 )
+        two_sided = table.get("two_sided", False)
+        if not isinstance(two_sided, bool):
+            raise table.error("two_sided", f"must be true or false, got {two_sided!r}")
+    elif method == "soaga":
+        if "candidates_hz" in options:
+            _frequencies(table, options, "candidates_hz")
+        table.integer("n_candidates", minimum=1)
+        tolerance = table.number("tolerance")
+        if tolerance is not None and not 0 < tolerance < 1:
+            raise table.error("tolerance", f"must lie in (0, 1) (relative error), got {tolerance}")
+        if order is None and tolerance is None:
+            raise UserError(
+                f"{table.path}: {table.where}: soaga needs 'order' (the largest "
+                "order) or 'tolerance' (estimated max relative error), or both"
+            )
+    if method in ("krylov", "soaga"):
         tol = table.number("tol", 1e-10, minimum=1e-15)
         if tol > 1e-3:
             raise table.error("tol", f"must be at most 1e-3 (a deflation tolerance), got {tol!r}")

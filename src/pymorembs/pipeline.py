@@ -37,6 +37,7 @@ from pymorembs.reduce.modal_family import (
     modes_with_frm,
 )
 from pymorembs.reduce.projection import Projection, ReducedModel, reduced_model
+from pymorembs.reduce.soaga import soaga_reduction
 from pymorembs.report.plots import plot_decay, plot_relative_errors
 from pymorembs.system import SecondOrderSystem
 
@@ -86,8 +87,10 @@ def prepare_job(job: Job) -> tuple[ElasticBody, PreparedModel]:
     return body, prepared
 
 
-def run_reduction(system: SecondOrderSystem, spec: ReductionSpec) -> Projection:
-    """Run one reduction method on a prepared system."""
+def run_reduction(
+    system: SecondOrderSystem, spec: ReductionSpec, band_hz: tuple[float, float]
+) -> Projection:
+    """Run one reduction method on a prepared system (band in Hz for the band-aware methods)."""
     options = spec.options
     if spec.method == "modal":
         shift = options.get("shift_hz", 1.0)
@@ -120,6 +123,17 @@ def run_reduction(system: SecondOrderSystem, spec: ReductionSpec) -> Projection:
             moments=options.get("moments"),
             order=spec.order,
             tol=options.get("tol", 1e-10),
+            two_sided=options.get("two_sided", False),
+        )
+    if spec.method == "soaga":
+        extra = {k: options[k] for k in ("candidates_hz", "n_candidates") if k in options}
+        return soaga_reduction(
+            system,
+            band_hz,
+            tolerance=options.get("tolerance"),
+            max_order=spec.order,
+            tol=options.get("tol", 1e-10),
+            **extra,
         )
     raise UserError(f"unknown method {spec.method!r}")  # config rejects it earlier
 
@@ -158,7 +172,7 @@ def run_job(job: Job, out_dir: str | Path, progress: Progress | None = None) -> 
         for spec in job.reductions:
             say(f"reduction '{spec.name}' ({spec.method})")
             entry, eps, projection = _reduce_one(
-                prepared, spec, frequencies, full_response, staging
+                prepared, spec, job.band_hz, frequencies, full_response, staging
             )
             if projection.error_curve is not None:
                 estimates[spec.name] = projection.error_curve
@@ -226,12 +240,13 @@ def run_job(job: Job, out_dir: str | Path, progress: Progress | None = None) -> 
 def _reduce_one(
     prepared: PreparedModel,
     spec: ReductionSpec,
+    band_hz: tuple[float, float],
     frequencies: np.ndarray,
     full_response: np.ndarray,
     staging: Path,
 ) -> tuple[dict[str, Any], np.ndarray, Projection]:
     tick = time.perf_counter()
-    projection = run_reduction(prepared.system, spec)
+    projection = run_reduction(prepared.system, spec, band_hz)
     model = reduced_model(prepared.system, projection)  # checked before anything is written
     elapsed = time.perf_counter() - tick
     eps = relative_error(full_response, transfer_function(model.system, frequencies))

@@ -11,6 +11,12 @@ A one-sided projection ``V = W`` whose span contains the union of these subspace
 points matches the first ``r_k`` moments of ``H(s)`` about every ``s_k``; for ``C = B^T`` (inputs
 and outputs at the same dofs) and symmetric matrices, ``2 r_k`` moments match.
 
+A two-sided (oblique) projection takes ``W`` from the output Krylov subspaces (eq. 22), the same
+recurrence with ``K_k^{-T}, D_k^T, M^T`` and start block ``-K_k^{-T} C^T``. The matrices of a
+:class:`SecondOrderSystem` are symmetric, so ``K_k^T = K_k`` (complex symmetric, not Hermitian,
+at a damped point) and ``W`` comes from the same recurrence and the same factorization with
+``C^T`` in place of ``B``. Then ``2 r_k`` moments match at every point for any ``C``.
+
 The basis is built by a block second-order Arnoldi process: the pairs ``(P_i, gamma P_{i-1})`` are
 orthonormalised in the 2n-dimensional linearised space, with reorthogonalisation and
 rank-revealing deflation, and the span of their upper halves -- exactly
@@ -27,9 +33,11 @@ recurrence.
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Sequence
 
 import numpy as np
+import scipy.sparse as sp
 
 from pymorembs.errors import UserError
 from pymorembs.linalg.factorization import Factorization
@@ -84,11 +92,33 @@ class SecondOrderArnoldi:
             )
         else:
             self.factorization = Factorization(k_hat, label=label)
+        self.tol = tol
+        self.dtype = dtype
         self.basis = OrthonormalBasis(2 * self.n, tol, dtype=dtype)
         self.block: np.ndarray | None = None
         self.gamma = 1.0
         self.input_matrix = system.input_matrix
         self.moments = 0
+
+    def dual(self, start: np.ndarray) -> SecondOrderArnoldi:
+        """The same recurrence at the same point from another start block, e.g. ``C^T``.
+
+        The copy shares the factorization of ``K_k`` (no second factorization) and starts a new
+        basis. For symmetric ``M, D, K`` this is the output Krylov subspace of eq. 22 when
+        ``start = C^T``.
+
+        Parameters
+        ----------
+        start : ndarray, shape (n, q)
+            Replaces the input matrix ``B`` in ``P_0 = -K_k^{-1} B``.
+        """
+        twin = copy.copy(self)
+        twin.input_matrix = np.asarray(start)
+        twin.basis = OrthonormalBasis(2 * self.n, self.tol, dtype=self.dtype)
+        twin.block = None
+        twin.gamma = 1.0
+        twin.moments = 0
+        return twin
 
     def next_block(self) -> np.ndarray:
         """Directions of the next moment, as a real block of shape (n, k); (n, 0) when exhausted."""
@@ -128,8 +158,9 @@ def krylov_reduction(
     moments: int | Sequence[int] | None = None,
     order: int | None = None,
     tol: float = 1e-10,
+    two_sided: bool = False,
 ) -> Projection:
-    """One-sided second-order Krylov reduction (``V = W``) at several expansion points.
+    """Second-order Krylov reduction at several expansion points (eqs. 19-22).
 
     Parameters
     ----------
@@ -145,11 +176,20 @@ def krylov_reduction(
         its dominant directions). With ``moments`` too, it caps the size.
     tol : float
         Deflation tolerance (relative).
+    two_sided : bool
+        False: one-sided projection ``V = W`` on the input Krylov subspaces (eq. 21), ``r_k``
+        moments match at every point (``2 r_k`` for ``C = B^T``). True: oblique projection,
+        ``V`` from the input subspaces (eq. 21) and ``W`` from the output subspaces (eq. 22),
+        one factorization per point for both; ``2 r_k`` moments match at every point for any
+        ``C``. ``V`` and ``W`` get the same size: the smaller basis is padded with further
+        moments of its own (round-robin over the points), and only if its subspaces are
+        exhausted is the larger one cut to the size of the smaller.
 
     Returns
     -------
     Projection
-        ``parameters`` holds the points, the moments computed per point and the factorizations.
+        ``parameters`` holds the points, the moments computed per point (for ``two_sided`` also
+        ``output_moments``, those of ``W``) and the factorizations.
     """
     points = [float(f) for f in expansion_points_hz]
     if not points:
@@ -178,41 +218,95 @@ def krylov_reduction(
         raise UserError(f"krylov: order {order} exceeds the {system.order} independent dofs")
     if system.n_inputs == 0:
         raise UserError("krylov: the system has no inputs")
+    if two_sided:
+        if system.n_outputs == 0:
+            raise UserError("krylov: a two-sided projection needs outputs")
+        _check_symmetric(system)
 
     basis = OrthonormalBasis(system.order, tol)
+    basis_w = OrthonormalBasis(system.order, tol) if two_sided else None
+    arnoldi: list[SecondOrderArnoldi] = []
+    duals: list[SecondOrderArnoldi] = []
     if order is None:
         # the moments fix the work: one point at a time, each factorization freed after use
+        # (kept for a two-sided projection, whose bases may need padding to one size)
         computed = []
         for f, m in zip(points, moments, strict=True):
             process = SecondOrderArnoldi(system, f, tol)
             _advance(basis, process, m, None)
             computed.append(process.moments)
+            if two_sided:
+                dual = process.dual(system.output_matrix.T)
+                _advance(basis_w, dual, m, None)
+                arnoldi.append(process)
+                duals.append(dual)
     else:
         # round-robin over the points, lowest moments first, until the basis has `order` columns
         limits = moments or [MAX_MOMENTS] * len(points)
         arnoldi = [SecondOrderArnoldi(system, f, tol) for f in points]
-        active = list(range(len(points)))
-        while active and basis.size < order:
-            for k in list(active):
-                if basis.size >= order:
-                    break
-                if not _advance(basis, arnoldi[k], 1, order) or arnoldi[k].moments >= limits[k]:
-                    active.remove(k)
+        _round_robin(basis, arnoldi, limits, order)
+        if two_sided:
+            duals = [process.dual(system.output_matrix.T) for process in arnoldi]
+            _round_robin(basis_w, duals, limits, order)
+        computed = [process.moments for process in arnoldi]
+    if two_sided:
+        # pad the smaller basis with further moments of its own, up to the size of the larger
+        if basis.size < basis_w.size:
+            _round_robin(basis, arnoldi, [MAX_MOMENTS] * len(points), basis_w.size)
+        elif basis_w.size < basis.size:
+            _round_robin(basis_w, duals, [MAX_MOMENTS] * len(points), basis.size)
         computed = [process.moments for process in arnoldi]
     v = basis.matrix
     if v.shape[1] == 0:
         raise UserError("krylov: the input matrix is zero on the independent dofs")
-    return Projection(
-        V=v,
-        W=v,
-        method="krylov",
-        parameters={
-            "expansion_points_hz": points,
-            "moments": computed,
-            "factorizations": len(points),
-            "order": int(v.shape[1]),
-        },
-    )
+    parameters = {
+        "expansion_points_hz": points,
+        "moments": computed,
+        "factorizations": len(points),
+    }
+    w = v
+    if two_sided:
+        w = basis_w.matrix
+        if w.shape[1] == 0:
+            raise UserError("krylov: the output matrix is zero on the independent dofs")
+        size = min(v.shape[1], w.shape[1])  # both subspaces exhausted: cut the larger one
+        v, w = v[:, :size], w[:, :size]
+        parameters["output_moments"] = [process.moments for process in duals]
+        parameters["two_sided"] = True
+    parameters["order"] = int(v.shape[1])
+    return Projection(V=v, W=w, method="krylov", parameters=parameters)
+
+
+def _round_robin(
+    basis: OrthonormalBasis, processes: list[SecondOrderArnoldi], limits: list[int], order: int
+) -> None:
+    """Add blocks round-robin over ``processes``, lowest moments first, until ``basis`` has
+    ``order`` columns, every process is exhausted or has computed ``limits[k]`` moments."""
+    active = [k for k, process in enumerate(processes) if process.moments < limits[k]]
+    while active and basis.size < order:
+        for k in list(active):
+            if basis.size >= order:
+                break
+            process = processes[k]
+            if not _advance(basis, process, 1, order) or process.moments >= limits[k]:
+                active.remove(k)
+
+
+def _check_symmetric(system: SecondOrderSystem) -> None:
+    """The output Krylov subspace (eq. 22) reuses the input recurrence only for symmetric
+    ``M, D, K``; raise :class:`UserError` otherwise."""
+    named = (("mass", system.mass), ("stiffness", system.stiffness), ("damping", system.damping))
+    for label, matrix in named:
+        if matrix is None:
+            continue
+        difference = matrix - matrix.T
+        asym = abs(difference).max() if sp.issparse(difference) else np.abs(difference).max()
+        scale = abs(matrix).max() if sp.issparse(matrix) else np.abs(matrix).max()
+        if asym > 1e-12 * max(float(scale), np.finfo(float).tiny):
+            raise UserError(
+                f"krylov: a two-sided projection needs a symmetric {label} matrix "
+                f"(relative asymmetry {asym / scale:.1e})"
+            )
 
 
 def _advance(

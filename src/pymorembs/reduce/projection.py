@@ -65,11 +65,13 @@ class ReducedModel:
     Attributes
     ----------
     projection : Projection
-        With ``V`` (and ``W``) post-processed: ``V^T M V = I`` and ``V^T K V = diag(omega^2)``.
+        With ``V`` (and ``W``) post-processed: ``V^T M V = I`` and ``V^T K V = diag(omega^2)``;
+        for an oblique projection ``W^T M V = I`` and ``W^T K V`` block diagonal.
     system : SecondOrderSystem
         Dense reduced system ``(M_bar, D_bar, K_bar, B_bar, C_bar)``.
     eigenfrequencies_hz : ndarray, shape (order,)
-        Undamped eigenfrequencies of the reduced model, Hz.
+        Undamped eigenfrequencies of the reduced model, Hz (for an oblique projection
+        ``|omega_bar_i^2|^(1/2) / (2 pi)``, both members of a complex pair alike).
     """
 
     projection: Projection
@@ -98,9 +100,21 @@ def reduced_model(system: SecondOrderSystem, projection: Projection) -> ReducedM
     diagonal form the paper asks for, exactly the modal form for simulation. Rayleigh and
     explicit damping are projected; a modal damping ratio gives
     :attr:`ReducedModel.damping_matrix`.
+
+    For an oblique projection (``W`` not ``V``, e.g. two-sided Krylov, eqs. 21-22) the reduced
+    matrices ``W^T M V`` and ``W^T K V`` are not symmetric. The pencil ``(K_bar, M_bar)`` is
+    diagonalised by its right eigenvectors ``X`` and the left ones ``Y = (M_bar X)^{-T}``
+    (block diagonalisation, the paper's reference [16]): ``V <- V X``, ``W <- W Y`` give
+    ``W^T M V = I`` and ``W^T K V`` block diagonal in real arithmetic -- ``omega_bar_i^2`` on
+    the diagonal for real eigenvalues, a 2x2 block ``[[a, b], [-b, a]]`` for a complex pair
+    ``a +- i b`` (basis ``Re x, Im x``). The transfer function is unchanged. Damping is
+    projected, ``W^T D V``, and transformed likewise; a modal damping ratio gives
+    ``diag(2 xi |omega_bar_i|)``. The model is checked: finite, ``M_bar = I``, no eigenvalue
+    ``omega_bar^2`` with a negative real part, and no pole of the (damped) reduced model in the
+    right half-plane.
     """
     if not projection.one_sided:
-        raise NotImplementedError("oblique projections come with the two-sided methods")
+        return _oblique_model(system, projection)
     v = projection.V
     if not np.all(np.isfinite(v)):
         raise NumericalError(f"{projection.method}: basis has NaN or infinite entries")
@@ -124,6 +138,173 @@ def reduced_model(system: SecondOrderSystem, projection: Projection) -> ReducedM
     new_projection = replace(projection, V=v, W=v)
     frequencies = np.sqrt(np.clip(eigenvalues, 0.0, None)) / (2.0 * np.pi)
     return ReducedModel(new_projection, reduced, frequencies)
+
+
+#: Largest deviation of ``W^T M V`` from the identity (relative) after block diagonalisation.
+OBLIQUE_MASS_TOL = 1e-6
+
+
+def _oblique_model(system: SecondOrderSystem, projection: Projection) -> ReducedModel:
+    """:func:`reduced_model` for ``W`` not ``V``: block diagonalisation of the oblique pencil."""
+    method = projection.method
+    v, w = projection.V, projection.W
+    if v.shape != w.shape:
+        raise NumericalError(f"{method}: V has shape {v.shape} but W has shape {w.shape}")
+    if not (np.all(np.isfinite(v)) and np.all(np.isfinite(w))):
+        raise NumericalError(f"{method}: basis has NaN or infinite entries")
+    if system.rigid_modes is not None:
+        v = _elastic_part(v, system, method)
+        w = _elastic_part(w, system, method)
+    first = system.project(v, w)
+    eigenvalues, blocks, x = _oblique_eigenproblem(first.stiffness, first.mass, method)
+    y = np.linalg.solve((first.mass @ x).T, np.eye(x.shape[1]))  # Y^T M_bar X = I
+    v, w = v @ x, w @ y
+    reduced = system.project(v, w)
+    order = v.shape[1]
+    deviation = float(np.max(np.abs(reduced.mass - np.eye(order)), initial=0.0))
+    if not np.isfinite(deviation) or deviation > OBLIQUE_MASS_TOL:
+        raise NumericalError(
+            f"{method}: the reduced pencil cannot be diagonalised accurately (W^T M V deviates "
+            f"from the identity by {deviation:.1e}; the eigenvectors are ill-conditioned)"
+        )
+    # exact modal form: M_bar = I, K_bar block diagonal from the eigenvalues
+    tiny = 1e-12 * float(np.abs(eigenvalues).max(initial=0.0))
+    stiffness = np.zeros((order, order))
+    for start, size in blocks:
+        a = eigenvalues[start].real
+        a = 0.0 if abs(eigenvalues[start]) < tiny else a
+        if size == 1:
+            stiffness[start, start] = a
+        else:
+            b = eigenvalues[start].imag
+            stiffness[start : start + 2, start : start + 2] = [[a, b], [-b, a]]
+    reduced = replace(reduced, mass=np.eye(order), stiffness=stiffness)
+    frequencies = np.sqrt(np.abs(eigenvalues)) / (2.0 * np.pi)
+    pairs = sum(1 for _, size in blocks if size == 2)
+    parameters = {**projection.parameters, "complex_eigenvalue_pairs": pairs}
+    model = ReducedModel(replace(projection, V=v, W=w, parameters=parameters), reduced, frequencies)
+    _check_oblique(model, eigenvalues, method)
+    return model
+
+
+def _oblique_eigenproblem(
+    stiffness: np.ndarray, mass: np.ndarray, method: str
+) -> tuple[np.ndarray, list[tuple[int, int]], np.ndarray]:
+    """Real block eigenbasis of the nonsymmetric pencil ``K_bar x = lambda M_bar x``.
+
+    Like :func:`_reduced_eigenproblem`, the flexibility form ``M_bar x = mu K_bar x`` is solved
+    when ``K_bar`` is nonsingular (small ``lambda = 1 / mu`` to working precision).
+
+    Returns
+    -------
+    eigenvalues : ndarray, complex, shape (order,)
+        ``lambda_i`` in the order of the columns, ascending real part; a complex pair as
+        ``a + i b, a - i b`` (``b > 0``) in two adjacent columns.
+    blocks : list of (start, size)
+        The diagonal blocks: size 1 for a real eigenvalue, 2 for a complex pair.
+    x : ndarray, real, shape (order, order)
+        Columns ``x_i`` (real eigenvalue) or ``Re x, Im x`` (pair), unit norm (per pair), with
+        ``K_bar X = M_bar X Lambda_block``.
+    """
+    order = stiffness.shape[0]
+    values = vectors = None
+    try:
+        mu, vectors = sla.eig(mass, stiffness)
+        if np.all(np.isfinite(mu)) and np.all(mu != 0):
+            values = 1.0 / mu
+    except (np.linalg.LinAlgError, ValueError):
+        pass
+    if values is None:
+        try:
+            values, vectors = sla.eig(stiffness, mass)
+        except (np.linalg.LinAlgError, ValueError) as exc:
+            raise NumericalError(f"{method}: reduced eigenproblem failed ({exc})") from None
+        if not np.all(np.isfinite(values)):
+            raise NumericalError(f"{method}: reduced mass matrix is singular")
+    # group into real eigenvalues and complex-conjugate pairs (LAPACK returns exact pairs);
+    # a unit is (real part, index of the eigenvalue with Im > 0 or the real one, is a pair)
+    units: list[tuple[float, int, bool]] = []
+    used = np.zeros(order, dtype=bool)
+    for i in range(order):
+        if used[i]:
+            continue
+        used[i] = True
+        if values[i].imag == 0.0:  # real QZ: real eigenvalues come out exactly real
+            units.append((values[i].real, i, False))
+            continue
+        partners = np.flatnonzero(~used)
+        if partners.size == 0:
+            raise NumericalError(f"{method}: unpaired complex eigenvalue {values[i]:.3e}")
+        j = int(partners[np.argmin(np.abs(values[partners] - np.conj(values[i])))])
+        used[j] = True
+        upper = i if values[i].imag > 0 else j
+        units.append((values[upper].real, upper, True))
+    units.sort(key=lambda unit: unit[0])
+    x = np.zeros((order, order))
+    eigenvalues = np.zeros(order, dtype=complex)
+    blocks: list[tuple[int, int]] = []
+    column = 0
+    for _, i, pair in units:
+        vector = vectors[:, i]
+        if pair:
+            both = np.column_stack([vector.real, vector.imag])
+            x[:, column : column + 2] = both / np.linalg.norm(both)
+            eigenvalues[column : column + 2] = values[i], np.conj(values[i])
+            blocks.append((column, 2))
+            column += 2
+        else:
+            # a real eigenvalue of a real pencil has a real eigenvector up to a complex factor
+            k = int(np.argmax(np.abs(vector)))
+            vector = (vector * np.conj(vector[k]) / abs(vector[k])).real
+            x[:, column] = vector / np.linalg.norm(vector)
+            eigenvalues[column] = values[i].real
+            blocks.append((column, 1))
+            column += 1
+    return eigenvalues, blocks, x
+
+
+def _check_oblique(model: ReducedModel, eigenvalues: np.ndarray, method: str) -> None:
+    """Finite entries, ``M_bar = I``, ``Re omega_bar^2 >= 0`` and no unstable pole."""
+    system = model.system
+    for label, matrix in (
+        ("stiffness", system.stiffness),
+        ("damping", system.damping),
+        ("input", system.input_matrix),
+        ("output", system.output_matrix),
+    ):
+        if matrix is not None and not np.all(np.isfinite(matrix)):
+            raise NumericalError(f"{method}: reduced {label} matrix has NaN or infinite entries")
+    scale = float(np.abs(eigenvalues).max(initial=0.0))
+    worst = float(eigenvalues.real.min(initial=0.0))
+    if worst < -1e-8 * scale:
+        raise NumericalError(
+            f"{method}: the reduced stiffness has an eigenvalue with negative real part "
+            f"({worst:.3e}): the reduced model is unstable"
+        )
+    poles = _poles(system.stiffness, model.damping_matrix, np.sqrt(np.abs(eigenvalues)))
+    unstable = poles.real > 1e-8 * np.abs(poles) + 1e-14 * float(np.abs(poles).max(initial=0.0))
+    if np.any(unstable):
+        pole = poles[np.argmax(np.where(unstable, poles.real, -np.inf))]
+        raise NumericalError(
+            f"{method}: the reduced model has a pole in the right half-plane ({pole:.3e} rad/s):"
+            " it is unstable"
+        )
+
+
+def _poles(stiffness: np.ndarray, damping: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    """Poles of ``q'' + D q' + K q`` (``M = I``), from the scaled first-order form.
+
+    With ``z = [Omega q, q']`` and ``Omega = diag(omega_i)`` the system matrix
+    ``[[0, Omega], [-K Omega^{-1}, -D]]`` has entries of the size of the frequencies, so the
+    poles are accurate relative to each other even when the frequencies span many decades.
+    """
+    order = stiffness.shape[0]
+    omega = np.where(omega > 0, omega, 1.0)
+    a = np.zeros((2 * order, 2 * order))
+    a[:order, order:] = np.diag(omega)
+    a[order:, :order] = -stiffness / omega[None, :]
+    a[order:, order:] = -damping
+    return np.linalg.eigvals(a)
 
 
 def _elastic_part(v: np.ndarray, system: SecondOrderSystem, method: str) -> np.ndarray:
