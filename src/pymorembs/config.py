@@ -26,6 +26,15 @@ METHOD_OPTIONS: dict[str, tuple[str, ...]] = {
     "craig-bampton": ("fixed_modes", "shift_hz"),
     "krylov": ("expansion_points_hz", "moments", "tol", "two_sided"),
     "soaga": ("candidates_hz", "n_candidates", "tolerance", "tol"),
+    "gramian": (
+        "tolerance",
+        "first_stage",
+        "first_order",
+        "first_tolerance",
+        "expansion_points_hz",
+        "moments",
+    ),
+    "pod": ("tolerance", "snapshots"),
 }
 
 MODEL_FILE_KEYS = (
@@ -455,6 +464,26 @@ def _check_options(table: _Table, method: str, order: int | None, options: dict[
                 f"{table.path}: {table.where}: soaga needs 'order' (the largest "
                 "order) or 'tolerance' (estimated max relative error), or both"
             )
+    elif method in ("gramian", "pod"):
+        tolerance = table.number("tolerance")
+        if tolerance is not None and not 0 < tolerance < 1:
+            raise table.error(
+                "tolerance", f"must lie in (0, 1) (sigma_n+1 / sigma_1), got {tolerance}"
+            )
+        if order is None and tolerance is None:
+            raise UserError(
+                f"{table.path}: {table.where}: {method} needs 'order' or "
+                "'tolerance' (the indicator sigma_n+1 / sigma_1), or both"
+            )
+        table.integer("snapshots", minimum=4)
+        stage = table.string("first_stage")
+        if stage is not None and stage not in ("soaga", "krylov", "none"):
+            raise table.error("first_stage", f"must be 'soaga', 'krylov' or 'none', got {stage!r}")
+        table.integer("first_order", minimum=1)
+        table.number("first_tolerance", minimum=0.0)
+        if stage == "krylov":
+            table.get("expansion_points_hz", required=True)
+            _frequencies(table, options, "expansion_points_hz")
     if method in ("krylov", "soaga"):
         tol = table.number("tol", 1e-10, minimum=1e-15)
         if tol > 1e-3:

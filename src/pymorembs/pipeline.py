@@ -28,6 +28,7 @@ from pymorembs.io.atomic import atomic_path, write_text
 from pymorembs.io.formats import read_body
 from pymorembs.prepare import PreparedModel, prepare
 from pymorembs.prepare.interface import InterfaceSpec, add_interface_node, select_nodes
+from pymorembs.reduce.gramian import gramian_reduction, pod_reduction
 from pymorembs.reduce.krylov import krylov_reduction
 from pymorembs.reduce.modal import modal_reduction
 from pymorembs.reduce.modal_family import (
@@ -125,6 +126,25 @@ def run_reduction(
             tol=options.get("tol", 1e-10),
             two_sided=options.get("two_sided", False),
         )
+    if spec.method == "gramian":
+        medium = _first_stage(system, options, band_hz)
+        order = spec.order
+        if medium is not None and order is not None and order > medium.order:
+            order = medium.order  # the two-step model cannot exceed its medium model
+        projection = gramian_reduction(
+            system, band_hz, order=order, tolerance=options.get("tolerance"), medium=medium
+        )
+        if order != spec.order:
+            projection.parameters["order_capped_by_first_stage"] = medium.order
+        return projection
+    if spec.method == "pod":
+        return pod_reduction(
+            system,
+            band_hz,
+            order=spec.order,
+            tolerance=options.get("tolerance"),
+            n_snapshots=options.get("snapshots", 40),
+        )
     if spec.method == "soaga":
         extra = {k: options[k] for k in ("candidates_hz", "n_candidates") if k in options}
         return soaga_reduction(
@@ -136,6 +156,38 @@ def run_reduction(
             **extra,
         )
     raise UserError(f"unknown method {spec.method!r}")  # config rejects it earlier
+
+
+#: Largest sparse model whose Gramians are computed directly (beyond: two-step).
+DIRECT_GRAMIAN_LIMIT = 2000
+
+
+def _first_stage(
+    system: SecondOrderSystem, options: dict[str, Any], band_hz: tuple[float, float]
+) -> Projection | None:
+    """The medium model of the two-step Gramian reduction (paper section 3.2), or None.
+
+    Default: SOAGA to order 132 (the paper's medium size) for models too large for dense
+    Gramians, none otherwise.
+    """
+    stage = options.get("first_stage")
+    if stage is None:
+        stage = "soaga" if system.order > DIRECT_GRAMIAN_LIMIT else "none"
+    if stage == "none":
+        return None
+    if stage == "soaga":
+        return soaga_reduction(
+            system,
+            band_hz,
+            max_order=options.get("first_order", 132),
+            tolerance=options.get("first_tolerance", 1e-10),
+        )
+    return krylov_reduction(
+        system,
+        options["expansion_points_hz"],
+        moments=options.get("moments"),
+        order=options.get("first_order"),
+    )
 
 
 def run_job(job: Job, out_dir: str | Path, progress: Progress | None = None) -> dict[str, Any]:
@@ -179,7 +231,7 @@ def run_job(job: Job, out_dir: str | Path, progress: Progress | None = None) -> 
             for key, label in DECAY_SERIES:
                 if key in projection.parameters:
                     decay[f"{spec.name}: {label}"] = np.asarray(projection.parameters[key])
-            if spec.order is not None and entry["order"] < spec.order:
+            if spec.method == "krylov" and spec.order is not None and entry["order"] < spec.order:
                 warnings.append(
                     f"reduction '{spec.name}': order {entry['order']} instead of {spec.order}: "
                     "the Krylov space is exhausted (the reduced model is exact for these ports)"
