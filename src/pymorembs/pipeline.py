@@ -46,7 +46,10 @@ Progress = Callable[[str], None]
 
 #: Parameters of a projection that hold descending singular values, and their labels in the
 #: decay plot (paper Fig. 11).
-DECAY_SERIES = (("approximate_hsv", "approximate HSV (eq. 26)"),)
+DECAY_SERIES = (
+    ("approximate_hsv", "approximate HSV (eq. 26)"),
+    ("sigma", "eigenvalues of P_p + Q_pv (indicator)"),
+)
 
 
 def load_model(spec: ModelSpec) -> ElasticBody:
@@ -229,8 +232,9 @@ def run_job(job: Job, out_dir: str | Path, progress: Progress | None = None) -> 
             if projection.error_curve is not None:
                 estimates[spec.name] = projection.error_curve
             for key, label in DECAY_SERIES:
-                if key in projection.parameters:
-                    decay[f"{spec.name}: {label}"] = np.asarray(projection.parameters[key])
+                values = np.asarray(projection.parameters.get(key, []), dtype=float)
+                if values.size and not any(np.array_equal(values, v) for v in decay.values()):
+                    decay[f"{spec.name}: {label}"] = values
             if spec.method == "krylov" and spec.order is not None and entry["order"] < spec.order:
                 warnings.append(
                     f"reduction '{spec.name}': order {entry['order']} instead of {spec.order}: "
