@@ -88,6 +88,7 @@ def plot_decay(
         values = values[values > 0]
         if values.size == 0:
             continue
+        values = values[values > 1e-30 * values[0]]  # below: round-off, not decay
         index = np.arange(1, values.size + 1)
         ax.semilogy(index, values / values[0], label=label, lw=1.4, marker=".", ms=4)
     ax.set_xlabel("dimension i of the reduced model")
