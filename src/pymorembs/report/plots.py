@@ -55,14 +55,7 @@ def plot_relative_errors(
     ax.set_xlabel("frequency f [Hz]")
     ax.set_ylabel(r"relative error $\epsilon(f)$ (eq. 27)")
     ax.set_xlim(float(frequencies_hz.min()), float(frequencies_hz.max()))
-    ax.grid(True, which="both", alpha=0.3)
-    ax.set_title(title)
-    ax.legend(loc="best", fontsize=8)
-    fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png")
-    plt.close(fig)
-    return path
+    return _finish(fig, ax, title, path)
 
 
 def plot_decay(
@@ -93,6 +86,11 @@ def plot_decay(
         ax.semilogy(index, values / values[0], label=label, lw=1.4, marker=".", ms=4)
     ax.set_xlabel("dimension i of the reduced model")
     ax.set_ylabel(r"$\sigma_i / \sigma_1$")
+    return _finish(fig, ax, title, path)
+
+
+def _finish(fig: plt.Figure, ax: plt.Axes, title: str, path: Path) -> Path:
+    """Grid, title and legend; write the PNG atomically and release the figure."""
     ax.grid(True, which="both", alpha=0.3)
     ax.set_title(title)
     ax.legend(loc="best", fontsize=8)
