@@ -1,0 +1,418 @@
+"""Mass invariants of a reduced elastic body in the floating frame of reference (SID_NOTES §4).
+
+A reduced body is described by its FE model (node positions ``c``, mass matrix ``M`` over all dofs)
+and a reduced basis ``Φ`` (n_dof × nq, no rigid-body content, SID_NOTES §4.5): the elastic
+displacement is ``u = Φ q`` in the body frame. Multibody codes need integrals over the mass of
+the body of products of ``c`` and ``Φ`` (the *invariants*), which :func:`compute_invariants`
+computes and :class:`BodyInvariants` holds; the writers (:mod:`~pymorembs.export.sid`,
+:mod:`~pymorembs.export.neweul`, the Exudyn export) only rearrange them.
+
+First-order terms (SID_NOTES §4.2(b)), exact for every element type, with ``R = [S_t S_r]`` the
+rigid-body modes of the body about its frame origin:
+
+* ``m I = S_tᵀ M S_t``, ``m c̃ = S_rᵀ M S_t``, ``J0 = S_rᵀ M S_r`` (rotary inertia included);
+* ``Ct = Φᵀ M S_t`` (= ``∫Φᵀ dm``), ``Cr = Φᵀ M S_r`` (row k = ``(∫c × Φ_k dm)ᵀ`` + rotary).
+
+Second-order terms (SID_NOTES §4.1, §4.2(a)), from the translational mass blocks: with ``x_a``
+(N) the node coordinates along axis ``a``, ``U_a = Φ[dofs of direction a]`` (N × nq) and the scalar
+mass matrix ``m̄`` (N × N),
+
+* ``S[k, a, b] = ∫ c_a Φ_{k,b} dm = x_aᵀ m̄ U_b e_k``,
+* ``PP[a, b] = ∫ Φ_aᵀ Φ_b dm = U_aᵀ m̄ U_b``.
+
+If ``M`` has Kronecker structure on the translational dofs (``M[x,x] = M[y,y] = M[z,z] = m̄`` over
+the nodes, off-axis blocks zero, no mass on rotational dofs -- isoparametric solids, lumped point
+masses) these are exact (``second_order_mass = "exact"``). Otherwise (beams and shells with
+rotary inertia or Hermitian translation-rotation coupling, rigid bodies with rotary inertia)
+``m̄`` is the mean of the three axis blocks ``M[a,a]`` and the rotational and coupling parts of
+``M`` are left out of the second-order terms only (``"translational"``): ``J1``, ``Gr``, ``Oe0``,
+``Cr1 = Kr``, ``Ge`` and ``Oe1`` then miss the rotary-inertia contributions (SID_NOTES §4.2(b)
+calls them "commonly neglected"), while ``m``, ``c``, ``J0``, ``Ct``, ``Cr``, ``Me`` remain exact.
+
+Units: those of the FE model (SI for the built-in examples: kg, m); ``Φ`` is dimensionless if
+``q`` has the length unit (mass-normalised modes: ``q`` in m·kg^½, then ``Me = I``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from pymorembs.body import ElasticBody
+from pymorembs.errors import UserError
+from pymorembs.linalg.products import extended
+
+__all__ = ["OMEGA_ORDER", "BodyInvariants", "NodeFrame", "compute_invariants", "skew"]
+
+#: Order of the six products of angular velocity components Ω used with ``Oe`` (SID_NOTES §0).
+OMEGA_ORDER = ("wx*wx", "wy*wy", "wz*wz", "wx*wy", "wy*wz", "wx*wz")
+# (row, column) pairs of a 3x3 matrix combined into the six Ω components: diagonal, then the
+# symmetric sums xy, yz, xz (SID_NOTES §4.3).
+_OMEGA_PAIRS = ((0, 1), (1, 2), (0, 2))
+
+#: Relative size (to the largest translational mass entry) below which an entry of ``M`` counts
+#: as zero, and two axis blocks as equal, in the Kronecker test.
+KRONECKER_TOL = 1e-12
+
+
+def skew(v: np.ndarray) -> np.ndarray:
+    """Cross-product matrices ``ṽ`` (``ṽ w = v × w``), shape (..., 3) -> (..., 3, 3)."""
+    v = np.asarray(v, dtype=float)
+    out = np.zeros((*v.shape[:-1], 3, 3))
+    out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
+    out[..., 1, 0], out[..., 1, 2] = v[..., 2], -v[..., 0]
+    out[..., 2, 0], out[..., 2, 1] = -v[..., 1], v[..., 0]
+    return out
+
+
+def _omega_components(matrices: np.ndarray) -> np.ndarray:
+    """The six Ω coefficients ``(A_xx, A_yy, A_zz, A_xy+A_yx, A_yz+A_zy, A_xz+A_zx)``.
+
+    ``matrices`` has shape (..., 3, 3); the result (..., 6) (SID_NOTES §4.3, Ω order of §0).
+    """
+    diagonal = np.diagonal(matrices, axis1=-2, axis2=-1)
+    mixed = [matrices[..., a, b] + matrices[..., b, a] for a, b in _OMEGA_PAIRS]
+    return np.concatenate([diagonal, np.stack(mixed, axis=-1)], axis=-1)
+
+
+@dataclass(frozen=True, eq=False)
+class NodeFrame:
+    """An output or interface node of the reduced body (SID_NOTES §4.4).
+
+    Attributes
+    ----------
+    node_id : int
+        FE node id.
+    position : ndarray, shape (3,)
+        Undeformed position ``c_p`` in the body frame (model length unit).
+    phi : ndarray, shape (3, nq)
+        Translational rows of ``Φ`` at the node (ux, uy, uz; a missing dof gives a zero row).
+    psi : ndarray, shape (3, nq) or None
+        Rotational rows (rx, ry, rz), ``None`` if the node has no rotational dofs.
+    """
+
+    node_id: int
+    position: np.ndarray
+    phi: np.ndarray
+    psi: np.ndarray | None
+
+
+@dataclass(frozen=True, eq=False)
+class BodyInvariants:
+    """Invariants of a reduced elastic body (SID_NOTES §4.1-§4.3); ``q`` has ``nq`` entries.
+
+    Attributes
+    ----------
+    mass : float
+        ``m = ∫dm`` (mass unit).
+    first_moment : ndarray, shape (3,)
+        ``∫c dm = m c_G`` (mass × length).
+    inertia : ndarray, shape (3, 3)
+        Inertia tensor ``J0`` about the body-frame origin (mass × length²): diagonal
+        ``∫(y² + z²) dm``..., off-diagonals ``-∫xy dm``...; rotary inertia included.
+    Ct : ndarray, shape (nq, 3)
+        ``Φᵀ M S_t``; row k = ``(∫Φ_k dm)ᵀ``.
+    Cr : ndarray, shape (nq, 3)
+        ``Φᵀ M S_r``; row k = ``(∫c × Φ_k dm)ᵀ`` plus rotary inertia.
+    S : ndarray, shape (nq, 3, 3)
+        ``S[k, a, b] = ∫ c_a Φ_{k,b} dm`` (second-order mass model, see ``second_order_mass``).
+    PP : ndarray, shape (3, 3, nq, nq)
+        ``PP[a, b, k, l] = ∫ Φ_{k,a} Φ_{l,b} dm``.
+    Me, Ke, De : ndarray, shape (nq, nq)
+        Reduced mass, stiffness and viscous damping matrices, as given.
+    frequencies_hz : ndarray, shape (nq,)
+        Frequency of each coordinate (Hz), ``sqrt(Ke_kk / Me_kk) / 2π`` unless given.
+    nodes : tuple of NodeFrame
+        Output/interface nodes, in the order given.
+    second_order_mass : {"exact", "translational"}
+        Mass model of ``S`` and ``PP``: exact Kronecker solid/lumped mass, or the translational
+        approximation (rotary inertia and Hermitian coupling neglected), see the module notes.
+    name : str
+        Body name (e.g. the SID ``new modal`` name).
+    """
+
+    mass: float
+    first_moment: np.ndarray
+    inertia: np.ndarray
+    Ct: np.ndarray
+    Cr: np.ndarray
+    S: np.ndarray
+    PP: np.ndarray
+    Me: np.ndarray
+    Ke: np.ndarray
+    De: np.ndarray
+    frequencies_hz: np.ndarray
+    nodes: tuple[NodeFrame, ...]
+    second_order_mass: str
+    name: str = ""
+
+    # ------------------------------------------------------------------ derived (SID_NOTES §4.3)
+    @property
+    def nq(self) -> int:
+        """Number of elastic coordinates."""
+        return int(self.Me.shape[0])
+
+    @property
+    def centre_of_gravity(self) -> np.ndarray:
+        """``c_G = ∫c dm / m``, shape (3,) (length)."""
+        return self.first_moment / self.mass
+
+    @property
+    def C4(self) -> np.ndarray:
+        """``C4_k = ∫ c̃ Φ̃_k dm = S_kᵀ - tr(S_k) I``, shape (nq, 3, 3)."""
+        trace = np.trace(self.S, axis1=1, axis2=2)
+        return self.S.transpose(0, 2, 1) - trace[:, None, None] * np.eye(3)
+
+    @property
+    def J1(self) -> np.ndarray:
+        """``J1_k = ∂J/∂q_k = -(C4_k + C4_kᵀ)``, shape (nq, 3, 3) (symmetric tensors)."""
+        c4 = self.C4
+        return -(c4 + c4.transpose(0, 2, 1))
+
+    @property
+    def Gr(self) -> np.ndarray:
+        """``Gr_k = -2 C4_k``, shape (nq, 3, 3): gyroscopic torque ``Σ_k Gr_k q̇_k ω``.
+
+        ``(Gr_k)_ab = 2 (δ_ab tr S_k - S_k[b, a])``; row ``a`` = torque component, column ``b``
+        multiplies ``ω_b``.
+        """
+        return -2.0 * self.C4
+
+    @property
+    def Kr(self) -> np.ndarray:
+        """``Kr[a, k, l] = ∫(Φ_l × Φ_k)_a dm``, shape (3, nq, nq), antisymmetric in (k, l)."""
+        pp = self.PP
+        return np.stack([pp[2, 1] - pp[1, 2], pp[0, 2] - pp[2, 0], pp[1, 0] - pp[0, 1]])
+
+    @property
+    def C6(self) -> np.ndarray:
+        """``C6_kl = ∫ Φ̃_k Φ̃_l dm``, shape (nq, nq, 3, 3).
+
+        ``C6_kl[a, b] = PP[b, a, k, l] - δ_ab Σ_c PP[c, c, k, l]``.
+        """
+        trace = np.einsum("cckl->kl", self.PP)
+        return self.PP.transpose(2, 3, 1, 0) - trace[:, :, None, None] * np.eye(3)
+
+    @property
+    def Oe0(self) -> np.ndarray:
+        """Centrifugal term ``Oe`` at ``q = 0``, shape (nq, 6), Ω order of :data:`OMEGA_ORDER`.
+
+        Row k = ``(C4xx, C4yy, C4zz, C4xy + C4yx, C4yz + C4zy, C4xz + C4zx)_k``: the
+        generalised force ``∫Φ_kᵀ ω̃ω̃ c dm = Oe0[k] · Ω``.
+        """
+        return _omega_components(self.C4)
+
+    @property
+    def Oe1(self) -> np.ndarray:
+        """``∂Oe[k]/∂q_l``, shape (nq, nq, 6), symmetric in (k, l); components from ``C6_kl``."""
+        return _omega_components(self.C6)
+
+
+# ---------------------------------------------------------------------------------- compute
+def compute_invariants(
+    body: ElasticBody,
+    basis: np.ndarray,
+    mass: np.ndarray,
+    stiffness: np.ndarray,
+    damping: np.ndarray | None,
+    nodes: list[int] | tuple[int, ...] | np.ndarray,
+    frequencies_hz: np.ndarray | None = None,
+    name: str = "",
+) -> BodyInvariants:
+    """Invariants of the reduced body ``u = Φ q`` (SID_NOTES §4).
+
+    Parameters
+    ----------
+    body : ElasticBody
+        The body in its reference frame (``PreparedModel.body``): coordinates measured from the
+        frame origin, ``mass`` over all dofs.
+    basis : ndarray, shape (n_dof, nq)
+        ``Φ`` over all dofs of ``body`` (``PreparedModel.expand(V)``, eq. 18).
+    mass, stiffness : ndarray, shape (nq, nq)
+        Reduced mass and stiffness (stored as ``Me``, ``Ke`` unchanged).
+    damping : ndarray, shape (nq, nq), or None
+        Reduced viscous damping ``De`` (``None``: zero).
+    nodes : sequence of int
+        Ids of the output/interface nodes that become SID node frames.
+    frequencies_hz : ndarray, shape (nq,), optional
+        Frequency of each coordinate; default ``sqrt(Ke_kk / Me_kk) / 2π``.
+    name : str
+        Body name.
+
+    Returns
+    -------
+    BodyInvariants
+
+    Raises
+    ------
+    UserError
+        Shapes do not match, non-finite input, or a node is unknown or has no translational dofs.
+
+    Notes
+    -----
+    Cost O(nnz(M) · nq + N · nq²) (N nodes); no dense n_dof × n_dof matrix is formed. Sums
+    prone to cancellation (first moment and ``Ct`` in a centroidal frame, ``S``) are formed in
+    extended precision.
+    """
+    n_dof = body.n_dof
+    phi = np.asarray(basis, dtype=float)
+    if phi.ndim != 2 or phi.shape[0] != n_dof:
+        raise UserError(f"invariants: basis has shape {phi.shape}, expected ({n_dof}, nq)")
+    nq = phi.shape[1]
+    if nq == 0:
+        raise UserError("invariants: the basis has no columns")
+    me = _square(mass, nq, "mass")
+    ke = _square(stiffness, nq, "stiffness")
+    de = np.zeros((nq, nq)) if damping is None else _square(damping, nq, "damping")
+    if not np.all(np.isfinite(phi)):
+        raise UserError("invariants: basis has NaN or infinite entries")
+    if np.any(np.diag(me) <= 0.0):
+        raise UserError("invariants: reduced mass matrix has a non-positive diagonal entry")
+    if frequencies_hz is None:
+        frequencies = np.sqrt(np.clip(np.diag(ke), 0.0, None) / np.diag(me)) / (2.0 * np.pi)
+    else:
+        frequencies = np.asarray(frequencies_hz, dtype=float).ravel()
+        if frequencies.shape != (nq,) or not np.all(np.isfinite(frequencies)):
+            raise UserError(f"invariants: frequencies_hz must be {nq} finite numbers")
+    frames = tuple(_node_frame(body, phi, node) for node in nodes)
+
+    m_full = sp.csr_matrix(body.mass)
+    first = _first_order(body, m_full, phi)
+    rows, directions = _dof_node_rows(body)
+    blocks = _translational_blocks(m_full, rows, directions, body.n_nodes)
+    exact = _is_kronecker(m_full, blocks, directions)
+    s, pp = _second_order(body.coordinates, phi, rows, directions, blocks)
+    return BodyInvariants(
+        mass=first["mass"],
+        first_moment=first["first_moment"],
+        inertia=first["inertia"],
+        Ct=first["Ct"],
+        Cr=first["Cr"],
+        S=s,
+        PP=pp,
+        Me=me,
+        Ke=ke,
+        De=de,
+        frequencies_hz=frequencies,
+        nodes=frames,
+        second_order_mass="exact" if exact else "translational",
+        name=str(name),
+    )
+
+
+def _square(matrix: np.ndarray, nq: int, label: str) -> np.ndarray:
+    out = np.array(matrix.toarray() if sp.issparse(matrix) else matrix, dtype=float)
+    if out.shape != (nq, nq):
+        raise UserError(f"invariants: reduced {label} matrix has shape {out.shape}, expected {nq}²")
+    if not np.all(np.isfinite(out)):
+        raise UserError(f"invariants: reduced {label} matrix has NaN or infinite entries")
+    return out
+
+
+def _node_frame(body: ElasticBody, phi: np.ndarray, node: int) -> NodeFrame:
+    """Translational and rotational rows of ``Φ`` at one node (SID_NOTES §4.4)."""
+    node = int(node)
+    if node not in body.node_index:
+        raise UserError(f"invariants: node {node} does not exist in the model")
+    dofs = body.dofs.of_node(node)
+    directions = body.dofs.directions[dofs]
+    if not np.any(directions < 3):
+        raise UserError(f"invariants: node {node} has no translational dofs")
+    rows = np.zeros((6, phi.shape[1]))
+    rows[directions] = phi[dofs]
+    psi = rows[3:].copy() if np.any(directions >= 3) else None
+    return NodeFrame(node, body.node_position(node).copy(), rows[:3].copy(), psi)
+
+
+def _first_order(body: ElasticBody, m_full: sp.csr_matrix, phi: np.ndarray) -> dict:
+    """m, ∫c dm, J0, Ct, Cr exactly from the full M (SID_NOTES §4.2(b))."""
+    rigid = body.rigid_body_modes().astype(np.longdouble)  # [S_t S_r], u = θ × c
+    m_rigid = extended(m_full) @ rigid  # (n_dof, 6), extended precision
+    rmr = rigid.T @ m_rigid  # (6, 6)
+    mass = float(np.mean(np.diag(rmr)[:3]))
+    mc = rmr[3:, :3]  # S_rᵀ M S_t = m c̃
+    first_moment = 0.5 * np.array([mc[2, 1] - mc[1, 2], mc[0, 2] - mc[2, 0], mc[1, 0] - mc[0, 1]])
+    inertia = np.asarray(rmr[3:, 3:], dtype=float)
+    coupling = phi.astype(np.longdouble).T @ m_rigid  # (nq, 6) = Φᵀ M [S_t S_r]
+    return {
+        "mass": mass,
+        "first_moment": np.asarray(first_moment, dtype=float),
+        "inertia": 0.5 * (inertia + inertia.T),
+        "Ct": np.asarray(coupling[:, :3], dtype=float),
+        "Cr": np.asarray(coupling[:, 3:], dtype=float),
+    }
+
+
+def _dof_node_rows(body: ElasticBody) -> tuple[np.ndarray, np.ndarray]:
+    """Row in ``body.coordinates`` and direction code of every dof, shapes (n_dof,)."""
+    order = np.argsort(body.node_ids)
+    rows = order[np.searchsorted(body.node_ids, body.dofs.nodes, sorter=order)]
+    return rows, body.dofs.directions
+
+
+def _selection(rows: np.ndarray, directions: np.ndarray, axis: int, n_nodes: int) -> sp.csr_matrix:
+    """``P_a`` (N × n_dof): picks the dof of direction ``axis`` of every node (zero row if none)."""
+    dofs = np.flatnonzero(directions == axis)
+    return sp.csr_matrix((np.ones(dofs.size), (rows[dofs], dofs)), shape=(n_nodes, directions.size))
+
+
+def _translational_blocks(
+    m_full: sp.csr_matrix, rows: np.ndarray, directions: np.ndarray, n_nodes: int
+) -> dict:
+    """Selections ``P_a`` and the node-space mass blocks ``M_ab = P_a M P_bᵀ`` (N × N)."""
+    select = [_selection(rows, directions, a, n_nodes) for a in range(3)]
+    blocks = {
+        (a, b): sp.csr_matrix(select[a] @ m_full @ select[b].T) for a in range(3) for b in range(3)
+    }
+    return {"select": select, "blocks": blocks}
+
+
+def _is_kronecker(m_full: sp.csr_matrix, blocks: dict, directions: np.ndarray) -> bool:
+    """Whether ``M`` is ``m̄ ⊗ I3`` on the translations and zero elsewhere (SID_NOTES §4.2(a))."""
+    mm = blocks["blocks"]
+    scale = max(abs(mm[(a, a)]).max() for a in range(3))
+    if scale == 0.0:
+        return False
+    tol = KRONECKER_TOL * scale
+
+    def small(matrix: sp.spmatrix) -> bool:
+        return matrix.nnz == 0 or abs(matrix).max() <= tol
+
+    if not (small(mm[(1, 1)] - mm[(0, 0)]) and small(mm[(2, 2)] - mm[(0, 0)])):
+        return False
+    if not all(small(mm[(a, b)]) for a in range(3) for b in range(3) if a != b):
+        return False
+    rotational = np.flatnonzero(directions >= 3)
+    return rotational.size == 0 or small(m_full[rotational])
+
+
+def _second_order(
+    coordinates: np.ndarray,
+    phi: np.ndarray,
+    rows: np.ndarray,
+    directions: np.ndarray,
+    blocks: dict,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``S`` (nq, 3, 3) and ``PP`` (3, 3, nq, nq) with ``m̄`` = mean of ``M_aa`` (§4.2(a))."""
+    select = blocks["select"]
+    mm = blocks["blocks"]
+    m_bar = sp.csr_matrix((mm[(0, 0)] + mm[(1, 1)] + mm[(2, 2)]) / 3.0)
+    u = [np.asarray(select[a] @ phi) for a in range(3)]  # U_a, (N, nq)
+    m_u = [extended(m_bar) @ u_b.astype(np.longdouble) for u_b in u]  # m̄ U_b, extended
+    x = np.asarray(coordinates, dtype=np.longdouble)
+    nq = phi.shape[1]
+    s = np.empty((nq, 3, 3))
+    for b in range(3):
+        s[:, :, b] = np.asarray(m_u[b].T @ x, dtype=float)  # S[k, a, b] = (m̄ U_b)[:, k] · x_a
+    pp = np.empty((3, 3, nq, nq))
+    m_u64 = [np.asarray(block, dtype=float) for block in m_u]
+    for a in range(3):
+        for b in range(a, 3):
+            block = u[a].T @ m_u64[b]
+            if a == b:
+                block = 0.5 * (block + block.T)
+            pp[a, b] = block
+            pp[b, a] = block.T  # PP[b, a, l, k] = PP[a, b, k, l] exactly
+    return s, pp
