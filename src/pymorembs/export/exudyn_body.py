@@ -1,0 +1,839 @@
+"""The reduced elastic body for Exudyn's ``ObjectFFRFreducedOrder`` (SID_NOTES §5).
+
+Exudyn (J. Gerstmayr et al.) models a modally reduced flexible body in the floating frame of
+reference by ``ObjectFFRFreducedOrder``: a rigid-body node for the reference frame, a
+``NodeGenericODE2`` for the elastic coordinates ``q`` (nq) and, with ``computeFFRFterms=True``,
+the FFRF mass matrix and quadratic velocity vector evaluated in C++ from the total mass, the
+inertia tensor, the centre of mass and six "inertia-like" matrices. Exudyn's own helper
+(``exudyn.FEM.ObjectFFRFreducedOrderInterface``) forms these from the full FE mass matrix of a
+mesh with translational dofs only. This module forms them from the reduced mass invariants of
+:mod:`pymorembs.export.invariants` instead (SID_NOTES §5 table). That needs no FE matrices, works
+for beam and shell models with rotational dofs, and keeps their rotary inertia in all first-order
+terms (``m``, ``c``, ``J0``, ``Ct``, ``Cr``, ``Me``); the second-order terms (from ``S`` and
+``PP``) are as exact as the invariants' ``second_order_mass`` (exact for solids and lumped masses,
+without rotary inertia for beams):
+
+=====================  ===========  =========================================================
+Exudyn parameter       shape        from the invariants (``P = Ctᵀ``, ``S_k = S[k]``)
+=====================  ===========  =========================================================
+physicsMass            ()           ``m``
+physicsCenterOfMass    (3,)         ``∫c dm / m``
+physicsInertia         (3, 3)       ``J0`` (tensor about the body-frame origin)
+massMatrixReduced      (nq, nq)     ``Me``; ``stiffnessMatrixReduced`` = ``Ke``,
+                                    ``dampingMatrixReduced`` = ``De``
+mPhitTPsi              (3, nq)      ``P``
+mPhitTPsiTilde         (3, 3nq)     block k = ``skew(P[:, k])``
+mXRefTildePsi          (3, nq)      ``-Crᵀ``
+mXRefTildePsiTilde     (3, 3nq)     block k = ``-C4_k = tr(S_k) I - S_kᵀ``
+mPsiTildePsi           (3nq, nq)    row ``3k+a``, column l: ``Kr[a, k, l] = ∫(Φ_l × Φ_k)_a dm``
+mPsiTildePsiTilde      (3nq, 3nq)   block (k, l) = ``-C6_kl``, entry (a, b):
+                                    ``δ_ab Σ_c PP[c, c, k, l] - PP[b, a, k, l]``
+=====================  ===========  =========================================================
+
+"Block k" is Exudyn's per-mode layout (columns ``3k .. 3k+2``), the layout of
+``exudyn.rigidBodyUtilities.ComputeSkewMatrix`` applied to the mode basis; it differs from the
+axis-major layout of ``Gr``/``Ge`` in a SID file (SID_NOTES §0). Exudyn's definitions are
+``Φ_tᵀ M Ψ``, ``Φ_tᵀ M Ψ̃``, ``X̃ᵀ M Ψ``, ``X̃ᵀ M Ψ̃``, ``Ψ̃ᵀ M Ψ`` and ``Ψ̃ᵀ M Ψ̃`` with the
+full mass matrix ``M`` (``exudyn/FEM.py``, ``ObjectFFRFreducedOrderInterface.__init__``); the
+tests compare both routes on a solid model and find them equal to round-off.
+
+Mode basis and mesh nodes
+-------------------------
+Exudyn reconstructs node positions from ``referencePositions`` and the translational
+``modeBasis`` (rows node-major ``[ux0, uy0, uz0, ux1, ...]``); the mass terms above do not depend
+on it. The exported "mesh" therefore holds only the frame nodes of the invariants
+(``inv.nodes``), each followed -- if it has rotational dofs -- by six massless *satellite points*
+on a rigid cross around it: positions ``c_p ± L e_a`` (order +x, -x, +y, -y, +z, -z) with the
+mode rows ``φ_p + ψ_p × (±L e_a)`` of a linearised rigid link. Their mean is the node itself
+(position and displacement), and a ``MarkerSuperElementRigid`` with equal weights on the six of
+them gives the node's position and its elastic rotation (``ψ_p q`` to first order), so a rigid
+joint can act at the node. ``L`` is the radius of gyration of the body about its centre of
+gravity unless given; it does not enter the dynamics.
+
+Exudyn 1.12.258 renamed ``physicsMass``, ``physicsInertia`` and ``physicsCenterOfMass`` to
+``mass``, ``inertia`` and ``centerOfMass``; the archive keeps the documented ``physics*`` names
+and :func:`build_exudyn_model` passes them under the new ones.
+
+File
+----
+:func:`write_exudyn_body` stores the arrays of :func:`exudyn_arrays` in a ``.npz`` archive (no
+pickled objects; ``numpy.load(..., allow_pickle=False)`` reads it). Besides the Exudyn
+parameters above the archive holds ``format`` (``"pymorembs-exudyn-body"``), ``formatVersion``
+(1), ``bodyName``, ``eigenfrequenciesHz`` (nq,), ``nodeIds`` (p,), ``nodeMeshIndices`` (p,),
+``satelliteMeshIndices`` (p, 6; -1 for a node without rotational dofs), ``meshNodeIds``
+(n_mesh,; the frame node each mesh node belongs to), ``satelliteLength`` () in m and
+``satelliteDirections`` (6, 3). Lengths in m, masses in kg, times in s (those of the FE model).
+
+Simulation
+----------
+:func:`build_exudyn_model` assembles a ready Exudyn system with the body, loads at its nodes,
+displacement sensors at every frame node and either the reference frame fixed to ground
+(``clamp="frame"``, for tangent-frame bodies) or a rigid joint at one node with the frame free
+(``clamp="joint"``, e.g. for Buckens bodies); :func:`simulate_exudyn` integrates it in time with
+Exudyn's implicit generalized-alpha solver, without console output and without files.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import time
+import zipfile
+import zlib
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, NamedTuple
+
+import numpy as np
+
+from pymorembs.errors import NumericalError, UserError
+from pymorembs.export.invariants import skew
+from pymorembs.io.atomic import atomic_path
+
+if TYPE_CHECKING:
+    from pymorembs.export.invariants import BodyInvariants
+
+__all__ = [
+    "FORMAT",
+    "FORMAT_VERSION",
+    "SATELLITE_DIRECTIONS",
+    "ExudynModel",
+    "ExudynResult",
+    "build_exudyn_model",
+    "exudyn_arrays",
+    "ffrf_inertia_matrices",
+    "load_exudyn_body",
+    "simulate_exudyn",
+    "write_exudyn_body",
+]
+
+#: Value of the ``format`` entry of an exported body.
+FORMAT = "pymorembs-exudyn-body"
+#: Version of the archive layout; :func:`load_exudyn_body` reads this version only.
+FORMAT_VERSION = 1
+#: Unit directions of the six satellite points of a node with rotations, shape (6, 3).
+SATELLITE_DIRECTIONS = np.array(
+    [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=float
+)
+
+#: Keys of the archive with their number of dimensions (the body-describing part).
+_KEYS_NDIM: dict[str, int] = {
+    "format": 0,
+    "formatVersion": 0,
+    "bodyName": 0,
+    "massMatrixReduced": 2,
+    "stiffnessMatrixReduced": 2,
+    "dampingMatrixReduced": 2,
+    "modeBasis": 2,
+    "referencePositions": 1,
+    "physicsMass": 0,
+    "physicsInertia": 2,
+    "physicsCenterOfMass": 1,
+    "mPsiTildePsi": 2,
+    "mPsiTildePsiTilde": 2,
+    "mPhitTPsi": 2,
+    "mPhitTPsiTilde": 2,
+    "mXRefTildePsi": 2,
+    "mXRefTildePsiTilde": 2,
+    "eigenfrequenciesHz": 1,
+    "nodeIds": 1,
+    "nodeMeshIndices": 1,
+    "satelliteMeshIndices": 2,
+    "meshNodeIds": 1,
+    "satelliteLength": 0,
+    "satelliteDirections": 2,
+}
+_TEXT_KEYS = ("format", "bodyName")
+_INTEGER_KEYS = (
+    "formatVersion",
+    "nodeIds",
+    "nodeMeshIndices",
+    "satelliteMeshIndices",
+    "meshNodeIds",
+)
+
+
+# ------------------------------------------------------------------------------ the arrays
+def _levi_civita() -> np.ndarray:
+    eps = np.zeros((3, 3, 3))
+    for a, b, c in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
+        eps[a, b, c], eps[a, c, b] = 1.0, -1.0
+    return eps
+
+
+def ffrf_inertia_matrices(inv: BodyInvariants) -> dict[str, np.ndarray]:
+    """Exudyn's six FFRF inertia matrices from the mass invariants (SID_NOTES §5).
+
+    Parameters
+    ----------
+    inv : BodyInvariants
+        Uses ``Ct`` (nq, 3) in kg, ``Cr`` (nq, 3) and ``S`` (nq, 3, 3) in kg·m and ``PP``
+        (3, 3, nq, nq) in kg (per unit of ``q`` in the length unit).
+
+    Returns
+    -------
+    dict
+        ``mPhitTPsi`` (3, nq), ``mPhitTPsiTilde`` (3, 3nq), ``mXRefTildePsi`` (3, nq),
+        ``mXRefTildePsiTilde`` (3, 3nq), ``mPsiTildePsi`` (3nq, nq) and ``mPsiTildePsiTilde``
+        (3nq, 3nq), in Exudyn's per-mode block layout (see the module docstring).
+    """
+    ct, cr = np.asarray(inv.Ct, dtype=float), np.asarray(inv.Cr, dtype=float)
+    s, pp = np.asarray(inv.S, dtype=float), np.asarray(inv.PP, dtype=float)
+    nq = ct.shape[0]
+    p = ct.T  # P = ∫Φ dm (3, nq)
+    # -C4_k = tr(S_k) I - S_kᵀ, stored (k, a, b) then laid out as blocks k of (3, 3)
+    trace_s = np.einsum("kaa->k", s)
+    minus_c4 = trace_s[:, None, None] * np.eye(3) - s.transpose(0, 2, 1)
+    # Kr[a, k, l] = ∫(Φ_l × Φ_k)_a dm = Σ_bc ε_abc PP[c, b, k, l]
+    kr = np.einsum("abc,cbkl->akl", _levi_civita(), pp)
+    # -C6_kl[a, b] = δ_ab Σ_c PP[c, c, k, l] - PP[b, a, k, l], stored (k, a, l, b)
+    trace_pp = np.einsum("cckl->kl", pp)
+    minus_c6 = np.einsum("kl,ab->kalb", trace_pp, np.eye(3)) - pp.transpose(2, 1, 3, 0)
+    return {
+        "mPhitTPsi": p.copy(),
+        "mPhitTPsiTilde": skew(p.T).transpose(1, 0, 2).reshape(3, 3 * nq),
+        "mXRefTildePsi": -cr.T.copy(),
+        "mXRefTildePsiTilde": minus_c4.transpose(1, 0, 2).reshape(3, 3 * nq),
+        "mPsiTildePsi": kr.transpose(1, 0, 2).reshape(3 * nq, nq),
+        "mPsiTildePsiTilde": minus_c6.reshape(3 * nq, 3 * nq),
+    }
+
+
+def _radius_of_gyration(inv: BodyInvariants) -> float:
+    """``sqrt(tr(J_G) / (2 m))`` (m): a length scale of the body about its centre of gravity."""
+    mass = float(inv.mass)
+    centre = np.asarray(inv.first_moment, dtype=float) / mass
+    j_g = np.asarray(inv.inertia, dtype=float) - mass * (
+        centre @ centre * np.eye(3) - np.outer(centre, centre)
+    )
+    return float(np.sqrt(max(np.trace(j_g), 0.0) / (2.0 * mass)))
+
+
+def exudyn_arrays(
+    inv: BodyInvariants, satellite_length: float | None = None
+) -> dict[str, np.ndarray]:
+    """Everything ``ObjectFFRFreducedOrder`` needs, from the reduced invariants.
+
+    Parameters
+    ----------
+    inv : BodyInvariants
+        The reduced body (:func:`pymorembs.export.invariants.compute_invariants`).
+    satellite_length : float, optional
+        Arm ``L`` (m) of the satellite points of nodes with rotational dofs; default: the radius
+        of gyration of the body about its centre of gravity.
+
+    Returns
+    -------
+    dict of str to ndarray
+        The keys of the module docstring (Exudyn parameters, node maps, ``format``...).
+
+    Raises
+    ------
+    UserError
+        The body has no mass, no elastic coordinates or no frame nodes, or ``satellite_length``
+        is not a positive number.
+    """
+    mass = float(inv.mass)
+    me = np.asarray(inv.Me, dtype=float)
+    nq = me.shape[0]
+    if not (np.isfinite(mass) and mass > 0):
+        raise UserError(f"exudyn export: the body mass must be positive, got {mass!r}")
+    if nq == 0:
+        raise UserError("exudyn export: the body has no elastic coordinates")
+    if not inv.nodes:
+        raise UserError("exudyn export: the body has no frame nodes to attach markers or loads")
+    if satellite_length is None:
+        satellite_length = _radius_of_gyration(inv) or 1.0
+    length = float(satellite_length)
+    if not (np.isfinite(length) and length > 0):
+        raise UserError(f"exudyn export: satellite_length must be > 0 m, got {satellite_length!r}")
+
+    positions, rows, owners = [], [], []
+    node_mesh = np.zeros(len(inv.nodes), dtype=np.int64)
+    satellites = np.full((len(inv.nodes), 6), -1, dtype=np.int64)
+    for i, frame in enumerate(inv.nodes):
+        c_p = np.asarray(frame.position, dtype=float)
+        phi = np.asarray(frame.phi, dtype=float)
+        node_mesh[i] = len(owners)
+        positions.append(c_p[None, :])
+        rows.append(phi[None, :, :])
+        owners.append(int(frame.node_id))
+        if frame.psi is not None:
+            arms = length * SATELLITE_DIRECTIONS  # (6, 3)
+            psi = np.asarray(frame.psi, dtype=float)
+            # φ_p + ψ_p × d for every arm d and mode k: (6, 3, nq)
+            links = phi[None] + np.cross(psi.T[None, :, :], arms[:, None, :]).transpose(0, 2, 1)
+            satellites[i] = len(owners) + np.arange(6)
+            positions.append(c_p + arms)
+            rows.append(links)
+            owners.extend([int(frame.node_id)] * 6)
+    arrays: dict[str, np.ndarray] = {
+        "format": np.array(FORMAT),
+        "formatVersion": np.array(FORMAT_VERSION, dtype=np.int64),
+        "bodyName": np.array(str(inv.name)),
+        "massMatrixReduced": me.copy(),
+        "stiffnessMatrixReduced": np.asarray(inv.Ke, dtype=float).copy(),
+        "dampingMatrixReduced": np.asarray(inv.De, dtype=float).copy(),
+        "modeBasis": np.concatenate(rows).reshape(-1, nq),
+        "referencePositions": np.concatenate(positions).ravel(),
+        "physicsMass": np.array(mass),
+        "physicsInertia": np.asarray(inv.inertia, dtype=float).copy(),
+        "physicsCenterOfMass": np.asarray(inv.first_moment, dtype=float) / mass,
+        **ffrf_inertia_matrices(inv),
+        "eigenfrequenciesHz": np.asarray(inv.frequencies_hz, dtype=float).copy(),
+        "nodeIds": np.array([int(f.node_id) for f in inv.nodes], dtype=np.int64),
+        "nodeMeshIndices": node_mesh,
+        "satelliteMeshIndices": satellites,
+        "meshNodeIds": np.array(owners, dtype=np.int64),
+        "satelliteLength": np.array(length),
+        "satelliteDirections": SATELLITE_DIRECTIONS.copy(),
+    }
+    _check_arrays(arrays, "exudyn export")
+    return arrays
+
+
+def _check_arrays(arrays: Mapping[str, np.ndarray], where: str) -> None:
+    """Raise :class:`UserError` unless ``arrays`` is a complete, consistent body."""
+    kind = np.asarray(arrays.get("format", "")).astype(str)
+    if kind.ndim != 0 or str(kind) != FORMAT:
+        raise UserError(f"{where}: not a {FORMAT} archive (format entry {str(kind)!r})")
+    version = np.asarray(arrays.get("formatVersion", -1))
+    if version.ndim != 0 or version.dtype.kind not in "iu" or int(version) != FORMAT_VERSION:
+        raise UserError(
+            f"{where}: format version {version} is not supported "
+            f"(this pymorembs reads version {FORMAT_VERSION})"
+        )
+    missing = [key for key in _KEYS_NDIM if key not in arrays]
+    if missing:
+        raise UserError(f"{where}: missing entr{'ies' if len(missing) > 1 else 'y'} {missing}")
+    for key, ndim in _KEYS_NDIM.items():
+        value = np.asarray(arrays[key])
+        if value.ndim != ndim:
+            raise UserError(f"{where}: entry {key} has {value.ndim} dimensions, not {ndim}")
+        kinds = "U" if key in _TEXT_KEYS else "iu" if key in _INTEGER_KEYS else "f"
+        if value.dtype.kind not in kinds:
+            raise UserError(f"{where}: entry {key} has the wrong type ({value.dtype})")
+        if kinds == "f" and not np.all(np.isfinite(value)):
+            raise UserError(f"{where}: entry {key} has NaN or infinite values")
+    nq = arrays["massMatrixReduced"].shape[0]
+    n_mesh = arrays["meshNodeIds"].shape[0]
+    p = arrays["nodeIds"].shape[0]
+    shapes = {
+        "massMatrixReduced": (nq, nq),
+        "stiffnessMatrixReduced": (nq, nq),
+        "dampingMatrixReduced": (nq, nq),
+        "modeBasis": (3 * n_mesh, nq),
+        "referencePositions": (3 * n_mesh,),
+        "physicsInertia": (3, 3),
+        "physicsCenterOfMass": (3,),
+        "mPhitTPsi": (3, nq),
+        "mPhitTPsiTilde": (3, 3 * nq),
+        "mXRefTildePsi": (3, nq),
+        "mXRefTildePsiTilde": (3, 3 * nq),
+        "mPsiTildePsi": (3 * nq, nq),
+        "mPsiTildePsiTilde": (3 * nq, 3 * nq),
+        "eigenfrequenciesHz": (nq,),
+        "nodeMeshIndices": (p,),
+        "satelliteMeshIndices": (p, 6),
+        "satelliteDirections": (6, 3),
+    }
+    for key, shape in shapes.items():
+        if arrays[key].shape != shape:
+            raise UserError(f"{where}: entry {key} has shape {arrays[key].shape}, expected {shape}")
+    if p == 0 or nq == 0:
+        raise UserError(f"{where}: the body has no frame nodes or no elastic coordinates")
+    index = arrays["nodeMeshIndices"]
+    if index.min() < 0 or index.max() >= n_mesh or np.unique(arrays["nodeIds"]).size != p:
+        raise UserError(f"{where}: node ids / mesh indices are inconsistent")
+    if not np.array_equal(arrays["meshNodeIds"][index], arrays["nodeIds"]):
+        raise UserError(f"{where}: nodeMeshIndices do not point at the nodes' own mesh nodes")
+    sat = arrays["satelliteMeshIndices"]
+    has = sat[:, 0] >= 0
+    if np.any((sat >= 0) != has[:, None]) or (sat.max() >= n_mesh):
+        raise UserError(f"{where}: satelliteMeshIndices are inconsistent")
+    if float(arrays["physicsMass"]) <= 0 or float(arrays["satelliteLength"]) <= 0:
+        raise UserError(f"{where}: physicsMass and satelliteLength must be positive")
+
+
+# ------------------------------------------------------------------------------ the file
+def write_exudyn_body(
+    path: str | os.PathLike[str],
+    inv: BodyInvariants | Mapping[str, np.ndarray],
+    satellite_length: float | None = None,
+) -> Path:
+    """Write the Exudyn body as an ``.npz`` archive, atomically.
+
+    Parameters
+    ----------
+    path : path-like
+        Target file (written as given, no extension is appended).
+    inv : BodyInvariants or dict
+        The reduced body, or the arrays of :func:`exudyn_arrays`.
+    satellite_length : float, optional
+        Passed to :func:`exudyn_arrays` when ``inv`` is a :class:`BodyInvariants`.
+
+    Returns
+    -------
+    Path
+        The written file.
+    """
+    if isinstance(inv, Mapping):
+        arrays = {key: np.asarray(value) for key, value in inv.items()}
+        _check_arrays(arrays, f"exudyn body {path}")
+    else:
+        arrays = exudyn_arrays(inv, satellite_length)
+    target = Path(path)
+    with atomic_path(target) as tmp, open(tmp, "wb") as fh:
+        np.savez(fh, **arrays)
+    return target
+
+
+def load_exudyn_body(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
+    """Read a body written by :func:`write_exudyn_body`.
+
+    Returns
+    -------
+    dict of str to ndarray
+        The arrays of :func:`exudyn_arrays`.
+
+    Raises
+    ------
+    UserError
+        The file is missing, not an ``.npz`` archive, holds pickled objects, is of another format
+        or version, or its arrays are incomplete or inconsistent.
+    """
+    where = f"exudyn body {path}"
+    try:
+        archive = np.load(Path(path), allow_pickle=False)
+        if not isinstance(archive, np.lib.npyio.NpzFile):
+            raise UserError(f"{where}: a single .npy array, not an .npz archive")
+        with archive:
+            arrays = {key: archive[key] for key in archive.files}
+    except FileNotFoundError:
+        raise UserError(f"{where}: file not found") from None
+    except IsADirectoryError:
+        raise UserError(f"{where}: is a directory") from None
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error) as exc:
+        raise UserError(f"{where}: not a readable .npz archive ({exc})") from None
+    _check_arrays(arrays, where)
+    return arrays
+
+
+# ------------------------------------------------------------------------------ Exudyn model
+#: A load: constant force (3,) in N in ground coordinates, or a function t (s) -> force (3,).
+Force = Sequence[float] | np.ndarray | Callable[[float], Sequence[float] | np.ndarray]
+
+
+@dataclass(eq=False)
+class ExudynModel:
+    """An assembled Exudyn system with one exported body.
+
+    Attributes
+    ----------
+    system_container : exudyn.SystemContainer
+    mbs : exudyn.MainSystem
+        The assembled system.
+    body : dict of str to ndarray
+        The arrays of the body (:func:`exudyn_arrays`).
+    clamp : str
+        ``"frame"`` or ``"joint"``.
+    joint_node : int or None
+        Node id of the rigid joint (``clamp="joint"``).
+    object_index, rigid_node, modal_node : int
+        Indices of the ``ObjectFFRFreducedOrder``, its rigid-body node and its modal node.
+    position_markers : dict of int to int
+        Node id -> ``MarkerSuperElementPosition`` at the node.
+    rigid_markers : dict of int to int
+        Node id -> ``MarkerSuperElementRigid`` on the node's satellites (nodes with rotations).
+    sensors : dict of int to int
+        Node id -> sensor of the node's displacement in ground coordinates (m).
+    """
+
+    system_container: Any
+    mbs: Any
+    body: dict[str, np.ndarray]
+    clamp: str
+    joint_node: int | None
+    object_index: int
+    rigid_node: int
+    modal_node: int
+    position_markers: dict[int, int] = field(default_factory=dict)
+    rigid_markers: dict[int, int] = field(default_factory=dict)
+    sensors: dict[int, int] = field(default_factory=dict)
+
+
+class ExudynResult(NamedTuple):
+    """Result of :func:`simulate_exudyn`.
+
+    Attributes
+    ----------
+    times : ndarray, shape (n_t,)
+        Output times (s), from 0 to the end time.
+    displacements : dict of int to ndarray (n_t, 3)
+        Node id -> displacement of the node in ground coordinates (m): reference-frame motion plus
+        elastic deformation.
+    wall_time_s : float
+        Wall-clock time of the time integration (s).
+    """
+
+    times: np.ndarray
+    displacements: dict[int, np.ndarray]
+    wall_time_s: float
+
+
+@contextlib.contextmanager
+def _quiet_exudyn() -> Iterator[None]:
+    """Silence Exudyn's console output (``exudyn.config.printToConsole``) for a block."""
+    import exudyn
+
+    old = exudyn.config.printToConsole
+    exudyn.config.printToConsole = False
+    try:
+        yield
+    finally:
+        exudyn.config.printToConsole = old
+
+
+def _body_arrays(body_data: BodyInvariants | Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    if isinstance(body_data, Mapping):
+        arrays = {key: np.asarray(value) for key, value in body_data.items()}
+        _check_arrays(arrays, "exudyn body")
+        return arrays
+    return exudyn_arrays(body_data)
+
+
+def _damping_matrix(arrays: Mapping[str, np.ndarray], damping: Any) -> np.ndarray | None:
+    if isinstance(damping, str):
+        if damping == "exported":
+            d = arrays["dampingMatrixReduced"]
+            return d if np.any(d) else None
+        if damping == "none":
+            return None
+    else:
+        try:
+            alpha, beta = (float(x) for x in damping)
+        except (TypeError, ValueError):
+            alpha = beta = float("nan")
+        if np.isfinite(alpha) and np.isfinite(beta) and alpha >= 0 and beta >= 0:
+            d = alpha * arrays["massMatrixReduced"] + beta * arrays["stiffnessMatrixReduced"]
+            return d if np.any(d) else None
+    raise UserError(
+        f"exudyn model: damping must be 'exported', 'none' or (alpha 1/s, beta s) >= 0, "
+        f"got {damping!r}"
+    )
+
+
+def _matrix_container(matrix: np.ndarray) -> Any:
+    import exudyn
+
+    container = exudyn.MatrixContainer()
+    container.SetWithDenseMatrix(np.ascontiguousarray(matrix, dtype=float), useDenseMatrix=True)
+    return container
+
+
+def build_exudyn_model(
+    body_data: BodyInvariants | Mapping[str, np.ndarray],
+    *,
+    clamp: str = "frame",
+    joint_node: int | None = None,
+    loads: Sequence[tuple[int, Force]] = (),
+    damping: str | tuple[float, float] = "exported",
+    gravity: Sequence[float] | None = None,
+) -> ExudynModel:
+    """Build a ready Exudyn system with the exported body.
+
+    The body is an ``ObjectFFRFreducedOrder`` (``computeFFRFterms=True``: the FFRF mass matrix and
+    quadratic velocity terms are evaluated by Exudyn) on a ``NodeRigidBodyEP`` for the reference
+    frame, placed at the ground origin with the identity orientation (ground coordinates =
+    body-frame coordinates at t = 0), and a ``NodeGenericODE2`` for the elastic coordinates.
+
+    Parameters
+    ----------
+    body_data : dict or BodyInvariants
+        The arrays of :func:`exudyn_arrays` / :func:`load_exudyn_body`, or the invariants.
+    clamp : {"frame", "joint"}
+        ``"frame"``: the reference frame is fixed to ground by a ``GenericJoint`` on the rigid
+        node (tangent-frame bodies: the frame node is clamped, the body deforms about it).
+        ``"joint"``: the frame is free; a ``GenericJoint`` (all six axes locked) fixes the
+        ``MarkerSuperElementRigid`` of ``joint_node`` to ground (e.g. Buckens bodies).
+    joint_node : int, optional
+        Node id of the joint; needed for ``clamp="joint"``; the node must have rotational dofs.
+    loads : sequence of (node id, force)
+        Forces at frame nodes in ground coordinates (N): a constant vector (3,) or a function of
+        time ``t`` (s) returning one (a Python user function, evaluated every step).
+    damping : "exported", "none" or (alpha, beta)
+        Modal damping: the exported ``De``, none, or Rayleigh ``alpha Me + beta Ke`` (1/s, s).
+    gravity : (3,) float, optional
+        Gravitational acceleration in ground coordinates (m/s²), applied through Exudyn's
+        ``LoadMassProportional`` (which uses ``m``, the centre of mass and ``mPhitTPsi``).
+
+    Returns
+    -------
+    ExudynModel
+
+    Raises
+    ------
+    UserError
+        Unknown clamp, node or damping, a joint node without rotations, or a bad load.
+    """
+    import exudyn
+    import exudyn.itemInterface as eii
+
+    arrays = _body_arrays(body_data)
+    node_ids = [int(n) for n in arrays["nodeIds"]]
+    mesh_of = dict(zip(node_ids, (int(i) for i in arrays["nodeMeshIndices"]), strict=True))
+    satellites_of = {
+        n: [int(i) for i in row]
+        for n, row in zip(node_ids, arrays["satelliteMeshIndices"], strict=True)
+        if row[0] >= 0
+    }
+    _check_clamp(clamp, joint_node, node_ids, satellites_of)
+    damping_matrix = _damping_matrix(arrays, damping)
+    forces = [_checked_force(node, force, node_ids) for node, force in loads]
+    g = None if gravity is None else np.asarray(gravity, dtype=float)
+    if g is not None and (g.shape != (3,) or not np.all(np.isfinite(g))):
+        raise UserError(f"exudyn model: gravity must be 3 finite numbers (m/s²), got {gravity!r}")
+    nq = arrays["massMatrixReduced"].shape[0]
+
+    with _quiet_exudyn():
+        sc = exudyn.SystemContainer()
+        mbs = sc.AddSystem()
+        rigid = mbs.AddNode(
+            eii.NodeRigidBodyEP(
+                referenceCoordinates=[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0],
+                initialVelocities=[0.0] * 7,
+            )
+        )
+        modal = mbs.AddNode(
+            eii.NodeGenericODE2(
+                numberOfODE2Coordinates=nq,
+                referenceCoordinates=[0.0] * nq,
+                initialCoordinates=[0.0] * nq,
+                initialCoordinates_t=[0.0] * nq,
+            )
+        )
+        obj = mbs.AddObject(
+            eii.ObjectFFRFreducedOrder(
+                name=str(arrays["bodyName"]),
+                nodeNumbers=[rigid, modal],
+                massMatrixReduced=_matrix_container(arrays["massMatrixReduced"]),
+                stiffnessMatrixReduced=_matrix_container(arrays["stiffnessMatrixReduced"]),
+                dampingMatrixReduced=(
+                    [] if damping_matrix is None else _matrix_container(damping_matrix)
+                ),
+                modeBasis=arrays["modeBasis"],
+                referencePositions=arrays["referencePositions"],
+                # physicsMass/-Inertia/-CenterOfMass are named mass/inertia/centerOfMass since
+                # Exudyn 1.12.258
+                mass=float(arrays["physicsMass"]),
+                inertia=arrays["physicsInertia"],
+                centerOfMass=arrays["physicsCenterOfMass"],
+                mPsiTildePsi=arrays["mPsiTildePsi"],
+                mPsiTildePsiTilde=arrays["mPsiTildePsiTilde"],
+                mPhitTPsi=arrays["mPhitTPsi"],
+                mPhitTPsiTilde=arrays["mPhitTPsiTilde"],
+                mXRefTildePsi=arrays["mXRefTildePsi"],
+                mXRefTildePsiTilde=arrays["mXRefTildePsiTilde"],
+                computeFFRFterms=True,
+                visualization=eii.VObjectFFRFreducedOrder(show=False),
+            )
+        )
+        model = ExudynModel(sc, mbs, arrays, clamp, joint_node, obj, rigid, modal)
+        for n in node_ids:
+            model.position_markers[n] = mbs.AddMarker(
+                eii.MarkerSuperElementPosition(
+                    bodyNumber=obj, meshNodeNumbers=[mesh_of[n]], weightingFactors=[1.0]
+                )
+            )
+            model.sensors[n] = mbs.AddSensor(
+                eii.SensorSuperElement(
+                    bodyNumber=obj,
+                    meshNodeNumber=mesh_of[n],
+                    outputVariableType=exudyn.OutputVariableType.Displacement,
+                    writeToFile=False,
+                    storeInternal=True,
+                )
+            )
+        for n, satellites in satellites_of.items():
+            model.rigid_markers[n] = mbs.AddMarker(
+                eii.MarkerSuperElementRigid(
+                    bodyNumber=obj, meshNodeNumbers=satellites, weightingFactors=[1.0 / 6.0] * 6
+                )
+            )
+
+        ground = mbs.AddObject(eii.ObjectGround())
+        if clamp == "frame":
+            body_marker = mbs.AddMarker(eii.MarkerNodeRigid(nodeNumber=rigid))
+            ground_position = np.zeros(3)
+        else:
+            body_marker = model.rigid_markers[int(joint_node)]
+            first = 3 * mesh_of[int(joint_node)]
+            ground_position = arrays["referencePositions"][first : first + 3]
+        ground_marker = mbs.AddMarker(
+            eii.MarkerBodyRigid(
+                bodyNumber=ground, localPosition=[float(x) for x in ground_position]
+            )
+        )
+        mbs.AddObject(
+            eii.GenericJoint(
+                markerNumbers=[ground_marker, body_marker],
+                constrainedAxes=[1, 1, 1, 1, 1, 1],
+                visualization=eii.VGenericJoint(show=False),
+            )
+        )
+        for node, force in forces:
+            mbs.AddLoad(_force_load(eii, model.position_markers[node], force))
+        if g is not None:
+            mass_marker = mbs.AddMarker(eii.MarkerBodyMass(bodyNumber=obj))
+            mbs.AddLoad(eii.LoadMassProportional(markerNumber=mass_marker, loadVector=list(g)))
+        mbs.Assemble()
+    return model
+
+
+def _check_clamp(
+    clamp: str, joint_node: int | None, node_ids: list[int], satellites_of: dict
+) -> None:
+    if clamp == "frame":
+        if joint_node is not None:
+            raise UserError("exudyn model: joint_node is only used with clamp='joint'")
+        return
+    if clamp != "joint":
+        raise UserError(f"exudyn model: clamp must be 'frame' or 'joint', got {clamp!r}")
+    if joint_node is None:
+        raise UserError("exudyn model: clamp='joint' needs joint_node")
+    if int(joint_node) not in node_ids:
+        raise UserError(
+            f"exudyn model: joint node {joint_node} is not a frame node of the body "
+            f"(nodes: {node_ids})"
+        )
+    if int(joint_node) not in satellites_of:
+        raise UserError(
+            f"exudyn model: joint node {joint_node} has no rotational dofs, so a rigid joint "
+            "cannot act on it; export a node with rotations (e.g. an RBE2 interface node)"
+        )
+
+
+def _checked_force(node: int, force: Force, node_ids: list[int]) -> tuple[int, Any]:
+    """``(node id, force)`` with a constant force as ndarray (3,); checks node and shape."""
+    if int(node) not in node_ids:
+        raise UserError(
+            f"exudyn model: load at node {node}, which is not a frame node of the body "
+            f"(nodes: {node_ids})"
+        )
+    if callable(force):
+        try:
+            probe = np.asarray(force(0.0), dtype=float)
+        except Exception as exc:
+            raise UserError(
+                f"exudyn model: the load function at node {node} fails: {exc}"
+            ) from None
+        if probe.shape != (3,):
+            raise UserError(
+                f"exudyn model: the load function at node {node} returns shape {probe.shape}, "
+                "expected (3,)"
+            )
+        return int(node), force
+    try:
+        vector = np.asarray(force, dtype=float)
+    except (TypeError, ValueError):
+        vector = np.full(0, np.nan)
+    if vector.shape != (3,) or not np.all(np.isfinite(vector)):
+        raise UserError(f"exudyn model: the load at node {node} must be 3 finite numbers (N)")
+    return int(node), vector
+
+
+def _force_load(eii: Any, marker: int, force: Any) -> Any:
+    """A ``LoadForceVector`` in ground directions: constant, or a Python user function of t."""
+    if not callable(force):
+        return eii.LoadForceVector(markerNumber=marker, loadVector=[float(x) for x in force])
+
+    def user_function(mbs: Any, t: float, load_vector: Any) -> list[float]:
+        return [float(x) for x in np.asarray(force(t), dtype=float)]
+
+    return eii.LoadForceVector(
+        markerNumber=marker, loadVector=[0.0, 0.0, 0.0], loadVectorUserFunction=user_function
+    )
+
+
+def simulate_exudyn(
+    model: ExudynModel,
+    duration_s: float,
+    step_s: float,
+    nodes: Sequence[int] | None = None,
+    *,
+    spectral_radius: float = 0.9,
+) -> ExudynResult:
+    """Integrate the model in time with Exudyn's implicit generalized-alpha solver.
+
+    Constant step size ``step_s`` (the end time is ``duration_s`` rounded to whole steps);
+    Newton iterations to Exudyn's default tolerances. Every call starts again from the model's
+    initial state (at rest). No console output, no solution, sensor or solver-information files.
+
+    Parameters
+    ----------
+    model : ExudynModel
+        From :func:`build_exudyn_model`.
+    duration_s, step_s : float
+        End time and step size (s).
+    nodes : sequence of int, optional
+        Node ids whose displacement to return; default: all frame nodes.
+    spectral_radius : float
+        Spectral radius at infinity of generalized-alpha (1: no numerical damping).
+
+    Returns
+    -------
+    ExudynResult
+        Times (s) and node displacements in ground coordinates (m) at every step, wall time (s).
+
+    Raises
+    ------
+    UserError
+        Bad times or an unknown node.
+    NumericalError
+        The solver fails.
+    """
+    import exudyn
+
+    if not (np.isfinite(duration_s) and np.isfinite(step_s) and 0 < step_s <= duration_s):
+        raise UserError(
+            f"exudyn simulation: need 0 < step_s <= duration_s, got {step_s!r}, {duration_s!r}"
+        )
+    wanted = list(model.sensors) if nodes is None else [int(n) for n in nodes]
+    unknown = [n for n in wanted if n not in model.sensors]
+    if unknown:
+        raise UserError(f"exudyn simulation: node {unknown[0]} is not a frame node of the body")
+    n_steps = round(duration_s / step_s)
+    settings = exudyn.SimulationSettings()
+    ti = settings.timeIntegration
+    ti.endTime = n_steps * step_s
+    ti.numberOfSteps = n_steps
+    ti.automaticStepSize = False
+    ti.adaptiveStep = False
+    ti.verboseMode = 0
+    ti.verboseModeFile = 0
+    ti.generalizedAlpha.spectralRadius = float(spectral_radius)
+    settings.solution.file.write = False
+    settings.solution.restart.write = False
+    settings.solution.sensors.active = True
+    settings.solution.sensors.writePeriod = step_s
+    settings.show.computationTime = False
+    settings.show.globalTimers = False
+    settings.show.statistics = False
+    with _quiet_exudyn():
+        start = time.perf_counter()
+        try:
+            ok = model.mbs.SolveDynamic(settings, storeSolver=False)
+        except exudyn.SolverError as exc:
+            raise NumericalError(
+                f"exudyn simulation: the time integration failed ({exc})"
+            ) from None
+        wall = time.perf_counter() - start
+    if not ok:
+        raise NumericalError("exudyn simulation: the time integration failed")
+    displacements = {}
+    times = np.zeros(0)
+    for n in wanted:
+        data = np.asarray(model.mbs.GetSensorStoredData(model.sensors[n]))
+        times, displacements[n] = data[:, 0], data[:, 1:4]
+    return ExudynResult(times, displacements, wall)
