@@ -45,6 +45,9 @@ MODEL_FORMATS = (
     "native", "matrix-market", "ansys-full", "ansys-mmf", "abaqus", "nastran-dmig", "nastran-op4",
 )  # fmt: skip
 INTERFACE_KINDS = ("rigid", "distributing", "beams", "springs")
+#: Files a job can write per reduction (``[export] outputs``), and the job's HTML report.
+EXPORT_KINDS = ("npz", "mtx", "mat", "sid", "neweul", "exudyn", "report")
+DEFAULT_EXPORTS = ("npz", "mtx")
 _NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$")
 
 
@@ -89,6 +92,37 @@ class ReductionSpec:
 
 
 @dataclass(frozen=True)
+class ExportSpec:
+    """``[export]``: which files to write and for which nodes (SID frame, Exudyn markers).
+
+    ``nodes`` None: the nodes of the inputs and outputs.
+    """
+
+    outputs: tuple[str, ...] = DEFAULT_EXPORTS
+    nodes: tuple[int, ...] | None = None
+
+
+@dataclass(frozen=True)
+class TimeDomainSpec:
+    """``[time_domain]``: the load cases of paper section 5.1 and how to integrate them.
+
+    The body is clamped at ``clamp_node``; a force ``force_n`` (N, along x y z) acts at
+    ``load_node`` as a step and as ``force_n * sin(2 pi harmonic_hz t)``; the displacement of
+    ``load_node`` is compared between the full FE model and each reduced model.
+    """
+
+    clamp_node: int
+    load_node: int
+    force_n: tuple[float, float, float] = (-100.0, -100.0, -100.0)
+    harmonic_hz: float = 10.0
+    cases: tuple[str, ...] = ("step", "harmonic")
+    duration_s: float = 0.2
+    step_s: float = 5e-5
+    rho_inf: float | None = None
+    exudyn: bool = False
+
+
+@dataclass(frozen=True)
 class Job:
     """A parsed reduction job."""
 
@@ -103,6 +137,8 @@ class Job:
     points: int
     reductions: tuple[ReductionSpec, ...]
     title: str = ""
+    export: ExportSpec = ExportSpec()
+    time_domain: TimeDomainSpec | None = None
 
 
 class _Table:
@@ -217,6 +253,8 @@ def parse_job(data: dict[str, Any], path: Path) -> Job:
             f"{path}: [band]: f_max_hz ({f_max}) must be greater than f_min_hz ({f_min})"
         )
     reductions = _reductions(top.get("reduction", required=True), path)
+    export = _export(top.get("export"), path)
+    time_domain = _time_domain(top.get("time_domain"), path)
     top.done()
     return Job(
         path,
@@ -230,6 +268,8 @@ def parse_job(data: dict[str, Any], path: Path) -> Job:
         points,
         reductions,
         title,
+        export,
+        time_domain,
     )
 
 
@@ -358,6 +398,74 @@ def _damping(data: Any, path: Path) -> Damping | None:
         return Damping(kind, alpha, beta, ratio)
     except UserError as exc:
         raise UserError(f"{path}: [damping]: {exc}") from None
+
+
+def _export(data: Any, path: Path) -> ExportSpec:
+    if data is None:
+        return ExportSpec()
+    table = _Table(data, "[export]", path)
+    outputs = table.get("outputs", list(DEFAULT_EXPORTS))
+    if not isinstance(outputs, list) or not all(isinstance(o, str) for o in outputs):
+        raise table.error("outputs", f"must be a list of names like {list(EXPORT_KINDS)}")
+    for name in outputs:
+        if name not in EXPORT_KINDS:
+            hint = difflib.get_close_matches(name, EXPORT_KINDS, n=1)
+            more = (
+                f"; did you mean '{hint[0]}'?" if hint else f" (one of {', '.join(EXPORT_KINDS)})"
+            )
+            raise table.error("outputs", f"unknown output {name!r}{more}")
+    nodes = table.get("nodes")
+    if nodes is not None and (
+        not isinstance(nodes, list)
+        or not nodes
+        or not all(isinstance(i, int) and not isinstance(i, bool) for i in nodes)
+    ):
+        raise table.error("nodes", f"must be a list of node ids, got {nodes!r}")
+    table.done()
+    return ExportSpec(
+        tuple(dict.fromkeys(outputs)), None if nodes is None else tuple(dict.fromkeys(nodes))
+    )
+
+
+def _time_domain(data: Any, path: Path) -> TimeDomainSpec | None:
+    if data is None:
+        return None
+    table = _Table(data, "[time_domain]", path)
+    clamp = table.integer("clamp_node", required=True, minimum=-(2**62))
+    load = table.integer("load_node", required=True, minimum=-(2**62))
+    force = _vector(table, "force_n") or (-100.0, -100.0, -100.0)
+    harmonic = table.number("harmonic_hz", 10.0, minimum=0.0)
+    cases = table.get("cases", ["step", "harmonic"])
+    if (
+        not isinstance(cases, list)
+        or not cases
+        or not all(c in ("step", "harmonic") for c in cases)
+        or len(set(cases)) != len(cases)
+    ):
+        raise table.error("cases", f"must be a list of 'step' and/or 'harmonic', got {cases!r}")
+    duration = table.number("duration_s", 0.2)
+    step = table.number("step_s", 5e-5)
+    rho_inf = table.number("rho_inf", minimum=0.0)
+    exudyn = table.get("exudyn", False)
+    table.done()
+    if not isinstance(exudyn, bool):
+        raise table.error("exudyn", f"must be true or false, got {exudyn!r}")
+    if not duration > 0 or not step > 0:
+        raise UserError(f"{path}: [time_domain]: duration_s and step_s must be positive")
+    if duration / step > 1e6:
+        raise UserError(
+            f"{path}: [time_domain]: {duration / step:.3g} steps; use at most 1e6 "
+            "(a larger step_s or a shorter duration_s)"
+        )
+    if step > duration:
+        raise table.error("step_s", f"({step}) is longer than duration_s ({duration})")
+    if rho_inf is not None and rho_inf > 1:
+        raise table.error("rho_inf", f"must lie in [0, 1], got {rho_inf}")
+    if clamp == load:
+        raise UserError(f"{path}: [time_domain]: clamp_node and load_node are the same node")
+    return TimeDomainSpec(
+        clamp, load, force, harmonic, tuple(cases), duration, step, rho_inf, exudyn
+    )
 
 
 def _frame(table: _Table) -> Frame:

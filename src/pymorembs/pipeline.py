@@ -15,7 +15,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import scipy.io
 
 from pymorembs import __version__
 from pymorembs.analysis.error import frequency_grid, relative_error
@@ -24,6 +23,7 @@ from pymorembs.body import ElasticBody
 from pymorembs.config import Job, ModelSpec, ReductionSpec
 from pymorembs.errors import NumericalError, UserError
 from pymorembs.examples import build_example
+from pymorembs.export.outputs import write_outputs
 from pymorembs.io.atomic import atomic_path, write_text
 from pymorembs.io.formats import read_body
 from pymorembs.prepare import PreparedModel, prepare
@@ -193,6 +193,20 @@ def _first_stage(
     )
 
 
+def export_nodes(job: Job) -> list[int]:
+    """The frame nodes of the exported body: ``[export] nodes``, else the port nodes.
+
+    The clamp and load nodes of ``[time_domain]`` are added (the multibody check needs them).
+    """
+    if job.export.nodes is not None:
+        nodes = list(job.export.nodes)
+    else:
+        nodes = [port.node for port in (*job.inputs, *job.outputs)]
+    if job.time_domain is not None:
+        nodes += [job.time_domain.load_node, job.time_domain.clamp_node]
+    return list(dict.fromkeys(nodes))
+
+
 def run_job(job: Job, out_dir: str | Path, progress: Progress | None = None) -> dict[str, Any]:
     """Run ``job`` and write its results into ``out_dir``; return the summary.
 
@@ -223,12 +237,16 @@ def run_job(job: Job, out_dir: str | Path, progress: Progress | None = None) -> 
     parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=parent))
     try:
-        entries, errors, estimates, decay = [], {}, {}, {}
+        entries, errors, estimates, decay, models = [], {}, {}, {}, {}
+        outputs = job.export.outputs
+        nodes = export_nodes(job)
         for spec in job.reductions:
             say(f"reduction '{spec.name}' ({spec.method})")
-            entry, eps, projection = _reduce_one(
-                prepared, spec, job.band_hz, frequencies, full_response, staging
+            entry, eps, model = _reduce_one(
+                prepared, spec, job.band_hz, frequencies, full_response, staging, outputs, nodes
             )
+            projection = model.projection
+            models[spec.name] = model
             if projection.error_curve is not None:
                 estimates[spec.name] = projection.error_curve
             for key, label in DECAY_SERIES:
@@ -300,7 +318,9 @@ def _reduce_one(
     frequencies: np.ndarray,
     full_response: np.ndarray,
     staging: Path,
-) -> tuple[dict[str, Any], np.ndarray, Projection]:
+    outputs: tuple[str, ...],
+    nodes: list[int],
+) -> tuple[dict[str, Any], np.ndarray, ReducedModel]:
     tick = time.perf_counter()
     projection = run_reduction(prepared.system, spec, band_hz)
     model = reduced_model(prepared.system, projection)  # checked before anything is written
@@ -315,7 +335,7 @@ def _reduce_one(
     static = float(eps[0]) if frequencies[0] == 0.0 else None
     folder = staging / spec.name
     folder.mkdir()
-    files = _write_reduced(model, prepared, folder)
+    files = write_outputs(model, prepared, spec.name, outputs, nodes, folder)
     curve = {} if projection.error_curve is None else {spec.name: projection.error_curve}
     plot_relative_errors(
         frequencies,
@@ -351,36 +371,7 @@ def _reduce_one(
         "eigenfrequencies_hz": model.eigenfrequencies_hz.tolist(),
         "files": [f"{spec.name}/{name}" for name in files],
     }
-    return entry, eps, projection
-
-
-def _write_reduced(model: ReducedModel, prepared: PreparedModel, folder: Path) -> list[str]:
-    """``reduced.npz`` and Matrix Market files of the reduced matrices."""
-    system = model.system
-    basis = prepared.expand(model.projection.V)  # eq. 18: all dofs
-    dofs = prepared.body.dofs
-    arrays = {
-        "M": system.mass,
-        "K": system.stiffness,
-        "D": model.damping_matrix,
-        "B": system.input_matrix,
-        "C": system.output_matrix,
-        "V": basis,
-        "eigenfrequencies_hz": model.eigenfrequencies_hz,
-        "dof_nodes": dofs.nodes,
-        "dof_directions": dofs.directions,
-        "input_labels": np.array(system.input_labels),
-        "output_labels": np.array(system.output_labels),
-    }
-    with atomic_path(folder / "reduced.npz") as tmp, open(tmp, "wb") as fh:
-        np.savez_compressed(fh, **arrays)
-    names = ["reduced.npz"]
-    for key in ("M", "K", "D", "B", "C"):
-        name = f"{key}.mtx"
-        with atomic_path(folder / name) as tmp:
-            scipy.io.mmwrite(str(tmp), np.asarray(arrays[key]), precision=17)
-        names.append(name)
-    return names
+    return entry, eps, model
 
 
 def _replace_folder(staging: Path, target: Path) -> None:

@@ -1,0 +1,229 @@
+"""One self-contained HTML page per job: facts, settings, plots, the table of methods, files.
+
+The plots are embedded as base64 PNG data URIs, so the page can be mailed or archived alone. The
+page is plain HTML5 with a small inline style sheet and no scripts.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import math
+from pathlib import Path
+from typing import Any
+
+from pymorembs.io.atomic import write_text
+
+_STYLE = """
+body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 68em; color: #222; }
+h1 { font-size: 1.5em; } h2 { font-size: 1.2em; margin-top: 1.6em; }
+table { border-collapse: collapse; margin: 0.5em 0; }
+th, td { border: 1px solid #bbb; padding: 0.25em 0.6em; text-align: right; }
+th { background: #eee; } td.text, th.text { text-align: left; }
+figure { margin: 1em 0; } figcaption { font-size: 0.9em; color: #555; }
+img { max-width: 100%; border: 1px solid #ddd; }
+pre { background: #f6f6f6; padding: 0.8em; overflow-x: auto; font-size: 0.85em; }
+.warning { color: #a40; }
+"""
+
+
+def write_report(
+    path: str | Path,
+    summary: dict[str, Any],
+    figures: list[tuple[Path, str]],
+    job_text: str = "",
+) -> Path:
+    """Write the HTML report of a job.
+
+    Parameters
+    ----------
+    path : path
+        The ``.html`` file to write (atomically).
+    summary : dict
+        The job summary (the content of ``summary.json``).
+    figures : list of (path, caption)
+        PNG files to embed, in order.
+    job_text : str
+        The job file as given, shown verbatim.
+    """
+    e = html.escape
+    model = summary["model"]
+    title = summary.get("title") or f"Reduction of {model['name']}"
+    parts = [
+        "<!DOCTYPE html>",
+        '<html lang="en">',
+        "<head>",
+        '<meta charset="utf-8">',
+        f"<title>{e(title)}</title>",
+        f"<style>{_STYLE}</style>",
+        "</head>",
+        "<body>",
+        f"<h1>{e(title)}</h1>",
+        f"<p>pymorembs {e(str(summary.get('pymorembs_version', '')))}, job "
+        f"<code>{e(str(summary.get('job', '')))}</code>.</p>",
+        "<h2>Model</h2>",
+        _facts_table(model),
+        "<h2>Settings</h2>",
+        _settings_table(summary),
+    ]
+    if job_text:
+        parts += ["<details><summary>Job file</summary>", f"<pre>{e(job_text)}</pre>", "</details>"]
+    warnings = summary.get("warnings") or []
+    if warnings:
+        parts.append("<h2>Warnings</h2><ul>")
+        parts += [f'<li class="warning">{e(w)}</li>' for w in warnings]
+        parts.append("</ul>")
+    parts += ["<h2>Reductions</h2>", _methods_table(summary["reductions"])]
+    time_domain = summary.get("time_domain")
+    if time_domain:
+        parts += ["<h2>Time domain (paper section 5.1)</h2>", _time_table(time_domain)]
+    if figures:
+        parts.append("<h2>Figures</h2>")
+    for figure, caption in figures:
+        data = base64.b64encode(Path(figure).read_bytes()).decode("ascii")
+        parts += [
+            "<figure>",
+            f'<img src="data:image/png;base64,{data}" alt="{e(caption)}">',
+            f"<figcaption>{e(caption)}</figcaption>",
+            "</figure>",
+        ]
+    parts += ["<h2>Files written</h2>", _files_list(summary), "</body>", "</html>"]
+    return write_text(path, "\n".join(parts) + "\n")
+
+
+def _row(cells: list[str], header: bool = False, text_columns: int = 1) -> str:
+    tag = "th" if header else "td"
+    out = []
+    for k, cell in enumerate(cells):
+        css = ' class="text"' if k < text_columns else ""
+        out.append(f"<{tag}{css}>{html.escape(cell)}</{tag}>")
+    return "<tr>" + "".join(out) + "</tr>"
+
+
+def _number(value: Any, digits: int = 3) -> str:
+    if value is None:
+        return "–"
+    if isinstance(value, float):
+        if not math.isfinite(value):
+            return str(value)
+        return (
+            f"{value:.{digits}g}" if abs(value) >= 1e-3 or value == 0 else f"{value:.{digits - 1}e}"
+        )
+    return str(value)
+
+
+def _facts_table(model: dict[str, Any]) -> str:
+    frame = model.get("frame", {})
+    frame_text = frame.get("type", "")
+    if frame.get("node") is not None:
+        frame_text += f" at node {frame['node']}"
+    damping = model.get("damping", {})
+    kind = damping.get("kind", "none")
+    damping_text = {
+        "rayleigh": f"Rayleigh, alpha = {damping.get('alpha')} 1/s, beta = {damping.get('beta')} s",
+        "modal": f"modal, ratio {damping.get('ratio')}",
+    }.get(kind, kind)
+    rows = [
+        ("model", str(model.get("name", ""))),
+        ("dofs (all / independent)", f"{model.get('n_dof')} / {model.get('n_independent')}"),
+        ("nodes", str(model.get("n_nodes"))),
+        ("dependent / fixed dofs", f"{model.get('n_dependent')} / {model.get('n_fixed')}"),
+        ("total mass", f"{_number(model.get('total_mass'), 6)} (model unit, kg in SI)"),
+        ("reference frame", frame_text),
+        ("damping", damping_text),
+        ("inputs", ", ".join(model.get("inputs", []))),
+        ("outputs", ", ".join(model.get("outputs", []))),
+    ]
+    body = "".join(_row([a, b], text_columns=2) for a, b in rows)
+    return f"<table>{body}</table>"
+
+
+def _settings_table(summary: dict[str, Any]) -> str:
+    band = summary.get("band_hz", [None, None])
+    rows = [
+        ("frequency band", f"{band[0]} – {band[1]} Hz, {summary.get('n_frequencies')} points"),
+    ]
+    timings = summary.get("timings_s", {})
+    for key, value in timings.items():
+        rows.append((key.removesuffix("_s").replace("_", " ") + " [s]", _number(value)))
+    body = "".join(_row([a, b], text_columns=2) for a, b in rows)
+    return f"<table>{body}</table>"
+
+
+def _methods_table(reductions: list[dict[str, Any]]) -> str:
+    header = _row(
+        [
+            "reduction",
+            "method",
+            "order",
+            "max rel. error",
+            "at 0 Hz",
+            "estimate",
+            "bound",
+            "time [s]",
+        ],
+        header=True,
+        text_columns=2,
+    )
+    rows = [
+        _row(
+            [
+                r["name"],
+                r["method"],
+                str(r["order"]),
+                _number(r.get("max_rel_error")),
+                _number(r.get("static_rel_error")),
+                _number(r.get("error_estimate")),
+                _number(r.get("error_bound")),
+                _number(r.get("time_s")),
+            ],
+            text_columns=2,
+        )
+        for r in reductions
+    ]
+    return "<table>" + header + "".join(rows) + "</table>"
+
+
+def _time_table(time_domain: dict[str, Any]) -> str:
+    header = _row(
+        ["load case", "reduction", "max rel. deviation", "speed-up", "time [s]"],
+        header=True,
+        text_columns=2,
+    )
+    rows = []
+    for case in time_domain.get("cases", []):
+        for entry in case.get("reductions", []):
+            rows.append(
+                _row(
+                    [
+                        case["name"],
+                        entry["name"],
+                        _number(entry.get("max_rel_deviation")),
+                        _number(entry.get("speedup")),
+                        _number(entry.get("time_s")),
+                    ],
+                    text_columns=2,
+                )
+            )
+    note = ""
+    settings = time_domain.get("settings")
+    if settings:
+        note = (
+            "<p>"
+            + html.escape(", ".join(f"{key} = {value}" for key, value in settings.items()))
+            + "</p>"
+        )
+    return note + "<table>" + header + "".join(rows) + "</table>"
+
+
+def _files_list(summary: dict[str, Any]) -> str:
+    names = list(summary.get("files", []))
+    for r in summary.get("reductions", []):
+        names += r.get("files", [])
+    items = "".join(
+        f'<li><a href="{html.escape(name)}">{html.escape(name)}</a></li>' for name in names
+    )
+    return f"<ul>{items}</ul>"
+
+
+__all__ = ["write_report"]
