@@ -18,6 +18,7 @@ import numpy as np
 
 from pymorembs import __version__
 from pymorembs.analysis.error import frequency_grid, relative_error
+from pymorembs.analysis.time_domain_job import time_domain_checks
 from pymorembs.analysis.transfer import transfer_function
 from pymorembs.body import ElasticBody
 from pymorembs.config import Job, ModelSpec, ReductionSpec
@@ -39,6 +40,7 @@ from pymorembs.reduce.modal_family import (
 )
 from pymorembs.reduce.projection import Projection, ReducedModel, reduced_model
 from pymorembs.reduce.soaga import soaga_reduction
+from pymorembs.report.html_report import write_report
 from pymorembs.report.plots import plot_decay, plot_relative_errors
 from pymorembs.system import SecondOrderSystem
 
@@ -269,9 +271,30 @@ def run_job(job: Job, out_dir: str | Path, progress: Progress | None = None) -> 
             estimates=estimates,
         )
         overview = ["summary.json", "error.png"]
+        figures = [(staging / "error.png", "Relative error eps(f) of eq. 27; dashed: estimators")]
         if decay:
             plot_decay(decay, staging / "decay.png")
             overview.append("decay.png")
+            figures.append((staging / "decay.png", "Decay of singular values (paper Fig. 11)"))
+        time_domain = None
+        if job.time_domain is not None:
+            tick = time.perf_counter()
+            time_domain = time_domain_checks(
+                job.time_domain, body, job.frame, prepared, models, nodes,
+                staging / "time.png", say,
+            )  # fmt: skip
+            timings["time_domain_s"] = time.perf_counter() - tick
+            overview.append("time.png")
+            figures.append((staging / "time.png", "Time responses (paper Fig. 12)"))
+            for entry in entries:
+                entry["time_domain"] = {
+                    case["name"]: row
+                    for case in time_domain["cases"]
+                    for row in case["reductions"]
+                    if row["name"] == entry["name"]
+                }
+        if "report" in job.export.outputs:
+            overview.append("report.html")
         timings["total_s"] = time.perf_counter() - clock
         summary = {
             "pymorembs_version": __version__,
@@ -303,6 +326,12 @@ def run_job(job: Job, out_dir: str | Path, progress: Progress | None = None) -> 
             "timings_s": timings,
             "files": overview,
         }
+        if time_domain is not None:
+            summary["time_domain"] = time_domain
+        if job.title:
+            summary["title"] = job.title
+        if "report" in job.export.outputs:
+            write_report(staging / "report.html", summary, figures, _job_text(job.path))
         write_text(staging / "summary.json", json.dumps(summary, indent=2, allow_nan=False) + "\n")
         _replace_folder(staging, out_dir)
     except BaseException:
@@ -372,6 +401,13 @@ def _reduce_one(
         "files": [f"{spec.name}/{name}" for name in files],
     }
     return entry, eps, model
+
+
+def _job_text(path: Path) -> str:
+    try:
+        return Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return ""
 
 
 def _replace_folder(staging: Path, target: Path) -> None:

@@ -1,0 +1,217 @@
+"""Issue #5 end to end: a job writes every body output, runs the time-domain checks and the
+report, on rack-beams (Buckens frame, clamped at node 2 by a joint, as in paper section 5.1)."""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import subprocess
+
+import html5lib
+import numpy as np
+import pytest
+import scipy.io
+
+from pymorembs.cli import main
+from pymorembs.examples import build_example
+from pymorembs.export.exudyn_body import load_exudyn_body
+from pymorembs.export.sid import check_sid, read_sid, sid_invariants
+
+JOB = """
+title = "rack-beams as a multibody body"
+[model]
+example = "rack-beams"
+[damping]
+kind = "rayleigh"
+beta = 2e-6
+[frame]
+type = "buckens"
+[[inputs]]
+node = 1
+directions = "ux uy uz"
+[[inputs]]
+node = 2
+directions = "ux uy uz rx ry rz"
+[band]
+f_min_hz = 0
+f_max_hz = 1000
+points = 200
+[[reduction]]
+name = "krylov"
+method = "krylov"
+expansion_points_hz = [0, 500]
+moments = [3, 2]
+{extra_reduction}
+[export]
+outputs = {outputs}
+[time_domain]
+clamp_node = 2
+load_node = 1
+duration_s = 0.06
+step_s = 1e-4
+exudyn = true
+"""
+ALL = '["sid", "neweul", "exudyn", "npz", "mat", "mtx", "report"]'
+
+
+def run(argv, capsys):
+    code = main([str(a) for a in argv])
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+@pytest.fixture(scope="module")
+def mbs_run(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("mbs")
+    job = folder / "job.toml"
+    job.write_text(JOB.format(outputs=ALL, extra_reduction=""))
+    assert main(["reduce", str(job), "--out", str(folder / "out"), "--quiet"]) == 0
+    summary = json.loads((folder / "out" / "summary.json").read_text())
+    return folder / "out", summary
+
+
+def direct_mass_properties():
+    """Mass, centre of gravity and inertia tensor about it from the full M and the node
+    coordinates of rack-beams: rigid-body fields built node by node here, then the
+    parallel-axis theorem."""
+    body = build_example("rack-beams")
+    rigid = np.zeros((body.n_dof, 6))
+    for i, node in enumerate(body.node_ids):
+        rows = body.dofs.of_node(int(node))
+        arms = np.cross(np.eye(3), body.coordinates[i])  # row a: e_a x x
+        for row, d in zip(rows, body.dofs.directions[rows], strict=True):
+            rigid[row, d] = 1.0
+            if d < 3:
+                rigid[row, 3:] = arms[:, d]
+    total = rigid.T @ (body.mass @ rigid)
+    m = total[0, 0]
+    cross = -(total[:3, 3:] - total[:3, 3:].T) / (2 * m)  # -m [c]x block
+    cg = np.array([cross[2, 1], cross[0, 2], cross[1, 0]])
+    inertia = total[3:, 3:] - m * (cg @ cg * np.eye(3) - np.outer(cg, cg))
+    return m, cg, inertia
+
+
+def test_every_output_is_written_and_listed(mbs_run):
+    out, summary = mbs_run
+    (entry,) = summary["reductions"]
+    names = {name.split("/", 1)[1] for name in entry["files"]}
+    expected = {
+        "krylov.SID_FEM", "krylov_neweul.mat", "krylov_exudyn.npz", "reduced.npz",
+        "reduced.mat", "M.mtx", "K.mtx", "D.mtx", "B.mtx", "C.mtx",
+    }  # fmt: skip
+    assert expected <= names
+    for name in entry["files"] + summary["files"]:
+        assert (out / name).is_file(), name
+    assert {"summary.json", "error.png", "time.png", "report.html"} <= set(summary["files"])
+
+
+def test_sid_has_the_mass_properties_of_the_fe_model(mbs_run):
+    out, _ = mbs_run
+    sid = read_sid(out / "krylov" / "krylov.SID_FEM")
+    assert check_sid(sid) == []
+    values = sid_invariants(sid)
+    m, cg, inertia = direct_mass_properties()
+    assert abs(values["mass"] - m) <= 1e-10 * m
+    # Buckens frame: origin in the centre of gravity, so the first moment vanishes
+    assert np.linalg.norm(values["centre_of_gravity"]) <= 1e-10 * np.abs(cg).max()
+    np.testing.assert_allclose(
+        values["inertia"], inertia, rtol=0, atol=1e-10 * np.abs(inertia).max()
+    )
+    npz = np.load(out / "krylov" / "reduced.npz")
+    np.testing.assert_allclose(values["Me"], npz["M"], atol=1e-10)
+    np.testing.assert_allclose(
+        values["Ke"], npz["K"], rtol=1e-10, atol=1e-10 * np.abs(npz["K"]).max()
+    )
+    text = (out / "krylov" / "krylov.SID_FEM").read_text().splitlines()
+    assert re.match(r"^\s*\d+\s+\d+\s+:No\. nodes, No\. modes:", text[0])
+    assert all("E+" not in line and "E-" not in line for line in text)  # D exponents
+
+
+def test_neweul_and_exudyn_files_hold_the_same_body(mbs_run):
+    out, _ = mbs_run
+    sid = sid_invariants(read_sid(out / "krylov" / "krylov.SID_FEM"))
+    neweul = scipy.io.loadmat(out / "krylov" / "krylov_neweul.mat")
+    assert float(neweul["mass"].squeeze()) == pytest.approx(sid["mass"], rel=1e-10)
+    np.testing.assert_allclose(neweul["Ke"], sid["Ke"], rtol=1e-10, atol=1e-6)
+    exudyn = load_exudyn_body(out / "krylov" / "krylov_exudyn.npz")
+    assert float(exudyn["physicsMass"]) == pytest.approx(sid["mass"], rel=1e-10)
+    np.testing.assert_allclose(exudyn["physicsInertia"], sid["inertia"], rtol=1e-10, atol=1e-12)
+
+
+def test_time_domain_entries(mbs_run):
+    _, summary = mbs_run
+    cases = {case["name"]: case for case in summary["time_domain"]["cases"]}
+    assert set(cases) == {"step", "harmonic"}
+    for case in cases.values():
+        (row,) = case["reductions"]
+        assert row["max_rel_deviation"] < 1e-6  # Krylov order 46 vs the full FE model
+        assert row["speedup"] > 1
+        assert row["exudyn_clamp"] == "joint"
+        # Exudyn with the exported Buckens body on a rigid joint: linear for small motion
+        assert row["exudyn_small_load_max_rel_deviation"] < 1e-4
+    (entry,) = summary["reductions"]
+    assert set(entry["time_domain"]) == {"step", "harmonic"}
+
+
+def test_report_is_valid_html_with_all_plots(mbs_run):
+    out, summary = mbs_run
+    text = (out / "report.html").read_text()
+    document = html5lib.HTMLParser(strict=True).parse(text)
+    images = document.findall(".//{http://www.w3.org/1999/xhtml}img")
+    assert len(images) == 2  # error (with estimators) and time responses; no decay for Krylov
+    for name in summary["reductions"][0]["files"]:
+        assert name in text
+
+
+@pytest.mark.skipif(shutil.which("chromium") is None, reason="chromium not installed")
+def test_report_renders_in_headless_chromium(mbs_run, tmp_path):
+    """Every embedded image decodes in a real browser (naturalWidth > 0)."""
+    out, _ = mbs_run
+    text = (out / "report.html").read_text()
+    probe = (
+        "<script>window.addEventListener('load', () => { const ok = [...document.images]"
+        ".filter(i => i.complete && i.naturalWidth > 0).length; document.title = "
+        "'decoded ' + ok + ' of ' + document.images.length; });</script></body>"
+    )
+    page = tmp_path / "probe.html"
+    page.write_text(text.replace("</body>", probe))
+    result = subprocess.run(
+        [
+            "chromium",
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-quic",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            f"--user-data-dir={tmp_path / 'profile'}",
+            "--virtual-time-budget=5000",
+            "--dump-dom",
+            page.as_uri(),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert "<title>decoded 2 of 2</title>" in result.stdout, result.stderr[-2000:]
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (("outputs = " + ALL, 'outputs = ["sid", "sdi"]'), "did you mean 'sid'"),
+        (('kind = "rayleigh"\nbeta = 2e-6', 'kind = "modal"\nratio = 0.01'), "Rayleigh"),
+        (("moments = [3, 2]", "moments = [3, 2]\ntwo_sided = true"), "one-sided"),
+        (("clamp_node = 2", "clamp_node = 1"), "same node"),
+    ],
+)
+def test_bad_mbs_jobs_exit_2(change, message, tmp_path, capsys):
+    job = tmp_path / "job.toml"
+    job.write_text(JOB.format(outputs=ALL, extra_reduction="").replace(*change))
+    code, _, err = run(["reduce", job, "--out", tmp_path / "out"], capsys)
+    assert code == 2
+    assert message in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "out").exists()
