@@ -271,7 +271,10 @@ def run_job(job: Job, out_dir: str | Path, progress: Progress | None = None) -> 
             estimates=estimates,
         )
         overview = ["summary.json", "error.png"]
-        figures = [(staging / "error.png", "Relative error eps(f) of eq. 27; dashed: estimators")]
+        caption = "Relative error ε(f) of eq. 27 of every reduction"
+        if estimates:
+            caption += "; dashed: the error estimators"
+        figures = [(staging / "error.png", caption)]
         if decay:
             plot_decay(decay, staging / "decay.png")
             overview.append("decay.png")
