@@ -206,6 +206,9 @@ def test_report_renders_in_headless_chromium(mbs_run, tmp_path):
         (('kind = "rayleigh"\nbeta = 2e-6', 'kind = "modal"\nratio = 0.01'), "Rayleigh"),
         (("moments = [3, 2]", "moments = [3, 2]\ntwo_sided = true"), "one-sided"),
         (("clamp_node = 2", "clamp_node = 1"), "same node"),
+        (("[export]", "[export]\nnodes = [1, 99999]"), "node 99999 has no dofs"),
+        (("load_node = 1", "load_node = 99999"), "node 99999 has no dofs"),
+        (("clamp_node = 2", "clamp_node = 1001"), "cannot move"),
     ],
 )
 def test_bad_mbs_jobs_exit_2(change, message, tmp_path, capsys):

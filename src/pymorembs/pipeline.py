@@ -18,13 +18,14 @@ import numpy as np
 
 from pymorembs import __version__
 from pymorembs.analysis.error import frequency_grid, relative_error
+from pymorembs.analysis.time_domain import clamped_full_system
 from pymorembs.analysis.time_domain_job import time_domain_checks
 from pymorembs.analysis.transfer import transfer_function
 from pymorembs.body import ElasticBody
 from pymorembs.config import Job, ModelSpec, ReductionSpec
 from pymorembs.errors import NumericalError, UserError
 from pymorembs.examples import build_example
-from pymorembs.export.outputs import write_outputs
+from pymorembs.export.outputs import BODY_OUTPUTS, write_outputs
 from pymorembs.io.atomic import atomic_path, write_text
 from pymorembs.io.formats import read_body
 from pymorembs.prepare import PreparedModel, prepare
@@ -209,6 +210,65 @@ def export_nodes(job: Job) -> list[int]:
     return list(dict.fromkeys(nodes))
 
 
+def check_requests(job: Job, body: ElasticBody) -> None:
+    """Reject export and time-domain requests that cannot be met, before any expensive step.
+
+    Raises
+    ------
+    UserError
+        A frame node of ``[export]`` or a node of ``[time_domain]`` is not in the model or
+        lacks the dofs it needs; a body output of a two-sided reduction; a time-domain check
+        without viscous damping.
+    """
+
+    def dofs_of(node: int, key: str) -> set[int]:
+        indices = body.dofs.of_node(node)
+        if indices.size == 0:
+            raise UserError(f"{job.path}: {key}: node {node} has no dofs in the model")
+        return {int(d) for d in body.dofs.directions[indices]}
+
+    wants_body = any(kind in job.export.outputs for kind in BODY_OUTPUTS)
+    spec = job.time_domain
+    if wants_body or (spec is not None and spec.exudyn):
+        for node in export_nodes(job):
+            if not {0, 1, 2} <= dofs_of(node, "[export] nodes"):
+                raise UserError(
+                    f"{job.path}: [export] nodes: node {node} lacks translational dofs "
+                    "(a frame node of the body needs ux uy uz)"
+                )
+        for reduction in job.reductions:
+            if reduction.options.get("two_sided"):
+                raise UserError(
+                    f"{job.path}: reduction '{reduction.name}': SID, Neweul-M² and Exudyn bodies "
+                    "need a one-sided (Galerkin) projection; drop two_sided or write only matrices"
+                )
+    if spec is None:
+        return
+    if not {0, 1, 2} <= dofs_of(spec.load_node, "[time_domain] load_node"):
+        raise UserError(
+            f"{job.path}: [time_domain] load_node: node {spec.load_node} lacks ux uy uz"
+        )
+    held_by_frame = job.frame.kind == "tangent" and job.frame.node == spec.clamp_node
+    clamp_dofs = dofs_of(spec.clamp_node, "[time_domain] clamp_node")
+    if not held_by_frame and clamp_dofs != set(range(6)):
+        raise UserError(
+            f"{job.path}: [time_domain] clamp_node: node {spec.clamp_node} needs all six dofs "
+            "to clamp a body whose frame is elsewhere (add an interface node there)"
+        )
+    if body.damping.kind == "modal":
+        raise UserError(
+            f"{job.path}: [time_domain]: modal damping is a loss factor in the frequency domain "
+            "and has no damping matrix of the full model; use Rayleigh damping "
+            '([damping] kind = "rayleigh")'
+        )
+    clamped = clamped_full_system(body, spec.clamp_node, spec.load_node)
+    if not np.any(clamped.input_matrix):
+        raise UserError(
+            f"{job.path}: [time_domain]: node {spec.load_node} cannot move when the body is "
+            f"clamped at node {spec.clamp_node} (both on one rigid part?); choose other nodes"
+        )
+
+
 def run_job(job: Job, out_dir: str | Path, progress: Progress | None = None) -> dict[str, Any]:
     """Run ``job`` and write its results into ``out_dir``; return the summary.
 
@@ -223,6 +283,7 @@ def run_job(job: Job, out_dir: str | Path, progress: Progress | None = None) -> 
 
     say("loading the model, interfaces, frame, constraint elimination, inputs and outputs")
     body, prepared = prepare_job(job)
+    check_requests(job, body)  # before anything expensive
     system = prepared.system
     timings["prepare_s"] = time.perf_counter() - clock
     warnings = list(prepared.warnings)
