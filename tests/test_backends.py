@@ -1,0 +1,190 @@
+"""Sparse direct solver backends: SuperLU always, MKL PARDISO when installed."""
+
+from __future__ import annotations
+
+import gc
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from pymorembs.errors import NumericalError, UserError
+from pymorembs.linalg import backends
+from pymorembs.linalg.backends import available_backends, default_backend, factorize
+from pymorembs.linalg.factorization import Factorization, is_symmetric
+
+BACKENDS = available_backends()
+N = 60
+
+
+def _random_symmetric(kind: str, seed: int = 0) -> sp.csr_matrix:
+    """A sparse well-conditioned test matrix: "spd", "indefinite", "complex" (symmetric) or
+    "nonsymmetric"."""
+    rng = np.random.default_rng(seed)
+    a = sp.random(N, N, density=0.08, random_state=rng)
+    if kind == "nonsymmetric":
+        return sp.csr_matrix(a + sp.diags(4.0 + rng.random(N)))
+    a = a + a.T
+    if kind == "spd":
+        return sp.csr_matrix(a + sp.diags(np.abs(a).sum(axis=1).A1 + 1.0))
+    signs = np.where(np.arange(N) % 2 == 0, 1.0, -1.0)
+    shifted = sp.csr_matrix(a + sp.diags(signs * (np.abs(a).sum(axis=1).A1 + 1.0)))
+    if kind == "indefinite":
+        return shifted
+    return sp.csr_matrix(shifted + 0.3j * sp.diags(rng.random(N)) + 0.05j * a)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("kind", ["spd", "indefinite", "complex", "nonsymmetric"])
+def test_solutions_match_dense(backend: str, kind: str) -> None:
+    matrix = _random_symmetric(kind)
+    symmetric = kind != "nonsymmetric"
+    factor = factorize(matrix, symmetric=symmetric, backend=backend)
+    assert factor.backend == backend
+    assert factor.seconds >= 0 and factor.nnz_factor > 0 and factor.memory_bytes > 0
+    rng = np.random.default_rng(1)
+    block = rng.standard_normal((N, 4))
+    dense = matrix.toarray()
+    x = factor.solve(block)  # several right-hand sides in one call
+    assert x.shape == (N, 4)
+    np.testing.assert_allclose(x, np.linalg.solve(dense, block), rtol=0, atol=1e-12)
+    vector = block[:, 0] + 1j * block[:, 1]  # one vector; complex with a real factor too
+    np.testing.assert_allclose(
+        factor.solve(vector), np.linalg.solve(dense, vector), rtol=0, atol=1e-12
+    )
+    assert factor.solve(np.zeros((N, 0))).shape == (N, 0)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_symmetric_factor_reads_upper_triangle_only(backend: str) -> None:
+    matrix = _random_symmetric("indefinite")
+    # the lower triangle of a symmetric matrix carries no information; PARDISO ignores it
+    factor = factorize(matrix, symmetric=True, backend=backend)
+    b = np.arange(N, dtype=float)
+    np.testing.assert_allclose(matrix @ factor.solve(b), b, rtol=0, atol=1e-10)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_singular_matrix_is_a_numerical_error(backend: str) -> None:
+    singular = sp.csr_matrix(np.array([[1.0, 1.0, 0.0], [1.0, 1.0, 0.0], [0.0, 0.0, 2.0]]))
+    with pytest.raises(NumericalError, match="singular"):
+        factorize(singular, symmetric=True, backend=backend)
+    with pytest.raises(NumericalError, match=r"^K is singular"):
+        Factorization(singular, label="K", backend=backend).solve(np.ones(3))
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_factorization_uses_backend_and_refines(backend: str) -> None:
+    k = _random_symmetric("spd", seed=3)
+    m = sp.diags(np.linspace(1.0, 2.0, N)).tocsr()
+    terms = [(1.0, k), (-(0.5 + 0.1j), m)]
+    factorization = Factorization(terms, label="test", backend=backend)
+    assert factorization.symmetric and factorization.factor.backend == backend
+    rhs = np.random.default_rng(2).standard_normal((N, 3))
+    dense = k.toarray() - (0.5 + 0.1j) * m.toarray()
+    np.testing.assert_allclose(
+        factorization.solve(rhs), np.linalg.solve(dense, rhs), rtol=0, atol=1e-13
+    )
+
+
+def test_nonsymmetric_terms_are_factorized_as_nonsymmetric() -> None:
+    a = _random_symmetric("nonsymmetric")
+    assert not is_symmetric(a)
+    assert is_symmetric(_random_symmetric("indefinite"))
+    factorization = Factorization(a)
+    assert not factorization.symmetric
+    b = np.ones(N)
+    np.testing.assert_allclose(a @ factorization.solve(b), b, rtol=0, atol=1e-12)
+
+
+def test_environment_selects_the_backend(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("PYMOREMBS_SOLVER", "superlu")
+    assert default_backend() == "superlu"
+    assert factorize(_random_symmetric("spd"), symmetric=True).backend == "superlu"
+    assert Factorization(_random_symmetric("spd")).factor.backend == "superlu"
+    monkeypatch.setenv("PYMOREMBS_SOLVER", "auto")
+    assert default_backend() == BACKENDS[-1]
+    # small matrices go to SuperLU under "auto": PARDISO's fixed costs dominate there
+    assert factorize(_random_symmetric("spd"), symmetric=True).backend == "superlu"
+    monkeypatch.setenv("PYMOREMBS_SOLVER", "umfpack")
+    with pytest.raises(UserError, match="PYMOREMBS_SOLVER"):
+        default_backend()
+    monkeypatch.setenv("PYMOREMBS_SOLVER", "pardiso")
+    if "pardiso" in BACKENDS:
+        assert default_backend() == "pardiso"
+    else:
+        with pytest.raises(UserError, match="not available"):
+            default_backend()
+    with pytest.raises(UserError, match="unknown solver backend"):
+        factorize(_random_symmetric("spd"), symmetric=True, backend="mumps")
+
+
+def test_superlu_is_always_available() -> None:
+    assert available_backends()[0] == "superlu"
+
+
+def test_thread_count_from_environment(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("PYMOREMBS_SOLVER_THREADS", "1")
+    assert backends.solver_threads() == 1
+    monkeypatch.setenv("PYMOREMBS_SOLVER_THREADS", "two")
+    with pytest.raises(UserError, match="PYMOREMBS_SOLVER_THREADS"):
+        backends.solver_threads()
+    monkeypatch.delenv("PYMOREMBS_SOLVER_THREADS")
+    assert backends.solver_threads() >= 1
+
+
+# --- PARDISO only -------------------------------------------------------------------------------
+
+
+@pytest.fixture
+def pardiso() -> None:
+    if "pardiso" not in BACKENDS:  # not installed, or MKL not loadable
+        pytest.skip("MKL PARDISO is not available")
+    pytest.importorskip("pypardiso")
+
+
+@pytest.mark.usefixtures("pardiso")
+def test_pardiso_matrix_types_and_inertia() -> None:
+    indefinite = factorize(_random_symmetric("indefinite"), symmetric=True, backend="pardiso")
+    assert indefinite.mtype == -2 and indefinite.perturbed_pivots == 0
+    eigenvalues = np.linalg.eigvalsh(_random_symmetric("indefinite").toarray())
+    assert indefinite.inertia == (np.sum(eigenvalues > 0), np.sum(eigenvalues < 0))
+    assert factorize(_random_symmetric("complex"), symmetric=True, backend="pardiso").mtype == 6
+    nonsymmetric = _random_symmetric("nonsymmetric")
+    assert factorize(nonsymmetric, symmetric=False, backend="pardiso").mtype == 11
+    assert factorize(nonsymmetric * (1 + 1j), symmetric=False, backend="pardiso").mtype == 13
+
+
+@pytest.mark.usefixtures("pardiso")
+def test_pardiso_factors_are_independent_and_freed() -> None:
+    a, b = _random_symmetric("indefinite", 5), _random_symmetric("complex", 6)
+    first = factorize(a, symmetric=True, backend="pardiso")
+    second = factorize(b, symmetric=True, backend="pardiso")  # its own handle
+    rhs = np.ones(N)
+    np.testing.assert_allclose(a @ first.solve(rhs), rhs, atol=1e-12)
+    np.testing.assert_allclose(b @ second.solve(rhs), rhs, atol=1e-12)
+    handle = first._pt
+    del first
+    gc.collect()
+    assert not handle.any()  # phase -1 released the memory
+    np.testing.assert_allclose(b @ second.solve(rhs), rhs, atol=1e-12)
+
+
+@pytest.mark.usefixtures("pardiso")
+def test_pardiso_perturbed_pivots_fall_back_to_superlu() -> None:
+    # nearly singular: PARDISO would perturb the pivot; SuperLU factorizes it exactly
+    nearly = sp.csr_matrix(np.array([[1.0, 1.0], [1.0, 1.0 + 1e-15]]))
+    factor = factorize(nearly, symmetric=True, backend="pardiso")
+    assert factor.backend == "superlu"
+
+
+@pytest.mark.usefixtures("pardiso")
+def test_pardiso_reuses_the_ordering_of_a_pattern() -> None:
+    k = _random_symmetric("spd", seed=7)
+    m = sp.diags(np.linspace(1.0, 2.0, N)).tocsr()
+    rhs = np.ones(N)
+    for shift in (0.3, 0.7, 0.3 + 0.2j):  # same pattern, new values (real and complex)
+        a = sp.csr_matrix(k - shift * m)
+        factor = factorize(a, symmetric=True, backend="pardiso")
+        np.testing.assert_allclose(a @ factor.solve(rhs), rhs, atol=1e-12)
+    assert factor._iparm[4] == 1  # the stored ordering was given to PARDISO
