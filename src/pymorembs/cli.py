@@ -2,6 +2,8 @@
 
 Exit codes: 0 success; 2 a user mistake (one line on stderr naming the file or key and the
 problem); 3 a numerical failure on valid input (one line with the cause); 1 a bug (traceback).
+``reduce`` with several job files runs them all and exits with the worst code of its jobs (bug
+over numerical failure over user mistake), with one line per failing job.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ import numpy as np
 import scipy.linalg as sla
 from threadpoolctl import threadpool_limits
 
-from pymorembs import __version__
+from pymorembs import __version__, progress
 from pymorembs.body import ElasticBody
 from pymorembs.config import MODEL_FORMATS, load_job
 from pymorembs.errors import PymorembsError, UserError
@@ -26,6 +28,7 @@ from pymorembs.examples import EXAMPLES, build_example
 from pymorembs.io.formats import read_body
 from pymorembs.io.matrix_market import write_matrix_files
 from pymorembs.io.native import write_body_h5
+from pymorembs.parallel import dask_client, usable_cores
 from pymorembs.pipeline import add_interfaces, load_model, run_job
 from pymorembs.prepare import Frame, PreparedModel, prepare, with_rigid_modes
 from pymorembs.prepare.rigid_modes import free_rigid_body_motions
@@ -76,10 +79,29 @@ def build_parser() -> argparse.ArgumentParser:
     info.add_argument("--modes", type=int, default=10, help="number of elastic eigenfrequencies")
     info.add_argument("--json", action="store_true", help="print JSON")
 
-    red = sub.add_parser("reduce", help="run a reduction job (TOML)")
-    red.add_argument("job", type=Path, help="job file")
-    red.add_argument("--out", type=Path, help="output folder (default: out/<job name>)")
+    red = sub.add_parser("reduce", help="run reduction jobs (TOML)")
+    red.add_argument("job", type=Path, nargs="+", help="job file(s)")
+    red.add_argument(
+        "--out", type=Path, help="output folder of a single job (default: out/<job name>)"
+    )
     red.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    red.add_argument(
+        "--workers",
+        type=int,
+        help=f"processes for the full model's frequency response (default: {usable_cores()}, "
+        "the usable cores)",
+    )
+    red.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="run on Dask: 'local' (a local cluster) or a scheduler address; several job files "
+        "run as parallel tasks, a single job's frequency response is shared out",
+    )
+    red.add_argument(
+        "--progress",
+        action="store_true",
+        help="draw progress bars on stderr even when it is not a terminal (not with --quiet)",
+    )
     return parser
 
 
@@ -233,32 +255,144 @@ def _info(args: argparse.Namespace) -> int:
 
 
 def _reduce(args: argparse.Namespace) -> int:
-    job = load_job(args.job)
-    out = args.out or Path("out") / args.job.stem
+    jobs: list[Path] = args.job
+    if args.out is not None and len(jobs) > 1:
+        raise UserError("--out takes a single job file; several jobs write out/<job name> each")
+    if args.workers is not None and args.workers < 1:
+        raise UserError(f"--workers must be at least 1, got {args.workers}")
+    stems = [job.stem for job in jobs]
+    twice = sorted({stem for stem in stems if stems.count(stem) > 1})
+    if twice:
+        raise UserError(f"job names given twice (one output folder each): {', '.join(twice)}")
+    bars = "off" if args.quiet else ("on" if args.progress else "auto")
+    with progress.settings(bars):
+        if len(jobs) == 1:
+            return _reduce_job(jobs[0], args.out, args.quiet, args.workers, args.scheduler)
+        if args.scheduler is not None:
+            return _reduce_on_dask(jobs, args)
+        codes = []
+        for path in jobs:
+            codes.append(_guarded(path, args))
+        return worst(codes)
+
+
+#: Exit codes from good to bad: success, user mistake, numerical failure, bug.
+SEVERITY = (0, 2, 3, 1)
+
+
+def worst(codes: list[int]) -> int:
+    """The worst exit code: a bug (1) over a numerical failure (3) over a user mistake (2)."""
+    return max(codes, key=SEVERITY.index, default=0)
+
+
+def _guarded(path: Path, args: argparse.Namespace) -> int:
+    """One of several jobs, one after the other: one line on stderr if it fails."""
+    if not args.quiet:
+        print(f"job {path}")
+    try:
+        return _reduce_job(path, None, args.quiet, args.workers, None)
+    except PymorembsError as exc:
+        _job_error(path, str(exc))
+        return exc.exit_code
+    except Exception as exc:  # a bug: the other jobs still run
+        _job_error(path, f"internal error ({type(exc).__name__}: {exc}); run it alone for details")
+        return 1
+
+
+def _job_error(path: Path, message: str) -> None:
+    """One line on stderr naming the job (unless the message names its file already)."""
+    message = " ".join(message.split())
+    if not message.startswith(str(path)):
+        message = f"{path}: {message}"
+    sys.stderr.write(f"pymorembs: error: {message}\n")
+
+
+def _reduce_job(
+    path: Path, out: Path | None, quiet: bool, workers: int | None, scheduler: str | None
+) -> int:
+    job = load_job(path)
+    out = out or Path("out") / path.stem
     start = time.perf_counter()
 
-    def progress(message: str) -> None:
-        if not args.quiet:
-            print(f"[{time.perf_counter() - start:7.2f} s] {message}", flush=True)
+    def say(message: str) -> None:
+        if not quiet:
+            progress.write(f"[{time.perf_counter() - start:7.2f} s] {message}")
 
-    summary = run_job(job, out, progress)
-    if not args.quiet:
-        print()
-        print(
-            f"{'reduction':<20} {'method':<14} {'order':>5} {'max rel. error':>15} "
-            f"{'error at 0 Hz':>14} {'time [s]':>9}"
-        )
-        for r in summary["reductions"]:
-            static = "-" if r["static_rel_error"] is None else f"{r['static_rel_error']:.2e}"
-            print(
-                f"{r['name']:<20} {r['method']:<14} {r['order']:>5} "
-                f"{r['max_rel_error']:>15.3e} {static:>14} {r['time_s']:>9.2f}"
-            )
-        print(
-            f"\nband {summary['band_hz'][0]:g}-{summary['band_hz'][1]:g} Hz, "
-            f"{summary['n_frequencies']} frequencies; results in {out}/summary.json"
-        )
+    summary = run_job(job, out, say, workers=workers, scheduler=scheduler)
+    if not quiet:
+        _print_summary(summary, out)
     return 0
+
+
+def _print_summary(summary: dict[str, Any], out: Path) -> None:
+    print()
+    print(
+        f"{'reduction':<20} {'method':<14} {'order':>5} {'max rel. error':>15} "
+        f"{'error at 0 Hz':>14} {'time [s]':>9}"
+    )
+    for r in summary["reductions"]:
+        static = "-" if r["static_rel_error"] is None else f"{r['static_rel_error']:.2e}"
+        print(
+            f"{r['name']:<20} {r['method']:<14} {r['order']:>5} "
+            f"{r['max_rel_error']:>15.3e} {static:>14} {r['time_s']:>9.2f}"
+        )
+    print(
+        f"\nband {summary['band_hz'][0]:g}-{summary['band_hz'][1]:g} Hz, "
+        f"{summary['n_frequencies']} frequencies; results in {out}/summary.json"
+    )
+
+
+def _job_task(path: str, out: str, threads: int) -> tuple[int, Any]:
+    """A whole job on a Dask worker: ``(0, summary)`` or ``(exit code, one-line message)``."""
+    try:
+        os.environ.setdefault("PYMOREMBS_SOLVER_THREADS", "1")  # jobs share the cores
+        with threadpool_limits(limits=threads, user_api="blas"), progress.settings("off"):
+            return 0, run_job(load_job(Path(path)), Path(out), None, workers=1)
+    except PymorembsError as exc:
+        return exc.exit_code, str(exc)
+    except Exception as exc:  # a bug; the traceback stays in the worker's log
+        return 1, f"internal error ({type(exc).__name__}: {exc}); run it alone for details"
+
+
+def _reduce_on_dask(jobs: list[Path], args: argparse.Namespace) -> int:
+    """Several jobs as independent tasks on a Dask cluster; their results as they finish.
+
+    Job files, models and output folders are passed as absolute paths: a remote cluster must
+    see the same file system.
+    """
+    from distributed import as_completed
+
+    threads = int(os.environ.get("PYMOREMBS_BLAS_THREADS", "1"))
+    codes = []
+    with dask_client(args.scheduler, args.workers) as client:
+        futures = {
+            client.submit(
+                _job_task,
+                str(path.resolve()),
+                str((Path("out") / path.stem).resolve()),
+                threads,
+                pure=False,
+                key=f"pymorembs-job-{k}-{path.stem}",
+            ): path
+            for k, path in enumerate(jobs)
+        }
+        if not args.quiet:
+            print(f"{len(jobs)} jobs on Dask ({args.scheduler})")
+        with progress.Progress("jobs", total=len(jobs), unit="job", every=1) as bar:
+            for future in as_completed(futures):
+                path = futures[future]
+                try:
+                    code, payload = future.result()
+                except Exception as exc:  # the task itself failed (a worker died, ...)
+                    code, payload = 1, f"Dask task failed ({type(exc).__name__}: {exc})"
+                codes.append(code)
+                bar.update()
+                if code:
+                    _job_error(path, payload)
+                elif not args.quiet:
+                    progress.write(f"\njob {path}: done")
+                    _print_summary(payload, Path("out") / path.stem)
+    return worst(codes)
 
 
 if __name__ == "__main__":  # pragma: no cover

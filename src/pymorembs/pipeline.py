@@ -30,6 +30,7 @@ from pymorembs.io.atomic import atomic_path, write_text
 from pymorembs.io.formats import read_body
 from pymorembs.prepare import PreparedModel, prepare
 from pymorembs.prepare.interface import InterfaceSpec, add_interface_node, select_nodes
+from pymorembs.progress import Progress as ProgressBar
 from pymorembs.reduce.gramian import gramian_reduction, pod_reduction
 from pymorembs.reduce.krylov import krylov_reduction
 from pymorembs.reduce.modal import modal_reduction
@@ -269,19 +270,67 @@ def check_requests(job: Job, body: ElasticBody) -> None:
         )
 
 
-def run_job(job: Job, out_dir: str | Path, progress: Progress | None = None) -> dict[str, Any]:
+def run_job(
+    job: Job,
+    out_dir: str | Path,
+    progress: Progress | None = None,
+    workers: int | None = 1,
+    scheduler: str | None = None,
+) -> dict[str, Any]:
     """Run ``job`` and write its results into ``out_dir``; return the summary.
 
-    Written: ``summary.json``, ``error.png`` (all reductions), and per reduction a folder with
-    ``reduced.npz``, the reduced matrices as Matrix Market files, ``error.csv`` and
-    ``error.png``.
+    Written: ``summary.json``, ``error.png`` (all reductions), per reduction a folder with the
+    files of ``[export] outputs``, ``error.csv`` and ``error.png``, and with ``[time_domain]``
+    ``time.png``.
+
+    Parameters
+    ----------
+    job : Job
+        The job.
+    out_dir : str or Path
+        Output folder.
+    progress : callable, optional
+        Receives one line per stage and per warning.
+    workers : int or None
+        Processes for the frequency response of the full model (default 1; None: the usable
+        cores for models of 3,000 dofs and more, as the command line does; see
+        :func:`pymorembs.analysis.transfer.transfer_function`). The results do not depend on
+        it.
+    scheduler : str, optional
+        ``"local"`` or a Dask scheduler address to run that frequency response on.
     """
     say = progress or (lambda _msg: None)
-    out_dir = Path(out_dir)
+    n_stages = 2 + len(job.reductions) + (job.time_domain is not None)
+    started = [False]
+    with ProgressBar(f"job {Path(job.path).stem}", total=n_stages, unit="stage", every=1) as bar:
+
+        def stage(message: str, short: str, line: bool = True) -> None:
+            """A new stage: one step of the bar (``short`` after it) and the line ``message``."""
+            if started[0]:
+                bar.update()
+            started[0] = True
+            bar.describe(short)
+            if line:
+                say(message)
+
+        return _run_job(job, Path(out_dir), say, stage, workers, scheduler)
+
+
+def _run_job(
+    job: Job,
+    out_dir: Path,
+    say: Progress,
+    stage: Callable[..., None],
+    workers: int | None,
+    scheduler: str | None,
+) -> dict[str, Any]:
     timings: dict[str, float] = {}
     clock = time.perf_counter()
 
-    say("loading the model, interfaces, frame, constraint elimination, inputs and outputs")
+    stage(
+        "loading the model, interfaces, frame, constraint elimination, inputs and outputs",
+        "loading the model",
+    )
     body, prepared = prepare_job(job)
     check_requests(job, body)  # before anything expensive
     system = prepared.system
@@ -292,8 +341,17 @@ def run_job(job: Job, out_dir: str | Path, progress: Progress | None = None) -> 
 
     tick = time.perf_counter()
     frequencies = frequency_grid(*job.band_hz, job.points)
-    say(f"frequency response of the full model at {frequencies.size} frequencies")
-    full_response = transfer_function(system, frequencies)
+    stage(
+        f"frequency response of the full model at {frequencies.size} frequencies",
+        "frequency response",
+    )
+    full_response = transfer_function(
+        system,
+        frequencies,
+        workers=workers,
+        scheduler=scheduler,
+        label="frequency response (full model)",
+    )
     timings["full_response_s"] = time.perf_counter() - tick
 
     parent = out_dir.resolve().parent
@@ -304,7 +362,7 @@ def run_job(job: Job, out_dir: str | Path, progress: Progress | None = None) -> 
         outputs = job.export.outputs
         nodes = export_nodes(job)
         for spec in job.reductions:
-            say(f"reduction '{spec.name}' ({spec.method})")
+            stage(f"reduction '{spec.name}' ({spec.method})", f"reduction '{spec.name}'")
             entry, eps, model = _reduce_one(
                 prepared, spec, job.band_hz, frequencies, full_response, staging, outputs, nodes
             )
@@ -342,6 +400,7 @@ def run_job(job: Job, out_dir: str | Path, progress: Progress | None = None) -> 
             figures.append((staging / "decay.png", "Decay of singular values (paper Fig. 11)"))
         time_domain = None
         if job.time_domain is not None:
+            stage("time domain", "time domain", line=False)  # time_domain_checks says more
             tick = time.perf_counter()
             time_domain = time_domain_checks(
                 job.time_domain, body, job.frame, prepared, models, nodes,

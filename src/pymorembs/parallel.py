@@ -1,0 +1,278 @@
+"""Independent tasks in parallel: serially, in a local process pool, or on a Dask cluster.
+
+:func:`parallel_map` runs ``func`` on each item and returns the results in the order of the
+items. Where the work runs:
+
+- ``workers == 1`` (or a single item): in this process, one item after the other;
+- ``workers > 1`` without ``scheduler``: a pool of local processes started by ``fork``. A large
+  read-only input (the sparse matrices of a model) is passed as ``context``: it is stored in a
+  module-level registry *before* the pool starts, so the workers inherit it through ``fork``
+  instead of receiving a pickled copy per task. Each worker runs BLAS with one thread, so
+  ``workers`` processes use ``workers`` cores (and so does the sparse solver:
+  ``PYMOREMBS_SOLVER_THREADS=1`` in the workers);
+- ``scheduler="local"``: a Dask ``LocalCluster`` of ``workers`` single-threaded processes;
+  ``scheduler="tcp://host:port"`` (any address): the Dask cluster there. ``context`` is
+  scattered to the workers once.
+
+``func`` must be a module-level function (it is pickled by reference). With a ``context`` it
+is called as ``func(context, item)``, else as ``func(item)``.
+"""
+
+from __future__ import annotations
+
+import logging
+import multiprocessing
+import os
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, wait
+from contextlib import contextmanager
+from itertools import pairwise
+from typing import Any
+
+from threadpoolctl import threadpool_limits
+
+from pymorembs.errors import UserError
+from pymorembs.progress import Progress
+
+_NO_CONTEXT = object()
+
+#: Read-only inputs of running pools, by token; inherited by forked workers.
+_REGISTRY: dict[int, Any] = {}
+_next_token = 0
+
+
+def usable_cores() -> int:
+    """Number of cores this process may run on (its CPU affinity, not the machine's count)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def dask_available() -> bool:
+    """Whether ``dask.distributed`` can be imported (the ``dask`` extra)."""
+    try:
+        import distributed  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def parallel_map(
+    func: Callable[..., Any],
+    items: Sequence[Any],
+    workers: int | None = None,
+    scheduler: str | None = None,
+    context: Any = _NO_CONTEXT,
+    progress: Progress | None = None,
+    weights: Sequence[int] | None = None,
+) -> list[Any]:
+    """``[func(item) for item in items]`` (or ``func(context, item)``), in parallel.
+
+    Parameters
+    ----------
+    func : callable
+        A module-level function.
+    items : sequence
+        The independent tasks.
+    workers : int, optional
+        Number of processes; default: the usable cores (:func:`usable_cores`). With a remote
+        ``scheduler`` it is ignored (the cluster has its own workers).
+    scheduler : str, optional
+        None: local processes; ``"local"``: a Dask ``LocalCluster``; else the address of a Dask
+        scheduler, e.g. ``"tcp://10.0.0.5:8786"``.
+    context : object, optional
+        A large read-only input passed to every call as the first argument; inherited by
+        forked workers, scattered once to Dask workers.
+    progress : Progress, optional
+        Advanced by ``weights[k]`` (default 1) when item ``k`` is done.
+    weights : sequence of int, optional
+        Progress units of each item (e.g. the number of frequencies in a chunk).
+
+    Returns
+    -------
+    list
+        The results, in the order of ``items``.
+
+    Raises
+    ------
+    Exception
+        The first exception of a task, re-raised here; the remaining tasks are cancelled.
+    """
+    items = list(items)
+    weights = [1] * len(items) if weights is None else [int(w) for w in weights]
+    if len(weights) != len(items):
+        raise ValueError("weights must have one entry per item")
+    if workers is None:
+        workers = usable_cores()
+    if workers < 1:
+        raise UserError(f"the number of workers must be at least 1, got {workers}")
+    args = () if context is _NO_CONTEXT else (context,)
+    if scheduler is not None:
+        return _dask_map(func, items, workers, scheduler, context, progress, weights)
+    # a daemonic process (a Dask or pool worker) may not start processes: run serially there
+    if workers == 1 or len(items) <= 1 or multiprocessing.current_process().daemon:
+        results = []
+        for item, weight in zip(items, weights, strict=True):
+            results.append(func(*args, item))
+            if progress is not None:
+                progress.update(weight)
+        return results
+    return _pool_map(func, items, min(workers, len(items)), context, progress, weights)
+
+
+@contextmanager
+def _registered(context: Any) -> Iterator[int]:
+    global _next_token
+    token = _next_token
+    _next_token += 1
+    _REGISTRY[token] = context
+    try:
+        yield token
+    finally:
+        _REGISTRY.pop(token, None)
+
+
+#: Threads of the sparse solver (PARDISO) in each worker: the workers share the cores.
+SOLVER_THREADS_ENV = "PYMOREMBS_SOLVER_THREADS"
+
+
+def _init_worker(token: int | None = None, context: Any = _NO_CONTEXT) -> None:
+    """Set up a pool worker: one BLAS and solver thread; the context if it was not inherited."""
+    threadpool_limits(limits=1)
+    os.environ[SOLVER_THREADS_ENV] = "1"
+    if token is not None and context is not _NO_CONTEXT:
+        _REGISTRY[token] = context
+
+
+def _call(func: Callable[..., Any], token: int | None, item: Any) -> Any:
+    if token is None:
+        return func(item)
+    return func(_REGISTRY[token], item)
+
+
+def _pool_map(
+    func: Callable[..., Any],
+    items: list[Any],
+    workers: int,
+    context: Any,
+    progress: Progress | None,
+    weights: list[int],
+) -> list[Any]:
+    fork = "fork" in multiprocessing.get_all_start_methods()
+    method = "fork" if fork else "spawn"
+    with _registered(context) as token:
+        use = None if context is _NO_CONTEXT else token
+        # with fork the workers inherit the registry; elsewhere the context is pickled once per
+        # worker (not per task)
+        initargs = (use,) if fork else (use, context)
+        executor = ProcessPoolExecutor(
+            max_workers=workers,
+            mp_context=multiprocessing.get_context(method),
+            initializer=_init_worker,
+            initargs=initargs,
+        )
+        try:
+            futures = {executor.submit(_call, func, use, item): k for k, item in enumerate(items)}
+            results: list[Any] = [None] * len(items)
+            pending = set(futures)
+            while pending:
+                done, pending = wait(pending, return_when=FIRST_EXCEPTION)
+                for future in done:
+                    k = futures[future]
+                    results[k] = future.result()  # re-raises a task's exception
+                    if progress is not None:
+                        progress.update(weights[k])
+        finally:
+            executor.shutdown(wait=True, cancel_futures=True)
+    return results
+
+
+@contextmanager
+def dask_client(scheduler: str, workers: int | None = None) -> Iterator[Any]:
+    """A ``distributed.Client``: on a new ``LocalCluster`` for ``"local"``, else connected.
+
+    The local cluster has ``workers`` single-threaded worker processes (default: the usable
+    cores) and no dashboard; it is closed on exit.
+    """
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise UserError(
+            "--scheduler needs Dask: pip install 'pymorembs[dask]' (dask and distributed)"
+        ) from None
+    if scheduler == "local":
+        with (
+            LocalCluster(
+                n_workers=workers or usable_cores(),
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                silence_logs=logging.CRITICAL,  # no heartbeat noise when the cluster closes
+            ) as cluster,
+            Client(cluster) as client,
+        ):
+            yield client
+        return
+    try:
+        client = Client(scheduler, timeout="10s")
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise UserError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
+    try:
+        yield client
+    finally:
+        client.close()
+
+
+def _limited(func: Callable[..., Any], *args: Any) -> Any:
+    """Run ``func`` on a Dask worker with one BLAS and solver thread."""
+    previous = os.environ.get(SOLVER_THREADS_ENV)
+    os.environ[SOLVER_THREADS_ENV] = "1"
+    try:
+        with threadpool_limits(limits=1):
+            return func(*args)
+    finally:
+        if previous is None:
+            os.environ.pop(SOLVER_THREADS_ENV, None)
+        else:
+            os.environ[SOLVER_THREADS_ENV] = previous
+
+
+def _dask_map(
+    func: Callable[..., Any],
+    items: list[Any],
+    workers: int,
+    scheduler: str,
+    context: Any,
+    progress: Progress | None,
+    weights: list[int],
+) -> list[Any]:
+    from distributed import as_completed
+
+    with dask_client(scheduler, workers) as client:
+        if context is _NO_CONTEXT:
+            futures = [client.submit(_limited, func, item, pure=False) for item in items]
+        else:
+            [shared] = client.scatter([context], broadcast=True)
+            futures = [client.submit(_limited, func, shared, item, pure=False) for item in items]
+        index = {future.key: k for k, future in enumerate(futures)}
+        results: list[Any] = [None] * len(items)
+        try:
+            for future in as_completed(futures):
+                k = index[future.key]
+                results[k] = future.result()  # re-raises a task's exception
+                if progress is not None:
+                    progress.update(weights[k])
+        finally:
+            client.cancel([f for f in futures if not f.done()])
+    return results
+
+
+def chunks(n: int, parts: int) -> list[range]:
+    """Split ``range(n)`` into ``parts`` contiguous, nearly equal, non-empty ranges."""
+    parts = max(1, min(parts, n))
+    bounds = [round(k * n / parts) for k in range(parts + 1)]
+    return [range(a, b) for a, b in pairwise(bounds) if b > a]
+
+
+__all__ = ["chunks", "dask_available", "dask_client", "parallel_map", "usable_cores"]

@@ -1,0 +1,171 @@
+"""Progress bars on stderr for the slow steps (frequency sweeps, time integration, jobs).
+
+One small abstraction over ``tqdm``: :class:`Progress` is a context manager with a label, a total
+and a unit. It draws nothing unless bars are on: :func:`configure` sets the mode for the whole
+process -- ``"auto"`` (the default: bars only when stderr is a terminal), ``"on"`` (always,
+e.g. for logs or tests) or ``"off"`` (``--quiet``). Updates are cheap and throttled, so a bar
+may be advanced once per step of a tight loop.
+
+Line messages of the command line go through :func:`write`, which keeps an active bar intact.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Any, Literal, TextIO
+
+from tqdm import tqdm
+
+Mode = Literal["auto", "on", "off"]
+MODES: tuple[str, ...] = ("auto", "on", "off")
+
+_mode: Mode = "auto"
+
+
+class _Bar(tqdm):
+    """tqdm without its monitor thread (worker processes are forked while bars run)."""
+
+    monitor_interval = 0
+
+
+def configure(mode: Mode) -> None:
+    """Set when bars are drawn: ``"auto"`` (stderr is a terminal), ``"on"`` or ``"off"``."""
+    global _mode
+    if mode not in MODES:
+        raise ValueError(f"progress mode must be one of {MODES}, got {mode!r}")
+    _mode = mode
+
+
+def mode() -> Mode:
+    """The current mode (see :func:`configure`)."""
+    return _mode
+
+
+@contextmanager
+def settings(new_mode: Mode) -> Iterator[None]:
+    """Use ``new_mode`` inside the ``with`` block, then restore the previous mode."""
+    previous = _mode
+    configure(new_mode)
+    try:
+        yield
+    finally:
+        configure(previous)
+
+
+def enabled(stream: TextIO | None = None) -> bool:
+    """Whether bars are drawn now (on ``stream``, default stderr)."""
+    if _mode == "off":
+        return False
+    if _mode == "on":
+        return True
+    stream = sys.stderr if stream is None else stream
+    isatty = getattr(stream, "isatty", None)
+    try:
+        return bool(isatty and isatty())
+    except (ValueError, OSError):  # a closed stream
+        return False
+
+
+class Progress:
+    """A progress bar on stderr, or nothing when bars are off.
+
+    Parameters
+    ----------
+    label : str
+        What is being done, e.g. ``"frequency response"``.
+    total : int
+        Number of units of the whole task.
+    unit : str
+        Name of one unit, e.g. ``"freq"`` or ``"step"``.
+    every : int, optional
+        Draw at most once per this many units (default: about 1 % of ``total``); the
+        :meth:`update` calls in between only add to a counter.
+    force : bool, optional
+        Draw the bar (True) or not (False) regardless of :func:`configure`.
+    delay : float
+        Seconds before the bar appears, so that quick tasks draw nothing; only in the
+        ``"auto"`` mode (when forced, every bar is drawn at once).
+
+    Examples
+    --------
+    >>> with Progress("time integration", total=1000, unit="step") as bar:
+    ...     for _ in range(1000):
+    ...         bar.update()
+    """
+
+    def __init__(
+        self,
+        label: str,
+        total: int,
+        unit: str = "it",
+        every: int | None = None,
+        force: bool | None = None,
+        delay: float = 0.5,
+    ) -> None:
+        self.label = label
+        self.total = int(total)
+        self.unit = unit
+        self.every = max(1, self.total // 100) if every is None else max(1, int(every))
+        self._enabled = enabled() if force is None else bool(force)
+        self.delay = delay if force is None and _mode == "auto" else 0.0
+        self._pending = 0
+        self._bar: Any = None
+
+    @property
+    def active(self) -> bool:
+        """Whether a bar is drawn."""
+        return self._enabled
+
+    def __enter__(self) -> Progress:
+        if self._enabled and self._bar is None:
+            self._bar = _Bar(
+                total=self.total,
+                desc=self.label,
+                unit=self.unit,
+                file=sys.stderr,
+                leave=False,
+                dynamic_ncols=True,
+                mininterval=0.2,
+                delay=self.delay,
+            )
+        return self
+
+    def update(self, n: int = 1) -> None:
+        """Advance by ``n`` units (drawn at most every :attr:`every` units)."""
+        if not self._enabled:
+            return
+        self._pending += n
+        if self._pending >= self.every:
+            self._flush()
+
+    def describe(self, text: str) -> None:
+        """Show ``text`` after the bar (e.g. the current stage)."""
+        if self._bar is not None:
+            self._bar.set_postfix_str(text, refresh=True)
+
+    def _flush(self) -> None:
+        if self._bar is not None and self._pending:
+            self._bar.update(self._pending)
+        self._pending = 0
+
+    def close(self) -> None:
+        """Draw the remaining units and remove the bar."""
+        if self._bar is not None:
+            self._flush()
+            self._bar.close()
+            self._bar = None
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def write(line: str, file: TextIO | None = None) -> None:
+    """Print ``line`` (to stdout by default) without breaking an active progress bar."""
+    file = sys.stdout if file is None else file
+    tqdm.write(line, file=file)
+    file.flush()
+
+
+__all__ = ["MODES", "Progress", "configure", "enabled", "mode", "settings", "write"]

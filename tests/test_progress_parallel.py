@@ -1,0 +1,208 @@
+"""Progress bars and parallel work: same results in parallel, quiet with --quiet (issue #6)."""
+
+from __future__ import annotations
+
+import json
+import operator
+from pathlib import Path
+
+import numpy as np
+import pytest
+from threadpoolctl import threadpool_limits
+
+from conftest import spring_lattice
+from pymorembs import progress
+from pymorembs.analysis.error import frequency_grid
+from pymorembs.analysis.transfer import transfer_function
+from pymorembs.cli import main, worst
+from pymorembs.config import load_job
+from pymorembs.errors import NumericalError
+from pymorembs.io.native import write_body_h5
+from pymorembs.parallel import chunks, dask_available, parallel_map, usable_cores
+from pymorembs.pipeline import prepare_job
+
+ROOT = Path(__file__).resolve().parents[1]
+
+needs_dask = pytest.mark.skipif(not dask_available(), reason="dask.distributed not installed")
+
+JOB = """
+[model]
+file = "model.h5"
+
+[frame]
+type = "tangent"
+node = 10
+
+[[inputs]]
+node = 60
+directions = "ux uy"
+
+[band]
+f_max_hz = 200
+
+[[reduction]]
+name = "modal-{order}"
+method = "modal"
+order = {order}
+"""
+
+
+@pytest.fixture(scope="module")
+def rack_buckens():
+    """The rack-beams example, free (Buckens frame): 0 Hz needs inertia relief."""
+    job = load_job(ROOT / "examples" / "rack-beams-buckens.toml")
+    _, prepared = prepare_job(job)
+    return prepared.system, frequency_grid(0.0, job.band_hz[1], 9)
+
+
+def test_parallel_sweep_equals_the_serial_one_bit_for_bit(rack_buckens):
+    system, frequencies = rack_buckens
+    assert system.rigid_modes is not None and frequencies[0] == 0.0
+    with threadpool_limits(limits=1, user_api="blas"):  # as the command line and the workers
+        serial = transfer_function(system, frequencies)
+    parallel = transfer_function(system, frequencies, workers=2)
+    assert parallel.shape == serial.shape
+    assert np.array_equal(parallel, serial)
+
+
+@needs_dask
+def test_sweep_on_a_dask_local_cluster_equals_the_serial_one(rack_buckens):
+    system, frequencies = rack_buckens
+    with threadpool_limits(limits=1, user_api="blas"):
+        serial = transfer_function(system, frequencies[:4])
+    on_dask = transfer_function(system, frequencies[:4], workers=2, scheduler="local")
+    # the model travels pickled to other interpreters: equal to rounding, not always bit for bit
+    assert np.abs(on_dask - serial).max() <= 1e-14 * np.abs(serial).max()
+
+
+class Unpicklable:
+    """A context that cannot be pickled: workers can only get it by inheritance (fork)."""
+
+    def __init__(self, data: np.ndarray):
+        self.data = data
+
+    def __reduce__(self):
+        raise TypeError("this context must not be pickled")
+
+
+def _scaled_sum(context: Unpicklable, k: int) -> float:
+    return float(context.data.sum() * k)
+
+
+def _fail_on_three(k: int) -> int:
+    if k == 3:
+        raise NumericalError("three is singular")
+    return k
+
+
+def test_process_pool_inherits_the_context_and_keeps_the_order():
+    context = Unpicklable(np.arange(100_000, dtype=float))
+    expected = [float(context.data.sum() * k) for k in range(7)]
+    bar = progress.Progress("test", total=7, force=False)
+    assert parallel_map(_scaled_sum, range(7), workers=2, context=context, progress=bar) == (
+        expected
+    )
+    assert parallel_map(_scaled_sum, range(7), workers=1, context=context) == expected
+
+
+def test_process_pool_reraises_the_error_of_a_task():
+    with pytest.raises(NumericalError, match="three is singular"):
+        parallel_map(_fail_on_three, range(6), workers=2)
+
+
+def test_chunks_cover_the_range_in_order():
+    for n, parts in ((1, 4), (10, 3), (201, 8), (5, 5)):
+        pieces = chunks(n, parts)
+        assert [k for piece in pieces for k in piece] == list(range(n))
+        assert len(pieces) == min(n, parts)
+    assert usable_cores() >= 1
+
+
+@needs_dask
+def test_parallel_map_on_a_dask_local_cluster():
+    assert parallel_map(operator.mul, [1, 2, 3], workers=2, scheduler="local", context=10) == [
+        10,
+        20,
+        30,
+    ]
+
+
+def test_worst_exit_code_ranks_bug_over_numerical_over_user():
+    assert worst([0, 2, 0]) == 2
+    assert worst([2, 3, 0]) == 3
+    assert worst([3, 1, 2]) == 1
+    assert worst([0, 0]) == 0
+
+
+@pytest.fixture
+def two_jobs(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    write_body_h5(spring_lattice(), tmp_path / "model.h5")
+    paths = []
+    for order in (4, 6):
+        path = tmp_path / f"job{order}.toml"
+        path.write_text(JOB.format(order=order))
+        paths.append(path)
+    return paths
+
+
+def _summary(tmp_path: Path, stem: str) -> dict:
+    return json.loads((tmp_path / "out" / stem / "summary.json").read_text())
+
+
+@needs_dask
+def test_two_jobs_on_a_local_dask_cluster(two_jobs, tmp_path, capfd):
+    code = main(["reduce", *map(str, two_jobs), "--scheduler", "local", "--workers", "2"])
+    out, err = capfd.readouterr()
+    assert code == 0, err
+    for order, path in zip((4, 6), two_jobs, strict=True):
+        summary = _summary(tmp_path, path.stem)
+        assert summary["reductions"][0]["order"] == order
+        assert f"job {path}: done" in out
+    assert out.count("results in") == 2
+
+
+def test_several_jobs_one_after_another_quiet_and_worst_exit_code(two_jobs, tmp_path, capfd):
+    """--quiet: nothing on stdout or stderr; a failing job: one line, the others still run."""
+    code = main(["reduce", *map(str, two_jobs), "--quiet", "--workers", "2"])
+    out, err = capfd.readouterr()
+    assert (code, out, err) == (0, "", "")
+    assert _summary(tmp_path, "job4")["reductions"][0]["order"] == 4
+    assert _summary(tmp_path, "job6")["reductions"][0]["order"] == 6
+
+    missing = tmp_path / "missing.toml"
+    code = main(["reduce", str(missing), str(two_jobs[0]), "--quiet"])
+    out, err = capfd.readouterr()
+    assert code == 2 and out == ""
+    assert err.count("\n") == 1 and "missing.toml" in err
+
+
+def test_out_takes_a_single_job(two_jobs, capfd):
+    code = main(["reduce", *map(str, two_jobs), "--out", "somewhere"])
+    err = capfd.readouterr().err
+    assert code == 2 and "--out takes a single job" in err and err.count("\n") == 1
+
+
+def test_progress_bars_on_stderr_only_when_forced(two_jobs, tmp_path, capfd):
+    code = main(["reduce", str(two_jobs[0]), "--out", str(tmp_path / "a")])
+    out, err = capfd.readouterr()
+    assert code == 0 and err == ""  # stderr is not a terminal: no bars
+    assert "frequency response of the full model at 401 frequencies" in out
+    code = main(["reduce", str(two_jobs[0]), "--out", str(tmp_path / "b"), "--progress"])
+    out, err = capfd.readouterr()
+    assert code == 0
+    assert "frequency response (full model)" in err and "job job4" in err
+    assert "frequency response of the full model at 401 frequencies" in out  # lines as before
+    assert progress.mode() == "auto"  # restored after the command
+
+
+def test_progress_is_throttled_and_silent_when_off(capsys):
+    with progress.Progress("steps", total=10_000, unit="step", force=True) as bar:
+        assert bar.every == 100
+        for _ in range(10_000):
+            bar.update()
+    assert "steps" in capsys.readouterr().err
+    with progress.settings("off"), progress.Progress("steps", total=10) as bar:
+        assert not bar.active
+        bar.update(10)
+    assert capsys.readouterr().err == ""
