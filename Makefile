@@ -5,7 +5,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test lint clean
+.PHONY: demo test lint clean bench
 
 $(STAMP): pyproject.toml requirements-nodeps.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -23,8 +23,26 @@ test: $(STAMP)
 	$(BIN)/python -m pytest -q
 
 lint: $(STAMP)
-	$(BIN)/ruff check src tests examples
-	$(BIN)/ruff format --check src tests examples
+	$(BIN)/ruff check src tests examples bench
+	$(BIN)/ruff format --check src tests examples bench
+
+# Benchmarks of issue #6 (bench/README.md), about 1-2 h on 2 cores; results in bench/RESULTS.md.
+# Installs the optional fast solver extra `.[fast]` when pyproject.toml defines it.
+FLOOR_DOFS   ?= 35000 300000
+PEERS_DOFS   ?= 10000
+SCALING_DOFS ?= 35000 70000 150000 300000
+
+bench: $(STAMP)
+	@if grep -Eq '^fast *=' pyproject.toml; then \
+		$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[fast]' \
+		|| echo "bench: could not install .[fast]; measuring with the solvers installed"; \
+	else \
+		echo "bench: pyproject.toml has no [fast] extra; measuring with the solvers installed"; \
+	fi
+	$(BIN)/python bench/floor_ratio.py --method krylov --dofs $(FLOOR_DOFS)
+	$(BIN)/python bench/floor_ratio.py --method soaga --dofs $(FLOOR_DOFS)
+	$(BIN)/python bench/peers.py --dofs $(PEERS_DOFS)
+	$(BIN)/python bench/scaling.py --dofs $(SCALING_DOFS)
 
 clean:
 	rm -rf $(VENV) out build src/*.egg-info
