@@ -174,6 +174,13 @@ class Factorization:
         parts = np.column_stack([x.real, x.imag]) if complex_x else x.reshape(x.shape[0], -1)
         parts = parts.astype(np.longdouble)
         residual = rhs.reshape(rhs.shape[0], -1).astype(wide_dtype(x, rhs))
+        combined = self._combined_extended()
+        if combined is not None:  # one extended product instead of one per term
+            product = combined @ parts
+            if complex_x:
+                product = product[:, :columns] + 1j * product[:, columns:]
+            residual = residual - product
+            return np.asarray(residual, dtype=x.dtype).reshape(x.shape)
         for coefficient, matrix in self.terms:
             if np.iscomplexobj(matrix.data):  # general case, slower
                 product = extended(matrix) @ x.reshape(x.shape[0], -1).astype(np.clongdouble)
@@ -183,6 +190,27 @@ class Factorization:
                     product = product[:, :columns] + 1j * product[:, columns:]
             residual = residual - wide_dtype(coefficient)(coefficient) * product
         return np.asarray(residual, dtype=x.dtype).reshape(x.shape)
+
+    def _combined_extended(self) -> sp.csr_matrix | None:
+        """``sum_i c_i A_i`` summed in extended precision, for real terms; None otherwise.
+
+        The terms are summed without rounding to double (the reason they are kept apart), so one
+        extended product gives the same residual to ~1e-19 relative as one product per term, at
+        about half the cost for ``K - sigma M``. Built on first use and kept with the
+        factorization (about 1.5 times the memory of ``A`` in double).
+        """
+        if not hasattr(self, "_combined"):
+            real = all(np.isrealobj(c) or np.imag(c) == 0 for c, _ in self.terms) and not any(
+                np.iscomplexobj(m.data) for _, m in self.terms
+            )
+            combined = None
+            if real and len(self.terms) > 1:
+                combined = sp.csr_matrix(self.shape, dtype=np.longdouble)
+                for coefficient, matrix in self.terms:
+                    combined = combined + np.longdouble(np.real(coefficient)) * extended(matrix)
+                combined = sp.csr_matrix(combined)
+            self._combined = combined
+        return self._combined
 
     def _relative(self, residual: np.ndarray, x: np.ndarray, rhs: np.ndarray) -> float:
         """Normwise backward error ``|r| / (|A| |x| + |b|)`` (infinity norms, worst column)."""
