@@ -25,6 +25,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from pymorembs.linalg.factorization import combine
+
 BENCH = Path(__file__).resolve().parent
 RESULTS = BENCH / "RESULTS.md"
 CACHE = BENCH / ".cache"
@@ -93,13 +95,7 @@ def assemble(terms: Any) -> sp.csc_matrix:
     """``sum_i c_i A_i`` of the ``terms`` given to ``Factorization`` (or one sparse matrix)."""
     if sp.issparse(terms):
         return sp.csc_matrix(terms)
-    total = None
-    for coefficient, matrix in terms:
-        if coefficient == 0:
-            continue
-        part = matrix if coefficient == 1 else coefficient * matrix
-        total = part if total is None else total + part
-    return sp.csc_matrix(total)
+    return combine(terms)
 
 
 def is_complex(terms: Any) -> bool:
