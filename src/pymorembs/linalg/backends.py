@@ -219,24 +219,18 @@ class PardisoFactor(SparseFactor):
 
     def __init__(self, matrix: sp.spmatrix, symmetric: bool, threads: int | None = None) -> None:
         start = time.perf_counter()
-        matrix = sp.csr_matrix(matrix)
+        if not isinstance(matrix, sp.csr_matrix):  # (a CSR matrix is used as is: no copy)
+            matrix = sp.csr_matrix(matrix)
         complex_ = np.iscomplexobj(matrix.data)
         dtype = np.complex128 if complex_ else np.float64
         super().__init__(matrix.shape, dtype, symmetric)
         n = matrix.shape[0]
+        key = None
         if symmetric:
-            # upper triangle with every diagonal entry stored (PARDISO wants it, zeros included)
-            upper = sp.triu(matrix, format="coo")
-            diagonal = np.arange(n)
-            matrix = sp.csr_matrix(
-                (
-                    np.concatenate([upper.data, np.zeros(n, dtype=upper.data.dtype)]),
-                    (np.concatenate([upper.row, diagonal]), np.concatenate([upper.col, diagonal])),
-                ),
-                shape=(n, n),
-            )
-        matrix.sum_duplicates()
-        matrix.sort_indices()
+            matrix, key = _upper_triangle(matrix)
+        elif not matrix.has_canonical_format:
+            matrix = matrix.copy()  # not the caller's matrix
+            matrix.sum_duplicates()
         if not np.all(np.isfinite(matrix.data)):
             raise NumericalError("the matrix has entries that are not finite")
         if not symmetric and np.any(np.diff(matrix.indptr) == 0):
@@ -250,7 +244,8 @@ class PardisoFactor(SparseFactor):
         self._iparm = _iparm(self.mtype)
         # the fill-reducing ordering of a symmetric pattern is computed once and reused: the
         # matrices of all shifts ``K - omega^2 M + i omega D`` share their pattern
-        key = _pattern_key(self._indptr, self._indices) if symmetric else None
+        if symmetric and key is None:
+            key = _pattern_key(self._indptr, self._indices)
         known = _ORDERINGS.get(key) if key is not None else None
         self._perm = np.zeros(n, dtype=np.int32) if known is None else known.copy()
         self._iparm[4] = 2 if known is None else 1  # return the ordering / use the given one
@@ -311,6 +306,62 @@ class PardisoFactor(SparseFactor):
                 raise NumericalError(f"the matrix is singular (PARDISO {error.value}: {what})")
             raise NumericalError(f"PARDISO failed with error {error.value} ({what})")
         return x
+
+
+class _UpperPattern:
+    """Where the upper triangle of a canonical CSR pattern is, when it stores every diagonal.
+
+    Kept per pattern (:data:`_UPPER`): the matrices of all shifts of a reduction share their
+    ``indptr`` and ``indices`` arrays (:mod:`pymorembs.linalg.pattern`), so the upper triangle
+    of the next one is a single gather of its data.
+    """
+
+    def __init__(self, matrix: sp.csr_matrix) -> None:
+        n = matrix.shape[0]
+        rows = np.repeat(np.arange(n, dtype=np.int32), np.diff(matrix.indptr))
+        index_type = np.int32 if matrix.nnz < 2**31 else np.intp
+        self.keep = np.flatnonzero(matrix.indices >= rows).astype(index_type)
+        self.complete = int(np.count_nonzero(matrix.indices == rows)) == n
+        kept = np.bincount(rows[self.keep], minlength=n)
+        self.indptr = np.concatenate([[0], np.cumsum(kept)]).astype(np.int32)
+        self.indices = matrix.indices[self.keep].astype(np.int32)
+        self.key = _pattern_key(self.indptr, self.indices)
+
+
+_UPPER: dict[tuple[int, int], _UpperPattern] = {}
+
+
+def _upper_triangle(matrix: sp.csr_matrix) -> tuple[sp.csr_matrix, str | None]:
+    """The upper triangle of a square matrix with every diagonal entry stored (zeros too, as
+    PARDISO's symmetric types need), canonical CSR; and the :func:`_pattern_key` of its
+    pattern if known."""
+    if matrix.has_canonical_format:
+        key = (id(matrix.indices), id(matrix.indptr))
+        known = _UPPER.get(key)
+        if known is None:
+            known = _UpperPattern(matrix)
+            if known.complete:
+                _UPPER[key] = known
+                weakref.finalize(matrix.indices, _UPPER.pop, key, None)
+        if known.complete:
+            upper = sp.csr_matrix(matrix.shape, dtype=matrix.dtype)
+            upper.data = matrix.data[known.keep]
+            upper.indices, upper.indptr = known.indices, known.indptr
+            upper.has_canonical_format = True
+            return upper, known.key
+    n = matrix.shape[0]
+    upper = sp.triu(matrix, format="coo")
+    diagonal = np.arange(n)
+    matrix = sp.csr_matrix(
+        (
+            np.concatenate([upper.data, np.zeros(n, dtype=upper.data.dtype)]),
+            (np.concatenate([upper.row, diagonal]), np.concatenate([upper.col, diagonal])),
+        ),
+        shape=(n, n),
+    )
+    matrix.sum_duplicates()
+    matrix.sort_indices()
+    return matrix, None
 
 
 #: Fill-reducing orderings of recent symmetric patterns, by :func:`_pattern_key`.

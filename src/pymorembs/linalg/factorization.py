@@ -14,6 +14,22 @@ exact operator -- the sum of its unrounded terms ``sum_i c_i A_i`` -- in extende
 (``numpy.longdouble``), until the correction stops decreasing. This makes, e.g., the static and
 low-frequency response of the full model accurate to ~1e-12 instead of ~1e-8.
 
+Refinement only where it is needed: the first solve with a factorization is always refined, and
+the size of its first correction measures the forward error of a plain solve with these factors
+(about ``cond(A) * 1e-16`` for that kind of right-hand side). When it is below
+:data:`PLAIN_ENOUGH`, later solves with the same factorization skip the extended-precision
+refinement and only get a residual check in working precision (a double sparse product, a
+seventh of an extended one) that raises on a backward error above :data:`FAIL_ABOVE`. Every
+refinement stops after its first correction when that correction is below ``1e-7`` relative:
+the error then contracts to its square, below :data:`REFINE_TOL`, without a second residual to
+confirm it. On the rack models (plain forward error 6e-10 to 1e-8) a refined solve therefore
+costs one extended residual and one extra solve; on the rack-solid with the paper's light stiff
+beams in the Buckens frame (plain error 1.2e-4) refinement takes its full course. ``refine="always"`` restores it everywhere.
+
+Shifted matrices ``sum_i c_i A_i`` are formed on a sparsity pattern merged once per set of terms
+(:mod:`pymorembs.linalg.pattern`), in double for the factorization and in extended precision for
+the residuals.
+
 The factorization itself comes from :mod:`pymorembs.linalg.backends` (MKL PARDISO when it is
 installed, else SciPy's SuperLU; ``PYMOREMBS_SOLVER`` overrides). The operator is factorized as
 symmetric -- real symmetric indefinite ``L D L^T`` for real coefficients, complex symmetric for
@@ -37,6 +53,7 @@ import scipy.sparse.linalg as spla
 
 from pymorembs.errors import NumericalError
 from pymorembs.linalg.backends import SUPERLU_OPTIONS, SparseFactor, factorize
+from pymorembs.linalg.pattern import infinity_norm, sum_pattern
 from pymorembs.linalg.products import extended, wide_dtype
 
 #: Refinement stops when the correction is below this, relative to the solution.
@@ -45,6 +62,13 @@ REFINE_TOL = 1e-12
 MAX_REFINEMENTS = 4
 #: Relative backward error above which a solve is reported as failed.
 FAIL_ABOVE = 1e-6
+#: Estimated forward error of a plain solve up to which a factorization's later solves are not
+#: refined (``refine="auto"``): the deflation tolerance of the Krylov bases (1e-10), below which
+#: a solve error cannot create a spurious basis direction. (Larger values were tried: with 1e-7
+#: the rack-solid's bases are built from plain solves, accurate to 6e-10 to 1e-8, at the same
+#: max epsilon -- 3.8e-11 vs 7.6e-11 refined at 9,759 dofs -- but rack-beams' Krylov basis
+#: then keeps a direction that exact solves deflate: the order depends on rounding.)
+PLAIN_ENOUGH = 1e-10
 
 Terms = Sequence[tuple[complex, sp.spmatrix]]
 
@@ -73,15 +97,29 @@ def is_symmetric(matrix: sp.spmatrix) -> bool:
     return known
 
 
-def combine(terms: Terms) -> sp.csc_matrix:
-    """``sum_i c_i A_i`` in working precision (rounded)."""
+def combine(terms: Terms, dtype: type | None = None) -> sp.csr_matrix:
+    """``sum_i c_i A_i`` in working precision (rounded), or in ``dtype``; canonical CSR.
+
+    Sparse terms are added on their merged pattern (:func:`~pymorembs.linalg.pattern.sum_pattern`,
+    cached), so all combinations of the same matrices share one pattern.
+    """
+    terms = [(c, m) for c, m in terms if c != 0]
+    if len(terms) == 1 and terms[0][0] == 1 and dtype is None and sp.issparse(terms[0][1]):
+        single = sp.csr_matrix(terms[0][1])
+        if not single.has_canonical_format:
+            single = single.copy()
+            single.sum_duplicates()
+        return single
+    if terms and all(sp.issparse(m) for _, m in terms):
+        pattern = sum_pattern([m for _, m in terms])
+        return pattern.combine([c for c, _ in terms], dtype)
     total = None
     for coefficient, matrix in terms:
         if coefficient == 0:
             continue
         part = matrix if coefficient == 1 else coefficient * matrix
         total = part if total is None else total + part
-    return sp.csc_matrix(total)
+    return sp.csr_matrix(total, dtype=dtype)
 
 
 class Factorization:
@@ -95,9 +133,12 @@ class Factorization:
     label : str
         What the matrix is, for error messages (e.g. ``"K(s) at 500 Hz"``).
     check : bool
-        Refine every solve and check its backward error.
+        Refine solves and check their backward error.
     backend : {"superlu", "pardiso"}, optional
         Default :func:`pymorembs.linalg.backends.default_backend`.
+    refine : {"auto", "always"}
+        ``"auto"``: refine the first solve, and later ones only if the first showed a plain
+        solve error above :data:`PLAIN_ENOUGH` (module docstring); ``"always"``: every solve.
 
     Attributes
     ----------
@@ -106,6 +147,11 @@ class Factorization:
         ``factor.nnz_factor``).
     symmetric : bool
         Factorized as (real or complex) symmetric: all terms are symmetric.
+    plain_error : float or None
+        Estimated relative forward error of a plain (unrefined) solve, from the first
+        correction of the refined solves so far (largest); None before the first solve.
+    extended_residuals : int
+        Extended-precision residuals computed so far (for benchmarks).
     """
 
     def __init__(
@@ -114,13 +160,19 @@ class Factorization:
         label: str = "matrix",
         check: bool = True,
         backend: str | None = None,
+        refine: str = "auto",
     ):
+        if refine not in ("auto", "always"):
+            raise ValueError(f"refine must be 'auto' or 'always', got {refine!r}")
         if sp.issparse(terms):
             terms = [(1.0, terms)]
         self.terms = [(c, m) for c, m in terms if c != 0]
         self.matrix = combine(self.terms)
         self.label = label
         self.check = check
+        self.refine = refine
+        self.plain_error: float | None = None
+        self.extended_residuals = 0
         self.shape = self.matrix.shape
         self.dtype = self.matrix.dtype
         self.symmetric = all(is_symmetric(matrix) for _, matrix in self.terms)
@@ -130,7 +182,8 @@ class Factorization:
             text = str(exc)
             named = text.replace("the matrix", label, 1)
             raise NumericalError(named if named != text else f"{label}: {text}") from None
-        self._norm = float(spla.norm(self.matrix, np.inf)) or 1.0
+        # an upper bound of ||A||_inf (for the backward error), from the cached norms of the terms
+        self._norm = sum(abs(c) * _norm_of(m) for c, m in self.terms) or 1.0
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """Solve ``A X = rhs`` for a vector (n,) or a block (n, k), real or complex."""
@@ -144,18 +197,24 @@ class Factorization:
         x = self.factor.solve(rhs)
         if not self.check:
             return x
+        if self._plain_is_enough():
+            residual = rhs - (self.matrix @ x.reshape(x.shape[0], -1)).reshape(x.shape)
+            self._check_backward(residual, x, rhs)
+            return x
         previous = np.inf
-        for _ in range(MAX_REFINEMENTS):
+        for step in range(MAX_REFINEMENTS):
             residual = self._residual(rhs, x)
-            backward = self._relative(residual, x, rhs)
-            if not np.isfinite(backward) or backward > FAIL_ABOVE:
-                raise NumericalError(
-                    f"solve with {self.label} is inaccurate (relative residual {backward:.1e}); "
-                    "the matrix is singular or nearly so"
-                )
+            self._check_backward(residual, x, rhs)
             correction = self.factor.solve(residual)
             x = x + correction
             sizes = _column_norms(correction)
+            if step == 0:  # the forward error of the plain solve, column by column
+                first = float(np.max(sizes / np.maximum(_column_norms(x), np.finfo(float).tiny)))
+                self.plain_error = max(self.plain_error or 0.0, first)
+                # refinement contracts the error by about ``first`` per step: after this one it
+                # is ~first**2, below the tolerance without another residual to confirm it
+                if first * first <= 0.01 * REFINE_TOL:
+                    break
             size = float(np.sqrt(np.sum(sizes**2)))
             # every column converged, or stagnating at the rounding level of x itself
             if np.all(sizes <= REFINE_TOL * _column_norms(x)) or size > 0.5 * previous:
@@ -163,18 +222,39 @@ class Factorization:
             previous = size
         return x
 
+    def _plain_is_enough(self) -> bool:
+        """Whether solves may skip refinement (``refine="auto"``, module docstring)."""
+        return (
+            self.refine == "auto"
+            and self.plain_error is not None
+            and self.plain_error <= PLAIN_ENOUGH
+        )
+
+    def _check_backward(self, residual: np.ndarray, x: np.ndarray, rhs: np.ndarray) -> None:
+        """Raise :class:`NumericalError` if the backward error exceeds :data:`FAIL_ABOVE`."""
+        block = (a.reshape(a.shape[0], -1) for a in (residual, x, rhs))
+        backward = self._relative(*block)
+        if not np.isfinite(backward) or backward > FAIL_ABOVE:
+            raise NumericalError(
+                f"solve with {self.label} is inaccurate (relative residual {backward:.1e}); "
+                "the matrix is singular or nearly so"
+            )
+
     def _residual(self, rhs: np.ndarray, x: np.ndarray) -> np.ndarray:
         """``rhs - sum_i c_i A_i x`` in extended precision, rounded to working precision.
 
         The matrices are real (K, M, D), so the real and imaginary parts of ``x`` are multiplied
         as one real block; only the scalar coefficients are complex.
         """
+        self.extended_residuals += 1
         complex_x = np.iscomplexobj(x)
         columns = x.shape[1] if x.ndim == 2 else 1
         parts = np.column_stack([x.real, x.imag]) if complex_x else x.reshape(x.shape[0], -1)
         parts = parts.astype(np.longdouble)
         residual = rhs.reshape(rhs.shape[0], -1).astype(wide_dtype(x, rhs))
-        combined = self._combined_extended()
+        # the first residual of a factorization (often its only one) multiplies the terms one
+        # by one -- their extended copies are cached for all shifts -- later ones use the sum
+        combined = self._combined_extended() if self.extended_residuals > 1 else None
         if combined is not None:  # one extended product instead of one per term
             product = combined @ parts
             if complex_x:
@@ -196,8 +276,8 @@ class Factorization:
 
         The terms are summed without rounding to double (the reason they are kept apart), so one
         extended product gives the same residual to ~1e-19 relative as one product per term, at
-        about half the cost for ``K - sigma M``. Built on first use and kept with the
-        factorization (about 1.5 times the memory of ``A`` in double).
+        about half the cost for ``K - sigma M``. Built for the second residual of a factorization
+        and kept with it (about 1.5 times the memory of ``A`` in double).
         """
         if not hasattr(self, "_combined"):
             real = all(np.isrealobj(c) or np.imag(c) == 0 for c, _ in self.terms) and not any(
@@ -205,10 +285,8 @@ class Factorization:
             )
             combined = None
             if real and len(self.terms) > 1:
-                combined = sp.csr_matrix(self.shape, dtype=np.longdouble)
-                for coefficient, matrix in self.terms:
-                    combined = combined + np.longdouble(np.real(coefficient)) * extended(matrix)
-                combined = sp.csr_matrix(combined)
+                real_terms = [(np.real(c), m) for c, m in self.terms]
+                combined = combine(real_terms, np.longdouble)
             self._combined = combined
         return self._combined
 
@@ -224,6 +302,19 @@ class Factorization:
         return spla.LinearOperator(
             self.shape, matvec=self.solve, matmat=self.solve, dtype=self.dtype
         )
+
+
+_NORMS: dict[int, float] = {}
+
+
+def _norm_of(matrix: sp.spmatrix) -> float:
+    """:func:`~pymorembs.linalg.pattern.infinity_norm`, cached while ``matrix`` lives."""
+    key = id(matrix)
+    known = _NORMS.get(key)
+    if known is None:
+        known = _NORMS[key] = infinity_norm(matrix)
+        weakref.finalize(matrix, _NORMS.pop, key, None)
+    return known
 
 
 def _column_norms(a: np.ndarray) -> np.ndarray:

@@ -1,0 +1,149 @@
+"""Linear combinations ``sum_i c_i A_i`` of sparse matrices on one shared sparsity pattern.
+
+Every expansion point, modal shift and frequency of a reduction factorizes a matrix of the same
+form, ``K - omega^2 M (+ i omega D)``. SciPy forms each such sum by merging the patterns of the
+terms anew (``csr_plus_csr``) and then converting and sorting the result, about 0.1 s per shift
+at 35,000 dofs (4.8 M nonzeros) -- a sixth of a PARDISO factorization. :class:`SumPattern`
+merges the patterns once and keeps, for every term, the positions of its entries in the merged
+pattern; a combination is then one gather-and-add per term over the data arrays, in double
+precision or, without rounding the terms first, in extended precision (``numpy.longdouble``).
+
+The merged pattern is canonical CSR (sorted column indices, no duplicates) and its ``indptr``
+and ``indices`` arrays are shared by all combinations, so a solver can recognise the pattern
+(and reuse its fill-reducing ordering) without comparing it entry by entry.
+"""
+
+from __future__ import annotations
+
+import weakref
+from collections.abc import Sequence
+
+import numpy as np
+import scipy.sparse as sp
+
+__all__ = ["SumPattern", "infinity_norm", "sum_pattern"]
+
+
+class SumPattern:
+    """The union of the sparsity patterns of some square sparse matrices.
+
+    Parameters
+    ----------
+    matrices : sequence of sparse matrices, all of shape (n, n)
+
+    Attributes
+    ----------
+    shape : tuple of int
+    indptr, indices : ndarray of int32
+        The merged pattern, canonical CSR.
+    positions : list of ndarray
+        ``positions[i][k]`` is where the ``k``-th stored entry of ``matrices[i]`` (canonical CSR
+        order) sits in the merged pattern.
+    """
+
+    def __init__(self, matrices: Sequence[sp.spmatrix]) -> None:
+        parts = [_canonical(m) for m in matrices]
+        shape = parts[0].shape
+        if any(p.shape != shape for p in parts):
+            raise ValueError("matrices of different shapes cannot be combined")
+        self.shape = shape
+        self._data = [p.data for p in parts]
+        if len(parts) > 52:
+            raise ValueError("at most 52 matrices can be combined")
+        # the merged pattern, each entry flagged with bit i if matrix i stores it
+        union = _flagged(parts[0], 0)
+        for i, part in enumerate(parts[1:], start=1):
+            union = union + _flagged(part, i)  # positive flags: no entry cancels
+        union.sum_duplicates()
+        flags = union.data.astype(np.int64)
+        self.indptr = union.indptr.astype(np.int32)
+        self.indices = union.indices.astype(np.int32)
+        # both patterns are sorted the same way, so the k-th entry of matrix i is the k-th
+        # merged entry that carries flag i
+        self.positions = [np.flatnonzero((flags >> i) & 1) for i in range(len(parts))]
+
+    @property
+    def nnz(self) -> int:
+        """Stored entries of the merged pattern."""
+        return int(self.indices.size)
+
+    def combine(self, coefficients: Sequence[complex], dtype: type | None = None) -> sp.csr_matrix:
+        """``sum_i c_i A_i`` on the merged pattern.
+
+        Parameters
+        ----------
+        coefficients : sequence of scalars, one per matrix
+        dtype : numpy dtype, optional
+            Of the result (e.g. ``numpy.longdouble`` to add the unrounded terms in extended
+            precision); default ``result_type`` of coefficients and matrices.
+
+        Returns
+        -------
+        scipy.sparse.csr_matrix, shape (n, n)
+            Canonical; shares ``indptr`` and ``indices`` with every other combination.
+        """
+        if len(coefficients) != len(self.positions):
+            raise ValueError(f"{len(coefficients)} coefficients for {len(self.positions)} terms")
+        if dtype is None:
+            dtype = np.result_type(*coefficients, *self._data)
+        data = np.zeros(self.nnz, dtype=dtype)
+        terms = zip(coefficients, self.positions, self._data, strict=True)
+        for coefficient, where, values in terms:
+            if coefficient == 0:
+                continue
+            term = np.asarray(coefficient, dtype=dtype) * values.astype(dtype, copy=False)
+            if where.size == data.size:  # the merged pattern is this matrix's own
+                data += term
+            else:  # the positions of one matrix are distinct: += adds each entry once
+                data[where] += term
+        combined = sp.csr_matrix(self.shape, dtype=dtype)
+        combined.data, combined.indices, combined.indptr = data, self.indices, self.indptr
+        combined.has_canonical_format = True
+        return combined
+
+
+def _canonical(matrix: sp.spmatrix) -> sp.csr_matrix:
+    """A canonical CSR copy (or view) of ``matrix``."""
+    part = sp.csr_matrix(matrix)
+    if not part.has_canonical_format:
+        part = part.copy()
+        part.sum_duplicates()
+    return part
+
+
+def _infinity_norm(matrix: sp.csr_matrix) -> float:
+    """``max_i sum_j |a_ij|`` of a canonical CSR matrix, O(nnz) without temporary matrices."""
+    if matrix.nnz == 0:
+        return 0.0
+    running = np.concatenate([[0.0], np.cumsum(np.abs(matrix.data))])
+    return float(np.max(running[matrix.indptr[1:]] - running[matrix.indptr[:-1]]))
+
+
+def _flagged(part: sp.csr_matrix, bit: int) -> sp.csr_matrix:
+    """The pattern of ``part`` with all stored values ``2**bit``."""
+    values = np.full(part.nnz, float(2**bit))
+    return sp.csr_matrix((values, part.indices, part.indptr), shape=part.shape)
+
+
+_PATTERNS: dict[tuple[int, ...], SumPattern] = {}
+
+
+def sum_pattern(matrices: Sequence[sp.spmatrix]) -> SumPattern:
+    """The :class:`SumPattern` of ``matrices``, cached while all of them live.
+
+    The cache is keyed by the identity of the matrix objects (FE matrices are not modified in
+    place in pymorembs) and an entry is dropped as soon as one of its matrices is collected.
+    """
+    key = tuple(id(m) for m in matrices)
+    pattern = _PATTERNS.get(key)
+    if pattern is None:
+        pattern = SumPattern(matrices)
+        _PATTERNS[key] = pattern
+        for matrix in matrices:
+            weakref.finalize(matrix, _PATTERNS.pop, key, None)
+    return pattern
+
+
+def infinity_norm(matrix: sp.spmatrix) -> float:
+    """``max_i sum_j |a_ij|`` of a sparse matrix (the matrix infinity norm), O(nnz)."""
+    return _infinity_norm(_canonical(matrix))
