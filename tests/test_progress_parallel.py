@@ -206,3 +206,20 @@ def test_progress_is_throttled_and_silent_when_off(capsys):
         assert not bar.active
         bar.update(10)
     assert capsys.readouterr().err == ""
+
+
+def test_krylov_and_soaga_iterations_show_progress(rack_buckens, capsys):
+    from pymorembs.reduce.krylov import krylov_reduction
+    from pymorembs.reduce.soaga import soaga_reduction
+
+    system, _ = rack_buckens
+    with progress.settings("on"):
+        krylov_reduction(system, [0.0, 100.0], [2, 2])
+        err = capsys.readouterr().err
+        assert "krylov" in err and "moment" in err and "factorizing at 100 Hz" in err
+        soaga_reduction(system, (0.0, 200.0), tolerance=1e-3)
+        err = capsys.readouterr().err
+        assert "soaga" in err and "estimated error" in err
+    with progress.settings("off"):
+        krylov_reduction(system, [0.0], [2])
+    assert capsys.readouterr().err == ""

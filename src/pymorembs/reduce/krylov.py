@@ -43,6 +43,7 @@ from pymorembs.errors import UserError
 from pymorembs.linalg.factorization import Factorization
 from pymorembs.linalg.inertia_relief import InertiaRelief
 from pymorembs.linalg.orthogonalization import OrthonormalBasis
+from pymorembs.progress import Progress
 from pymorembs.reduce.projection import Projection
 from pymorembs.system import SecondOrderSystem
 
@@ -131,9 +132,12 @@ class SecondOrderArnoldi:
             return np.zeros((n, 0))
         else:
             top, bottom = self.block[:n], self.block[n:]
-            rhs = self.coef_m * (self.mass @ bottom) / self.gamma
-            if self.d_hat is not None:
-                rhs = rhs + self.coef_d * (self.d_hat @ top)
+            if self.d_hat is self.mass:  # undamped, f > 0: one product with M
+                rhs = self.mass @ (self.coef_m * bottom / self.gamma + self.coef_d * top)
+            else:
+                rhs = self.coef_m * (self.mass @ bottom) / self.gamma
+                if self.d_hat is not None:
+                    rhs = rhs + self.coef_d * (self.d_hat @ top)
             candidate = np.vstack([self.factorization.solve(rhs), self.gamma * top])
         self.block = self.basis.add(candidate)
         self.moments += 1
@@ -227,28 +231,32 @@ def krylov_reduction(
     basis_w = OrthonormalBasis(system.order, tol) if two_sided else None
     arnoldi: list[SecondOrderArnoldi] = []
     duals: list[SecondOrderArnoldi] = []
-    if order is None:
-        # the moments fix the work: one point at a time, each factorization freed after use
-        # (kept for a two-sided projection, whose bases may need padding to one size)
-        computed = []
-        for f, m in zip(points, moments, strict=True):
-            process = SecondOrderArnoldi(system, f, tol)
-            _advance(basis, process, m, None)
-            computed.append(process.moments)
+    sides = 2 if two_sided else 1
+    total = sides * (sum(moments) if order is None else order)
+    bar = Progress("krylov", total=total, unit="moment" if order is None else "column", every=1)
+    with bar:
+        if order is None:
+            # the moments fix the work: one point at a time, each factorization freed after use
+            # (kept for a two-sided projection, whose bases may need padding to one size)
+            computed = []
+            for f, m in zip(points, moments, strict=True):
+                process = _start(system, f, tol, bar)
+                _advance(basis, process, m, None, bar)
+                computed.append(process.moments)
+                if two_sided:
+                    dual = process.dual(system.output_matrix.T)
+                    _advance(basis_w, dual, m, None, bar)
+                    arnoldi.append(process)
+                    duals.append(dual)
+        else:
+            # round-robin over the points, lowest moments first, until `order` columns
+            limits = moments or [MAX_MOMENTS] * len(points)
+            arnoldi = [_start(system, f, tol, bar) for f in points]
+            _round_robin(basis, arnoldi, limits, order, bar)
             if two_sided:
-                dual = process.dual(system.output_matrix.T)
-                _advance(basis_w, dual, m, None)
-                arnoldi.append(process)
-                duals.append(dual)
-    else:
-        # round-robin over the points, lowest moments first, until the basis has `order` columns
-        limits = moments or [MAX_MOMENTS] * len(points)
-        arnoldi = [SecondOrderArnoldi(system, f, tol) for f in points]
-        _round_robin(basis, arnoldi, limits, order)
-        if two_sided:
-            duals = [process.dual(system.output_matrix.T) for process in arnoldi]
-            _round_robin(basis_w, duals, limits, order)
-        computed = [process.moments for process in arnoldi]
+                duals = [process.dual(system.output_matrix.T) for process in arnoldi]
+                _round_robin(basis_w, duals, limits, order, bar)
+            computed = [process.moments for process in arnoldi]
     if two_sided:
         # pad the smaller basis with further moments of its own, up to the size of the larger
         if basis.size < basis_w.size:
@@ -277,8 +285,20 @@ def krylov_reduction(
     return Projection(V=v, W=w, method="krylov", parameters=parameters)
 
 
+def _start(system: SecondOrderSystem, frequency_hz: float, tol: float, bar: Progress):
+    """The Arnoldi process at one expansion point (its factorization), shown on ``bar``."""
+    bar.describe(f"factorizing at {frequency_hz:g} Hz")
+    process = SecondOrderArnoldi(system, frequency_hz, tol)
+    bar.describe(f"moments at {frequency_hz:g} Hz")
+    return process
+
+
 def _round_robin(
-    basis: OrthonormalBasis, processes: list[SecondOrderArnoldi], limits: list[int], order: int
+    basis: OrthonormalBasis,
+    processes: list[SecondOrderArnoldi],
+    limits: list[int],
+    order: int,
+    bar: Progress | None = None,
 ) -> None:
     """Add blocks round-robin over ``processes``, lowest moments first, until ``basis`` has
     ``order`` columns, every process is exhausted or has computed ``limits[k]`` moments."""
@@ -288,7 +308,7 @@ def _round_robin(
             if basis.size >= order:
                 break
             process = processes[k]
-            if not _advance(basis, process, 1, order) or process.moments >= limits[k]:
+            if not _advance(basis, process, 1, order, bar) or process.moments >= limits[k]:
                 active.remove(k)
 
 
@@ -310,16 +330,23 @@ def _check_symmetric(system: SecondOrderSystem) -> None:
 
 
 def _advance(
-    basis: OrthonormalBasis, process: SecondOrderArnoldi, blocks: int, order: int | None
+    basis: OrthonormalBasis,
+    process: SecondOrderArnoldi,
+    blocks: int,
+    order: int | None,
+    bar: Progress | None = None,
 ) -> bool:
     """Add up to ``blocks`` further moments of ``process`` to ``basis`` (at most ``order``
-    columns in all); False when the Krylov space of ``process`` is exhausted."""
+    columns in all); False when the Krylov space of ``process`` is exhausted. ``bar`` advances
+    by one per moment (``order`` None) or per column added."""
     for _ in range(blocks):
         block = process.next_block()
         if block.shape[1] == 0:
             return False
         room = None if order is None else order - basis.size
-        basis.add(block, limit=room, reference=1.0)  # tops of unit 2n-vectors
+        added = basis.add(block, limit=room, reference=1.0).shape[1]  # tops of unit 2n-vectors
+        if bar is not None:
+            bar.update(1 if order is None else added)
         if order is not None and basis.size >= order:
             break
     return True

@@ -80,6 +80,7 @@ from pymorembs.analysis.error import frequency_grid
 from pymorembs.errors import NumericalError, UserError
 from pymorembs.linalg.orthogonalization import OrthonormalBasis
 from pymorembs.linalg.products import extended_product
+from pymorembs.progress import Progress
 from pymorembs.reduce.krylov import SecondOrderArnoldi
 from pymorembs.reduce.projection import Projection
 from pymorembs.system import SecondOrderSystem
@@ -401,31 +402,42 @@ def soaga_reduction(
                 blocks.extend(parts)
         return blocks
 
-    commit(0)
-    while True:
-        v = basis.matrix
-        if v.shape[1] == 0:
-            raise UserError("soaga: the input matrix is zero on the independent dofs")
-        products.update(v)
-        z = _complement(v, look_ahead(), min(tol, LOOK_AHEAD_TOL))
-        estimate = _estimate(system, v, z, products, grid)
-        worst = float(estimate.max())
-        history.append(worst)
-        if tolerance is not None and worst <= tolerance:
-            stop = "tolerance"
-            break
-        if basis.size >= limit:
-            stop = "max_order"
-            break
-        available = [k for k, point in enumerate(points) if not point.exhausted]
-        if not available:
-            stop = "exhausted"
-            break
-        target = grid[int(np.argmax(estimate))]
-        k = min(available, key=lambda j: abs(points[j].frequency_hz - target))
-        commit(k)
-        if len(sequence) > 10 * system.order:  # cannot happen: every iteration adds or ends
-            raise NumericalError("soaga: no progress in the adaptive iteration")
+    # progress: columns of V out of the largest possible order
+    bar = Progress("soaga", total=limit, unit="column", every=1)
+    shown = 0
+    with bar:
+        bar.describe(f"factorizing at {points[0].frequency_hz:g} Hz")
+        commit(0)
+        while True:
+            v = basis.matrix
+            if v.shape[1] == 0:
+                raise UserError("soaga: the input matrix is zero on the independent dofs")
+            bar.update(v.shape[1] - shown)
+            shown = v.shape[1]
+            products.update(v)
+            z = _complement(v, look_ahead(), min(tol, LOOK_AHEAD_TOL))
+            estimate = _estimate(system, v, z, products, grid)
+            worst = float(estimate.max())
+            history.append(worst)
+            goal = "" if tolerance is None else f" (tolerance {tolerance:.0e})"
+            bar.describe(f"estimated error {worst:.1e}{goal}")
+            if tolerance is not None and worst <= tolerance:
+                stop = "tolerance"
+                break
+            if basis.size >= limit:
+                stop = "max_order"
+                break
+            available = [k for k, point in enumerate(points) if not point.exhausted]
+            if not available:
+                stop = "exhausted"
+                break
+            target = grid[int(np.argmax(estimate))]
+            k = min(available, key=lambda j: abs(points[j].frequency_hz - target))
+            if points[k].process is None:
+                bar.describe(f"factorizing at {points[k].frequency_hz:g} Hz")
+            commit(k)
+            if len(sequence) > 10 * system.order:  # cannot happen: every iteration adds or ends
+                raise NumericalError("soaga: no progress in the adaptive iteration")
 
     v = _mass_orthonormal(basis.matrix, products.columns["m"])
     return Projection(
