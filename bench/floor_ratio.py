@@ -40,6 +40,7 @@ from _common import (
     update_results,
     warm_up,
 )
+from threadpoolctl import threadpool_limits
 
 TARGET = 1.5
 
@@ -84,7 +85,8 @@ def measure(
     spec = krylov_or_soaga_spec(method)
     peak_before = peak_memory_mb()
     reset = reset_peak_memory()
-    with FactorizationCounter() as counter:
+    # BLAS on one thread, as the command line runs it (PARDISO keeps its own threads)
+    with FactorizationCounter() as counter, threadpool_limits(limits=1, user_api="blas"):
         tick = time.perf_counter()
         projection = run_reduction(system, spec, BAND_HZ)
         reduction_s = time.perf_counter() - tick
