@@ -72,6 +72,7 @@ _OTHER_DOFS = {
     10: "a connector material flow",
     11: "a temperature (or normalized concentration)",
 }
+_MAX_LABEL = 2**31 - 1  # largest Abaqus node label (32-bit)
 _KEYWORD_LINE = re.compile(r"(?m)^[ \t]*\*(?!\*)")
 _MATRIX_INPUT = ("row node", "row dof", "column node", "column dof", "value")
 _COORDINATE = ("row", "column", "value")
@@ -340,9 +341,11 @@ def _locate_bad_line(path: Path, delimiter: str | None, names: tuple[str, ...]) 
             )
         for text, what in zip(fields[:-1], names[:-1], strict=True):
             try:
-                int(text)
+                value = int(text)
             except ValueError:
                 raise _fail(path, number, f"{what} {text!r} is not an integer") from None
+            if abs(value) > _MAX_LABEL:
+                raise _fail(path, number, f"{what} {text!r} is out of range (at most 2**31 - 1)")
         try:
             float(fields[-1].replace("D", "E").replace("d", "e"))
         except ValueError:
@@ -352,6 +355,15 @@ def _locate_bad_line(path: Path, delimiter: str | None, names: tuple[str, ...]) 
 def _check_labels(f: _MatrixFile) -> None:
     """Node labels positive and dofs 1..6 in a matrix-input file."""
     node_i, dof_i, node_j, dof_j = f.columns
+    huge = np.flatnonzero((node_i > _MAX_LABEL) | (node_j > _MAX_LABEL))
+    if huge.size:
+        k = int(huge[0])
+        node = int(max(node_i[k], node_j[k]))
+        raise _fail(
+            f.path,
+            f.line_of(k),
+            f"node label {node} is out of range (Abaqus labels are below 2**31); damaged file?",
+        )
     bad_node = np.flatnonzero((node_i <= 0) | (node_j <= 0))
     bad_dof = np.flatnonzero((dof_i < 1) | (dof_i > 6) | (dof_j < 1) | (dof_j > 6))
     k_node = int(bad_node[0]) if bad_node.size else None
@@ -551,6 +563,10 @@ def _node_line(
         node = int(fields[0])
     except ValueError:
         raise _fail(path, number, f"node label {fields[0]!r} is not an integer") from None
+    if abs(node) > _MAX_LABEL:
+        raise _fail(
+            path, number, f"node label {node} is out of range (Abaqus labels are below 2**31)"
+        )
     coords = [0.0, 0.0, 0.0]
     for axis, field_text in enumerate(fields[1:4]):
         if not field_text:

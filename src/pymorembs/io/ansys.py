@@ -224,7 +224,7 @@ def _scan_full_file(path: Path) -> _FullInfo:
     trailers and index ranges.
     """
     try:
-        from ansys.mapdl.reader.common import ANSYS_BINARY_FILE_TYPES, parse_header
+        from ansys.mapdl.reader.common import ANSYS_BINARY_FILE_TYPES
         from ansys.mapdl.reader.full import SYMBOLIC_FULL_HEADER_KEYS
     except ImportError as err:  # pragma: no cover - a declared dependency
         raise _fail(path, None, f"reading .full files needs ansys-mapdl-reader ({err})") from None
@@ -245,7 +245,11 @@ def _scan_full_file(path: Path) -> _FullInfo:
     values, after = records.read(after, ".full header")
     if values.size < 40:
         raise _fail(path, None, f".full header has {values.size} words; the file is damaged")
-    h = parse_header(np.asarray(values), SYMBOLIC_FULL_HEADER_KEYS)
+    # the first occurrence of every key; the library's parse_header fails on a low word of a
+    # 64-bit pointer that is negative as int32 (struct.error), so the items are read here
+    h = {}
+    for index, key in enumerate(SYMBOLIC_FULL_HEADER_KEYS[: values.size]):
+        h.setdefault(key, int(values[index]))
 
     def item(key: str) -> int:
         return int(h.get(key, 0))
@@ -279,6 +283,14 @@ def _scan_full_file(path: Path) -> _FullInfo:
     end = long_item("ptrEND")
     if end > words.size:
         raise _fail(path, None, f"file is truncated: {4 * words.size} bytes, need {4 * end}")
+    for key in SYMBOLIC_FULL_HEADER_KEYS:
+        if key.startswith("ptr") and key.endswith("h") and not 0 <= long_item(key[:-1]) <= end:
+            raise _fail(
+                path,
+                None,
+                f".full header: pointer {key[:-1]} = {long_item(key[:-1])} lies outside the file "
+                f"({end} words); the file is damaged",
+            )
 
     curdof, after = records.read(after, "dof record", expect=numdof)
     if np.any((curdof < 1) | (curdof > 32)):
@@ -557,7 +569,7 @@ def _read_mapping(path: Path) -> DofTable:
         if not stripped or stripped[0] in "!#%":
             continue
         words = stripped.replace(",", " ").split()
-        if not words[0].lstrip("+-").isdigit():
+        if not words or not words[0].lstrip("+-").isdigit():
             if started:
                 raise _fail(path, number, f"expected 'equation node dof', got {stripped!r}")
             continue  # a header line before the first equation

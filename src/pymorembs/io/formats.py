@@ -63,7 +63,7 @@ import scipy.sparse as sp
 
 from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
-from pymorembs.io.matrix_market import SYMMETRY_TOLERANCE, _fail
+from pymorembs.io.matrix_market import SYMMETRY_TOLERANCE, _fail, encoding_note
 
 __all__ = [
     "FORMATS",
@@ -197,6 +197,8 @@ def detect_format(path: PathLike) -> str:
         raise UserError(f"{path}: cannot read: {err.strerror or err}") from None
     if found is not None:
         return found
+    if encoding_note(head):
+        raise UserError(f"{path}: the file is UTF-16 encoded; save it as UTF-8 or ASCII text")
     raise UserError(f"{path}: cannot tell the file format{_hint(path, head)}; {_give_format()}")
 
 
@@ -424,6 +426,11 @@ def read_body(
         if fmt not in FORMATS:
             raise UserError(f"unknown format {format!r}; expected one of {', '.join(FORMATS)}")
     extra = sorted(set(given) - _OPTIONS[fmt])
+    if extra and format is None and "file" in extra:
+        raise UserError(
+            f"{file}: the content looks like {fmt}, whose matrices come as separate files; give "
+            f"them as stiffness and mass, or give --format (one of {', '.join(FORMATS)})"
+        )
     if extra:
         plural = "s" if len(extra) > 1 else ""
         verb = "do" if len(extra) > 1 else "does"
@@ -709,7 +716,9 @@ def read_text(path: Path, kind: str) -> str:
         with open(path, "rb") as f:
             text = f.read().decode("latin-1").replace("\r\n", "\n").replace("\r", "\n")
     if "\x00" in text:
-        raise _fail(path, None, f"a binary file, expected {kind}")
+        with open(path, "rb") as f:
+            note = encoding_note(f.read(512))
+        raise _fail(path, None, f"a binary file, expected {kind}{note}")
     return text
 
 

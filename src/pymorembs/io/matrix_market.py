@@ -60,8 +60,10 @@ from pymorembs.io.atomic import write_text
 
 __all__ = [
     "FILE_NAMES",
+    "MAX_EQUATIONS",
     "SYMMETRY_TOLERANCE",
     "check_symmetric",
+    "encoding_note",
     "read_matrix_directory",
     "read_matrix_files",
     "read_matrix_market",
@@ -97,6 +99,12 @@ _CONSTRAINT_HEADER = (
     "coefficient",
 )
 _INT64_MAX = 2**63 - 1
+_NODE_LIMIT = 2**60  # node ids are keyed as node * 8 + direction in int64
+#: Largest matrix size read (32-bit equation indices, as in the sparse solvers).
+MAX_EQUATIONS = 2**31 - 1
+#: From this size on, a coordinate file whose entries leave most rows empty is refused: its size
+#: line is surely wrong, and the empty rows alone would take gigabytes.
+_MOSTLY_EMPTY_FROM = 1 << 24
 
 
 # ============================================================================ body <-> directory
@@ -209,6 +217,8 @@ def read_matrix_files(
     k_path, m_path = Path(stiffness), Path(mass)
     k_matrix = _read_symmetric(k_path)
     n = k_matrix.shape[0]
+    if n == 0:
+        raise _fail(k_path, None, "a 0 x 0 matrix: the model has no dofs")
     m_matrix = _read_symmetric(m_path, like=(k_path, n))
     d_matrix = None if damping is None else _read_symmetric(Path(damping), like=(k_path, n))
 
@@ -353,8 +363,10 @@ def read_matrix_market(path: PathLike) -> sp.csr_matrix:
     ------
     UserError
         Not a Matrix Market file, complex or pattern-only values, skew/hermitian storage, an
-        entry out of range, duplicated or non-finite, both triangles in a symmetric file, or a
-        wrong number of entries; the message names file and line.
+        entry out of range, duplicated or non-finite, both triangles in a symmetric file, a
+        wrong number of entries, a size beyond :data:`MAX_EQUATIONS`, or (from 2**24 equations
+        on) a coordinate file whose entries would leave most rows empty; the message names file
+        and line.
     """
     path = Path(path)
     lines = _read_lines(path, "a Matrix Market file")
@@ -401,6 +413,13 @@ def read_matrix_market(path: PathLike) -> sp.csr_matrix:
     if n_rows != n_cols:
         raise _fail(path, size_line, f"matrix is {n_rows} x {n_cols}, not square")
     n = n_rows
+    if n > MAX_EQUATIONS:
+        raise _fail(
+            path,
+            size_line,
+            f"matrix size {n} exceeds the {MAX_EQUATIONS} equations pymorembs reads; is the size "
+            "line right?",
+        )
 
     data = _DataLines(path, lines, size_index + 1)
     if layout == "coordinate":
@@ -410,6 +429,13 @@ def read_matrix_market(path: PathLike) -> sp.csr_matrix:
                 path,
                 size_line,
                 f"size line announces {sizes[2]} entries but the file holds {table.size}",
+            )
+        if n > _MOSTLY_EMPTY_FROM and n > 2 * table.size:
+            raise _fail(
+                path,
+                size_line,
+                f"size line announces a {n} x {n} matrix but the file holds only {table.size} "
+                "entries, so most rows would be empty; is the size line right?",
             )
         return _coordinate_matrix(
             data, table["row"] - 1, table["column"] - 1, table["value"], n, symmetric
@@ -580,7 +606,7 @@ class _DataLines:
         bad = np.flatnonzero(~np.isfinite(values))
         if bad.size:
             k = int(bad[0])
-            self.fail(k, f"value {values[k]!r} is not a finite number")
+            self.fail(k, f"value {float(values[k])!r} is not a finite number")
 
 
 # ============================================================================ CSV tables
@@ -653,7 +679,7 @@ def _read_dofs(path: Path) -> tuple[DofTable, list[int]]:
     seen: dict[tuple[int, int], int] = {}
     for number, (node_text, direction_text) in _read_csv(path, _DOF_HEADER):
         dof = (
-            _to_int(node_text, path, number, "node id"),
+            _to_node(node_text, path, number),
             _to_direction(direction_text, path, number),
         )
         if dof in seen:
@@ -673,7 +699,7 @@ def _read_nodes(path: Path) -> tuple[np.ndarray, np.ndarray]:
     seen: dict[int, int] = {}
     coordinates = []
     for number, (id_text, *xyz) in _read_csv(path, _NODE_HEADER):
-        node = _to_int(id_text, path, number, "node id")
+        node = _to_node(id_text, path, number)
         if node in seen:
             raise _fail(path, number, f"node {node} is listed twice (first on line {seen[node]})")
         seen[node] = number
@@ -752,10 +778,40 @@ def _read_lines(path: Path, kind: str) -> list[str]:
     except IsADirectoryError:
         raise _fail(path, None, f"is a directory, expected {kind}") from None
     except UnicodeDecodeError:
-        raise _fail(path, None, f"not a text file (expected {kind})") from None
+        note = encoding_note(_head(path))
+        raise _fail(path, None, f"not a text file (expected {kind}){note}") from None
     except OSError as err:
         raise _fail(path, None, f"cannot read: {err.strerror or err}") from None
+    if "\x00" in text:
+        note = encoding_note(_head(path))
+        raise _fail(path, None, f"a binary file, expected {kind}{note}")
     return text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
+
+
+def _head(path: Path, size: int = 512) -> bytes:
+    """The first bytes of a file (empty if it cannot be read)."""
+    try:
+        with open(path, "rb") as f:
+            return f.read(size)
+    except OSError:
+        return b""
+
+
+def encoding_note(head: bytes) -> str:
+    """``"; it is UTF-16 encoded ..."`` for the first bytes of a UTF-16 text file, else ``""``.
+
+    Windows editors save "Unicode" text as UTF-16: a byte order mark, or a zero byte next to every
+    ASCII character.
+    """
+    if head.startswith((b"\xff\xfe", b"\xfe\xff")):
+        return "; it is UTF-16 encoded: save it as UTF-8 or ASCII text"
+    pairs = head[: len(head) - len(head) % 2]
+    if len(pairs) >= 8:
+        even, odd = pairs[0::2], pairs[1::2]
+        for zeros, chars in ((odd, even), (even, odd)):
+            if zeros.count(0) == len(zeros) and all(32 <= c < 127 or c in b"\t\r\n" for c in chars):
+                return "; it is UTF-16 encoded: save it as UTF-8 or ASCII text"
+    return ""
 
 
 def _fail(path: Path, line: int | None, message: str) -> UserError:
@@ -777,6 +833,14 @@ def _to_int(text: str, path: Path, line: int, what: str, minimum: int | None = N
     if minimum is not None and value < minimum:
         raise _fail(path, line, f"{what} {text!r} must be at least {minimum}")
     return value
+
+
+def _to_node(text: str, path: Path, line: int) -> int:
+    """A node id field (within +-2**60, so that node * 8 + direction stays exact in int64)."""
+    node = _to_int(text, path, line, "node id")
+    if abs(node) >= _NODE_LIMIT:
+        raise _fail(path, line, f"node id {text!r} is out of range (at most 2**60 - 1)")
+    return node
 
 
 def _to_float(text: str, path: Path, line: int, what: str, finite: bool = True) -> float:
@@ -804,7 +868,7 @@ def _to_direction(text: str, path: Path, line: int) -> int:
 
 def _to_dof(node_text: str, direction_text: str, table: DofTable, path: Path, line: int) -> int:
     """Equation index of the dof named by a node field and a direction field."""
-    node = _to_int(node_text, path, line, "node id")
+    node = _to_node(node_text, path, line)
     code = _to_direction(direction_text, path, line)
     try:
         return table.index(node, code)

@@ -51,7 +51,7 @@ import numpy as np
 from pymorembs.body import DofTable, ElasticBody
 from pymorembs.errors import UserError
 from pymorembs.io.formats import assemble_symmetric, collect_nodes, is_nodes_csv, read_text
-from pymorembs.io.matrix_market import _fail, _read_nodes
+from pymorembs.io.matrix_market import _fail, _read_nodes, encoding_note
 
 __all__ = ["read_dmig", "read_grid_nodes"]
 
@@ -59,6 +59,7 @@ PathLike = str | os.PathLike[str]
 
 _WIDTH = 72  # columns 1-72 hold field 1 and the eight data fields; 73-80 are ignored
 _SPACE, _STAR, _PLUS, _COMMA, _DOLLAR = (ord(c) for c in " *+,$")
+_MAX_INT = 2**31 - 1  # largest Nastran integer (ids are 32-bit)
 _SHORT_EXPONENT = re.compile(r"^([+-]?(?:\d+\.?\d*|\.\d+))([+-]\d+)$")
 
 
@@ -187,7 +188,10 @@ class _Punch:
         if raw.startswith(b"\xef\xbb\xbf"):
             raw = raw[3:]
         if b"\x00" in raw:
-            raise _fail(path, None, "a binary file, expected a Nastran punch file with DMIG cards")
+            note = encoding_note(raw[:512])
+            raise _fail(
+                path, None, f"a binary file, expected a Nastran punch file with DMIG cards{note}"
+            )
         lines = raw.splitlines()
         if b"\t" in raw:
             lines = [line.expandtabs(8) if b"\t" in line else line for line in lines]
@@ -455,11 +459,20 @@ class _Punch:
         """Integers of fixed-width byte fields, shape (m, width); a bad one raises at its line."""
         width = field.shape[1] if field.ndim == 2 else 1
         try:
-            return np.ascontiguousarray(field).view(f"S{width}").ravel().astype(np.int64)
-        except ValueError:
-            for k in range(field.shape[0]):
-                _int(_text(field[k]), self.path, int(lines[k]) + 1, what)
-            raise  # pragma: no cover - the loop raises
+            values = np.ascontiguousarray(field).view(f"S{width}").ravel().astype(np.int64)
+        except (ValueError, OverflowError):  # a bad field, or one only Python reads
+            values = np.array(
+                [
+                    _int(_text(field[k]), self.path, int(lines[k]) + 1, what)
+                    for k in range(field.shape[0])
+                ],
+                dtype=np.int64,
+            )
+        outside = np.flatnonzero(np.abs(values) > _MAX_INT)
+        if outside.size:
+            k = int(outside[0])
+            _int(_text(field[k]), self.path, int(lines[k]) + 1, what)
+        return values
 
     def _free_entries(self, free_lines: np.ndarray, start_large: np.ndarray) -> tuple:
         """Entries of free-field lines: (lines, slots, grids, components, values)."""
@@ -522,12 +535,16 @@ def _text(field: np.ndarray) -> str:
 
 
 def _int(text: str, path: Path, line: int, what: str) -> int:
+    """A Nastran integer field; ids and codes lie within +-(2**31 - 1)."""
     text = text.strip()
     try:
-        return int(text)
+        value = int(text)
     except ValueError:
         problem = "is missing" if not text else f"{text!r} is not an integer"
         raise _fail(path, line, f"{what} {problem}") from None
+    if abs(value) > _MAX_INT:
+        raise _fail(path, line, f"{what} {text!r} is out of range (Nastran ids are below 2**31)")
+    return value
 
 
 def _real(text: str, path: Path, line: int, what: str) -> float:

@@ -24,11 +24,13 @@ from __future__ import annotations
 
 import io
 import math
+import mmap
 import os
 import re
+import struct
 import warnings
 from bisect import bisect_left, bisect_right
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import redirect_stderr, redirect_stdout
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -48,6 +50,8 @@ PathLike = str | os.PathLike[str]
 #: Bulk data cards whose points belong to the a-set: (pairs form, list form).
 _ASET_CARDS = {"ASET", "BNDFIX", "CSET", "BNDFRE"}
 _ASET1_CARDS = {"ASET1", "BNDFIX1", "CSET1", "BNDFRE1"}
+_MAX_ID = 2**31 - 1  # largest Nastran id (32-bit)
+_EAGER_RANGE = 1_000_000  # THRU ranges with more dofs than this are checked against the size
 _NASTRAN_REAL = re.compile(r"^([+-]?(?:\d+\.\d*|\.\d+|\d+))(?:[eEdD]?([+-]\d+)|[eEdD](\d+))?$")
 
 
@@ -122,6 +126,8 @@ def read_op4(
     d_name = "BAAX" if damping is None else damping
     d_matrix = _pick(matrices, d_name, path) if damping is not None or d_name in matrices else None
     n = k_matrix.shape[0]
+    if n == 0:
+        raise _fail(path, None, f"matrix {stiffness.upper()} is 0 x 0: the model has no dofs")
     for label, matrix in ((mass, m_matrix), (d_name, d_matrix)):
         if matrix is not None and matrix.shape[0] != n:
             raise _fail(
@@ -138,7 +144,7 @@ def read_op4(
             "ASET/ASET1 cards)",
         )
     dofs_path = Path(dofs)
-    table, grids = _read_dof_source(dofs_path)
+    table, grids = _read_dof_source(dofs_path, expected=n)
     if len(table) != n:
         raise _fail(
             dofs_path,
@@ -180,6 +186,7 @@ def _read_op4_file(path: Path) -> dict[str, _Op4Matrix]:
             raise _fail(path, None, "empty file (expected a Nastran OP4 file)")
     except OSError as err:
         raise _fail(path, None, f"cannot read: {_reason(err)}") from None
+    _check_dense_sizes(path)
     try:
         from pyNastran.op4.op4 import OP4
     except ImportError as err:
@@ -201,6 +208,105 @@ def _read_op4_file(path: Path) -> dict[str, _Op4Matrix]:
             )
         matrices[upper] = _Op4Matrix(str(key), entry.form, entry.data)
     return matrices
+
+
+def _check_dense_sizes(path: Path) -> None:
+    """Refuse dense-format matrices too large to hold before pyNastran allocates them.
+
+    pyNastran holds a dense-format matrix as a dense array of the size in its header, however
+    few columns the file holds; an absurd size (a damaged header, or a large model written in
+    dense format) would allocate gigabytes. The headers are found without reading the values.
+    """
+    try:
+        with open(path, "rb") as f:
+            binary = b"\x00" in f.read(4096)
+            f.seek(0)
+            if binary:  # memory-mapped: the values are never read
+                with mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as data:
+                    headers = _binary_headers(data)
+            else:
+                headers = _ascii_headers(f)
+    except (OSError, ValueError) as err:
+        raise _fail(path, None, f"cannot read: {_reason(err)}") from None
+    for name, nrows, ncols, kind, dense, line in headers:
+        size = abs(nrows) * ncols * (16 if kind in (3, 4) else 8)
+        if dense and size > DENSE_LIMIT_BYTES:
+            raise _fail(
+                path,
+                line,
+                f"matrix {name} is {abs(nrows)} x {ncols} in dense format, {size / 2**30:.1f} GiB "
+                "in memory; write it in sparse format (negative OUTPUT4 unit) or check the "
+                "header",
+            )
+
+
+#: Largest dense-format OP4 matrix read (bytes of the dense array).
+DENSE_LIMIT_BYTES = 4 << 30
+
+_ASCII_HEADER = re.compile(rb"^\s*(-?\d+)\s+(-?\d+)\s+(-?\d+)\s+(-?\d+)(\S.{0,7})")
+
+
+def _ascii_headers(lines: Iterable[bytes]) -> list[tuple[str, int, int, int, bool, int]]:
+    """(name, rows, columns, type, dense, line) of the matrix headers of an ASCII OP4 file.
+
+    A header line (``%8i%8i%8i%8i%-8s`` and a Fortran format) is followed by the first column
+    line ``column row words``; row 0 there marks the sparse format.
+    """
+    out = []
+    previous: bytes | None = None
+    for number, line in enumerate(lines, start=1):
+        if previous is not None and len(previous) >= 42 and _ASCII_HEADER.match(previous[:40]):
+            try:
+                ncols, nrows, _, kind = (int(previous[k : k + 8]) for k in range(0, 32, 8))
+                _, irow = (int(w) for w in line.split()[:2])
+            except ValueError:
+                pass
+            else:
+                name = previous[32:40].decode("latin-1").strip()
+                out.append((name, nrows, ncols, kind, irow != 0, number - 1))
+        previous = line
+    return out
+
+
+def _binary_headers(data: bytes | mmap.mmap) -> list[tuple[str, int, int, int, bool, None]]:
+    """(name, rows, columns, type, dense, None) of the matrices of a binary OP4 file.
+
+    Walks the Fortran records ``[n, payload, n]``: a header record (24 bytes: columns, rows,
+    form, type, name), its column records (column, row, words, values) up to the closing
+    column ``columns + 1``, then the next header. Stops quietly where the layout is not met
+    (pyNastran reports damaged files).
+    """
+    out: list[tuple[str, int, int, int, bool, None]] = []
+    for endian in "<>":
+        p = 0
+        while (head := _record_at(data, p, endian)) is not None and head[1] == 24:
+            ncols, nrows, _, kind = struct.unpack_from(endian + "4i", data, head[0])
+            name = data[head[0] + 16 : head[0] + 24].decode("latin-1").strip()
+            p = head[0] + 24 + 4
+            first = _record_at(data, p, endian)
+            if first is None or first[1] < 12:
+                break
+            irow = struct.unpack_from(endian + "i", data, first[0] + 4)[0]
+            out.append((name, nrows, ncols, kind, irow != 0, None))
+            while (column := _record_at(data, p, endian)) is not None and column[1] >= 12:
+                p = column[0] + column[1] + 4
+                if struct.unpack_from(endian + "i", data, column[0])[0] > ncols:
+                    break
+        if out:
+            return out
+    return out
+
+
+def _record_at(data: bytes | mmap.mmap, at: int, endian: str) -> tuple[int, int] | None:
+    """(payload start, payload length) of the Fortran record at ``at``, or None."""
+    if at < 0 or at + 4 > len(data):
+        return None
+    (n,) = struct.unpack_from(endian + "i", data, at)
+    if n < 0 or at + 8 + n > len(data):
+        return None
+    if struct.unpack_from(endian + "i", data, at + 4 + n)[0] != n:
+        return None
+    return at + 4, n
 
 
 def _pick(matrices: dict[str, _Op4Matrix], wanted: str, path: Path) -> sp.csr_matrix:
@@ -232,14 +338,14 @@ def _pick(matrices: dict[str, _Op4Matrix], wanted: str, path: Path) -> sp.csr_ma
 
 
 # ============================================================================ dof table
-def _read_dof_source(path: Path) -> tuple[DofTable, dict[int, _Grid]]:
+def _read_dof_source(path: Path, expected: int | None = None) -> tuple[DofTable, dict[int, _Grid]]:
     """Dof table from ``dofs.csv`` or from the a-set cards of a Nastran bulk data file."""
     lines = _read_lines(path, "a dofs.csv or Nastran bulk data file")
     first = next((t.strip() for t in lines if t.strip() and not t.lstrip().startswith("#")), "")
     if path.suffix.lower() == ".csv" or first.replace(" ", "").lower() == "node,direction":
         table, _ = _read_dofs(path)
         return table, {}
-    return _read_aset(path, lines)
+    return _read_aset(path, lines, expected)
 
 
 @dataclass
@@ -302,8 +408,13 @@ def _line_fields(text: str, path: Path, number: int, continuation: bool) -> list
     return [text[8 + 8 * k : 16 + 8 * k].strip() for k in range(8)]
 
 
-def _read_aset(path: Path, lines: list[str]) -> tuple[DofTable, dict[int, _Grid]]:
-    """The a-set (ascending grid id, components 1..6) and the GRID cards of a bulk data file."""
+def _read_aset(
+    path: Path, lines: list[str], expected: int | None = None
+) -> tuple[DofTable, dict[int, _Grid]]:
+    """The a-set (ascending grid id, components 1..6) and the GRID cards of a bulk data file.
+
+    ``expected`` (the size of the matrices) bounds the work on ``THRU`` ranges.
+    """
     members: dict[tuple[int, int], int] = {}  # (grid, component 1..6) -> line
     ranges: list[tuple[int, int, str, int]] = []  # THRU ranges: (first, last, components, line)
     grids: dict[int, _Grid] = {}
@@ -367,8 +478,18 @@ def _read_aset(path: Path, lines: list[str]) -> tuple[DofTable, dict[int, _Grid]
             raise _fail(path, number, f"{first} THRU {last} spans too many ids without GRID cards")
         else:
             ids = range(first, last + 1)
+        codes = _components(components, path, number, "ASET1")
+        count = len(ids) * len(codes)
+        # distinct dofs: a range far beyond the matrix size is refused before it is built
+        if expected is not None and count > max(expected, _EAGER_RANGE):
+            raise _fail(
+                path,
+                number,
+                f"{first} THRU {last} puts {count} dofs in the a-set, more than the {expected} "
+                "equations of the matrices",
+            )
         for grid in ids:
-            for c in _components(components, path, number, "ASET1"):
+            for c in codes:
                 members.setdefault((grid, c), number)
     if not members:
         raise _fail(path, None, "no ASET/ASET1 (or BNDFIX, CSET) cards; cannot build the a-set")
@@ -431,6 +552,8 @@ def _int_field(text: str, path: Path, line: int, what: str) -> int:
         raise _fail(path, line, f"{what} {text!r} is not an integer") from None
     if value <= 0:
         raise _fail(path, line, f"{what} {text!r} must be positive")
+    if value > _MAX_ID:
+        raise _fail(path, line, f"{what} {text!r} is out of range (Nastran ids are below 2**31)")
     return value
 
 
@@ -438,9 +561,12 @@ def _opt_int(text: str, path: Path, line: int, what: str) -> int | None:
     if not text.strip():
         return None
     try:
-        return int(text)
+        value = int(text)
     except ValueError:
         raise _fail(path, line, f"{what} {text!r} is not an integer") from None
+    if abs(value) > _MAX_ID:
+        raise _fail(path, line, f"{what} {text!r} is out of range (Nastran ids are below 2**31)")
+    return value
 
 
 def _real_field(text: str, path: Path, line: int) -> float:
