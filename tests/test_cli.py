@@ -189,7 +189,7 @@ BAD_JOBS = [
     (None, "node 77"),
     (None, "unknown example"),
     (None, "unknown method 'krilov'; did you mean 'krylov'"),
-    (None, "modes requested"),
+    (None, "is not below the 30 independent dofs"),
     (None, "f_max_hz"),
     (None, "used by another reduction"),
     (None, "moments: 2 values for 3 expansion points"),
@@ -280,15 +280,77 @@ def test_bad_command_line_exits_2_with_one_line(argv, message, tmp_path, capsys,
     assert message in err
 
 
-def test_reduced_folder_is_written_only_on_success(tmp_path, lattice_files, capsys):
-    """A job whose second reduction fails leaves nothing behind, not even the first one."""
-    job = write_job(
-        tmp_path, extra='\n[[reduction]]\nname = "big"\nmethod = "modal"\norder = 100000\n'
-    )
+def test_reduced_folder_is_written_only_on_success(tmp_path, lattice_files, capsys, monkeypatch):
+    """A job whose second reduction fails numerically (exit 3) leaves nothing behind, not even
+    the first reduction's files."""
+    import pymorembs.pipeline as pipeline
+    from pymorembs.errors import NumericalError
+
+    original = pipeline.run_reduction
+    calls = []
+
+    def failing(system, spec, band_hz):
+        calls.append(spec.name)
+        if spec.name == "kry":
+            raise NumericalError("the expansion point 100 Hz is an eigenfrequency")
+        return original(system, spec, band_hz)
+
+    monkeypatch.setattr(pipeline, "run_reduction", failing)
+    job = write_job(tmp_path)
     code, _, err = run(["reduce", job, "--out", tmp_path / "out"], capsys)
-    assert code == 2 and "modes requested" in err
+    assert calls == ["modal-6", "kry"]  # the first reduction ran and was staged
+    assert code == 3
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert "pymorembs: error: " in err and "is an eigenfrequency" in err
     assert not (tmp_path / "out").exists()
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
     shutil.rmtree(lattice_files)
+
+
+def test_unexpected_exception_exits_1_with_traceback_and_bug_request(
+    tmp_path, lattice_files, capsys, monkeypatch
+):
+    import pymorembs.pipeline as pipeline
+
+    def broken(system, spec, band_hz):
+        raise ZeroDivisionError("an internal slip")
+
+    monkeypatch.setattr(pipeline, "run_reduction", broken)
+    job = write_job(tmp_path)
+    code, _, err = run(["reduce", job, "--out", tmp_path / "out", "--quiet"], capsys)
+    assert code == 1
+    assert "Traceback (most recent call last)" in err
+    assert "ZeroDivisionError: an internal slip" in err
+    last = err.strip().splitlines()[-1]
+    assert last == (
+        "pymorembs: error: this is a bug in pymorembs; please report it with the job file "
+        "(or the command line) and this traceback"
+    )
+    assert "http" not in err.split("Traceback")[0] and "http" not in last
+    assert not (tmp_path / "out").exists()
+
+
+def test_invalid_toml_names_the_line(tmp_path, capsys):
+    job = tmp_path / "job.toml"
+    job.write_text('[model]\nexample = "rack-beams"\n\n[frame]\nnode = \n')
+    code, _, err = run(["reduce", job, "--out", tmp_path / "out"], capsys)
+    assert code == 2 and err.count("\n") == 1
+    assert f"{job}:5: invalid TOML: " in err and "(column 8)" in err
+
+
+def test_warnings_go_to_stderr_in_one_line_each(tmp_path, capsys):
+    """The demo's ports at the frame node warn (elastic transfer zero), on stderr: three inputs
+    and three outputs, one line each; nothing on stdout with --quiet."""
+    text = DEMO.read_text().split("[[reduction]]")[0]
+    text += '[[reduction]]\nname = "m"\nmethod = "modal"\norder = 12\n'
+    job = tmp_path / "demo.toml"
+    job.write_text(text.replace("points = 400", "points = 200"))
+    code, out, err = run(["reduce", job, "--out", tmp_path / "out", "--quiet"], capsys)
+    assert code == 0, err
+    assert out == ""
+    lines = err.strip().splitlines()
+    assert len(lines) == 6 and all(line.startswith("pymorembs: warning: ") for line in lines)
+    assert all("acts on a fixed dof of the frame" in line for line in lines)
 
 
 def test_info_handles_massless_dofs(tmp_path, capsys):
@@ -411,3 +473,106 @@ def test_bad_interface_tables(old, new, message, truss_files, capsys):
     code, _, err = run(["reduce", job, "--out", truss_files / "out", "--quiet"], capsys)
     assert code == 2 and err.count("\n") == 1
     assert message in err and "[[interface]] #1" in err
+
+
+def test_reduction_folder_replaces_a_symlink_instead_of_writing_through_it(
+    tmp_path, lattice_files, capsys
+):
+    """An existing ``out/kry`` symlink to a folder elsewhere: the result replaces the link, the
+    folder it pointed to is not touched."""
+    outside = tmp_path / "elsewhere"
+    outside.mkdir()
+    (outside / "precious.txt").write_text("keep")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "kry").symlink_to(outside, target_is_directory=True)
+    job = write_job(tmp_path)
+    code, _, err = run(["reduce", job, "--out", out, "--quiet"], capsys)
+    assert code == 0, err
+    assert not (out / "kry").is_symlink() and (out / "kry" / "reduced.npz").is_file()
+    assert sorted(p.name for p in outside.iterdir()) == ["precious.txt"]
+
+
+@pytest.mark.parametrize("name", ["../x", "/tmp/x", "a/b", ".hidden", "..", "", "a\\b"])
+def test_safe_child_refuses_names_that_leave_the_folder(name, tmp_path):
+    from pymorembs.errors import UserError
+    from pymorembs.pipeline import safe_child
+
+    with pytest.raises(UserError, match="would leave the output folder"):
+        safe_child(tmp_path, name)
+    assert safe_child(tmp_path, "krylov-1.b+c") == tmp_path / "krylov-1.b+c"
+
+
+FULL_JOB = """
+title = "t"
+[model]
+file = "lattice/model.h5"
+[[interface]]
+node = 900
+position = [0, 0, 0]
+kind = "rigid"
+nodes = [10, 20]
+cylinder = { point = [0, 0, 0], direction = [0, 0, 1], radius = 1.0 }
+box = { min = [-1, -1, -1], max = [1, 1, 1] }
+[damping]
+kind = "rayleigh"
+alpha = 0.1
+[frame]
+type = "tangent"
+node = 10
+[[inputs]]
+node = 60
+directions = "ux"
+[[outputs]]
+node = 60
+directions = "ux"
+[band]
+f_max_hz = 200
+[[reduction]]
+name = "m"
+method = "modal"
+order = 4
+[export]
+outputs = ["npz"]
+[time_domain]
+clamp_node = 10
+load_node = 60
+"""
+
+#: (line to misspell in FULL_JOB, where the error is reported, the suggestion)
+MISSPELLED = [
+    ('title = "t"', "job", "title"),
+    ('file = "lattice/model.h5"', "[model]", "file"),
+    ('kind = "rigid"', "[[interface]] #1", "kind"),
+    ("radius = 1.0 }", "[[interface]] #1.cylinder", "radius"),
+    ("max = [1, 1, 1] }", "[[interface]] #1.box", "max"),
+    ("alpha = 0.1", "[damping]", "alpha"),
+    ('type = "tangent"', "[frame]", "type"),
+    ('directions = "ux"\n[[outputs]]', "[[inputs]] #1", "directions"),
+    ('directions = "ux"\n[band]', "[[outputs]] #1", "directions"),
+    ("f_max_hz = 200", "[band]", "f_max_hz"),
+    ("order = 4", "[[reduction]] #1", "order"),
+    ('outputs = ["npz"]', "[export]", "outputs"),
+    ("load_node = 60", "[time_domain]", "load_node"),
+]
+
+
+@pytest.mark.parametrize(("line", "where", "key"), MISSPELLED, ids=[m[1] for m in MISSPELLED])
+def test_a_misspelled_key_in_every_table_is_named_with_a_suggestion(line, where, key, tmp_path):
+    """Every table of a job: a key with a doubled letter is an error naming table, key and the
+    valid key (``did you mean``), never silently ignored."""
+    from pymorembs.config import load_job
+    from pymorembs.errors import UserError
+
+    load_job_text = FULL_JOB
+    assert line in load_job_text
+    typo = key[:2] + key[1] + key[2:]  # e.g. 'tiitle'
+    path = tmp_path / "job.toml"
+    path.write_text(load_job_text)
+    load_job(path)  # the intact job is valid
+    path.write_text(load_job_text.replace(line, line.replace(key, typo, 1), 1))
+    with pytest.raises(UserError) as info:
+        load_job(path)
+    message = str(info.value)
+    assert message.startswith(f"{path}: {where}")
+    assert f"'{typo}'" in message and f"'{key}'" in message

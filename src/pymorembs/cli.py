@@ -13,6 +13,7 @@ import json
 import os
 import sys
 import time
+import traceback
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -29,10 +30,12 @@ from pymorembs.io.formats import read_body
 from pymorembs.io.matrix_market import write_matrix_files
 from pymorembs.io.native import write_body_h5
 from pymorembs.parallel import dask_client, usable_cores
-from pymorembs.pipeline import add_interfaces, load_model, run_job
+from pymorembs.pipeline import load_job_model, run_job
 from pymorembs.prepare import Frame, PreparedModel, prepare, with_rigid_modes
 from pymorembs.prepare.rigid_modes import free_rigid_body_motions
+from pymorembs.prepare.validation import validate_body
 from pymorembs.reduce.modal import eigenmodes
+from pymorembs.units import detect_units, frequency_warnings
 
 #: Below this size ``info`` solves the eigenproblem densely.
 DENSE_LIMIT = 600
@@ -135,6 +138,17 @@ def _run(args: argparse.Namespace) -> int:
         message = " ".join(str(exc).split())  # always one line
         sys.stderr.write(f"pymorembs: error: {message}\n")
         return exc.exit_code
+    except Exception:  # anything else is a bug: the traceback, and a request to report it
+        traceback.print_exc(file=sys.stderr)
+        sys.stderr.write(f"pymorembs: error: {BUG_REPORT}\n")
+        return 1
+
+
+#: The last line after the traceback of an unexpected exception (exit code 1).
+BUG_REPORT = (
+    "this is a bug in pymorembs; please report it with the job file (or the command line) "
+    "and this traceback"
+)
 
 
 def _example(args: argparse.Namespace) -> int:
@@ -175,7 +189,8 @@ def _prepared_for_info(args: argparse.Namespace) -> tuple[ElasticBody, PreparedM
         if given or args.format:
             raise UserError("info: a job file brings its own model; give no file options")
         job = load_job(args.model)
-        body = add_interfaces(load_model(job.model), job)
+        body = load_job_model(job)
+        validate_body(body, job)
         try:
             return body, prepare(body, job.frame, allow_rigid_body_modes=True)
         except UserError as exc:
@@ -186,6 +201,7 @@ def _prepared_for_info(args: argparse.Namespace) -> tuple[ElasticBody, PreparedM
         raise UserError("info: give either a model file or --stiffness/--mass, not both")
     files = {"file": args.model} if args.model is not None else {}
     body = read_body(args.format, **files, **given)
+    validate_body(body)
     return body, prepare(body, Frame("none"), allow_rigid_body_modes=True)
 
 
@@ -237,6 +253,14 @@ def model_facts(body: ElasticBody, prepared: PreparedModel, modes: int) -> dict[
 def _info(args: argparse.Namespace) -> int:
     body, prepared = _prepared_for_info(args)
     facts = model_facts(body, prepared, args.modes)
+    units = detect_units(body)
+    facts["units"] = units.as_dict()
+    warnings = list(units.warnings)
+    if args.model is not None and args.model.suffix.lower() == ".toml":
+        band = load_job(args.model).band_hz
+        warnings += frequency_warnings(units, band, np.asarray(facts["eigenfrequencies_hz"]))
+    for warning in warnings:
+        sys.stderr.write(f"pymorembs: warning: {warning}\n")
     if args.json:
         print(json.dumps(facts, indent=2))
         return 0
@@ -247,6 +271,7 @@ def _info(args: argparse.Namespace) -> int:
     )
     print(f"nodes             {facts['n_nodes']}")
     print(f"total mass        {facts['total_mass']:.6g} (model mass unit)")
+    print(f"unit system       {units.describe()}")
     print(f"rigid-body modes  {facts['rigid_body_modes']}")
     print("eigenfrequencies [Hz]:")
     for k, f in enumerate(facts["eigenfrequencies_hz"], start=1):
@@ -315,7 +340,9 @@ def _reduce_job(
     start = time.perf_counter()
 
     def say(message: str) -> None:
-        if not quiet:
+        if message.startswith("warning: "):  # warnings: one line on stderr, even with --quiet
+            progress.write(f"pymorembs: {message}", file=sys.stderr)
+        elif not quiet:
             progress.write(f"[{time.perf_counter() - start:7.2f} s] {message}")
 
     summary = run_job(job, out, say, workers=workers, scheduler=scheduler)

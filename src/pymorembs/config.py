@@ -49,6 +49,8 @@ INTERFACE_KINDS = ("rigid", "distributing", "beams", "springs")
 EXPORT_KINDS = ("npz", "mtx", "mat", "sid", "neweul", "exudyn", "report")
 DEFAULT_EXPORTS = ("npz", "mtx")
 _NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$")
+#: Files of the job folder a reduction (a sub-folder of that name) must not shadow.
+RESERVED_NAMES = frozenset(("summary.json", "error.png", "decay.png", "time.png", "report.html"))
 
 
 @dataclass(frozen=True)
@@ -227,8 +229,20 @@ def load_job(path: str | Path) -> Job:
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise UserError(f"{path}: invalid TOML: {exc}") from None
+        raise UserError(_toml_message(path, str(exc))) from None
     return parse_job(data, path)
+
+
+def _toml_message(path: Path, message: str) -> str:
+    """``file:line: invalid TOML: problem (column c)`` from tomllib's message."""
+    found = re.search(r"\(at line (\d+), column (\d+)\)", message)
+    if found is None:
+        found_end = re.search(r"\(at end of document\)", message)
+        problem = message.replace("(at end of document)", "").strip()
+        where = f"{path}: " if found_end is None else f"{path}: at the end: "
+        return f"{where}invalid TOML: {problem}"
+    problem = (message[: found.start()] + message[found.end() :]).strip()
+    return f"{path}:{found.group(1)}: invalid TOML: {problem} (column {found.group(2)})"
 
 
 def parse_job(data: dict[str, Any], path: Path) -> Job:
@@ -517,6 +531,10 @@ def _reductions(data: Any, path: Path) -> tuple[ReductionSpec, ...]:
             raise table.error("name", f"{name!r} is not a valid name (letters, digits, _ . + -)")
         if any(spec.name == name for spec in specs):
             raise table.error("name", f"{name!r} is used by another reduction")
+        if name.lower() in RESERVED_NAMES:
+            raise table.error(
+                "name", f"{name!r} is the name of a file of the job's output folder; choose another"
+            )
         order = table.integer("order")
         options = {key: table.get(key) for key in METHOD_OPTIONS[method] if key in table.data}
         table.done(METHOD_OPTIONS[method])
@@ -585,8 +603,11 @@ def _check_options(table: _Table, method: str, order: int | None, options: dict[
             )
         table.integer("snapshots", minimum=4)
         stage = table.string("first_stage")
-        if stage is not None and stage not in ("soaga", "krylov", "none"):
-            raise table.error("first_stage", f"must be 'soaga', 'krylov' or 'none', got {stage!r}")
+        if stage is not None and stage not in ("soaga", "krylov", "rational-krylov", "none"):
+            raise table.error(
+                "first_stage",
+                f"must be 'soaga', 'krylov', 'rational-krylov' or 'none', got {stage!r}",
+            )
         table.integer("first_order", minimum=1)
         table.number("first_tolerance", minimum=0.0)
         if stage == "krylov":

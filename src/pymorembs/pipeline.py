@@ -6,7 +6,11 @@ the output folder only when the whole job succeeded: a failed run leaves no part
 
 from __future__ import annotations
 
+import hashlib
+import importlib.metadata
 import json
+import os
+import platform
 import shutil
 import tempfile
 import time
@@ -15,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import scipy
 
 from pymorembs import __version__
 from pymorembs.analysis.error import frequency_grid, relative_error
@@ -23,13 +28,14 @@ from pymorembs.analysis.time_domain_job import time_domain_checks
 from pymorembs.analysis.transfer import transfer_function
 from pymorembs.body import ElasticBody
 from pymorembs.config import Job, ModelSpec, ReductionSpec
-from pymorembs.errors import NumericalError, UserError
+from pymorembs.errors import NumericalError, PymorembsError, UserError
 from pymorembs.examples import build_example
 from pymorembs.export.outputs import BODY_OUTPUTS, write_outputs
 from pymorembs.io.atomic import atomic_path, write_text
 from pymorembs.io.formats import read_body
 from pymorembs.prepare import PreparedModel, prepare
 from pymorembs.prepare.interface import InterfaceSpec, add_interface_node, select_nodes
+from pymorembs.prepare.validation import ValidationReport, validate_body, validate_prepared
 from pymorembs.progress import Progress as ProgressBar
 from pymorembs.reduce.gramian import gramian_reduction, pod_reduction
 from pymorembs.reduce.krylov import krylov_reduction
@@ -41,10 +47,12 @@ from pymorembs.reduce.modal_family import (
     modes_with_frm,
 )
 from pymorembs.reduce.projection import Projection, ReducedModel, reduced_model
+from pymorembs.reduce.rational_gramian import rational_gramian_reduction
 from pymorembs.reduce.soaga import soaga_reduction
 from pymorembs.report.html_report import write_report
 from pymorembs.report.plots import plot_decay, plot_relative_errors
 from pymorembs.system import SecondOrderSystem
+from pymorembs.units import detect_units, frequency_warnings
 
 Progress = Callable[[str], None]
 
@@ -61,6 +69,15 @@ def load_model(spec: ModelSpec) -> ElasticBody:
     if spec.example is not None:
         return build_example(spec.example, **spec.options)
     return read_body(spec.format, **spec.files, **spec.names)
+
+
+def load_job_model(job: Job) -> ElasticBody:
+    """The model of a job with its interface nodes; errors name the job file and ``[model]``."""
+    try:
+        body = load_model(job.model)
+    except UserError as exc:
+        raise UserError(f"{job.path}: [model]: {exc}") from None
+    return add_interfaces(body, job)
 
 
 def add_interfaces(body: ElasticBody, job: Job) -> ElasticBody:
@@ -84,15 +101,45 @@ def add_interfaces(body: ElasticBody, job: Job) -> ElasticBody:
 
 
 def prepare_job(job: Job) -> tuple[ElasticBody, PreparedModel]:
-    """Load the model of a job, add its interface nodes, set its damping and prepare it."""
-    body = add_interfaces(load_model(job.model), job)
+    """Load the model of a job, add its interface nodes, set its damping and prepare it.
+
+    The O(nnz) checks of :mod:`pymorembs.prepare.validation` run on the way (not the
+    factorization); see :func:`prepare_and_validate`.
+    """
+    body, prepared, _ = prepare_and_validate(job, deep=False)
+    return body, prepared
+
+
+def prepare_and_validate(
+    job: Job, deep: bool = True
+) -> tuple[ElasticBody, PreparedModel, ValidationReport]:
+    """Load, check and prepare the model of a job; nothing expensive runs before the checks.
+
+    Order: model and interfaces; :func:`~pymorembs.prepare.validation.validate_body` (sizes,
+    symmetry, finiteness, diagonals, constraints, the job's nodes and ports);
+    :func:`check_requests` (export and time-domain requests); frame and elimination (with the
+    structural rigid-body-mode check of :func:`~pymorembs.prepare.prepare`);
+    :func:`~pymorembs.prepare.validation.validate_prepared` (dangling and free dofs, orders,
+    inputs, and with ``deep`` one factorization for inertia and mechanisms).
+
+    Returns
+    -------
+    body : ElasticBody
+        The body with interfaces and the job's damping.
+    prepared : PreparedModel
+    report : ValidationReport
+    """
+    body = load_job_model(job)
     if job.damping is not None:
         body = body.with_damping(job.damping)
+    report = validate_body(body, job)
+    check_requests(job, body)
     try:
         prepared = prepare(body, job.frame, list(job.inputs), list(job.outputs))
     except UserError as exc:
         raise UserError(f"{job.path}: {exc}") from None
-    return body, prepared
+    report = report.merge(validate_prepared(prepared, job, deep=deep))
+    return body, prepared, report
 
 
 def run_reduction(
@@ -134,6 +181,17 @@ def run_reduction(
             two_sided=options.get("two_sided", False),
         )
     if spec.method == "gramian":
+        if options.get("first_stage") == "rational-krylov":
+            # the Gramians of the large model directly (issue #6), no medium model
+            extra = {"max_dim": options["first_order"]} if "first_order" in options else {}
+            return rational_gramian_reduction(
+                system,
+                band_hz,
+                order=spec.order,
+                tolerance=options.get("tolerance"),
+                tol=options.get("first_tolerance"),
+                **extra,
+            )
         medium = _first_stage(system, options, band_hz)
         order = spec.order
         if medium is not None and order is not None and order > medium.order:
@@ -331,11 +389,12 @@ def _run_job(
         "loading the model, interfaces, frame, constraint elimination, inputs and outputs",
         "loading the model",
     )
-    body, prepared = prepare_job(job)
-    check_requests(job, body)  # before anything expensive
+    body, prepared, validation = prepare_and_validate(job)  # before anything expensive
     system = prepared.system
     timings["prepare_s"] = time.perf_counter() - clock
-    warnings = list(prepared.warnings)
+    timings["validation_s"] = validation.seconds
+    units = detect_units(body)
+    warnings = [*prepared.warnings, *validation.warnings, *units.warnings]
     for warning in warnings:
         say(f"warning: {warning}")
 
@@ -382,6 +441,10 @@ def _run_job(
                 say(f"warning: {warnings[-1]}")
             entries.append(entry)
             errors[spec.name] = eps
+        computed = [f for e in entries for f in e["eigenfrequencies_hz"]]
+        for warning in frequency_warnings(units, job.band_hz, np.asarray(computed)):
+            warnings.append(warning)
+            say(f"warning: {warning}")
         plot_relative_errors(
             frequencies,
             errors,
@@ -442,6 +505,8 @@ def _run_job(
                 },
                 "frame": {"type": job.frame.kind, "node": job.frame.node},
             },
+            "units": units.as_dict(),
+            "validation": validation.as_dict(),
             "band_hz": list(job.band_hz),
             "n_frequencies": int(frequencies.size),
             "reductions": entries,
@@ -449,6 +514,7 @@ def _run_job(
             "timings_s": timings,
             "files": overview,
         }
+        summary["provenance"] = provenance(job, validation)
         if time_domain is not None:
             summary["time_domain"] = time_domain
         if job.title:
@@ -485,7 +551,7 @@ def _reduce_one(
             "undamped resonance? add damping or move the band)"
         )
     static = float(eps[0]) if frequencies[0] == 0.0 else None
-    folder = staging / spec.name
+    folder = safe_child(staging, spec.name)
     folder.mkdir()
     files = write_outputs(model, prepared, spec.name, outputs, nodes, folder)
     curve = {} if projection.error_curve is None else {spec.name: projection.error_curve}
@@ -524,6 +590,145 @@ def _reduce_one(
         "files": [f"{spec.name}/{name}" for name in files],
     }
     return entry, eps, model
+
+
+def safe_child(folder: Path, name: str) -> Path:
+    """``folder / name``, refused unless it is a direct child of ``folder``.
+
+    A name from a job file must not be absolute, contain a path separator or ``..``, or be a
+    hidden name: output files never escape the output folder.
+
+    Raises
+    ------
+    UserError
+        Naming the offending name.
+    """
+    pure = Path(name)
+    if (
+        not name
+        or pure.is_absolute()
+        or len(pure.parts) != 1
+        or name in (".", "..")
+        or name.startswith(".")
+        or "/" in name
+        or "\\" in name
+    ):
+        raise UserError(
+            f"output name {name!r} would leave the output folder; use letters, digits, _ . + -"
+        )
+    child = folder / name
+    if child.resolve().parent != folder.resolve():
+        raise UserError(f"output name {name!r} would leave the output folder")
+    return child
+
+
+def sha256_of(path: Path) -> str:
+    """SHA-256 of a file's bytes, hex (read in 1 MiB blocks)."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as fh:  # reading only
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def _version(package: str) -> str | None:
+    try:
+        return importlib.metadata.version(package)
+    except importlib.metadata.PackageNotFoundError:
+        return None
+
+
+def provenance(job: Job, validation: ValidationReport | None = None) -> dict[str, Any]:
+    """Where a result came from: input files with their SHA-256, software, settings.
+
+    Returns
+    -------
+    dict
+        ``inputs``: ``{path: sha256}`` of the job file and every model file it names (built-in
+        examples: their name and options); ``software``: versions of pymorembs, Python, NumPy,
+        SciPy, h5py, pypardiso and mkl (None when not installed), the platform; ``solver``: the
+        requested and default sparse backend, and the one of the validation factorization;
+        ``environment``: the ``PYMOREMBS_*`` variables and ``SOURCE_DATE_EPOCH`` that are set;
+        ``settings``: the parsed job.
+    """
+    from pymorembs.linalg.backends import default_backend
+
+    inputs = {str(job.path): sha256_of(Path(job.path))}
+    for path in job.model.files.values():
+        if Path(path).is_file():
+            inputs[str(path)] = sha256_of(Path(path))
+    software = {
+        "pymorembs": __version__,
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "scipy": scipy.__version__,
+        **{name: _version(name) for name in ("h5py", "pypardiso", "mkl", "matplotlib")},
+        "platform": platform.platform(),
+    }
+    try:
+        default = default_backend()
+    except PymorembsError:
+        default = None
+    solver = {
+        "requested": os.environ.get("PYMOREMBS_SOLVER", "auto"),
+        "default": default,
+        "validation": None if validation is None else validation.facts.get("factorization_backend"),
+    }
+    environment = {
+        key: value
+        for key, value in sorted(os.environ.items())
+        if key.startswith("PYMOREMBS_") or key == "SOURCE_DATE_EPOCH"
+    }
+    return {
+        "inputs": inputs,
+        "model": (
+            {"example": job.model.example, "options": dict(job.model.options)}
+            if job.model.example is not None
+            else {
+                "format": job.model.format,
+                "files": {k: str(v) for k, v in job.model.files.items()},
+            }
+        ),
+        "software": software,
+        "solver": solver,
+        "environment": environment,
+        "settings": job_settings(job),
+    }
+
+
+def job_settings(job: Job) -> dict[str, Any]:
+    """The parsed job as JSON-ready data (what the run actually used)."""
+    damping = job.damping
+    return {
+        "frame": {"type": job.frame.kind, "node": job.frame.node},
+        "damping": None
+        if damping is None
+        else {
+            "kind": damping.kind,
+            "alpha": damping.alpha,
+            "beta": damping.beta,
+            "ratio": damping.ratio,
+        },
+        "inputs": [label for port in job.inputs for label in port.labels()],
+        "outputs": [label for port in job.outputs for label in port.labels()],
+        "band_hz": list(job.band_hz),
+        "points": job.points,
+        "reductions": [
+            {
+                "name": spec.name,
+                "method": spec.method,
+                "order": spec.order,
+                "options": _jsonable(spec.options),
+            }
+            for spec in job.reductions
+        ],
+        "export": {
+            "outputs": list(job.export.outputs),
+            "nodes": None if job.export.nodes is None else list(job.export.nodes),
+        },
+        "interfaces": len(job.interfaces),
+        "time_domain": job.time_domain is not None,
+    }
 
 
 def _job_text(path: Path) -> str:
@@ -566,4 +771,14 @@ def _jsonable(value: Any) -> Any:
     return value
 
 
-__all__ = ["add_interfaces", "load_model", "prepare_job", "run_job", "run_reduction"]
+__all__ = [
+    "add_interfaces",
+    "load_job_model",
+    "load_model",
+    "prepare_and_validate",
+    "prepare_job",
+    "provenance",
+    "run_job",
+    "run_reduction",
+    "safe_child",
+]

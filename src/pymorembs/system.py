@@ -148,7 +148,7 @@ class SecondOrderSystem:
         """Check a dense reduced model before it is written.
 
         Finite entries, symmetric ``M``, ``K`` (and ``D``), positive definite ``M``, positive
-        semidefinite ``K`` (stability). Raises :class:`NumericalError` naming the failure.
+        semidefinite ``K`` and ``D`` (stability). Raises :class:`NumericalError` naming the failure.
         """
         if self.is_sparse:
             raise ValueError("check_reduced is for dense reduced models")
@@ -178,3 +178,28 @@ class SecondOrderSystem:
                 f"reduced stiffness matrix is indefinite (smallest eigenvalue {stiff_eig[0]:.3e}):"
                 " the reduced model is unstable"
             )
+        if self.damping is not None:
+            check_damping(np.asarray(self.damping))
+
+
+def check_damping(damping: np.ndarray, label: str = "reduced damping matrix") -> None:
+    """Raise :class:`NumericalError` unless a dense damping matrix is finite, symmetric and PSD.
+
+    A damping matrix with a negative eigenvalue feeds energy in: the model is unstable.
+    Tolerances as for the stiffness: asymmetry 1e-8, smallest eigenvalue >= -1e-8 x largest.
+    """
+    damping = np.asarray(damping, dtype=float)
+    if damping.size == 0:
+        return
+    if not np.all(np.isfinite(damping)):
+        raise NumericalError(f"{label} has NaN or infinite entries")
+    scale = max(float(np.max(np.abs(damping))), np.finfo(float).tiny)
+    asym = float(np.max(np.abs(damping - damping.T))) / scale
+    if asym > 1e-8:
+        raise NumericalError(f"{label} is not symmetric (relative asymmetry {asym:.1e})")
+    values = np.linalg.eigvalsh(0.5 * (damping + damping.T))
+    if values[0] < -1e-8 * max(abs(values[-1]), np.finfo(float).tiny):
+        raise NumericalError(
+            f"{label} is indefinite (smallest eigenvalue {values[0]:.3e}): it feeds energy in, "
+            "the reduced model is unstable"
+        )

@@ -88,8 +88,8 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 
 from pymorembs.errors import NumericalError, UserError
+from pymorembs.export.deterministic import write_npz
 from pymorembs.export.invariants import skew
-from pymorembs.io.atomic import atomic_path
 
 if TYPE_CHECKING:
     from pymorembs.export.invariants import BodyInvariants
@@ -384,9 +384,7 @@ def write_exudyn_body(
     else:
         arrays = exudyn_arrays(inv, satellite_length)
     target = Path(path)
-    with atomic_path(target) as tmp, open(tmp, "wb") as fh:
-        np.savez(fh, **arrays)
-    return target
+    return write_npz(target, arrays)
 
 
 def load_exudyn_body(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:

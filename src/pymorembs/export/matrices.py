@@ -15,11 +15,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import scipy.io
 import scipy.sparse as sp
 
 from pymorembs.errors import UserError
-from pymorembs.io.atomic import atomic_path
+from pymorembs.export import deterministic
 from pymorembs.prepare import PreparedModel
 from pymorembs.reduce.projection import ReducedModel
 from pymorembs.system import SecondOrderSystem
@@ -57,9 +56,7 @@ def write_mat(path: str | Path, arrays: dict[str, np.ndarray]) -> Path:
     """Write ``arrays`` (see :func:`reduced_arrays`) as a MATLAB 5 ``.mat`` file, atomically."""
     data: dict[str, Any] = {key: _matlab(value) for key, value in arrays.items()}
     data["format"] = "pymorembs reduced matrices"
-    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-        scipy.io.savemat(fh, data, do_compression=True, oned_as="column")
-    return Path(path)
+    return deterministic.write_mat(path, data, do_compression=True, oned_as="column")
 
 
 def _matlab(value: np.ndarray) -> np.ndarray:

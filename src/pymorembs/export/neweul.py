@@ -57,11 +57,10 @@ import os
 from pathlib import Path
 
 import numpy as np
-import scipy.io
 
 from pymorembs.errors import NumericalError
+from pymorembs.export.deterministic import write_mat
 from pymorembs.export.invariants import BodyInvariants, skew
-from pymorembs.io.atomic import atomic_path
 
 __all__ = ["FORMAT", "FORMAT_VERSION", "neweul_fields", "write_neweul"]
 
@@ -149,6 +148,4 @@ def write_neweul(path: str | os.PathLike[str], inv: BodyInvariants) -> Path:
     arrays += [np.asarray(v, dtype=float) for node in fields["nodes"][0] for v in node]
     if not all(np.all(np.isfinite(a)) for a in arrays) or not np.isfinite(inv.mass):
         raise NumericalError("Neweul export: NaN or infinite values in the invariants")
-    with atomic_path(path) as tmp, open(tmp, "wb") as fh:  # a file object: no ".mat" appended
-        scipy.io.savemat(fh, fields, format="5", oned_as="column", do_compression=True)
-    return Path(path)
+    return write_mat(path, fields, format="5", oned_as="column", do_compression=True)

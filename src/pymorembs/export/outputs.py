@@ -23,12 +23,14 @@ from pathlib import Path
 import numpy as np
 import scipy.io
 
-from pymorembs.errors import UserError
+from pymorembs.errors import NumericalError, UserError
 from pymorembs.export.invariants import BodyInvariants, compute_invariants
 from pymorembs.io.atomic import atomic_path
 from pymorembs.prepare import PreparedModel
 from pymorembs.reduce.projection import ReducedModel
+from pymorembs.system import check_damping
 
+from .deterministic import write_npz
 from .matrices import reduced_arrays, write_mat
 
 BODY_OUTPUTS = ("sid", "neweul", "exudyn")
@@ -56,6 +58,43 @@ def body_invariants(
     )
 
 
+def check_before_writing(model: ReducedModel, name: str) -> None:
+    """Refuse a reduced model that is not fit to be written.
+
+    Checks (:meth:`~pymorembs.system.SecondOrderSystem.check_reduced`): finite ``V``, ``M``,
+    ``K``, ``D``, ``B``, ``C``; symmetric ``M``, ``K``, ``D``; positive definite ``M``;
+    positive semidefinite ``K`` and the viscous damping written for simulation
+    (:attr:`ReducedModel.damping_matrix`, which includes a modal damping ratio). An oblique
+    (two-sided) model has non-symmetric 2x2 blocks for complex pairs; it is checked for finite
+    entries here, its stability when it is formed
+    (:func:`~pymorembs.reduce.projection.reduced_model`).
+
+    Raises
+    ------
+    NumericalError
+        Naming the reduction and the failed check; nothing has been written.
+    """
+    try:
+        if not np.all(np.isfinite(model.projection.V)):
+            raise NumericalError("the basis V has NaN or infinite entries")
+        if model.projection.one_sided:
+            model.system.check_reduced()
+            check_damping(np.asarray(model.damping_matrix), "reduced damping matrix (written)")
+        else:  # W^T K V of complex pairs is block diagonal, not symmetric: checked when formed
+            system = model.system
+            for label, matrix in (
+                ("mass", system.mass),
+                ("stiffness", system.stiffness),
+                ("damping", model.damping_matrix),
+                ("input", system.input_matrix),
+                ("output", system.output_matrix),
+            ):
+                if not np.all(np.isfinite(np.asarray(matrix))):
+                    raise NumericalError(f"reduced {label} matrix has NaN or infinite entries")
+    except NumericalError as exc:
+        raise NumericalError(f"reduction '{name}': {exc}; nothing was written") from None
+
+
 def write_outputs(
     model: ReducedModel,
     prepared: PreparedModel,
@@ -69,11 +108,11 @@ def write_outputs(
     from pymorembs.export.neweul import write_neweul
     from pymorembs.export.sid import write_sid
 
+    check_before_writing(model, name)
     names: list[str] = []
     arrays = reduced_arrays(model, prepared)
     if "npz" in outputs:
-        with atomic_path(folder / "reduced.npz") as tmp, open(tmp, "wb") as fh:
-            np.savez_compressed(fh, **arrays)
+        write_npz(folder / "reduced.npz", arrays, compress=True)
         names.append("reduced.npz")
     if "mtx" in outputs:
         for key in ("M", "K", "D", "B", "C"):
@@ -101,4 +140,4 @@ def write_outputs(
     return names
 
 
-__all__ = ["BODY_OUTPUTS", "body_invariants", "write_outputs"]
+__all__ = ["BODY_OUTPUTS", "body_invariants", "check_before_writing", "write_outputs"]

@@ -62,7 +62,7 @@ def write_report(
         f"<p>pymorembs {e(str(summary.get('pymorembs_version', '')))}, job "
         f"<code>{e(str(summary.get('job', '')))}</code>.</p>",
         "<h2>Model</h2>",
-        _facts_table(model),
+        _facts_table(model, summary.get("units")),
         "<h2>Settings</h2>",
         _settings_table(summary),
     ]
@@ -114,7 +114,7 @@ def _number(value: Any, digits: int = 3) -> str:
     return str(value)
 
 
-def _facts_table(model: dict[str, Any]) -> str:
+def _facts_table(model: dict[str, Any], units: dict[str, Any] | None = None) -> str:
     frame = model.get("frame", {})
     frame_text = frame.get("type", "")
     if frame.get("node") is not None:
@@ -136,6 +136,15 @@ def _facts_table(model: dict[str, Any]) -> str:
         ("inputs", ", ".join(model.get("inputs", []))),
         ("outputs", ", ".join(model.get("outputs", []))),
     ]
+    if units:  # the unit system the model's numbers point to (pymorembs.units)
+        text = str(units.get("system", "unknown"))
+        if units.get("length"):
+            text += (
+                f" ({units['length']}, {units['mass']}, {units['time']}, {units['force']}; "
+                f"frequencies in {units.get('frequency_unit')}; assumed from the numbers"
+                f"{'' if units.get('plausible') else ', implausible'})"
+            )
+        rows.append(("unit system", text))
     body = "".join(_row([a, b], text_columns=2) for a, b in rows)
     return f"<table>{body}</table>"
 

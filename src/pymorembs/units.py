@@ -1,0 +1,333 @@
+"""Which consistent unit system an FE model is in, guessed from its numbers.
+
+FE programs have no units: the model is consistent in whatever system its author chose, and
+pymorembs' frequencies are in 1/(the model's time unit). A model in mm-kg-ms-kN therefore has its
+eigenfrequencies in kHz, and a job band of ``f_max_hz = 1000`` means 1000 kHz there. This module
+states the system the numbers point to, so that the summary and ``pymorembs info`` can say it and
+contradictions can be warned about.
+
+Two numbers decide, both computed in O(n_nodes log n_nodes + n_dof):
+
+``implied_density``
+    total mass / volume of the bounding box of the nodes (mass per length^3). A body fills part
+    of its box (the rack: 9 % to 50 %), so the accepted range spans fill factors of about 0.001
+    to 1 and materials from foams to tungsten.
+``implied_wave_speed_squared``
+    ``median(k_ii / m_ii) * h^2`` over translational dofs with mass, ``h`` the median distance
+    of a node to its nearest neighbour (length^2 / time^2). For an element of size ``h`` the
+    ratio of diagonal stiffness to diagonal mass is ``~ c^2 / h^2`` with ``c^2 = E / rho`` (the
+    bar wave speed squared) times a factor of order 1 to 30 that depends on the element.
+
+In SI the rack gives 680 to 3300 kg/m^3 (steel 7850 in a box it fills partly) and 7.7e7 to 5.9e8
+m^2/s^2 (steel: E/rho = 2.7e7). Every other system scales both numbers by fixed factors
+(:data:`SYSTEMS`), so the guess is the system whose expected (log density, log c^2) lies
+nearest; it is ``plausible`` when both numbers fall in that system's ranges, ``ambiguous`` when
+a second system's ranges hold them too.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from pymorembs.body import ConstraintEquations, ElasticBody
+
+
+@dataclass(frozen=True)
+class UnitSystem:
+    """A consistent unit system of FE models.
+
+    Attributes
+    ----------
+    name : str
+        E.g. ``"m-kg-s-N"``.
+    length, mass, time, force : str
+        The base units.
+    length_m, mass_kg, time_s : float
+        Their size in SI (1 mm = 1e-3 m).
+    """
+
+    name: str
+    length: str
+    mass: str
+    time: str
+    force: str
+    length_m: float
+    mass_kg: float
+    time_s: float
+
+    @property
+    def density_factor(self) -> float:
+        """A density of 1 kg/m^3 in this system's mass / length^3."""
+        return self.length_m**3 / self.mass_kg
+
+    @property
+    def speed_squared_factor(self) -> float:
+        """A speed squared of 1 m^2/s^2 in this system's length^2 / time^2."""
+        return (self.time_s / self.length_m) ** 2
+
+    @property
+    def frequency_unit(self) -> str:
+        """What pymorembs' "Hz" mean for a model in this system."""
+        return {"s": "Hz", "ms": "kHz"}.get(self.time, f"1/{self.time}")
+
+
+#: The usual consistent systems of FE models.
+SYSTEMS: tuple[UnitSystem, ...] = (
+    UnitSystem("m-kg-s-N", "m", "kg", "s", "N", 1.0, 1.0, 1.0),
+    UnitSystem("mm-t-s-N", "mm", "t", "s", "N", 1e-3, 1e3, 1.0),
+    UnitSystem("mm-kg-ms-kN", "mm", "kg", "ms", "kN", 1e-3, 1.0, 1e-3),
+    UnitSystem("cm-g-s-dyn", "cm", "g", "s", "dyn", 1e-2, 1e-3, 1.0),
+    UnitSystem("in-lbf-s", "in", "lbf s^2/in", "s", "lbf", 0.0254, 175.126836, 1.0),
+)
+#: Accepted implied density in SI, kg/m^3: fill factor 0.001-1 of materials of 300-20,000 kg/m^3
+#: (below 3: only very sparse frames of light materials).
+DENSITY_RANGE_SI = (3.0, 3e4)
+#: Accepted implied wave speed squared in SI, m^2/s^2 (rubber-like 1e3 up to ceramics 1e8, times
+#: an element factor up to 100).
+SPEED_SQUARED_RANGE_SI = (1e3, 1e10)
+#: Expected values in SI (the logarithmic centre of the rack models and common metals).
+DENSITY_TYPICAL_SI = 1500.0
+SPEED_SQUARED_TYPICAL_SI = 1e8
+
+
+@dataclass(frozen=True)
+class UnitGuess:
+    """The unit system a model's numbers point to.
+
+    Attributes
+    ----------
+    system : UnitSystem or None
+        The nearest system (None when the model gives nothing to judge: no mass, one node).
+    plausible : bool
+        Both numbers lie in the ranges of ``system``.
+    ambiguous : tuple of str
+        Other systems whose ranges hold the numbers too.
+    implied_density : float
+        Total mass / bounding-box volume, model units (nan if not available).
+    implied_wave_speed_squared : float
+        See the module docstring, model units (nan if not available).
+    warnings : tuple of str
+        One line each: implausible numbers.
+    """
+
+    system: UnitSystem | None
+    plausible: bool
+    ambiguous: tuple[str, ...] = ()
+    implied_density: float = float("nan")
+    implied_wave_speed_squared: float = float("nan")
+    warnings: tuple[str, ...] = field(default=())
+
+    @property
+    def name(self) -> str:
+        """The system's name, or ``"unknown"``."""
+        return self.system.name if self.system is not None else "unknown"
+
+    def describe(self) -> str:
+        """One line for ``pymorembs info``."""
+        if self.system is None:
+            return "unknown (no mass or fewer than two nodes)"
+        s = self.system
+        text = f"{s.name} ({s.length}, {s.mass}, {s.time}, {s.force}; frequencies in "
+        text += f"{s.frequency_unit})"
+        if not self.plausible:
+            text += ", implausible numbers"
+        elif self.ambiguous:
+            text += f", also possible: {', '.join(self.ambiguous)}"
+        return text
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready (for ``summary.json``)."""
+        s = self.system
+
+        def finite(x: float) -> float | None:
+            return float(x) if np.isfinite(x) else None
+
+        return {
+            "system": self.name,
+            "length": s.length if s else None,
+            "mass": s.mass if s else None,
+            "time": s.time if s else None,
+            "force": s.force if s else None,
+            "frequency_unit": s.frequency_unit if s else None,
+            "plausible": bool(self.plausible),
+            "also_possible": list(self.ambiguous),
+            "implied_density": finite(self.implied_density),
+            "implied_wave_speed_squared": finite(self.implied_wave_speed_squared),
+            "method": "total mass / bounding-box volume, median(k_ii/m_ii) * h^2",
+        }
+
+
+def implied_numbers(body: ElasticBody) -> tuple[float, float]:
+    """``(implied_density, implied_wave_speed_squared)`` of a body, model units (see module).
+
+    NaN where the body gives nothing to judge (no mass, fewer than two distinct nodes).
+    """
+    from scipy.spatial import cKDTree
+
+    coordinates = body.coordinates
+    if coordinates.shape[0] < 2:
+        return float("nan"), float("nan")
+    extent = coordinates.max(axis=0) - coordinates.min(axis=0)
+    largest = float(extent.max())
+    if largest <= 0:
+        return float("nan"), float("nan")
+    volume = float(np.prod(np.maximum(extent, 1e-2 * largest)))  # flat models: 1 % thickness
+    mass = body.total_mass()
+    density = mass / volume if mass > 0 else float("nan")
+    distance, _ = cKDTree(coordinates).query(coordinates, k=2)
+    spacing = distance[:, 1][distance[:, 1] > 0]
+    k_diag, m_diag = body.stiffness.diagonal(), body.mass.diagonal()
+    use = (body.dofs.directions < 3) & (m_diag > 0) & (k_diag > 0)
+    if spacing.size == 0 or not np.any(use):
+        return density, float("nan")
+    h = float(np.median(spacing))
+    return density, float(np.median(k_diag[use] / m_diag[use])) * h * h
+
+
+def _ranges(system: UnitSystem) -> tuple[tuple[float, float], tuple[float, float]]:
+    rho = tuple(np.log10(np.asarray(DENSITY_RANGE_SI) * system.density_factor))
+    c2 = tuple(np.log10(np.asarray(SPEED_SQUARED_RANGE_SI) * system.speed_squared_factor))
+    return rho, c2  # type: ignore[return-value]
+
+
+def detect_units(body: ElasticBody) -> UnitGuess:
+    """Guess the unit system of ``body`` from its implied density and wave speed.
+
+    Returns
+    -------
+    UnitGuess
+        The nearest system in (log density, log c^2), normalised by the half-widths of the
+        ranges; ``warnings`` holds one line if no system's ranges hold the numbers.
+    """
+    density, speed2 = implied_numbers(body)
+    if not np.isfinite(density):
+        return UnitGuess(None, False, (), density, speed2)
+    log_rho = np.log10(density)
+    log_c2 = np.log10(speed2) if np.isfinite(speed2) and speed2 > 0 else None
+    half_rho = 0.5 * np.log10(DENSITY_RANGE_SI[1] / DENSITY_RANGE_SI[0])
+    half_c2 = 0.5 * np.log10(SPEED_SQUARED_RANGE_SI[1] / SPEED_SQUARED_RANGE_SI[0])
+    scores, inside = [], []
+    for system in SYSTEMS:
+        centre_rho = np.log10(DENSITY_TYPICAL_SI * system.density_factor)
+        score = ((log_rho - centre_rho) / half_rho) ** 2
+        (rho_lo, rho_hi), (c2_lo, c2_hi) = _ranges(system)
+        ok = rho_lo <= log_rho <= rho_hi
+        if log_c2 is not None:
+            centre_c2 = np.log10(SPEED_SQUARED_TYPICAL_SI * system.speed_squared_factor)
+            score += ((log_c2 - centre_c2) / half_c2) ** 2
+            ok = ok and c2_lo <= log_c2 <= c2_hi
+        scores.append(score)
+        inside.append(ok)
+    best = int(np.argmin(scores))
+    system = SYSTEMS[best]
+    others = tuple(s.name for s, ok in zip(SYSTEMS, inside, strict=True) if ok and s != system)
+    warnings: tuple[str, ...] = ()
+    if not inside[best]:
+        warnings = (
+            f"the model's numbers fit no usual unit system (mass / bounding-box volume "
+            f"{density:.3g}, wave speed^2 estimate {speed2:.3g}); nearest: {system.name}. "
+            "Check the units of the mass and stiffness matrices and the coordinates",
+        )
+    return UnitGuess(system, bool(inside[best]), others, float(density), float(speed2), warnings)
+
+
+def frequency_warnings(
+    guess: UnitGuess, band_hz: tuple[float, float], eigenfrequencies_hz: np.ndarray
+) -> list[str]:
+    """Contradictions between the job's band and the model's eigenfrequencies (one line each).
+
+    Parameters
+    ----------
+    guess : UnitGuess
+    band_hz : (float, float)
+        The job's band, in 1/(model time unit).
+    eigenfrequencies_hz : ndarray
+        Eigenfrequencies known so far (e.g. of the reduced models), same unit; zeros (rigid-body
+        modes) are ignored.
+    """
+    values = np.asarray(eigenfrequencies_hz, dtype=float)
+    values = values[np.isfinite(values) & (values > 0)]
+    warnings = []
+    unit = ""
+    if guess.system is not None and guess.system.time != "s":
+        unit = (
+            f" (the model looks like {guess.system.name}: its frequencies are in "
+            f"{guess.system.frequency_unit})"
+        )
+    if values.size and band_hz[1] > 100 * values.max():
+        warnings.append(
+            f"the band reaches {band_hz[1]:g} Hz, more than 100 times every eigenfrequency "
+            f"computed (highest {values.max():.3g} Hz){unit}; check the band and the units"
+        )
+    if values.size and band_hz[1] < values.min() / 100:
+        warnings.append(
+            f"the band ends at {band_hz[1]:g} Hz, below 1/100 of the lowest eigenfrequency "
+            f"({values.min():.3g} Hz){unit}; check the band and the units"
+        )
+    if not warnings and unit:
+        warnings.append(f"frequencies are in 1/{guess.system.time}{unit}; the band is in that unit")
+    return warnings
+
+
+def convert_body(
+    body: ElasticBody, source: UnitSystem | str, target: UnitSystem | str
+) -> ElasticBody:
+    """The same body in another consistent unit system.
+
+    Displacement dofs scale with the length unit, rotations are unchanged; energies (``q^T K q``)
+    with the force x length unit and kinetic energies with mass x length^2 / time^2, so
+    ``K' = e S^-1 K S^-1``, ``M' = e tau^2 S^-1 M S^-1``, ``D' = e tau S^-1 D S^-1`` with ``S`` the
+    dof scales, ``e`` the energy factor and ``tau`` the time factor. Constraint equations and
+    coordinates scale accordingly; eigenfrequencies change by ``1 / tau`` (none between two
+    systems in seconds).
+
+    Parameters
+    ----------
+    body : ElasticBody
+    source, target : UnitSystem or str
+        Systems (or their names in :data:`SYSTEMS`).
+    """
+    by_name = {s.name: s for s in SYSTEMS}
+    src = by_name[source] if isinstance(source, str) else source
+    dst = by_name[target] if isinstance(target, str) else target
+    length = src.length_m / dst.length_m  # new length units per old one
+    mass = src.mass_kg / dst.mass_kg
+    tau = src.time_s / dst.time_s  # new time units per old one
+    energy = mass * length**2 / tau**2  # kinetic energy unit: mass length^2 / time^2
+    scale = np.where(body.dofs.directions < 3, length, 1.0)
+    inverse = sp.diags(1.0 / scale)
+
+    def transform(matrix: sp.spmatrix | None, factor: float) -> sp.csr_matrix | None:
+        if matrix is None:
+            return None
+        return sp.csr_matrix(factor * (inverse @ matrix @ inverse))
+
+    constraints = body.constraints
+    if constraints is not None and len(constraints):
+        g = sp.diags(scale[constraints.dependent]) @ constraints.matrix @ inverse
+        constraints = ConstraintEquations(
+            constraints.dependent, g, constraints.offset * scale[constraints.dependent]
+        )
+    return replace(
+        body,
+        coordinates=body.coordinates * length,
+        mass=transform(body.mass, energy * tau**2),
+        stiffness=transform(body.stiffness, energy),
+        damping_matrix=transform(body.damping_matrix, energy * tau),
+        constraints=constraints,
+    )
+
+
+__all__ = [
+    "SYSTEMS",
+    "UnitGuess",
+    "UnitSystem",
+    "convert_body",
+    "detect_units",
+    "frequency_warnings",
+    "implied_numbers",
+]

@@ -1,0 +1,106 @@
+"""Unit-system detection (``pymorembs.units``) on the built-in models, in SI and converted."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from pymorembs.cli import main
+from pymorembs.examples import build_example
+from pymorembs.prepare import Frame, Port, prepare
+from pymorembs.reduce.modal import eigenmodes
+from pymorembs.units import SYSTEMS, convert_body, detect_units, frequency_warnings
+
+
+@pytest.fixture(scope="module")
+def beams():
+    return build_example("rack-beams")
+
+
+@pytest.fixture(scope="module")
+def solid():
+    return build_example("rack-solid", dofs=10000)
+
+
+def lowest_hz(body, count=3):
+    ports = [Port.parse(1, "ux")]
+    prepared = prepare(body, Frame("tangent", 2), ports, ports)
+    values, _ = eigenmodes(prepared.system, count)
+    return np.sqrt(values) / (2 * np.pi)
+
+
+@pytest.mark.parametrize("model", ["beams", "solid"])
+def test_si_models_are_detected_as_si(model, request):
+    guess = detect_units(request.getfixturevalue(model))
+    assert guess.name == "m-kg-s-N"
+    assert guess.plausible and guess.ambiguous == () and guess.warnings == ()
+    assert 300 < guess.implied_density < 8000  # steel, partly filled box, kg/m^3
+
+
+@pytest.mark.parametrize("target", [s.name for s in SYSTEMS[1:]])
+@pytest.mark.parametrize("model", ["beams", "solid"])
+def test_converted_models_are_detected(model, target, request):
+    body = request.getfixturevalue(model)
+    converted = convert_body(body, "m-kg-s-N", target)
+    guess = detect_units(converted)
+    assert guess.name == target
+    assert guess.plausible
+
+
+def test_mm_t_s_conversion_is_exact(beams):
+    """lengths x 1e3, masses x 1e-3 (t), translational K in N/mm (x 1e-3), rotational K in
+    N mm/rad (x 1e3), rotary inertia in t mm^2 (x 1e3); the same eigenfrequencies (seconds)."""
+    mm = convert_body(beams, "m-kg-s-N", "mm-t-s-N")
+    assert np.allclose(mm.coordinates, 1e3 * beams.coordinates, rtol=0, atol=1e-12)
+    assert mm.total_mass() == pytest.approx(1e-3 * beams.total_mass(), rel=1e-14)
+    d = beams.dofs.directions
+    i = int(np.flatnonzero(d == 0)[10])  # a translational dof
+    r = int(np.flatnonzero(d == 5)[10])  # a rotational dof
+    assert mm.stiffness[i, i] == pytest.approx(1e-3 * beams.stiffness[i, i], rel=1e-14)
+    assert mm.stiffness[r, r] == pytest.approx(1e3 * beams.stiffness[r, r], rel=1e-14)
+    assert mm.mass[r, r] == pytest.approx(1e3 * beams.mass[r, r], rel=1e-14)
+    assert mm.stiffness[i, r] == pytest.approx(beams.stiffness[i, r], rel=1e-14)
+    assert np.allclose(lowest_hz(mm), lowest_hz(beams), rtol=1e-7)  # cond(K) ~ 5e11
+    assert lowest_hz(beams)[0] == pytest.approx(41.57, abs=0.01)
+
+
+def test_milliseconds_divide_the_frequencies_by_1000(beams):
+    ms = convert_body(beams, "m-kg-s-N", "mm-kg-ms-kN")
+    assert np.allclose(lowest_hz(ms), 1e-3 * lowest_hz(beams), rtol=1e-9)
+    guess = detect_units(ms)
+    assert guess.system.frequency_unit == "kHz"
+
+
+def test_implausible_numbers_give_one_warning(beams):
+    heavy = replace(beams, mass=beams.mass * 1e8)  # a density of 3e11 kg/m^3
+    guess = detect_units(heavy)
+    assert not guess.plausible
+    assert len(guess.warnings) == 1
+    assert "fit no usual unit system" in guess.warnings[0]
+    assert "\n" not in guess.warnings[0]
+
+
+def test_frequency_warnings(beams):
+    si = detect_units(beams)
+    assert frequency_warnings(si, (0.0, 1000.0), np.array([41.6, 100.9, 460.4])) == []
+    far_above = frequency_warnings(si, (0.0, 1e6), np.array([41.6, 100.9, 460.4]))
+    assert len(far_above) == 1 and "more than 100 times every eigenfrequency" in far_above[0]
+    far_below = frequency_warnings(si, (0.0, 0.1), np.array([41.6, 100.9]))
+    assert len(far_below) == 1 and "below 1/100 of the lowest eigenfrequency" in far_below[0]
+    ms = detect_units(convert_body(beams, "m-kg-s-N", "mm-kg-ms-kN"))
+    hint = frequency_warnings(ms, (0.0, 1000.0), np.array([0.0416, 0.1009, 0.4604]))
+    assert len(hint) == 1 and "mm-kg-ms-kN" in hint[0] and "kHz" in hint[0]
+
+
+def test_info_and_summary_state_the_unit_system(tmp_path, capsys):
+    assert main(["example", "rack-beams", "--out", str(tmp_path / "rack")]) == 0
+    capsys.readouterr()
+    assert main(["info", str(tmp_path / "rack" / "model.h5"), "--modes", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "unit system       m-kg-s-N (m, kg, s, N; frequencies in Hz)" in out
+    assert main(["info", str(tmp_path / "rack" / "model.h5"), "--modes", "2", "--json"]) == 0
+    facts = json.loads(capsys.readouterr().out)
+    assert facts["units"]["system"] == "m-kg-s-N" and facts["units"]["plausible"] is True
