@@ -109,7 +109,7 @@ Frequencies are in Hz at the interface, ``w = 2 pi f`` in rad/s inside.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -550,6 +550,57 @@ def gramian_reduction(
     else:
         outer, working = None, system
     p_p, q_pv, modal = _gramians(working, w1, w2, damping_ratio)
+    return projection_from_gramians(
+        working,
+        outer,
+        (p_p, q_pv, modal),
+        (w1, w2),
+        order,
+        tolerance,
+        kappa_points,
+        method="gramian" if outer is None else "two-step gramian",
+        parameters={
+            "two_step": outer is not None,
+            "medium_order": None if outer is None else int(outer.shape[1]),
+        },
+    )
+
+
+def projection_from_gramians(
+    working: SecondOrderSystem,
+    outer: np.ndarray | None,
+    gramians: tuple[np.ndarray, np.ndarray, _ModalForm],
+    band_rad: tuple[float, float],
+    order: int | None,
+    tolerance: float | None,
+    kappa_points: int,
+    method: str,
+    parameters: dict,
+) -> Projection:
+    """The projection on the dominant eigenvectors of ``P_p^w + Q_pv^w`` of ``working``.
+
+    Shared by :func:`gramian_reduction` and the large-scale solver of
+    :mod:`pymorembs.reduce.rational_gramian`.
+
+    Parameters
+    ----------
+    working : SecondOrderSystem
+        The system whose Gramians are given: the full one, or ``system.project(outer)``.
+    outer : ndarray, shape (N, k), or None
+        Orthonormal basis with ``working = system.project(outer)``; ``V = outer V_gram``.
+    gramians : (P_p, Q_pv, modal form)
+        Of ``working``, shape (k, k) each, as ``_gramians`` returns them.
+    band_rad : (float, float)
+        ``(w_1, w_2)`` in rad/s.
+    order, tolerance, kappa_points :
+        As in :func:`gramian_reduction`.
+    method : str
+        The projection's method name.
+    parameters : dict
+        Entries placed after ``band_hz``, ``order``, ``tolerance`` in ``Projection.parameters``.
+    """
+    w1, w2 = band_rad
+    p_p, q_pv, modal = gramians
     sigma, vectors = _dominant(p_p + q_pv)
     n = select_order(sigma, order, tolerance)
     v_small = vectors[:, :n]
@@ -564,13 +615,12 @@ def gramian_reduction(
     return Projection(
         V=v,
         W=v,
-        method="gramian" if outer is None else "two-step gramian",
+        method=method,
         parameters={
             "band_hz": [w1 / (2.0 * np.pi), w2 / (2.0 * np.pi)],
             "order": n,
             "tolerance": tolerance,
-            "two_step": outer is not None,
-            "medium_order": None if outer is None else int(outer.shape[1]),
+            **parameters,
             "sigma": [float(s) for s in sigma],
             "indicator": [float(x) for x in error_indicator(sigma)],
             "neglected_sum": neglected,
@@ -660,30 +710,55 @@ def quadrature(
     return nodes / (2.0 * np.pi), weights
 
 
-def _resolvent_solve(system: SecondOrderSystem, frequency_hz: float, rhs: np.ndarray) -> np.ndarray:
-    """``(-w^2 M + i w D + (1 + i eta) K)^-1 rhs`` at ``w = 2 pi f``; elastic part for free bodies.
+def resolvent(system: SecondOrderSystem, frequency_hz: float) -> Callable[[np.ndarray], np.ndarray]:
+    """``rhs -> (-w^2 M + i w D + (1 + i eta) K)^-1 rhs`` at ``w = 2 pi f``; elastic part for free
+    bodies.
 
     Sparse systems: one :class:`Factorization` of the exact terms (inertia relief at 0 Hz for a
-    free body); dense systems: a dense solve.
+    free body), kept by the returned function for any number of solves; dense systems: a dense
+    solve. The solutions are mass-orthogonal to the rigid-body modes of a free body.
+
+    Parameters
+    ----------
+    system : SecondOrderSystem
+    frequency_hz : float
+        ``f >= 0`` in Hz.
+
+    Returns
+    -------
+    callable
+        ``solve(rhs)`` for ``rhs`` of shape (n, k), real or complex; complex result for
+        ``f > 0`` with damping.
     """
     terms, scale = system.dynamic_terms(2j * np.pi * frequency_hz)
     label = f"dynamic stiffness at {frequency_hz:g} Hz"
     rigid = system.rigid_modes
     if system.is_sparse:
         if frequency_hz == 0.0 and rigid is not None:
-            x = InertiaRelief(system.stiffness, system.mass, rigid, label).solve(rhs)
+            solver = InertiaRelief(system.stiffness, system.mass, rigid, label).solve
         else:
-            x = Factorization(terms, label=label).solve(rhs)
+            solver = Factorization(terms, label=label).solve
     else:
         matrix = sum(coefficient * np.asarray(a) for coefficient, a in terms)
-        try:
-            x = np.linalg.solve(matrix, rhs)
-        except np.linalg.LinAlgError:
-            raise NumericalError(f"{label} is singular") from None
-    x = x / scale
-    if rigid is not None:  # rigid-body part: zero in exact arithmetic (R^T B = 0)
-        x = x - rigid @ (rigid.T @ extended_product(system.mass, x))
-    return x
+
+        def solver(rhs: np.ndarray) -> np.ndarray:
+            try:
+                return np.linalg.solve(matrix, rhs)
+            except np.linalg.LinAlgError:
+                raise NumericalError(f"{label} is singular") from None
+
+    def solve(rhs: np.ndarray) -> np.ndarray:
+        x = solver(rhs) / scale
+        if rigid is not None:  # rigid-body part: zero in exact arithmetic (R^T B = 0)
+            x = x - rigid @ (rigid.T @ extended_product(system.mass, x))
+        return x
+
+    return solve
+
+
+def _resolvent_solve(system: SecondOrderSystem, frequency_hz: float, rhs: np.ndarray) -> np.ndarray:
+    """``(-w^2 M + i w D + (1 + i eta) K)^-1 rhs`` at ``w = 2 pi f`` (see :func:`resolvent`)."""
+    return resolvent(system, frequency_hz)(rhs)
 
 
 def pod_reduction(
