@@ -24,7 +24,8 @@ refinement stops after its first correction when that correction is below ``1e-7
 the error then contracts to its square, below :data:`REFINE_TOL`, without a second residual to
 confirm it. On the rack models (plain forward error 6e-10 to 1e-8) a refined solve therefore
 costs one extended residual and one extra solve; on the rack-solid with the paper's light stiff
-beams in the Buckens frame (plain error 1.2e-4) refinement takes its full course. ``refine="always"`` restores it everywhere.
+beams in the Buckens frame (plain error 1.2e-4) refinement takes its full course.
+``refine="always"`` refines every solve.
 
 Shifted matrices ``sum_i c_i A_i`` are formed on a sparsity pattern merged once per set of terms
 (:mod:`pymorembs.linalg.pattern`), in double for the factorization and in extended precision for
