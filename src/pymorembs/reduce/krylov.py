@@ -248,6 +248,9 @@ def krylov_reduction(
                     _advance(basis_w, dual, m, None, bar)
                     arnoldi.append(process)
                     duals.append(dual)
+                # free this factorization before the next one is computed: two factors of a
+                # large model at once would double the peak memory (and page it in again)
+                del process
         else:
             # round-robin over the points, lowest moments first, until `order` columns
             limits = moments or [MAX_MOMENTS] * len(points)
