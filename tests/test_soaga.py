@@ -321,3 +321,17 @@ def test_soaga_block_per_step_and_given_candidates():
 def test_bad_soaga_options(kwargs, message):
     with pytest.raises(UserError, match=message):
         soaga_reduction(system_of(n_nodes=8), **kwargs)
+
+
+def test_soaga_opens_no_point_without_memory_for_its_factorization(lattice_system, monkeypatch):
+    """When another factorization would not fit, SOAGA goes on with the points it has."""
+    import pymorembs.reduce.soaga as soaga_module
+
+    free = soaga_reduction(lattice_system, BAND, tolerance=1e-8)
+    assert free.parameters["factorizations"] > 1 and not free.parameters["memory_limited"]
+    monkeypatch.setattr(soaga_module, "available_memory_bytes", lambda: 1.0)  # 1 byte left
+    tight = soaga_reduction(lattice_system, BAND, tolerance=1e-8)
+    assert tight.parameters["factorizations"] == 1
+    assert tight.parameters["memory_limited"]
+    assert tight.parameters["stop"] in ("memory", "tolerance", "exhausted")
+    assert tight.order > 0

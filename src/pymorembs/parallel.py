@@ -49,6 +49,19 @@ def usable_cores() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+def available_memory_bytes() -> float:
+    """Memory the system can give this process now: ``MemAvailable`` of ``/proc/meminfo``,
+    bytes; infinite where that is not known (not Linux)."""
+    try:
+        with open("/proc/meminfo") as meminfo:
+            for line in meminfo:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024.0
+    except (OSError, ValueError, IndexError):
+        pass
+    return float("inf")
+
+
 def dask_available() -> bool:
     """Whether ``dask.distributed`` can be imported (the ``dask`` extra)."""
     try:

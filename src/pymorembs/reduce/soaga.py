@@ -80,6 +80,7 @@ from pymorembs.analysis.error import frequency_grid
 from pymorembs.errors import NumericalError, UserError
 from pymorembs.linalg.orthogonalization import OrthonormalBasis
 from pymorembs.linalg.products import extended_product
+from pymorembs.parallel import available_memory_bytes
 from pymorembs.progress import Progress
 from pymorembs.reduce.krylov import SecondOrderArnoldi
 from pymorembs.reduce.projection import Projection
@@ -98,6 +99,11 @@ MAX_EMPTY_BLOCKS = 4
 LOOK_AHEAD_TOL = 1e-13
 #: Bytes of the stacked reduced matrices evaluated at once on the frequency grid.
 CHUNK_BYTES = 32e6
+#: A new expansion point (a new factorization, kept until the end) is opened only while the
+#: memory available exceeds this many times the largest factorization so far; otherwise the
+#: iteration goes on with the points it has (``parameters["memory_limited"]``). At 300,000 dofs
+#: one factor takes about 5 GB, and a fourth point did not fit into 24 GiB.
+MEMORY_MARGIN = 1.5
 
 
 class GlobalSecondOrderArnoldi(SecondOrderArnoldi):
@@ -402,6 +408,7 @@ def soaga_reduction(
                 blocks.extend(parts)
         return blocks
 
+    memory_limited = False
     # progress: columns of V out of the largest possible order
     bar = Progress("soaga", total=limit, unit="column", every=1)
     shown = 0
@@ -427,9 +434,12 @@ def soaga_reduction(
             if basis.size >= limit:
                 stop = "max_order"
                 break
-            available = [k for k, point in enumerate(points) if not point.exhausted]
+            room = _room_for_a_factorization([points[j].process for j in used])
+            open_ = [k for k, point in enumerate(points) if not point.exhausted]
+            available = [k for k in open_ if points[k].process is not None or room]
+            memory_limited = memory_limited or len(available) < len(open_)
             if not available:
-                stop = "exhausted"
+                stop = "memory" if open_ else "exhausted"
                 break
             target = grid[int(np.argmax(estimate))]
             k = min(available, key=lambda j: abs(points[j].frequency_hz - target))
@@ -457,11 +467,23 @@ def soaga_reduction(
             "tolerance": tolerance,
             "max_order": max_order,
             "stop": stop,
+            "memory_limited": memory_limited,
             "order": int(v.shape[1]),
         },
         error_estimate=float(estimate.max()),
         error_curve=(grid, estimate),
     )
+
+
+def _room_for_a_factorization(processes: list[GlobalSecondOrderArnoldi]) -> bool:
+    """Whether another factorization like the largest of ``processes`` fits into the memory
+    available now (:data:`MEMORY_MARGIN`)."""
+    largest = 0
+    for process in processes:
+        solver = process.factorization
+        solver = getattr(solver, "factorization", solver)  # inertia relief wraps one
+        largest = max(largest, int(solver.factor.memory_bytes))
+    return available_memory_bytes() > MEMORY_MARGIN * largest
 
 
 def _check_band(band_hz: tuple[float, float]) -> tuple[float, float]:
