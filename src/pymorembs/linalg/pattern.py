@@ -61,6 +61,7 @@ class SumPattern:
         # both patterns are sorted the same way, so the k-th entry of matrix i is the k-th
         # merged entry that carries flag i
         self.positions = [np.flatnonzero((flags >> i) & 1) for i in range(len(parts))]
+        self._aligned: list[np.ndarray] | None = None
 
     @property
     def nnz(self) -> int:
@@ -86,20 +87,42 @@ class SumPattern:
             raise ValueError(f"{len(coefficients)} coefficients for {len(self.positions)} terms")
         if dtype is None:
             dtype = np.result_type(*coefficients, *self._data)
-        data = np.zeros(self.nnz, dtype=dtype)
-        terms = zip(coefficients, self.positions, self._data, strict=True)
-        for coefficient, where, values in terms:
-            if coefficient == 0:
-                continue
-            term = np.asarray(coefficient, dtype=dtype) * values.astype(dtype, copy=False)
-            if where.size == data.size:  # the merged pattern is this matrix's own
-                data += term
-            else:  # the positions of one matrix are distinct: += adds each entry once
-                data[where] += term
+        active = [
+            (np.asarray(c, dtype=dtype), values)
+            for c, values in zip(coefficients, self._aligned_data(), strict=True)
+            if c != 0
+        ]
+        if not active:
+            data = np.zeros(self.nnz, dtype=dtype)
+        else:  # whole-array products, no gather or scatter
+            data = np.multiply(active[0][1], active[0][0], dtype=dtype)
+            scratch = np.empty_like(data) if len(active) > 1 else None
+            for coefficient, values in active[1:]:
+                np.multiply(values, coefficient, out=scratch, dtype=dtype)
+                data += scratch
         combined = sp.csr_matrix(self.shape, dtype=dtype)
         combined.data, combined.indices, combined.indptr = data, self.indices, self.indptr
         combined.has_canonical_format = True
         return combined
+
+    def _aligned_data(self) -> list[np.ndarray]:
+        """The data of every matrix on the merged pattern (zeros where it stores nothing).
+
+        A matrix whose pattern is the merged one (the stiffness, usually) is used as is; the
+        others get one array of the merged size each, built on first use (at 300,000 dofs the
+        mass matrix's costs 0.4 GB and saves a 16 M-entry gather and scatter per shift).
+        """
+        if self._aligned is None:
+            aligned = []
+            for where, values in zip(self.positions, self._data, strict=True):
+                if where.size == self.nnz:
+                    aligned.append(values)
+                else:
+                    full = np.zeros(self.nnz, dtype=values.dtype)
+                    full[where] = values
+                    aligned.append(full)
+            self._aligned = aligned
+        return self._aligned
 
 
 def _canonical(matrix: sp.spmatrix) -> sp.csr_matrix:
@@ -112,11 +135,11 @@ def _canonical(matrix: sp.spmatrix) -> sp.csr_matrix:
 
 
 def _infinity_norm(matrix: sp.csr_matrix) -> float:
-    """``max_i sum_j |a_ij|`` of a canonical CSR matrix, O(nnz) without temporary matrices."""
+    """``max_i sum_j |a_ij|`` of a canonical CSR matrix, O(nnz), the pattern not copied."""
     if matrix.nnz == 0:
         return 0.0
-    running = np.concatenate([[0.0], np.cumsum(np.abs(matrix.data))])
-    return float(np.max(running[matrix.indptr[1:]] - running[matrix.indptr[:-1]]))
+    absolute = sp.csr_matrix((np.abs(matrix.data), matrix.indices, matrix.indptr), matrix.shape)
+    return float(np.max(absolute @ np.ones(matrix.shape[1])))
 
 
 def _flagged(part: sp.csr_matrix, bit: int) -> sp.csr_matrix:
