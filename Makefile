@@ -23,8 +23,8 @@ test: $(STAMP)
 	$(BIN)/python -m pytest -q
 
 lint: $(STAMP)
-	$(BIN)/ruff check src tests examples bench
-	$(BIN)/ruff format --check src tests examples bench
+	$(BIN)/ruff check src tests examples bench fuzz
+	$(BIN)/ruff format --check src tests examples bench fuzz
 
 # Benchmarks of issue #6 (bench/README.md), about 1-2 h on 2 cores; results in bench/RESULTS.md.
 # Installs the optional fast solver extra `.[fast]` when pyproject.toml defines it.
