@@ -48,6 +48,11 @@ INTERFACE_KINDS = ("rigid", "distributing", "beams", "springs")
 #: Files a job can write per reduction (``[export] outputs``), and the job's HTML report.
 EXPORT_KINDS = ("npz", "mtx", "mat", "sid", "neweul", "exudyn", "report")
 DEFAULT_EXPORTS = ("npz", "mtx")
+#: ``[band] reference``: what the error of eq. 27 is measured against
+#: (:mod:`pymorembs.analysis.reference`).
+REFERENCE_KINDS = ("auto", "full", "surrogate")
+#: ``[band] check_points``: checks of a reference model against the full model.
+DEFAULT_CHECKS = 4
 _NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$")
 #: Files of the job folder a reduction (a sub-folder of that name) must not shadow.
 RESERVED_NAMES = frozenset(("summary.json", "error.png", "decay.png", "time.png", "report.html"))
@@ -141,6 +146,8 @@ class Job:
     title: str = ""
     export: ExportSpec = ExportSpec()
     time_domain: TimeDomainSpec | None = None
+    reference: str = "auto"
+    check_points: int = DEFAULT_CHECKS
 
 
 class _Table:
@@ -261,6 +268,11 @@ def parse_job(data: dict[str, Any], path: Path) -> Job:
     f_min = band.number("f_min_hz", 0.0, minimum=0.0)
     f_max = band.number("f_max_hz", required=True)
     points = band.integer("points", 400, minimum=200)
+    reference = band.string("reference", "auto")
+    if reference not in REFERENCE_KINDS:
+        kinds = ", ".join(map(repr, REFERENCE_KINDS))
+        raise band.error("reference", f"must be one of {kinds}, got {reference!r}")
+    check_points = band.integer("check_points", DEFAULT_CHECKS, minimum=0)
     band.done()
     if not f_max > f_min:
         raise UserError(
@@ -284,6 +296,8 @@ def parse_job(data: dict[str, Any], path: Path) -> Job:
         title,
         export,
         time_domain,
+        reference,
+        check_points,
     )
 
 

@@ -22,7 +22,8 @@ import numpy as np
 import scipy
 
 from pymorembs import __version__
-from pymorembs.analysis.error import frequency_grid, relative_error
+from pymorembs.analysis.error import frequency_grid
+from pymorembs.analysis.reference import ReferenceResponse, choose_kind, reference_response
 from pymorembs.analysis.time_domain import clamped_full_system
 from pymorembs.analysis.time_domain_job import time_domain_checks
 from pymorembs.analysis.transfer import transfer_function
@@ -398,20 +399,24 @@ def _run_job(
     for warning in warnings:
         say(f"warning: {warning}")
 
-    tick = time.perf_counter()
     frequencies = frequency_grid(*job.band_hz, job.points)
+    kind = choose_kind(job.reference, system.order)
     stage(
-        f"frequency response of the full model at {frequencies.size} frequencies",
-        "frequency response",
+        f"frequency response of the full model at {frequencies.size} frequencies"
+        if kind == "full"
+        else f"reference model for the error at {frequencies.size} frequencies, checked "
+        "against the full model",
+        "reference response",
     )
-    full_response = transfer_function(
-        system,
-        frequencies,
-        workers=workers,
-        scheduler=scheduler,
-        label="frequency response (full model)",
+    reference = reference_response(
+        system, frequencies, kind, job.check_points, workers=workers, scheduler=scheduler
     )
-    timings["full_response_s"] = time.perf_counter() - tick
+    if reference.kind == "surrogate":
+        say(
+            f"reference model of order {reference.parameters['order']}: largest deviation from "
+            f"the full model at {len(reference.deviation)} checked frequencies "
+            f"{reference.accuracy:.1e}"
+        )
 
     parent = out_dir.resolve().parent
     parent.mkdir(parents=True, exist_ok=True)
@@ -420,10 +425,24 @@ def _run_job(
         entries, errors, estimates, decay, models = [], {}, {}, {}, {}
         outputs = job.export.outputs
         nodes = export_nodes(job)
+        reduced_runs = []
         for spec in job.reductions:
             stage(f"reduction '{spec.name}' ({spec.method})", f"reduction '{spec.name}'")
-            entry, eps, model = _reduce_one(
-                prepared, spec, job.band_hz, frequencies, full_response, staging, outputs, nodes
+            reduced_runs.append(_reduce_one(prepared, spec, job.band_hz, reference))
+        settled = -1
+        while settled != int(np.count_nonzero(reference.exact)):
+            # every reduction judged against the same reference, after all of its checks
+            settled = int(np.count_nonzero(reference.exact))
+            all_eps = [
+                _checked_errors(spec, reference, response)
+                for spec, (_, response, _) in zip(job.reductions, reduced_runs, strict=True)
+            ]
+        timings["reference_s"] = reference.seconds
+        for spec, (model, _, elapsed), eps in zip(
+            job.reductions, reduced_runs, all_eps, strict=True
+        ):
+            entry = _write_one(
+                prepared, spec, model, eps, elapsed, reference, staging, outputs, nodes
             )
             projection = model.projection
             models[spec.name] = model
@@ -451,9 +470,16 @@ def _run_job(
             staging / "error.png",
             title=job.title or "Relative error of the reduced models",
             estimates=estimates,
+            **_reference_marks(reference),
         )
         overview = ["summary.json", "error.png"]
         caption = "Relative error ε(f) of eq. 27 of every reduction"
+        if reference.kind == "surrogate":
+            caption += (
+                f" against a reference model of order {reference.parameters['order']}, "
+                "checked against the full model at the black-edged points (its measured "
+                "deviation: dotted)"
+            )
         if estimates:
             caption += "; dashed: the error estimators"
         figures = [(staging / "error.png", caption)]
@@ -509,6 +535,7 @@ def _run_job(
             "validation": validation.as_dict(),
             "band_hz": list(job.band_hz),
             "n_frequencies": int(frequencies.size),
+            "reference": reference.as_dict(),
             "reductions": entries,
             "warnings": warnings,
             "timings_s": timings,
@@ -533,23 +560,50 @@ def _reduce_one(
     prepared: PreparedModel,
     spec: ReductionSpec,
     band_hz: tuple[float, float],
-    frequencies: np.ndarray,
-    full_response: np.ndarray,
-    staging: Path,
-    outputs: tuple[str, ...],
-    nodes: list[int],
-) -> tuple[dict[str, Any], np.ndarray, ReducedModel]:
+    reference: ReferenceResponse,
+) -> tuple[ReducedModel, np.ndarray, float]:
+    """Reduce; the checked reduced model, its response on the grid and the reduction time (s).
+
+    The maximum of its error is checked against the full model at once
+    (:meth:`ReferenceResponse.settle`).
+    """
     tick = time.perf_counter()
     projection = run_reduction(prepared.system, spec, band_hz)
     model = reduced_model(prepared.system, projection)  # checked before anything is written
     elapsed = time.perf_counter() - tick
-    eps = relative_error(full_response, transfer_function(model.system, frequencies))
+    response = transfer_function(model.system, reference.frequencies_hz)
+    _checked_errors(spec, reference, response)
+    return model, response, elapsed
+
+
+def _checked_errors(
+    spec: ReductionSpec, reference: ReferenceResponse, response: np.ndarray
+) -> np.ndarray:
+    """``eps(f)`` (eq. 27) with its maximum on a frequency checked against the full model."""
+    eps = reference.settle(response)
     if not np.all(np.isfinite(eps)):
-        bad = frequencies[~np.isfinite(eps)][0]
+        bad = reference.frequencies_hz[~np.isfinite(eps)][0]
         raise NumericalError(
             f"reduction '{spec.name}': the error at {bad:g} Hz is not finite (a frequency on an "
             "undamped resonance? add damping or move the band)"
         )
+    return eps
+
+
+def _write_one(
+    prepared: PreparedModel,
+    spec: ReductionSpec,
+    model: ReducedModel,
+    eps: np.ndarray,
+    elapsed: float,
+    reference: ReferenceResponse,
+    staging: Path,
+    outputs: tuple[str, ...],
+    nodes: list[int],
+) -> dict[str, Any]:
+    """Write a reduction's files into ``staging/<name>``; its entry of the summary."""
+    projection = model.projection
+    frequencies = reference.frequencies_hz
     static = float(eps[0]) if frequencies[0] == 0.0 else None
     folder = safe_child(staging, spec.name)
     folder.mkdir()
@@ -561,10 +615,15 @@ def _reduce_one(
         folder / "error.png",
         title=f"Relative error of '{spec.name}' ({spec.method}, n = {projection.order})",
         estimates=curve,
+        **_reference_marks(reference),
     )
     table = np.column_stack([frequencies, eps])
+    header = "frequency_hz,relative_error"
+    if reference.kind == "surrogate":  # 1: measured against the full model, 0: surrogate
+        table = np.column_stack([table, reference.exact.astype(float)])
+        header += ",checked_against_full_model"
     with atomic_path(folder / "error.csv") as tmp:
-        np.savetxt(tmp, table, delimiter=",", header="frequency_hz,relative_error", comments="")
+        np.savetxt(tmp, table, delimiter=",", header=header, comments="")
     files += ["error.png", "error.csv"]
     if curve:
         with atomic_path(folder / "error_estimate.csv") as tmp:
@@ -584,12 +643,20 @@ def _reduce_one(
         "static_rel_error": static,
         "error_estimate": projection.error_estimate,
         "error_bound": projection.error_bound,
+        "reference_resolved": reference.resolved(eps),
         "time_s": elapsed,
         "parameters": _jsonable(projection.parameters),
         "eigenfrequencies_hz": model.eigenfrequencies_hz.tolist(),
         "files": [f"{spec.name}/{name}" for name in files],
     }
-    return entry, eps, model
+    return entry
+
+
+def _reference_marks(reference: ReferenceResponse) -> dict[str, Any]:
+    """Plot options that show a surrogate reference: its checked frequencies and accuracy."""
+    if reference.kind != "surrogate":
+        return {}
+    return {"checked": reference.exact, "reference_accuracy": reference.accuracy}
 
 
 def safe_child(folder: Path, name: str) -> Path:

@@ -153,12 +153,25 @@ def _settings_table(summary: dict[str, Any]) -> str:
     band = summary.get("band_hz", [None, None])
     rows = [
         ("frequency band", f"{band[0]} – {band[1]} Hz, {summary.get('n_frequencies')} points"),
+        ("error measured against", _reference_text(summary.get("reference") or {})),
     ]
     timings = summary.get("timings_s", {})
     for key, value in timings.items():
         rows.append((key.removesuffix("_s").replace("_", " ") + " [s]", _number(value)))
     body = "".join(_row([a, b], text_columns=2) for a, b in rows)
     return f"<table>{body}</table>"
+
+
+def _reference_text(reference: dict[str, Any]) -> str:
+    """One line on the reference of the error curves (:mod:`pymorembs.analysis.reference`)."""
+    if reference.get("kind") != "surrogate":
+        return "the full model at every frequency"
+    return (
+        f"a reference model of order {reference.get('order')} (SOAGA), checked against the "
+        f"full model at {reference.get('exact_frequencies')} frequencies, where it deviated "
+        f"by at most {_number(reference.get('accuracy'))}; the maximum of every error curve is "
+        "measured against the full model"
+    )
 
 
 def _methods_table(reductions: list[dict[str, Any]]) -> str:

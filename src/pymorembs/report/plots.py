@@ -19,6 +19,8 @@ def plot_relative_errors(
     path: Path,
     title: str = "Relative error of the reduced models",
     estimates: dict[str, tuple[np.ndarray, np.ndarray]] | None = None,
+    checked: np.ndarray | None = None,
+    reference_accuracy: float | None = None,
 ) -> Path:
     """Relative error ``eps(f)`` (eq. 27) of each reduction over frequency, log scale (Fig. 9/10).
 
@@ -32,6 +34,11 @@ def plot_relative_errors(
     estimates : dict of name -> (frequencies_hz, estimate), optional
         Error estimators as functions of frequency, drawn dashed in the colour of their
         reduction (paper Fig. 10).
+    checked : ndarray of bool, shape (n_f,), optional
+        Frequencies where the error was measured against the full model (the others against a
+        reference model): drawn as black-edged markers.
+    reference_accuracy : float, optional
+        The reference model's measured relative deviation from the full model: a dotted line.
     """
     fig, ax = plt.subplots(figsize=(8, 4.5), dpi=120)
     markers = "os^vD<>ph*"
@@ -42,6 +49,12 @@ def plot_relative_errors(
             frequencies_hz, np.maximum(eps, floor), label=name, lw=1.4,
             marker=markers[k % len(markers)], markevery=max(1, len(eps) // 12), ms=4,
         )  # fmt: skip
+        if checked is not None and np.any(checked):
+            ax.semilogy(
+                frequencies_hz[checked], np.maximum(eps[checked], floor), ls="none",
+                marker=markers[k % len(markers)], ms=6, mfc=line.get_color(), mec="k",
+                label="checked against the full model" if k == 0 else None,
+            )  # fmt: skip
         if name in estimates:
             f_est, est = estimates[name]
             ax.semilogy(
@@ -52,6 +65,11 @@ def plot_relative_errors(
                 color=line.get_color(),
                 label=f"{name}: estimator",
             )
+    if reference_accuracy:
+        ax.axhline(
+            max(reference_accuracy, floor), color="0.4", ls=":", lw=1.0,
+            label="reference model: deviation from the full model",
+        )  # fmt: skip
     ax.set_xlabel("frequency f [Hz]")
     ax.set_ylabel(r"relative error $\epsilon(f)$ (eq. 27)")
     ax.set_xlim(float(frequencies_hz.min()), float(frequencies_hz.max()))
