@@ -31,6 +31,7 @@ lint: $(STAMP)
 FLOOR_DOFS   ?= 35000 300000
 PEERS_DOFS   ?= 10000
 GRAMIAN_DOFS ?= 10000 35000
+REFERENCE_DOFS ?= 10000 35000
 SCALING_DOFS ?= 35000 70000 150000 300000
 
 bench: $(STAMP)
@@ -44,6 +45,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/floor_ratio.py --method soaga --dofs $(FLOOR_DOFS)
 	$(BIN)/python bench/peers.py --dofs $(PEERS_DOFS)
 	for n in $(GRAMIAN_DOFS); do $(BIN)/python bench/large_gramian.py --dofs $$n || exit 1; done
+	$(BIN)/python bench/reference.py --dofs $(REFERENCE_DOFS)
 	$(BIN)/python bench/scaling.py --dofs $(SCALING_DOFS)
 
 clean:
