@@ -230,9 +230,16 @@ def fastest(times: dict) -> tuple[str, float]:
 
 
 def warm_up() -> None:
-    """Load the solver libraries (MKL) once, so that loading is not timed."""
+    """Load the solver libraries (MKL, the compiled double-double kernel) once, so that loading
+    is not timed."""
     small = sp.eye(50, format="csc") * 2.0
     time_backends(small)
+    try:
+        from pymorembs.linalg import double_double
+    except ImportError:  # an older pymorembs
+        return
+    if double_double.available():
+        double_double.product(small, np.ones((50, 2)))
 
 
 # --------------------------------------------------------------------------- memory, processes

@@ -14,6 +14,7 @@ import pytest
 
 from pymorembs.analysis.error import frequency_grid, relative_error
 from pymorembs.analysis.reference import (
+    SURROGATE_TOLERANCE,
     ReferenceResponse,
     check_frequencies,
     choose_kind,
@@ -65,12 +66,12 @@ def test_surrogate_is_the_full_response_to_its_measured_accuracy(surrogate, full
     assert exact[0] and grid[0] == 0.0  # the static response is always checked
     assert np.count_nonzero(exact) >= 5  # 0 Hz, estimator maximum, response peak, 2 gaps
     assert np.allclose(surrogate.response[exact], full[exact], rtol=1e-13, atol=0)
-    # everywhere else within a few times the deviation measured at the checks
+    # everywhere else within a few times the accuracy: the deviation measured at the checks,
+    # at least the tolerance of the surrogate's estimator
     deviation = relative_error(full, surrogate.response)
     assert surrogate.accuracy < 1e-9
     assert deviation.max() <= 3 * surrogate.accuracy + 1e-13
-    # the recorded deviation is the one the full model shows (recomputed independently)
-    assert max(surrogate.deviation.values()) == surrogate.accuracy
+    assert surrogate.accuracy == max(*surrogate.deviation.values(), SURROGATE_TOLERANCE)
 
 
 def test_error_curves_from_the_surrogate_match_the_full_ones(rack, surrogate, full):
@@ -158,22 +159,31 @@ def test_job_with_a_surrogate_reference(tmp_path, capsys):
         top = int(np.argmax(table[:, 1]))
         assert checked[top] and checked[0]
         assert entry["max_rel_error"] == table[top, 1]
-        # the maximum and the static error, recomputed from the full model at those frequencies
+        # the maximum, recomputed from the full model and the written reduced matrices
         model = np.load(tmp_path / "out" / entry["name"] / "reduced.npz")
         at = grid[[0, top]]
         full = transfer_function(system, at)
-        v = model["V"][independent]  # Galerkin projection of the full matrices on the basis
         s = 2j * np.pi * at[1]
-        a = s**2 * (v.T @ (system.mass @ v)) + (1 + 1j * system.loss_factor) * (
-            v.T @ (system.stiffness @ v)
+        a = s**2 * model["M"] + (1 + 1j * system.loss_factor) * model["K"]  # as the full model
+        h = model["C"] @ np.linalg.solve(a, model["B"])
+        recomputed = float(relative_error(full[1:], h[None])[0])
+        assert recomputed == pytest.approx(entry["max_rel_error"], rel=1e-6)
+        # and no worse than the Galerkin projection of the full matrices on the written V, in
+        # NumPy's longdouble (independent of pymorembs' products)
+        v = model["V"][independent].astype(np.longdouble)
+        mass_r, stiffness_r = (
+            np.asarray(v.T @ (matrix.astype(np.longdouble) @ v), dtype=float)
+            for matrix in (system.mass, system.stiffness)
         )
+        a = s**2 * mass_r + (1 + 1j * system.loss_factor) * stiffness_r
+        v = np.asarray(v, dtype=float)
         b, c = system.input_matrix, system.output_matrix
         h = (c @ v) @ np.linalg.solve(a, v.T @ b)
-        recomputed = float(relative_error(full[1:], h[None])[0])
+        galerkin = float(relative_error(full[1:], h[None])[0])
         if entry["max_rel_error"] > 1e-6:  # modal-40: 4e-4
-            assert recomputed == pytest.approx(entry["max_rel_error"], rel=1e-6)
-        else:  # krylov, 3e-10: at the light stiff beams' round-off (V^T K V in double: 2e-9)
-            assert abs(recomputed - entry["max_rel_error"]) < 5e-9
+            assert galerkin == pytest.approx(entry["max_rel_error"], rel=1e-6)
+        else:  # krylov: 4e-10 written, 3e-12 for the exact projection
+            assert galerkin <= entry["max_rel_error"] + 1e-11
     report = (tmp_path / "out" / "report.html").read_text()
     assert "a reference model of order" in report
     capsys.readouterr()

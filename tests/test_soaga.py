@@ -121,9 +121,9 @@ def test_two_sided_needs_outputs_and_keeps_one_factorization_per_point(monkeypat
     labels = []
 
     class Counting(Factorization):
-        def __init__(self, terms, label="matrix", check=True):
+        def __init__(self, terms, label="matrix", check=True, **options):
             labels.append(label)
-            super().__init__(terms, label=label, check=check)
+            super().__init__(terms, label=label, check=check, **options)
 
     monkeypatch.setattr(krylov_module, "Factorization", Counting)
     system = system_of(RAYLEIGH)
@@ -277,9 +277,9 @@ def test_soaga_factorizes_only_chosen_points_and_each_once(monkeypatch):
     labels = []
 
     class Counting(Factorization):
-        def __init__(self, terms, label="matrix", check=True):
+        def __init__(self, terms, label="matrix", check=True, **options):
             labels.append(label)
-            super().__init__(terms, label=label, check=check)
+            super().__init__(terms, label=label, check=check, **options)
 
     monkeypatch.setattr(krylov_module, "Factorization", Counting)
     system = system_of(RAYLEIGH)

@@ -97,8 +97,12 @@ class ReferenceResponse:
 
     @property
     def accuracy(self) -> float:
-        """Largest measured relative deviation of the surrogate from the full model (0: full)."""
-        return max(self.deviation.values(), default=0.0)
+        """Relative accuracy of the reference (0: full): the largest deviation of the surrogate
+        from the full model measured at the checks, and no less than the tolerance its error
+        estimator was driven to (:data:`SURROGATE_TOLERANCE`): between the checks it is only
+        known to that (rack-solid at 9,759 dofs: 2.8e-14 at the checks, 3.4e-13 elsewhere)."""
+        measured = max(self.deviation.values(), default=0.0)
+        return max(measured, SURROGATE_TOLERANCE) if self.kind == "surrogate" else measured
 
     def check(self, frequencies_hz: np.ndarray | list[float]) -> None:
         """Replace the surrogate by the full response at these grid frequencies (Hz).

@@ -17,9 +17,10 @@ low-frequency response of the full model accurate to ~1e-12 instead of ~1e-8.
 Refinement only where it is needed: the first solve with a factorization is always refined, and
 the size of its first correction measures the forward error of a plain solve with these factors
 (about ``cond(A) * 1e-16`` for that kind of right-hand side). When it is below
-:data:`PLAIN_ENOUGH`, later solves with the same factorization skip the extended-precision
-refinement and only get a residual check in working precision (a double sparse product, a
-seventh of an extended one) that raises on a backward error above :data:`FAIL_ABOVE`. Every
+:data:`PLAIN_ENOUGH` (responses) or :data:`BASIS_PLAIN_ENOUGH` (solves that only build a
+subspace), later solves with the same factorization skip the extended-precision refinement
+and only get a residual check in working precision (a double sparse product, a seventh of an
+extended one) that raises on a backward error above :data:`FAIL_ABOVE`. Every
 refinement stops after its first correction when that correction is below ``1e-7`` relative:
 the error then contracts to its square, below :data:`REFINE_TOL`, without a second residual to
 confirm it. On the rack models (plain forward error 6e-10 to 1e-8) a refined solve therefore
@@ -53,9 +54,10 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from pymorembs.errors import NumericalError
+from pymorembs.linalg import double_double
 from pymorembs.linalg.backends import SUPERLU_OPTIONS, SparseFactor, factorize
 from pymorembs.linalg.pattern import infinity_norm, sum_pattern
-from pymorembs.linalg.products import extended, wide_dtype
+from pymorembs.linalg.products import extended, multiply, wide_dtype
 
 #: Refinement stops when the correction is below this, relative to the solution.
 REFINE_TOL = 1e-12
@@ -64,19 +66,47 @@ MAX_REFINEMENTS = 4
 #: Relative backward error above which a solve is reported as failed.
 FAIL_ABOVE = 1e-6
 #: Estimated forward error of a plain solve up to which a factorization's later solves are not
-#: refined (``refine="auto"``): the deflation tolerance of the Krylov bases (1e-10), below which
-#: a solve error cannot create a spurious basis direction. (Larger values were tried: with 1e-7
-#: the rack-solid's bases are built from plain solves, accurate to 6e-10 to 1e-8, at the same
-#: max epsilon -- 3.8e-11 vs 7.6e-11 refined at 9,759 dofs -- but rack-beams' Krylov basis
-#: then keeps a direction that exact solves deflate: the order depends on rounding.)
+#: refined (``refine="auto"``) when the solutions are responses that are compared or reported
+#: (frequency responses, time integration, static modes): the deflation tolerance of the Krylov
+#: bases (1e-10), so that a reference response is accurate to about that.
 PLAIN_ENOUGH = 1e-10
+#: The same for solves that only build a subspace (Krylov and SOAGA moments, ``plain_enough=``
+#: of :class:`Factorization`). A projection needs the span, not the digits of each vector: on
+#: rack-solid (n = 9,759, plain error 4e-9; inputs at node 1, outputs at nodes 1 and 1500) the
+#: Krylov model from plain moments has the same order (39) and max epsilon (4.90e-11) as the
+#: one from refined moments, at 1.0 s instead of 1.7 s. Directions below the solve error are
+#: then no longer resolved: rack-beams' basis (0/500/1000 Hz, 6/5/5 moments) keeps two
+#: directions of singular value ~4e-8 that refined moments deflate (order 37 instead of 35,
+#: max epsilon 2.38e-10 both, highest eigenfrequency 234 kHz instead of 930 kHz). So it applies
+#: from :data:`BASIS_PLAIN_MIN_ORDER` dofs on, where the refinement is worth its time: at 35,679
+#: dofs it took 1.7 s of a 4.1 s Krylov reduction (16 extended residuals and 16 extra solves).
+BASIS_PLAIN_ENOUGH = 1e-7
+#: Smallest order at which subspace-building solves use :data:`BASIS_PLAIN_ENOUGH`
+#: (:func:`basis_plain_enough`): below it refinement costs well under a second, and the tighter
+#: basis of refined moments is kept.
+BASIS_PLAIN_MIN_ORDER = 20_000
+
+
+def basis_plain_enough(order: int) -> float:
+    """The ``plain_enough`` of subspace-building solves for a system of this order."""
+    return BASIS_PLAIN_ENOUGH if order >= BASIS_PLAIN_MIN_ORDER else PLAIN_ENOUGH
+
 
 Terms = Sequence[tuple[complex, sp.spmatrix]]
 
 #: Relative asymmetry ``max|A - A^T| / max|A|`` up to which a term counts as symmetric.
 SYMMETRY_TOL = 1e-14
 
-__all__ = ["SUPERLU_OPTIONS", "Factorization", "combine", "is_symmetric"]
+__all__ = [
+    "BASIS_PLAIN_ENOUGH",
+    "BASIS_PLAIN_MIN_ORDER",
+    "PLAIN_ENOUGH",
+    "SUPERLU_OPTIONS",
+    "Factorization",
+    "basis_plain_enough",
+    "combine",
+    "is_symmetric",
+]
 
 _SYMMETRIC: dict[int, bool] = {}
 
@@ -139,7 +169,10 @@ class Factorization:
         Default :func:`pymorembs.linalg.backends.default_backend`.
     refine : {"auto", "always"}
         ``"auto"``: refine the first solve, and later ones only if the first showed a plain
-        solve error above :data:`PLAIN_ENOUGH` (module docstring); ``"always"``: every solve.
+        solve error above ``plain_enough`` (module docstring); ``"always"``: every solve.
+    plain_enough : float
+        Default :data:`PLAIN_ENOUGH`; :data:`BASIS_PLAIN_ENOUGH` for solves that only build a
+        subspace.
 
     Attributes
     ----------
@@ -162,9 +195,11 @@ class Factorization:
         check: bool = True,
         backend: str | None = None,
         refine: str = "auto",
+        plain_enough: float = PLAIN_ENOUGH,
     ):
         if refine not in ("auto", "always"):
             raise ValueError(f"refine must be 'auto' or 'always', got {refine!r}")
+        self.plain_enough = float(plain_enough)
         if sp.issparse(terms):
             terms = [(1.0, terms)]
         self.terms = [(c, m) for c, m in terms if c != 0]
@@ -199,7 +234,7 @@ class Factorization:
         if not self.check:
             return x
         if self._plain_is_enough():
-            residual = rhs - (self.matrix @ x.reshape(x.shape[0], -1)).reshape(x.shape)
+            residual = rhs - multiply(self.matrix, x.reshape(x.shape[0], -1)).reshape(x.shape)
             self._check_backward(residual, x, rhs)
             return x
         previous = np.inf
@@ -228,7 +263,7 @@ class Factorization:
         return (
             self.refine == "auto"
             and self.plain_error is not None
-            and self.plain_error <= PLAIN_ENOUGH
+            and self.plain_error <= self.plain_enough
         )
 
     def _check_backward(self, residual: np.ndarray, x: np.ndarray, rhs: np.ndarray) -> None:
@@ -244,10 +279,16 @@ class Factorization:
     def _residual(self, rhs: np.ndarray, x: np.ndarray) -> np.ndarray:
         """``rhs - sum_i c_i A_i x`` in extended precision, rounded to working precision.
 
+        Double-double (:mod:`pymorembs.linalg.double_double`) when Numba is installed and the
+        matrices are real, else ``numpy.longdouble``.
+
         The matrices are real (K, M, D), so the real and imaginary parts of ``x`` are multiplied
         as one real block; only the scalar coefficients are complex.
         """
         self.extended_residuals += 1
+        if double_double.available() and not any(np.iscomplexobj(m.data) for _, m in self.terms):
+            # compiled double-double: one pass per term, no extended copies of the matrices
+            return double_double.residual(rhs, self.terms, x).astype(x.dtype, copy=False)
         complex_x = np.iscomplexobj(x)
         columns = x.shape[1] if x.ndim == 2 else 1
         parts = np.column_stack([x.real, x.imag]) if complex_x else x.reshape(x.shape[0], -1)

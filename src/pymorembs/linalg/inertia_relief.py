@@ -18,7 +18,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from pymorembs.linalg.factorization import Factorization
+from pymorembs.linalg.factorization import PLAIN_ENOUGH, Factorization
 
 
 class InertiaRelief:
@@ -31,10 +31,17 @@ class InertiaRelief:
         Rigid-body modes, mass-orthonormal (``R^T M R = I``).
     label : str
         For error messages.
+    plain_enough : float
+        See :class:`~pymorembs.linalg.factorization.Factorization`.
     """
 
     def __init__(
-        self, stiffness: sp.spmatrix, mass: sp.spmatrix, rigid_modes: np.ndarray, label: str
+        self,
+        stiffness: sp.spmatrix,
+        mass: sp.spmatrix,
+        rigid_modes: np.ndarray,
+        label: str,
+        plain_enough: float = PLAIN_ENOUGH,
     ) -> None:
         self.mass = mass
         self.rigid = rigid_modes
@@ -43,7 +50,9 @@ class InertiaRelief:
         self.support = np.sort(pivots[:r])
         self.free = np.setdiff1d(np.arange(n), self.support)
         held = sp.csr_matrix(stiffness)[self.free][:, self.free]
-        self.factorization = Factorization(held, label=f"{label} (inertia relief)")
+        self.factorization = Factorization(
+            held, label=f"{label} (inertia relief)", plain_enough=plain_enough
+        )
         self.shape = (n, n)
 
     def equilibrate(self, loads: np.ndarray) -> np.ndarray:

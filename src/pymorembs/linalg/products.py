@@ -2,9 +2,11 @@
 
 For a smooth block ``V`` (static deflections, low modes), ``K V`` is small while the entries of
 ``K`` are large: in double precision the product loses ~log10(cond K) digits to cancellation.
-Computing it in ``numpy.longdouble`` (64-bit mantissa on x86-64) and rounding the result keeps
-reduced matrices ``V^T K V`` and solve residuals accurate to working precision, which the
-exactness of moment matching (e.g. of the static response) relies on.
+Computing it in extended precision and rounding the result keeps reduced matrices ``V^T K V``
+and solve residuals accurate to working precision, which the exactness of moment matching (e.g.
+of the static response) relies on. Extended precision is double-double from the compiled kernel
+of :mod:`pymorembs.linalg.double_double` when Numba is installed, else ``numpy.longdouble``
+(64-bit mantissa on x86-64).
 """
 
 from __future__ import annotations
@@ -13,6 +15,8 @@ import weakref
 
 import numpy as np
 import scipy.sparse as sp
+
+from pymorembs.linalg import double_double
 
 _EXTENDED: dict[int, sp.csr_matrix] = {}
 
@@ -45,5 +49,32 @@ def extended_product(matrix: sp.spmatrix | np.ndarray, block: np.ndarray) -> np.
     block = np.asarray(block)
     if not sp.issparse(matrix):
         return np.asarray(matrix @ block)
+    if double_double.available() and not np.iscomplexobj(matrix.data):
+        if np.iscomplexobj(block):
+            return (
+                double_double.product(matrix, block.real)[0]
+                + 1j * (double_double.product(matrix, block.imag)[0])
+            )
+        return double_double.product(matrix, block)[0]
     product = extended(matrix) @ block.astype(wide_dtype(block, matrix.data))
     return np.asarray(product, dtype=np.result_type(block.dtype, matrix.dtype))
+
+
+def multiply(matrix: sp.spmatrix | np.ndarray, block: np.ndarray) -> np.ndarray:
+    """``matrix @ block`` in double precision; for a real sparse matrix on the solver threads
+    (:func:`pymorembs.linalg.double_double.multiply`) when Numba is installed.
+
+    Parameters
+    ----------
+    matrix : sparse matrix or ndarray, shape (n, m)
+    block : ndarray, shape (m, k) or (m,), real or complex
+    """
+    block = np.asarray(block)
+    if not (sp.issparse(matrix) and double_double.available()) or np.iscomplexobj(matrix.data):
+        return np.asarray(matrix @ block)
+    if np.iscomplexobj(block):
+        columns = block.reshape(block.shape[0], -1)
+        k = columns.shape[1]
+        both = double_double.multiply(matrix, np.hstack([columns.real, columns.imag]))
+        return (both[:, :k] + 1j * both[:, k:]).reshape((both.shape[0], *block.shape[1:]))
+    return double_double.multiply(matrix, block)

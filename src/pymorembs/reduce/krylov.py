@@ -40,9 +40,10 @@ import numpy as np
 import scipy.sparse as sp
 
 from pymorembs.errors import UserError
-from pymorembs.linalg.factorization import Factorization
+from pymorembs.linalg.factorization import Factorization, basis_plain_enough
 from pymorembs.linalg.inertia_relief import InertiaRelief
 from pymorembs.linalg.orthogonalization import OrthonormalBasis
+from pymorembs.linalg.products import multiply
 from pymorembs.progress import Progress
 from pymorembs.reduce.projection import Projection
 from pymorembs.system import SecondOrderSystem
@@ -62,9 +63,21 @@ class SecondOrderArnoldi:
         Expansion point ``s = i 2 pi f``, f >= 0.
     tol : float
         Deflation tolerance of the orthonormalisation.
+    plain_enough : float, optional
+        Solves after the first (refined) one are not refined when it showed a plain solve error
+        up to this (:class:`~pymorembs.linalg.factorization.Factorization`); default
+        :func:`~pymorembs.linalg.factorization.basis_plain_enough` of the system's order.
     """
 
-    def __init__(self, system: SecondOrderSystem, frequency_hz: float, tol: float) -> None:
+    def __init__(
+        self,
+        system: SecondOrderSystem,
+        frequency_hz: float,
+        tol: float,
+        plain_enough: float | None = None,
+    ) -> None:
+        if plain_enough is None:
+            plain_enough = basis_plain_enough(system.order)
         self.frequency_hz = float(frequency_hz)
         omega = 2.0 * np.pi * self.frequency_hz
         self.n = system.order
@@ -89,10 +102,12 @@ class SecondOrderArnoldi:
         if omega == 0.0 and system.rigid_modes is not None:
             # free body (Buckens frame): K is singular; static solves by inertia relief
             self.factorization = InertiaRelief(
-                system.stiffness, system.mass, system.rigid_modes, label
+                system.stiffness, system.mass, system.rigid_modes, label, plain_enough
             )
         else:
-            self.factorization = Factorization(k_hat, label=label)
+            # the moments only span a subspace: plain solves once the first one showed that
+            # they are accurate to plain_enough
+            self.factorization = Factorization(k_hat, label=label, plain_enough=plain_enough)
         self.tol = tol
         self.dtype = dtype
         self.basis = OrthonormalBasis(2 * self.n, tol, dtype=dtype)
@@ -133,11 +148,11 @@ class SecondOrderArnoldi:
         else:
             top, bottom = self.block[:n], self.block[n:]
             if self.d_hat is self.mass:  # undamped, f > 0: one product with M
-                rhs = self.mass @ (self.coef_m * bottom / self.gamma + self.coef_d * top)
+                rhs = multiply(self.mass, self.coef_m * bottom / self.gamma + self.coef_d * top)
             else:
-                rhs = self.coef_m * (self.mass @ bottom) / self.gamma
+                rhs = self.coef_m * multiply(self.mass, bottom) / self.gamma
                 if self.d_hat is not None:
-                    rhs = rhs + self.coef_d * (self.d_hat @ top)
+                    rhs = rhs + self.coef_d * multiply(self.d_hat, top)
             candidate = np.vstack([self.factorization.solve(rhs), self.gamma * top])
         self.block = self.basis.add(candidate)
         self.moments += 1
@@ -150,8 +165,8 @@ class SecondOrderArnoldi:
         ``max(omega_k, omega_R)`` with ``omega_R`` the Rayleigh quotient frequency of ``P_0``.
         """
         p = np.real(p0) if np.any(np.real(p0)) else np.imag(p0)
-        num = float(np.sum(p * (self.stiffness @ p)))
-        den = float(np.sum(p * (self.mass @ p)))
+        num = float(np.sum(p * multiply(self.stiffness, p)))
+        den = float(np.sum(p * multiply(self.mass, p)))
         omega_r = np.sqrt(num / den) if den > 0 and num > 0 else 1.0
         return max(2.0 * np.pi * self.frequency_hz, omega_r)
 
