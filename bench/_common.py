@@ -206,9 +206,10 @@ def time_backends(matrix: sp.csc_matrix, repeat: int = 1, splu_limit: int = 10**
 
 def _standalone(project, matrix: sp.spmatrix, name: str):
     """One complete factorization by the project's backend ``name``, as a standalone call makes
-    it: the caches of orderings and upper-triangle patterns (which a reduction reuses across the
-    shifts of one pattern) are emptied first, so METIS runs as in the other backends' timings."""
-    for cache in ("_ORDERINGS", "_UPPER"):
+    it: the caches of orderings, upper-triangle patterns and factor families (which a reduction
+    reuses across the shifts of one pattern) are emptied first, so METIS and the symbolic
+    analysis run as in the other backends' timings."""
+    for cache in ("_ORDERINGS", "_UPPER", "_FAMILIES"):
         getattr(project, cache, {}).clear()
     return project.factorize(matrix, True, name)
 

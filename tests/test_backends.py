@@ -156,7 +156,8 @@ def test_pardiso_matrix_types_and_inertia() -> None:
 
 
 @pytest.mark.usefixtures("pardiso")
-def test_pardiso_factors_are_independent_and_freed() -> None:
+def test_pardiso_factors_are_independent_and_freed(monkeypatch) -> None:
+    monkeypatch.setenv(backends.FAMILIES_ENV, "0")  # every factor its own handle
     a, b = _random_symmetric("indefinite", 5), _random_symmetric("complex", 6)
     first = factorize(a, symmetric=True, backend="pardiso")
     second = factorize(b, symmetric=True, backend="pardiso")  # its own handle
@@ -188,3 +189,33 @@ def test_pardiso_reuses_the_ordering_of_a_pattern() -> None:
         factor = factorize(a, symmetric=True, backend="pardiso")
         np.testing.assert_allclose(a @ factor.solve(rhs), rhs, atol=1e-12)
     assert factor._iparm[4] == 1  # the stored ordering was given to PARDISO
+
+
+@pytest.mark.usefixtures("pardiso")
+def test_pardiso_family_shares_the_analysis_and_frees_its_slots(monkeypatch) -> None:
+    """Factors of one pattern share a handle (one analysis), solve independently, give their slot
+    back when collected, and the handle is released with the family's last factor."""
+    monkeypatch.setattr(backends, "_FAMILIES", {})
+    k = _random_symmetric("spd", seed=11)
+    m = sp.diags(np.linspace(1.0, 2.0, N)).tocsr()
+    matrices = [sp.csr_matrix(k - shift * m) for shift in (0.2, 0.5, 0.9)]
+    factors = [factorize(a, symmetric=True, backend="pardiso") for a in matrices]
+    family = factors[0]._family
+    assert family is not None and all(f._family is family for f in factors)
+    assert sorted(f._mnum for f in factors) == [2, 3, 4]
+    rhs = np.ones(N)
+    for a, factor in zip(matrices, factors, strict=True):  # each its own numeric factor
+        np.testing.assert_allclose(a @ factor.solve(rhs), rhs, atol=1e-12)
+    slot = factors[1]._mnum
+    del factors[1]
+    gc.collect()
+    assert slot in family.free
+    again = factorize(matrices[2] * 2.0, symmetric=True, backend="pardiso")  # reuses the slot
+    assert again._mnum == slot
+    np.testing.assert_allclose((matrices[2] * 2.0) @ again.solve(rhs), rhs, atol=1e-12)
+    np.testing.assert_allclose(matrices[0] @ factors[0].solve(rhs), rhs, atol=1e-12)
+    handle = family.pt
+    backends._FAMILIES.clear()
+    del factors, factor, again, family
+    gc.collect()
+    assert not handle.any()  # phase -1 with the last factor of the dropped family
