@@ -83,7 +83,9 @@ def main() -> None:
     parser.add_argument(
         "--memory-gb", type=float, help="memory to plan with (default: MemAvailable)"
     )
-    parser.add_argument("--no-results", action="store_true", help="do not write RESULTS.md")
+    parser.add_argument(
+        "--no-results", action="store_true", help="do not write RESULTS.md or the plot"
+    )
     parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     sizes = QUICK_SIZES if args.quick else sorted(args.dofs)
@@ -135,7 +137,7 @@ def main() -> None:
     ]
     table = markdown_table(headers, rows)
     print(table)
-    if results:
+    if results and not args.no_results:  # the plot belongs to the RESULTS.md section
         plot(results, args.method)
         print(f"written: {PLOT}")
     if not args.no_results:
