@@ -100,7 +100,7 @@ class ReferenceResponse:
         """Relative accuracy of the reference (0: full): the largest deviation of the surrogate
         from the full model measured at the checks, and no less than the tolerance its error
         estimator was driven to (:data:`SURROGATE_TOLERANCE`): between the checks it is only
-        known to that (rack-solid at 9,759 dofs: 2.8e-14 at the checks, 3.4e-13 elsewhere)."""
+        known to that (rack-beams: 2.8e-14 at the checks, 3.4e-13 elsewhere)."""
         measured = max(self.deviation.values(), default=0.0)
         return max(measured, SURROGATE_TOLERANCE) if self.kind == "surrogate" else measured
 
@@ -287,8 +287,9 @@ def check_frequencies(
     First the maximum of the model's own error estimator (snapped to the grid); then the
     largest peak of the response magnitude ``magnitude`` (``||H_ref(f)||_F`` on the grid): at a
     lightly damped resonance the shifted matrix is nearly singular and every solve, reduced or
-    full, is least accurate (rack-solid at 10,000 dofs: 7.6e-11 at its 42 Hz peak, 1e-12
-    elsewhere); then greedily the grid frequency farthest (in Hz) from every expansion point
+    full, is least accurate (rack-solid at 10,000 dofs, with ``longdouble`` residuals: 7.6e-11
+    at its 42 Hz peak, 1e-12 elsewhere, and even the refined full solves were off by 4.4e-11
+    there); then greedily the grid frequency farthest (in Hz) from every expansion point
     and every frequency chosen before: moment matching is exact at the points and weakest
     between them.
     """
