@@ -101,6 +101,10 @@ def measure(
         "n_complex": counter.count("complex"),
         "factorization_s": counter.seconds(),
         "reported_factorizations": projection.parameters.get("factorizations"),
+        # why SOAGA opened the points it did (None for Krylov)
+        "expansion_points_hz": projection.parameters.get("expansion_points_hz"),
+        "stop": projection.parameters.get("stop"),
+        "memory_limited": projection.parameters.get("memory_limited"),
         "reduction_peak_mb": peak_memory_mb() if reset else None,
         "peak_mb": max(peak_before, peak_memory_mb()),
     }
@@ -204,6 +208,10 @@ def main() -> None:
             ]
         )
         print(f"  ratio {ratio:.2f} (target <= {TARGET})" if ratio else "  no factorization")
+        if r.get("stop") is not None:
+            points = ", ".join(f"{f:g}" for f in r.get("expansion_points_hz") or [])
+            limited = r["memory_limited"]
+            print(f"  stop: {r['stop']}; memory limited: {limited}; points [Hz]: {points}")
     headers = [
         "model",
         "dofs (independent)",
