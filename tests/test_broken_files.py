@@ -98,7 +98,7 @@ CASES: list[tuple[str, int, str]] = [
     (
         "--stiffness K.mtx --mass M.mtx --dofs dofs_bad_direction.csv",
         2,
-        r"^dofs_bad_direction\.csv:4: unknown direction 'uw', expected one of ux uy uz rx ry rz$",
+        r"^dofs_bad_direction\.csv:4: unknown direction 'uw', expected one of ux uy uz rx ry rz q$",
     ),
     (
         "--stiffness K.mtx --mass M.mtx --dofs dofs.csv --nodes duplicate_nodes.csv",

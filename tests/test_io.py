@@ -188,7 +188,7 @@ def test_hdf5_compresses_big_arrays(tmp_path: Path) -> None:
     with h5py.File(path) as f:
         assert f["nodes/coordinates"].compression == "gzip"
         assert f["stiffness/data"].compression == "gzip"
-        assert f.attrs["format"] == "pymorembs-body" and f.attrs["version"] == 1
+        assert f.attrs["format"] == "pymorembs-body" and f.attrs["version"] == 2
     assert_same_matrix(read_body_h5(path).stiffness, body.stiffness)
 
 
@@ -435,8 +435,8 @@ def test_missing_h5(tmp_path: Path) -> None:
 def test_newer_h5_version(tmp_path: Path) -> None:
     path = write_body_h5(make_body(), tmp_path / "new.h5")
     with h5py.File(path, "a") as f:
-        f.attrs["version"] = 2
-    expect_error(lambda: read_body_h5(path), "new.h5", "version 2 is newer")
+        f.attrs["version"] = 3
+    expect_error(lambda: read_body_h5(path), "new.h5", "version 3 is newer")
 
 
 def test_damaged_h5(tmp_path: Path) -> None:
@@ -514,3 +514,28 @@ def test_failed_h5_write_keeps_old_file(tmp_path: Path, monkeypatch: pytest.Monk
         write_body_h5(make_body(name="new"), path)
     assert read_body_h5(path).name == "old"
     assert [p.name for p in tmp_path.iterdir()] == ["body.h5"]
+
+
+def test_h5_keeps_scalar_dofs_notes_ports_and_missing_coordinates(tmp_path: Path) -> None:
+    """Version 2: scalar coordinates, the reader's notes, model ports and has_coordinates."""
+    from pymorembs.body import ModelPorts
+
+    b = sp.csr_matrix(np.array([[1.0], [0.0], [0.5]]))
+    c = sp.csr_matrix(np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 2.0]]))
+    body = ElasticBody(
+        node_ids=np.array([1, 2]),
+        coordinates=np.zeros((2, 3)),
+        dofs=DofTable(np.array([1, 2, 9]), np.array([0, 1, 6])),
+        mass=sp.identity(3, format="csr"),
+        stiffness=sp.identity(3, format="csr") * 4.0,
+        has_coordinates=False,
+        notes=("dof table from the file", "no coordinates"),
+        ports=ModelPorts(b, c, ("f",), ("y1", "y2")),
+    )
+    back = read_body_h5(write_body_h5(body, tmp_path / "v2.h5"))
+    assert back.has_coordinates is False
+    assert back.notes == body.notes
+    assert back.dofs.label(2) == "9:q"
+    assert (back.ports.inputs != b).nnz == 0 and (back.ports.outputs != c).nnz == 0
+    assert back.ports.input_labels == ("f",) and back.ports.output_labels == ("y1", "y2")
+    assert np.all(back.rigid_body_modes()[2] == 0.0)  # a scalar point does not move rigidly

@@ -5,6 +5,15 @@ maps (node id, direction) to an equation index, the sparse symmetric mass, stiff
 damping matrices, the constraint equations ``q_d = G q + g`` (paper eq. 9) and the fixed dofs
 ``q_c = 0`` (paper eq. 10). It is immutable: every transformation returns a new body.
 
+Besides the six nodal directions a dof may be a *scalar* coordinate (direction ``q``): a point
+without a position, such as a Nastran scalar point, a modal coordinate of a Craig-Bampton
+superelement, or an equation of matrices that come without dof labels. Scalar coordinates do
+not move in a rigid-body motion and have no node in the node list.
+
+The mass matrix may be singular: massless dofs (beam rotations without rotary inertia, nodes of
+rigid elements, point masses without rotary inertia) are normal; see
+:mod:`pymorembs.linalg.mass_split`.
+
 Units are those of the FE model (the rack examples use SI: m, kg, s, N).
 """
 
@@ -19,13 +28,15 @@ import scipy.sparse as sp
 
 from pymorembs.errors import UserError
 
-#: The six nodal directions, in the order of the direction codes 0..5.
-DIRECTIONS: tuple[str, ...] = ("ux", "uy", "uz", "rx", "ry", "rz")
+#: The six nodal directions and the scalar coordinate ``q``, in the order of the codes 0..6.
+DIRECTIONS: tuple[str, ...] = ("ux", "uy", "uz", "rx", "ry", "rz", "q")
+#: Direction code of a scalar coordinate (a point without a position, see the module docstring).
+SCALAR = 6
 _DIRECTION_CODE = {name: code for code, name in enumerate(DIRECTIONS)}
 
 
 def direction_code(name: str) -> int:
-    """Code 0..5 of a direction name (``"ux"`` ... ``"rz"``, case-insensitive)."""
+    """Code 0..6 of a direction name (``"ux"`` ... ``"rz"``, ``"q"``; case-insensitive)."""
     code = _DIRECTION_CODE.get(str(name).strip().lower())
     if code is None:
         raise UserError(f"unknown direction {name!r}; expected one of {', '.join(DIRECTIONS)}")
@@ -35,7 +46,9 @@ def direction_code(name: str) -> int:
 def parse_directions(spec: str | list[str] | tuple[str, ...]) -> list[int]:
     """Direction codes from ``"ux uy uz"``, ``"ux,uy"`` or ``["ux", "uy"]``.
 
-    Two shorthands are accepted: ``"translations"`` (ux uy uz) and ``"rotations"`` (rx ry rz).
+    Three shorthands are accepted: ``"translations"`` (ux uy uz), ``"rotations"`` (rx ry rz)
+    and ``"all"`` (the six nodal directions). ``"q"`` is the scalar coordinate of a point without
+    a position (see the module docstring).
     """
     if isinstance(spec, str):
         words = spec.replace(",", " ").split()
@@ -68,7 +81,7 @@ class DofTable:
     nodes : ndarray of int, shape (n_dof,)
         Node id of each equation, in matrix order.
     directions : ndarray of int, shape (n_dof,)
-        Direction code 0..5 (ux uy uz rx ry rz) of each equation.
+        Direction code 0..6 (ux uy uz rx ry rz, q for a scalar coordinate) of each equation.
     """
 
     nodes: np.ndarray
@@ -81,8 +94,8 @@ class DofTable:
             raise UserError(
                 f"dof table: {nodes.size} node entries but {directions.size} direction entries"
             )
-        if directions.size and (directions.min() < 0 or directions.max() > 5):
-            raise UserError("dof table: direction codes must be 0..5 (ux uy uz rx ry rz)")
+        if directions.size and (directions.min() < 0 or directions.max() > SCALAR):
+            raise UserError("dof table: direction codes must be 0..6 (ux uy uz rx ry rz q)")
         key = nodes * 8 + directions
         if np.unique(key).size != key.size:
             dup = _first_duplicate(key)
@@ -128,6 +141,34 @@ class DofTable:
     def subset(self, indices: np.ndarray) -> DofTable:
         """The table restricted to the given equations, in that order."""
         return DofTable(self.nodes[indices], self.directions[indices])
+
+    @property
+    def scalar(self) -> np.ndarray:
+        """Boolean mask, shape (n_dof,): the scalar coordinates (direction ``q``)."""
+        return self.directions == SCALAR
+
+    def describe(self) -> str:
+        """A one-line summary, e.g. ``"214 nodes x ux uy uz"`` or ``"4 nodes x 6 + 8 scalar"``.
+
+        Nodes are grouped by their set of directions, largest group first.
+        """
+        geometric = ~self.scalar
+        groups: dict[tuple[int, ...], int] = {}
+        if geometric.any():
+            nodes, inverse = np.unique(self.nodes[geometric], return_inverse=True)
+            masks = np.zeros(nodes.size, dtype=np.int64)
+            np.bitwise_or.at(masks, inverse, 1 << self.directions[geometric])
+            for mask, count in zip(*np.unique(masks, return_counts=True), strict=True):
+                key = tuple(d for d in range(6) if int(mask) >> d & 1)
+                groups[key] = int(count)
+        parts = []
+        for key, count in sorted(groups.items(), key=lambda item: (-item[1], item[0])):
+            names = " ".join(DIRECTIONS[d] for d in key)
+            parts.append(f"{count} node{'s' if count != 1 else ''} x {names}")
+        n_scalar = int(self.scalar.sum())
+        if n_scalar:
+            parts.append(f"{n_scalar} scalar coordinate{'s' if n_scalar != 1 else ''} (q)")
+        return " + ".join(parts) if parts else "no dofs"
 
 
 @dataclass(frozen=True, eq=False)
@@ -212,6 +253,60 @@ class Damping:
 
 
 @dataclass(frozen=True, eq=False)
+class ModelPorts:
+    """Inputs and outputs that come with the model file (e.g. ``B`` and ``C`` of a ``.mat`` file).
+
+    Parameters
+    ----------
+    inputs : sparse matrix, shape (n_dof, p), optional
+        The input matrix ``B_e`` over all equations of the body (paper eq. 4).
+    outputs : sparse matrix, shape (r, n_dof), optional
+        The output matrix ``C_e``. ``None`` with ``inputs`` given means ``C = B^T``.
+    input_labels, output_labels : tuple of str
+        Names of the columns of ``B`` and the rows of ``C`` (default ``u1 ...``, ``y1 ...``).
+    """
+
+    inputs: sp.csr_matrix | None = None
+    outputs: sp.csr_matrix | None = None
+    input_labels: tuple[str, ...] = ()
+    output_labels: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        for key, prefix, axis in (("inputs", "u", 1), ("outputs", "y", 0)):
+            matrix = getattr(self, key)
+            labels_key = "input_labels" if key == "inputs" else "output_labels"
+            if matrix is None:
+                if getattr(self, labels_key):
+                    raise UserError(f"model ports: {labels_key} given without {key}")
+                continue
+            matrix = sp.csr_matrix(matrix, dtype=float)
+            if not np.all(np.isfinite(matrix.data)):
+                raise UserError(f"model ports: the {key} matrix has NaN or infinite entries")
+            if matrix.shape[axis] == 0:
+                raise UserError(f"model ports: the {key} matrix has no columns")
+            labels = tuple(str(x) for x in getattr(self, labels_key))
+            if not labels:
+                labels = tuple(f"{prefix}{k + 1}" for k in range(matrix.shape[axis]))
+            if len(labels) != matrix.shape[axis]:
+                raise UserError(f"model ports: {len(labels)} labels for {matrix.shape[axis]} {key}")
+            object.__setattr__(self, key, matrix)
+            object.__setattr__(self, labels_key, labels)
+        if self.inputs is None and self.outputs is not None:
+            raise UserError("model ports: an output matrix C needs an input matrix B")
+
+    def check(self, n_dof: int) -> None:
+        """Raise :class:`UserError` unless the matrices fit a body of ``n_dof`` equations."""
+        if self.inputs is not None and self.inputs.shape[0] != n_dof:
+            raise UserError(
+                f"model ports: B has {self.inputs.shape[0]} rows but the model has {n_dof} dofs"
+            )
+        if self.outputs is not None and self.outputs.shape[1] != n_dof:
+            raise UserError(
+                f"model ports: C has {self.outputs.shape[1]} columns but the model has {n_dof} dofs"
+            )
+
+
+@dataclass(frozen=True, eq=False)
 class ElasticBody:
     """FE model of one elastic body.
 
@@ -236,6 +331,15 @@ class ElasticBody:
         Damping model (none, Rayleigh or modal ratio).
     name : str
         A label for reports.
+    has_coordinates : bool
+        Whether ``coordinates`` are the model's (``False``: the file gave none and every node
+        lies at the origin, so geometry -- rigid-body fields, Buckens frame, interface search,
+        unit detection -- is not available).
+    notes : tuple of str
+        What the reader assumed or derived, one sentence each (e.g. how it built the dof
+        table); shown by ``pymorembs info``.
+    ports : ModelPorts, optional
+        Inputs and outputs that came with the model file.
     """
 
     node_ids: np.ndarray
@@ -248,6 +352,9 @@ class ElasticBody:
     fixed: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     damping: Damping = field(default_factory=Damping)
     name: str = "body"
+    has_coordinates: bool = True
+    notes: tuple[str, ...] = ()
+    ports: ModelPorts | None = None
 
     def __post_init__(self) -> None:
         node_ids = np.asarray(self.node_ids, dtype=np.int64).ravel()
@@ -262,9 +369,18 @@ class ElasticBody:
         if not np.all(np.isfinite(coordinates)):
             raise UserError("nodes: coordinates must be finite")
         n = len(self.dofs)
-        missing = np.setdiff1d(self.dofs.nodes, node_ids)
+        scalar = self.dofs.scalar
+        missing = np.setdiff1d(self.dofs.nodes[~scalar], node_ids)
         if missing.size:
             raise UserError(f"dof table names node {missing[0]} which is not in the node list")
+        clash = np.intersect1d(self.dofs.nodes[scalar], node_ids)
+        if clash.size:
+            raise UserError(
+                f"dof table: scalar coordinate {clash[0]} has the id of a node; scalar points "
+                "and nodes need distinct ids"
+            )
+        if self.ports is not None:
+            self.ports.check(n)
         matrices = {"mass": self.mass, "stiffness": self.stiffness}
         if self.damping_matrix is not None:
             matrices["damping"] = self.damping_matrix
@@ -295,6 +411,7 @@ class ElasticBody:
         object.__setattr__(self, "coordinates", coordinates)
         object.__setattr__(self, "constraints", constraints)
         object.__setattr__(self, "fixed", fixed)
+        object.__setattr__(self, "notes", tuple(str(note) for note in self.notes))
 
     # ----------------------------------------------------------------- facts
     @property
@@ -323,11 +440,17 @@ class ElasticBody:
 
         Columns: translations x, y, z, then rotations about x, y, z through ``origin``
         (default: the coordinate origin). For a rotation ``theta`` the translation of a node at
-        ``r`` is ``theta x (r - origin)`` and its rotational dofs equal ``theta``.
+        ``r`` is ``theta x (r - origin)`` and its rotational dofs equal ``theta``. Scalar
+        coordinates do not take part (their rows are zero). Without coordinates
+        (``has_coordinates`` false) the rotation columns are not the body's rotations.
         """
         origin = np.zeros(3) if origin is None else np.asarray(origin, dtype=float)
-        rows = np.array([self.node_index[int(n)] for n in self.dofs.nodes], dtype=np.int64)
-        r = self.coordinates[rows] - origin
+        geometric = ~self.dofs.scalar
+        r = np.zeros((self.n_dof, 3))
+        if geometric.any():
+            order = np.argsort(self.node_ids)
+            rows = order[np.searchsorted(self.node_ids, self.dofs.nodes[geometric], sorter=order)]
+            r[geometric] = self.coordinates[rows] - origin
         d = self.dofs.directions
         modes = np.zeros((self.n_dof, 6))
         for axis in range(3):
@@ -339,6 +462,33 @@ class ElasticBody:
         modes[ty, 3], modes[ty, 5] = -r[ty, 2], r[ty, 0]
         modes[tz, 3], modes[tz, 4] = r[tz, 1], -r[tz, 0]
         return modes
+
+    def rigid_body_residuals(self) -> np.ndarray:
+        """How far the geometric rigid-body fields are from the null space of ``K``, shape (6,).
+
+        ``|K r_j| / (|K|_inf |r_j|)`` for the six fields of :meth:`rigid_body_modes` about the
+        centroid of the nodes, over the rows of the dofs that are not fixed (all columns: a
+        file that keeps the couplings of fixed dofs, such as Abaqus with its penalty diagonals,
+        is checked as it stands). NaN for a field without entries, e.g. rotations of a model
+        without rotational dofs and without coordinates. A dof table and coordinates that
+        belong to the matrices give values at the rounding level of the file (1e-16 to 1e-9);
+        a wrong equation order or wrong coordinates give values of 1e-4 and more. This is the
+        check the readers use to prove an equation order they derived.
+        """
+        centre = self.coordinates.mean(axis=0) if self.n_nodes else np.zeros(3)
+        modes = self.rigid_body_modes(centre)
+        rows = np.ones(self.n_dof, dtype=bool)
+        rows[self.fixed] = False
+        stiffness = self.stiffness[rows]
+        scale = float(abs(stiffness).sum(axis=1).max()) if stiffness.nnz else 0.0
+        norms = np.linalg.norm(modes, axis=0)
+        out = np.full(6, np.nan)
+        if scale == 0.0:
+            return out
+        present = norms > 0
+        residual = np.linalg.norm(stiffness @ modes[:, present], axis=0)
+        out[present] = residual / (scale * norms[present])
+        return out
 
     def total_mass(self) -> float:
         """Mass of the body (model unit), from rigid translations: mean of ``t_i^T M t_i``."""

@@ -77,8 +77,11 @@ def build_parser() -> argparse.ArgumentParser:
     info.add_argument("--fixed", type=Path, help="fixed dofs CSV (node,direction)")
     info.add_argument("--mapping", type=Path, help="Ansys dof mapping file (*SMAT MMF export)")
     info.add_argument("--inp", type=Path, help="Abaqus input file with the *NODE data")
-    info.add_argument("--stiffness-name", help="name of the stiffness matrix (Nastran: KAAX)")
-    info.add_argument("--mass-name", help="name of the mass matrix (Nastran: MAAX)")
+    info.add_argument(
+        "--stiffness-name", help="name of the stiffness matrix (default: found in the file)"
+    )
+    info.add_argument("--mass-name", help="name of the mass matrix (default: found in the file)")
+    info.add_argument("--damping-name", help="name of a viscous damping matrix in the file")
     info.add_argument("--modes", type=int, default=10, help="number of elastic eigenfrequencies")
     info.add_argument("--json", action="store_true", help="print JSON")
 
@@ -179,6 +182,7 @@ INFO_FILES = (
     "inp",
     "stiffness_name",
     "mass_name",
+    "damping_name",
 )
 
 

@@ -18,6 +18,7 @@ from typing import Any
 
 from pymorembs.body import Damping
 from pymorembs.errors import UserError
+from pymorembs.io.formats import FORMATS
 from pymorembs.prepare import Frame, Port
 
 #: Options each method accepts besides ``name``, ``method`` and ``order``.
@@ -41,9 +42,7 @@ MODEL_FILE_KEYS = (
     "file", "stiffness", "mass", "damping", "dofs", "nodes", "constraints", "fixed", "mapping",
     "inp",
 )  # fmt: skip
-MODEL_FORMATS = (
-    "native", "matrix-market", "ansys-full", "ansys-mmf", "abaqus", "nastran-dmig", "nastran-op4",
-)  # fmt: skip
+MODEL_FORMATS = FORMATS
 INTERFACE_KINDS = ("rigid", "distributing", "beams", "springs")
 #: Files a job can write per reduction (``[export] outputs``), and the job's HTML report.
 EXPORT_KINDS = ("npz", "mtx", "mat", "sid", "neweul", "exudyn", "report")
@@ -320,7 +319,7 @@ def _model(table: _Table, base: Path) -> ModelSpec:
         raise table.error("format", f"unknown format {fmt!r}{more}")
     files = {key: table.string(key) for key in MODEL_FILE_KEYS}
     files = {key: base / value for key, value in files.items() if value is not None}
-    names = {key: table.string(key) for key in ("stiffness_name", "mass_name")}
+    names = {key: table.string(key) for key in ("stiffness_name", "mass_name", "damping_name")}
     names = {key: value for key, value in names.items() if value is not None}
     table.done()
     if not files:

@@ -21,6 +21,14 @@ file from its content (the file name is only a hint for the error message). The 
     (:mod:`pymorembs.io.nastran_dmig`).
 ``nastran-op4``
     OUTPUT4 files, ASCII or binary (:mod:`pymorembs.io.nastran_op4`).
+``nastran-op2``
+    OUTPUT2 files with matrices and their dof table (:mod:`pymorembs.io.nastran_op2`).
+``abaqus-substructure``
+    The ``.mtx`` file of ``*SUBSTRUCTURE MATRIX OUTPUT`` (``*USER ELEMENT`` with ``*MATRIX``
+    blocks; :mod:`pymorembs.io.abaqus_substructure`).
+``matlab``
+    MATLAB ``.mat`` files (v5 and v7.3) with ``M``, ``K`` and optionally ``D``, ``B``, ``C``
+    (:mod:`pymorembs.io.matlab`).
 
 Detection rules (:func:`detect_format`), applied to the first bytes of the file in this order:
 
@@ -37,8 +45,16 @@ Detection rules (:func:`detect_format`), applied to the first bytes of the file 
    matrix name and a Fortran format such as ``1P,3E23.16`` -> ``nastran-op4``;
 7. a line starting with ``DMIG`` (small, large ``DMIG*`` or free field ``DMIG,``) in the first
    16 MB -> ``nastran-dmig``;
-8. the first data line (blank lines and ``**`` comments skipped) holds 5 comma-separated numbers
-   (``node, dof, node, dof, value``) or 3 numbers (``row, column, value``) -> ``abaqus``.
+8. an Abaqus ``*USER ELEMENT`` or ``*MATRIX, TYPE=`` keyword line -> ``abaqus-substructure``;
+9. the header lines of a results punch (``$TITLE``, ``$EIGENVECTOR``, ...) or Nastran bulk data
+   cards (``GRID``, ``EXTRN``, ``ASET``, ``DTI``, ``BEGIN SUPER`` ...) -> ``nastran-dmig``, whose
+   reader then says what the file holds instead of DMIG matrices;
+10. the first data line (blank lines and ``**`` comments skipped) holds 5 comma-separated numbers
+    (``node, dof, node, dof, value``) or 3 numbers (``row, column, value``) -> ``abaqus``.
+
+Before rule 2, a MATLAB header (``MATLAB 5.0 MAT-file`` for v5 to v7, ``MATLAB 7.3 MAT-file`` for
+the HDF5-based v7.3) -> ``matlab``; after it, the OP2 label ``NASTRAN FORT TAPE ID CODE`` in
+the first 512 bytes -> ``nastran-op2``.
 
 Anything else is a :class:`~pymorembs.errors.UserError`
 ``path: cannot tell the file format; give --format (one of ...)``.
@@ -83,8 +99,11 @@ FORMATS: tuple[str, ...] = (
     "ansys-full",
     "ansys-mmf",
     "abaqus",
+    "abaqus-substructure",
     "nastran-dmig",
     "nastran-op4",
+    "nastran-op2",
+    "matlab",
 )
 
 #: Options of :func:`read_body` each format takes (``format`` itself aside).
@@ -100,8 +119,19 @@ _OPTIONS: dict[str, frozenset[str]] = {
     "abaqus": frozenset(
         {"stiffness", "mass", "damping", "dofs", "inp", "constraints", "fixed", "name"}
     ),
+    "abaqus-substructure": frozenset({"file", "inp", "constraints", "fixed", "name"}),
     "nastran-dmig": frozenset(
-        {"file", "damping", "nodes", "stiffness_name", "mass_name", "constraints", "fixed", "name"}
+        {
+            "file",
+            "damping",
+            "nodes",
+            "stiffness_name",
+            "mass_name",
+            "damping_name",
+            "constraints",
+            "fixed",
+            "name",
+        }
     ),
     "nastran-op4": frozenset(
         {
@@ -111,6 +141,32 @@ _OPTIONS: dict[str, frozenset[str]] = {
             "nodes",
             "stiffness_name",
             "mass_name",
+            "damping_name",
+            "constraints",
+            "fixed",
+            "name",
+        }
+    ),
+    "nastran-op2": frozenset(
+        {
+            "file",
+            "nodes",
+            "stiffness_name",
+            "mass_name",
+            "damping_name",
+            "constraints",
+            "fixed",
+            "name",
+        }
+    ),
+    "matlab": frozenset(
+        {
+            "file",
+            "dofs",
+            "nodes",
+            "stiffness_name",
+            "mass_name",
+            "damping_name",
             "constraints",
             "fixed",
             "name",
@@ -125,8 +181,11 @@ _NEEDS: dict[str, str] = {
     "ansys-full": "file (the .full file)",
     "ansys-mmf": "stiffness, mass (the exported .mtx files) and mapping (the mapping file)",
     "abaqus": "stiffness and mass (the jobname_STIFn.mtx and jobname_MASSn.mtx files)",
+    "abaqus-substructure": "file (the .mtx file of *SUBSTRUCTURE MATRIX OUTPUT)",
     "nastran-dmig": "file (the .pch punch file)",
     "nastran-op4": "file (the .op4 file)",
+    "nastran-op2": "file (the .op2 file)",
+    "matlab": "file (the .mat file)",
 }
 
 _HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
@@ -141,6 +200,18 @@ _ANSYS_FILE_TYPES = {
     45: "component mode synthesis file (.cms)",
 }
 _DMIG_LINE = re.compile(rb"(?im)^DMIG[ *,]")
+#: Header lines of a results punch (eigenvectors, displacements, ...): a punch without matrices.
+_PUNCH_RESULTS = re.compile(rb"(?m)^\$(TITLE|SUBTITLE|LABEL|EIGENVECTOR|DISPLACEMENTS)\b")
+#: Cards of Nastran bulk data (the EXTBULK/ASMBULK punch of a superelement, a .bdf/.dat deck).
+_BULK_CARD = re.compile(
+    rb"(?im)^(GRID\*?|CORD2[RCS]\*?|EXTRN|SEBULK|SECONCT|ASET1?|QSET1?|BSET1?|SPOINT|DTI|"
+    rb"BEGIN\s+(BULK|SUPER))[ ,*\t\r\n]"
+)
+#: Keyword lines of an Abaqus substructure matrix file (*SUBSTRUCTURE MATRIX OUTPUT).
+_SUBSTRUCTURE = re.compile(rb"(?im)^\s*\*(USER\s+ELEMENT|MATRIX\s*,\s*TYPE\s*=)")
+_MATLAB_HEADER = b"MATLAB 5.0 MAT-file"
+_MATLAB_73_HEADER = b"MATLAB 7.3 MAT-file"
+_OP2_LABEL = b"NASTRAN FORT TAPE ID CODE"
 _OP4_FORMAT = re.compile(r"\d+\s*[ED]\s*\d+\.\d+", re.IGNORECASE)
 _HEAD_BYTES = 1 << 16
 _DMIG_SCAN_BYTES = 16 << 20
@@ -153,6 +224,9 @@ _EXTENSION_HINTS = {
     ".bdf": "nastran-dmig",
     ".dat": "nastran-dmig",
     ".op4": "nastran-op4",
+    ".op2": "nastran-op2",
+    ".mat": "matlab",
+    ".f06": "nastran-dmig",
 }
 
 
@@ -224,9 +298,13 @@ def _hint(path: Path, head: bytes) -> str:
 
 def _detect_head(path: Path, head: bytes) -> str | None:
     """The format from the first bytes of a file, or None."""
+    if head.startswith((_MATLAB_HEADER, _MATLAB_73_HEADER)):
+        return "matlab"  # v7.3 files are HDF5 with a MATLAB user block: test them first
     for offset in [0] + [512 << k for k in range(8)]:
         if head[offset : offset + 8] == _HDF5_SIGNATURE:
             return "native"
+    if _OP2_LABEL in head[:512]:
+        return "nastran-op2"
     binary = _detect_binary(path, head)
     if binary is not None:
         return binary
@@ -242,6 +320,10 @@ def _detect_head(path: Path, head: bytes) -> str | None:
         return "nastran-op4"
     if _DMIG_LINE.search(head):
         return "nastran-dmig"
+    if _SUBSTRUCTURE.search(head):
+        return "abaqus-substructure"
+    if _PUNCH_RESULTS.search(head) or _BULK_CARD.search(head):
+        return "nastran-dmig"  # its reader names what the file holds instead of matrices
     data = _first_content_line(text)
     if data is not None and _is_abaqus_entry(data):
         return "abaqus"
@@ -346,6 +428,7 @@ def read_body(
     inp: PathLike | None = None,
     stiffness_name: str | None = None,
     mass_name: str | None = None,
+    damping_name: str | None = None,
     name: str | None = None,
 ) -> ElasticBody:
     """Read a body in any supported format.
@@ -380,9 +463,10 @@ def read_body(
         The Ansys mapping file of ``ansys-mmf``.
     inp : path-like, optional
         The Abaqus input file with the ``*NODE`` coordinates (``abaqus`` only).
-    stiffness_name, mass_name : str, optional
-        Matrix names in the file of ``nastran-dmig`` (default ``KAAX``, ``MAAX``) and
-        ``nastran-op4``.
+    stiffness_name, mass_name, damping_name : str, optional
+        Matrix (or variable) names in the file of ``nastran-dmig``, ``nastran-op4``,
+        ``nastran-op2`` and ``matlab``. Default: found by the reader when the choice is
+        unambiguous (e.g. ``KAAX``/``MAAX``, ``KAA``/``MAA``, ``KGG``/``MGG``; ``K``/``M``).
     name : str, optional
         Label of the body.
 
@@ -409,6 +493,7 @@ def read_body(
         "inp": inp,
         "stiffness_name": stiffness_name,
         "mass_name": mass_name,
+        "damping_name": damping_name,
         "name": name,
     }
     given = {key: value for key, value in options.items() if value is not None}
@@ -507,33 +592,49 @@ def _dispatch(fmt: str, given: dict[str, Any]) -> tuple[ElasticBody, set[str]]:
             dofs=g("dofs"),
         )
         return body, {"name"}
-    if fmt == "nastran-dmig":
+    if fmt == "abaqus-substructure":
         _require(fmt, given, "file")
+        substructure = importlib.import_module("pymorembs.io.abaqus_substructure")
+        body = substructure.read_abaqus_substructure(g("file"), inp=g("inp"), name=g("name"))
+        return body, {"name"}
+    _require(fmt, given, "file")
+    names = _matrix_names(given)
+    if fmt == "nastran-dmig":
         from pymorembs.io.nastran_dmig import read_dmig
 
-        body = read_dmig(
-            g("file"),
-            stiffness=str(g("stiffness_name") or "KAAX"),
-            mass=str(g("mass_name") or "MAAX"),
-            damping=None if g("damping") is None else str(g("damping")),
-            nodes=g("nodes"),
-            name=g("name"),
-        )
+        body = read_dmig(g("file"), nodes=g("nodes"), name=g("name"), **names)
         return body, {"name"}
-    # nastran-op4
-    _require(fmt, given, "file")
-    op4 = importlib.import_module("pymorembs.io.nastran_op4")
+    if fmt == "nastran-op4":
+        op4 = importlib.import_module("pymorembs.io.nastran_op4")
+        body = op4.read_op4(g("file"), dofs=g("dofs"), nodes=g("nodes"), name=g("name"), **names)
+        return body, {"name"}
+    if fmt == "nastran-op2":
+        op2 = importlib.import_module("pymorembs.io.nastran_op2")
+        body = op2.read_op2(g("file"), nodes=g("nodes"), name=g("name"), **names)
+        return body, {"name"}
+    # matlab
+    matlab = importlib.import_module("pymorembs.io.matlab")
+    body = matlab.read_matlab(g("file"), dofs=g("dofs"), nodes=g("nodes"), name=g("name"), **names)
+    return body, {"name"}
+
+
+def _matrix_names(given: dict[str, Any]) -> dict[str, str]:
+    """The matrix names given (``stiffness``, ``mass``, ``damping``) for the named-matrix readers.
+
+    A Nastran damping matrix may also be named by the ``damping`` option (the name, not a file).
+    """
     names = {
-        key: str(given[option])
+        key: str(given[option]).strip()
         for key, option in (
             ("stiffness", "stiffness_name"),
             ("mass", "mass_name"),
-            ("damping", "damping"),
+            ("damping", "damping_name"),
         )
         if option in given
     }
-    body = op4.read_op4(g("file"), dofs=g("dofs"), nodes=g("nodes"), name=g("name"), **names)
-    return body, {"name"}
+    if "damping" in given and "damping" not in names:
+        names["damping"] = Path(str(given["damping"])).name.strip()
+    return names
 
 
 def _finish(body: ElasticBody, given: dict[str, Any], applied: set[str]) -> ElasticBody:

@@ -1,12 +1,13 @@
 """The native file format: one HDF5 file that holds a whole :class:`ElasticBody` losslessly.
 
-Layout (format version 1)::
+Layout (format version 2)::
 
-    /                      attributes format="pymorembs-body", version=1, name
+    /                      attributes format="pymorembs-body", version=2, name,
+                           has_coordinates (version 2), notes (version 2, list of str)
     /nodes/ids             int64 (n_nodes,)
     /nodes/coordinates     float64 (n_nodes, 3)
     /dofs/nodes            int64 (n_dof,)
-    /dofs/directions       int64 (n_dof,) direction codes 0..5 = ux uy uz rx ry rz
+    /dofs/directions       int64 (n_dof,) direction codes 0..6 = ux uy uz rx ry rz q
     /mass, /stiffness      CSR groups: data float64, indices int64, indptr int64,
                            attribute shape = (rows, columns)
     /damping_matrix        CSR group, only if the body has an explicit damping matrix
@@ -15,6 +16,11 @@ Layout (format version 1)::
     /constraints/matrix    CSR group of G, shape (n_d, n_dof)
     /fixed                 int64 (n_c,)
     /damping               empty group, attributes kind, alpha, beta, ratio
+    /ports/inputs          CSR group of B (n_dof, p), only if the model has its own ports;
+                           attribute labels (list of str)
+    /ports/outputs         CSR group of C (r, n_dof), optional; attribute labels
+
+Version 1 files (no coordinates flag, notes or ports) are read as well.
 
 Arrays are stored exactly as they are in memory (floats bit for bit, sparsity structure as is);
 arrays of more than :data:`COMPRESS_FROM` elements are gzip-compressed, which is lossless.
@@ -30,7 +36,7 @@ import h5py
 import numpy as np
 import scipy.sparse as sp
 
-from pymorembs.body import ConstraintEquations, Damping, DofTable, ElasticBody
+from pymorembs.body import ConstraintEquations, Damping, DofTable, ElasticBody, ModelPorts
 from pymorembs.errors import UserError
 from pymorembs.io.atomic import atomic_path
 
@@ -39,7 +45,7 @@ __all__ = ["COMPRESS_FROM", "FORMAT", "VERSION", "read_body_h5", "write_body_h5"
 #: Value of the root attribute ``format``.
 FORMAT = "pymorembs-body"
 #: Format version written (and the newest one read).
-VERSION = 1
+VERSION = 2
 #: Arrays with at least this many elements are stored gzip-compressed.
 COMPRESS_FROM = 4096
 
@@ -67,6 +73,8 @@ def write_body_h5(body: ElasticBody, path: str | os.PathLike[str]) -> Path:
         f.attrs["format"] = FORMAT
         f.attrs["version"] = VERSION
         f.attrs["name"] = str(body.name)
+        f.attrs["has_coordinates"] = bool(body.has_coordinates)
+        f.attrs["notes"] = [str(note) for note in body.notes]
         _put(f, "nodes/ids", body.node_ids, np.int64)
         _put(f, "nodes/coordinates", body.coordinates, np.float64)
         _put(f, "dofs/nodes", body.dofs.nodes, np.int64)
@@ -83,6 +91,15 @@ def write_body_h5(body: ElasticBody, path: str | os.PathLike[str]) -> Path:
         damping.attrs["kind"] = body.damping.kind
         for key in ("alpha", "beta", "ratio"):
             damping.attrs[key] = np.float64(getattr(body.damping, key))
+        if body.ports is not None:
+            for key, labels in (
+                ("inputs", body.ports.input_labels),
+                ("outputs", body.ports.output_labels),
+            ):
+                matrix = getattr(body.ports, key)
+                if matrix is not None:
+                    _put_csr(f, f"ports/{key}", matrix)
+                    f[f"ports/{key}"].attrs["labels"] = [str(label) for label in labels]
     return path
 
 
@@ -135,6 +152,21 @@ def _read_body(f: h5py.File) -> ElasticBody:
     damping = f.get("damping")
     if not isinstance(damping, h5py.Group):
         raise UserError("/damping is missing")
+    ports = None
+    if "ports" in f:
+        parts: dict[str, Any] = {}
+        for key in ("inputs", "outputs"):
+            if f"ports/{key}" in f:
+                matrix = (
+                    _get_csr(f, f"ports/{key}", n_dof) if key == "outputs" else _get_csr_any(f, key)
+                )
+                labels = f[f"ports/{key}"].attrs.get("labels", [])
+                parts[key] = matrix
+                parts["input_labels" if key == "inputs" else "output_labels"] = tuple(
+                    _text(label) for label in labels
+                )
+        ports = ModelPorts(**parts)
+    notes = f.attrs.get("notes", [])
     return ElasticBody(
         node_ids=_get(f, "nodes/ids", _INT),
         coordinates=_get(f, "nodes/coordinates", _FLOAT, ndim=2),
@@ -155,7 +187,18 @@ def _read_body(f: h5py.File) -> ElasticBody:
             ratio=float(damping.attrs.get("ratio", 0.0)),
         ),
         name=_text(f.attrs.get("name", "body")),
+        has_coordinates=bool(f.attrs.get("has_coordinates", True)),
+        notes=tuple(_text(note) for note in np.atleast_1d(notes)),
+        ports=ports,
     )
+
+
+def _get_csr_any(f: h5py.Group, key: str) -> sp.csr_matrix:
+    """The input matrix ``ports/<key>`` (its row count is checked by the body)."""
+    group = f.get(f"ports/{key}")
+    shape = np.asarray(group.attrs.get("shape", ())) if isinstance(group, h5py.Group) else ()
+    columns = int(shape[1]) if np.shape(shape) == (2,) else -1
+    return _get_csr(f, f"ports/{key}", columns)
 
 
 def _put(f: h5py.Group, key: str, values: np.ndarray, dtype: type) -> None:
