@@ -119,6 +119,7 @@ import scipy.sparse as sp
 from pymorembs.errors import NumericalError, UserError
 from pymorembs.linalg.factorization import Factorization
 from pymorembs.linalg.inertia_relief import InertiaRelief
+from pymorembs.linalg.mass_split import condensed_dense_eigh, mass_split
 from pymorembs.linalg.products import extended_product
 from pymorembs.reduce.projection import Projection, ReducedModel, reduced_model
 from pymorembs.system import SecondOrderSystem
@@ -187,19 +188,23 @@ def _eigenmodes(
     low eigenvalues are accurate to working precision however stiff the model (as in
     :func:`~pymorembs.reduce.projection.reduced_model`). A free body (``rigid_modes`` given): its
     lowest ``r`` modes are the rigid ones. Otherwise eigenvalues below :data:`RIGID_TOL` times the
-    largest count as rigid.
+    largest count as rigid. Massless directions of ``M`` (infinite eigenvalues) have no mode:
+    they are condensed statically (:mod:`pymorembs.linalg.mass_split`).
     """
+    split = mass_split(m)  # massless directions (infinite eigenvalues) are left out
     if rigid_modes is None:
         try:
             mu, y = sla.eigh(m, k)
         except np.linalg.LinAlgError:
             mu = None
+        if mu is not None:
+            mu, y = mu[mu.size - split.rank :], y[:, mu.size - split.rank :]
         if mu is not None and mu.min() > 0:
             values = 1.0 / mu[::-1]
             return values, y[:, ::-1] * np.sqrt(values), np.zeros(values.size, dtype=bool)
     try:
-        values, modes = sla.eigh(k, m)
-    except np.linalg.LinAlgError as exc:
+        values, modes = condensed_dense_eigh(k, m, split)
+    except (np.linalg.LinAlgError, NumericalError) as exc:
         raise NumericalError(f"gramian: eigenproblem of (K, M) failed ({exc})") from None
     if rigid_modes is not None:
         rigid = np.arange(values.size) < rigid_modes.shape[1]

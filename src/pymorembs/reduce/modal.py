@@ -2,17 +2,20 @@
 
 The eigenproblem ``K phi = omega^2 M phi`` is solved by Lanczos in shift-invert mode about a
 shift ``sigma`` slightly below zero, with one sparse factorization of ``K - sigma M``. A negative
-shift keeps ``K - sigma M`` positive definite for free bodies too (rigid-body modes at 0 Hz).
+shift keeps ``K - sigma M`` positive definite for clamped bodies; free bodies use the
+inertia-relief inverse instead (their rigid-body modes are known). Massless dofs are condensed
+exactly (:mod:`pymorembs.linalg.mass_split`).
 """
 
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from pymorembs.errors import NumericalError, UserError
 from pymorembs.linalg.factorization import Factorization
-from pymorembs.linalg.inertia_relief import InertiaRelief
+from pymorembs.linalg.mass_split import mass_split
 from pymorembs.reduce.projection import Projection
 from pymorembs.system import SecondOrderSystem
 
@@ -29,6 +32,11 @@ def eigenmodes(
     elastic_only: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The ``count`` lowest eigenpairs of ``(K, M)``.
+
+    A singular mass matrix (massless dofs or directions, see
+    :mod:`pymorembs.linalg.mass_split`) is handled by exact static condensation of its massless
+    directions: Lanczos runs on the condensed pencil of size ``rank(M)`` in the inner product of
+    the massive part, and the eigenvectors are recovered on all dofs with one more solve.
 
     Parameters
     ----------
@@ -52,37 +60,58 @@ def eigenmodes(
     n = system.order
     if count < 1:
         raise UserError(f"number of modes must be at least 1, got {count}")
-    if count >= n:
+    split = mass_split(system.mass)
+    free = elastic_only and system.rigid_modes is not None
+    available = split.rank - (system.rigid_modes.shape[1] if free else 0)
+    if count >= available:
+        if split.singular:
+            raise UserError(
+                f"{count} modes requested but the model has only {available} "
+                f"{'elastic ' if free else ''}modes with mass ({n} independent dofs, "
+                f"{split.n_massless} of them massless directions)"
+            )
         raise UserError(f"{count} modes requested but the model has only {n} independent dofs")
-    if elastic_only and system.rigid_modes is not None:
-        # free body: shift-invert about 0 with the inertia-relief inverse K^+, which maps the
-        # rigid-body modes to zero. A shift next to the null space of K would not do: rounding
-        # the entries of very stiff parts (light stiff beams, E = 1e18) breaks that null space,
-        # and rigid modes came out at up to 0.4 Hz, dragging the elastic ones along.
-        sigma = 0.0
-        operator = InertiaRelief(
-            system.stiffness, system.mass, system.rigid_modes, "K (free body)"
-        ).operator()
-        # the refined inertia-relief solves are exact to working precision, which leaves ARPACK
-        # no rounding noise to find every copy of a multiple eigenvalue at the edge of the wanted
-        # set (rack-beams, Buckens: 2 of the 5-fold 460 Hz rod bending and then 474 Hz); guard
-        # modes keep such a cluster inside the computed set
-        guard = min(FREE_BODY_GUARD_MODES, n - count - 1)
+    sigma = -((2.0 * np.pi * shift_hz) ** 2)
+    # ARPACK needs no refined solves: its own tolerance governs the eigenpairs
+    shifted = Factorization(
+        [(1.0, system.stiffness), (-sigma, system.mass)], label="K - sigma M", check=False
+    ).operator()
+    if free:
+        # free body: the pencil restricted to the mass-orthogonal complement of its rigid-body
+        # modes (Galerkin), by shift-invert with a bordered solve. Neither a shift next to the
+        # null space of K (rounding the entries of very stiff parts, light stiff beams or a
+        # 10-digit punch, breaks that null space and puts rigid modes at up to 1 Hz, which drag
+        # the elastic ones along) nor a support-based inertia relief (which then depends on the
+        # supports: 3.6 % on the first elastic mode of a free aircraft from a 10-digit punch).
+        operator = _complement_operator(shifted, system.mass, system.rigid_modes)
+        # every copy of a multiple eigenvalue at the edge of the wanted set must be found
+        # (rack-beams, Buckens: the 5-fold 460 Hz rod bending and then 474 Hz); guard modes
+        # keep such a cluster inside the computed set
+        guard = min(FREE_BODY_GUARD_MODES, available - count - 1)
     else:
+        operator = shifted
         guard = 0
-        sigma = -((2.0 * np.pi * shift_hz) ** 2)
-        # ARPACK needs no refined solves: its own tolerance governs the eigenpairs
-        operator = Factorization(
-            [(1.0, system.stiffness), (-sigma, system.mass)], label="K - sigma M", check=False
-        ).operator()
+    size = split.rank
+    mass = system.mass
+    if split.singular:  # the condensed pencil (module docstring of mass_split)
+        massive, mass = split.massive, split.mass
+        full = operator
+
+        def condensed(w: np.ndarray) -> np.ndarray:
+            return (massive.T @ full.matmat(massive @ w.reshape(size, -1))).reshape(w.shape)
+
+        operator = spla.LinearOperator((size, size), matvec=condensed, matmat=condensed)
     # a fixed pseudo-random start vector: the same job gives the same modes to the last bit
     # (ARPACK's own random start differs from process to process)
     start = np.random.default_rng(20261122).standard_normal(n)
+    if free:  # a start vector in the complement of the rigid-body modes
+        start -= system.rigid_modes @ (system.rigid_modes.T @ (system.mass @ start))
+    start = split.massive.T @ start if split.singular else start
+    wanted = count + guard
     try:
         values, vectors = spla.eigsh(
-            system.stiffness, k=count + guard, M=system.mass, sigma=sigma, which="LM",
-            OPinv=operator, ncv=min(n, max(2 * (count + guard) + 1, count + guard + 20)),
-            v0=start,
+            operator, k=wanted, M=mass, sigma=sigma, which="LM", OPinv=operator,
+            ncv=min(size, max(2 * wanted + 1, wanted + 20)), v0=start,
         )  # fmt: skip
     except spla.ArpackNoConvergence as exc:
         raise NumericalError(
@@ -90,9 +119,33 @@ def eigenmodes(
         ) from None
     order = np.argsort(values)[:count]
     values, vectors = values[order], vectors[:, order]
+    if split.singular:  # x = (lambda - sigma) A Q_m B z on all dofs
+        vectors = full.matmat(split.massive @ (split.mass @ vectors)) * (values - sigma)
     # eigsh returns M-orthonormal vectors; normalise again against round-off.
     scale = np.sqrt(np.einsum("ij,ij->j", vectors, system.mass @ vectors))
     return values, vectors / scale
+
+
+def _complement_operator(
+    shifted: spla.LinearOperator, mass: sp.spmatrix | np.ndarray, rigid: np.ndarray
+) -> spla.LinearOperator:
+    """Shift-invert on the mass-orthogonal complement of ``rigid`` (mass-orthonormal, (n, r)).
+
+    ``x = OP w`` solves ``(K - sigma M) x = w + M R mu`` with ``R^T M x = 0``:
+    ``x = (I - Y S^-1 (M R)^T) (K - sigma M)^-1 w`` with ``Y = (K - sigma M)^-1 M R`` and
+    ``S = (M R)^T Y``, r extra solves once. Its eigenvalues are ``1 / (lambda - sigma)`` of the
+    pencil restricted to the complement.
+    """
+    mr = np.asarray(mass @ rigid)
+    y = shifted.matmat(mr)
+    s = mr.T @ y
+
+    def apply(w: np.ndarray) -> np.ndarray:
+        x = shifted.matmat(w.reshape(w.shape[0], -1))
+        x = x - y @ np.linalg.solve(s, mr.T @ x)
+        return x.reshape(w.shape)
+
+    return spla.LinearOperator(shifted.shape, matvec=apply, matmat=apply, dtype=float)
 
 
 def modal_reduction(

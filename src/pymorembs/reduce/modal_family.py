@@ -20,12 +20,12 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-import scipy.linalg as sla
 import scipy.sparse as sp
 
 from pymorembs.errors import NumericalError, UserError
 from pymorembs.linalg.factorization import Factorization
 from pymorembs.linalg.inertia_relief import InertiaRelief
+from pymorembs.linalg.mass_split import condensed_dense_eigh
 from pymorembs.linalg.orthogonalization import OrthonormalBasis
 from pymorembs.reduce.modal import DEFAULT_SHIFT_HZ, eigenmodes
 from pymorembs.reduce.projection import Projection
@@ -584,5 +584,10 @@ def _interior_modes(
             f"craig-bampton: {count} of {n_i} interior modes asked for; at most {n_i - 2} for an "
             f"interior of more than {DENSE_INTERIOR_LIMIT} dofs"
         )
-    values, vectors = sla.eigh(k_ii.toarray(), m_ii.toarray(), subset_by_index=(0, count - 1))
-    return values, vectors
+    values, vectors = condensed_dense_eigh(k_ii.toarray(), m_ii.toarray())
+    if values.size < count:
+        raise UserError(
+            f"craig-bampton: {count} fixed-interface modes asked for, but the interior has only "
+            f"{values.size} modes with mass ({n_i - values.size} massless directions)"
+        )
+    return values[:count], vectors[:, :count]
