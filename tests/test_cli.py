@@ -155,7 +155,7 @@ def test_info_reports_six_rigid_body_modes_of_the_free_rack(tmp_path, capsys):
     code, out, _ = run(["info", tmp_path / "model.h5", "--modes", 8], capsys)
     assert code == 0
     assert "rigid-body modes  6" in out
-    assert out.count("(rigid-body mode)") == 6
+    assert out.count("(rigid-body mode") == 6
     assert "1.38" in out  # total mass about 1.39 kg
 
 

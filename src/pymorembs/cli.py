@@ -18,10 +18,10 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 import numpy as np
-import scipy.linalg as sla
 from threadpoolctl import threadpool_limits
 
 from pymorembs import __version__, progress
+from pymorembs.analysis.spectrum import model_spectrum
 from pymorembs.body import ElasticBody
 from pymorembs.config import MODEL_FORMATS, load_job
 from pymorembs.errors import PymorembsError, UserError
@@ -31,14 +31,9 @@ from pymorembs.io.matrix_market import write_matrix_files
 from pymorembs.io.native import write_body_h5
 from pymorembs.parallel import dask_client, usable_cores
 from pymorembs.pipeline import load_job_model, run_job
-from pymorembs.prepare import Frame, PreparedModel, prepare, with_rigid_modes
-from pymorembs.prepare.rigid_modes import free_rigid_body_motions
+from pymorembs.prepare import Frame, PreparedModel, prepare
 from pymorembs.prepare.validation import validate_body
-from pymorembs.reduce.modal import eigenmodes
 from pymorembs.units import detect_units, frequency_warnings
-
-#: Below this size ``info`` solves the eigenproblem densely.
-DENSE_LIMIT = 600
 
 
 class _Parser(argparse.ArgumentParser):
@@ -137,6 +132,9 @@ def _run(args: argparse.Namespace) -> int:
         if args.command == "info":
             return _info(args)
         return _reduce(args)
+    except BrokenPipeError:  # the reader of the output went away (e.g. `| head`)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no error at exit
+        return 0
     except PymorembsError as exc:
         message = " ".join(str(exc).split())  # always one line
         sys.stderr.write(f"pymorembs: error: {message}\n")
@@ -210,48 +208,48 @@ def _prepared_for_info(args: argparse.Namespace) -> tuple[ElasticBody, PreparedM
 
 
 def model_facts(body: ElasticBody, prepared: PreparedModel, modes: int) -> dict[str, Any]:
-    """Sizes, mass, rigid-body modes and the ``modes`` lowest elastic eigenfrequencies (Hz).
+    """Sizes, mass, massless dofs, rigid-body modes and the lowest elastic eigenfrequencies (Hz).
 
-    Rigid-body modes are the motions the fixed dofs and constraints leave free and unresisted
-    (:func:`pymorembs.prepare.rigid_modes.free_rigid_body_modes`), reported as 0 Hz. Massless
-    dofs are fine: the shift-invert eigensolver needs only ``K - sigma M`` to be regular, which
-    is equivalent to the static condensation of the massless dofs.
+    The eigen-analysis is :func:`pymorembs.analysis.spectrum.model_spectrum`: massless
+    directions condensed exactly, rigid-body modes decided by the spectrum within the rounding
+    bound of the file's entries and, with coordinates, by geometry.
     """
-    if modes < 1:
-        raise UserError(f"--modes must be at least 1, got {modes}")
-    system = prepared.system
-    free, motions = free_rigid_body_motions(prepared.body, prepared.elimination, system)
-    n = system.order
-    count = min(modes, n - len(free) - 1)
-    values = None
-    if n <= DENSE_LIMIT and not free:
-        try:
-            values = sla.eigh(
-                system.stiffness.toarray(),
-                system.mass.toarray(),
-                eigvals_only=True,
-                subset_by_index=[0, count - 1],
-            )
-        except np.linalg.LinAlgError:  # singular mass (massless dofs): shift-invert instead
-            values = None
-    if values is None:
-        # a free body: elastic modes by inertia relief, never a shift next to the null space
-        elastic = with_rigid_modes(system, motions) if free else system
-        values, _ = eigenmodes(elastic, count, elastic_only=True)
-    elastic_hz = np.sqrt(np.clip(values, 0.0, None)) / (2 * np.pi)
-    frequencies = np.concatenate([np.zeros(len(free)), elastic_hz])
-    return {
+    spectrum = model_spectrum(body, prepared, modes)
+    rigid = spectrum.rigid
+    frequencies = spectrum.frequencies_hz
+    bounds = np.concatenate([np.zeros(rigid.count + rigid.mechanisms), spectrum.elastic_bound_hz])
+    facts: dict[str, Any] = {
         "name": body.name,
         "n_dof": prepared.body.n_dof,
         "n_nodes": prepared.body.n_nodes,
         "n_dependent": int(prepared.elimination.dependent.size),
         "n_fixed": int(prepared.elimination.fixed.size),
-        "n_independent": n,
+        "n_independent": prepared.system.order,
+        "n_massless": spectrum.massless.n_massless,
+        "massless": {
+            "directions": spectrum.massless.n_massless,
+            "dofs_without_mass": int(spectrum.massless.zero_rows.size),
+            "directions_in_mass_blocks": spectrum.massless.n_block_null,
+        },
+        "dof_table": body.dofs.describe(),
+        "has_coordinates": bool(body.has_coordinates),
+        "notes": list(body.notes),
         "total_mass": body.total_mass(),
-        "rigid_body_modes": len(free),
-        "rigid_body_motions": free,
+        "rigid_body_modes": rigid.count,
+        "rigid_body_motions": list(rigid.labels),
+        "mechanisms": rigid.mechanisms,
+        "rigid_body_decision": {
+            "decided_by": rigid.decided_by,
+            "explanation": rigid.explanation,
+            "computed_hz": rigid.computed_hz.tolist(),
+        },
+        "rounding": spectrum.rounding,
         "eigenfrequencies_hz": frequencies.tolist(),
+        "eigenfrequency_bounds_hz": bounds.tolist(),
     }
+    if spectrum.fixed_interface_hz is not None:
+        facts["fixed_interface_hz"] = spectrum.fixed_interface_hz.tolist()
+    return facts
 
 
 def _info(args: argparse.Namespace) -> int:
@@ -268,19 +266,65 @@ def _info(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(facts, indent=2))
         return 0
+    _print_facts(facts, units.describe())
+    return 0
+
+
+def _print_facts(facts: dict[str, Any], units: str) -> None:
+    """The facts of ``info`` as text."""
+    massless = facts["massless"]
     print(f"model             {facts['name']}")
     print(
         f"dofs              {facts['n_dof']} ({facts['n_independent']} independent, "
         f"{facts['n_dependent']} dependent, {facts['n_fixed']} fixed)"
     )
-    print(f"nodes             {facts['n_nodes']}")
+    print(f"dof table         {facts['dof_table']}")
+    if massless["directions"]:
+        parts = []
+        if massless["dofs_without_mass"]:
+            parts.append(f"{massless['dofs_without_mass']} dofs without any mass entry")
+        if massless["directions_in_mass_blocks"]:
+            parts.append(
+                f"{massless['directions_in_mass_blocks']} directions inside mass blocks "
+                "(point masses without rotary inertia, ...)"
+            )
+        print(f"massless          {massless['directions']} ({'; '.join(parts)}); condensed exactly")
+    else:
+        print("massless          none")
+    coordinates = "" if facts["has_coordinates"] else " (no coordinates in the model files)"
+    print(f"nodes             {facts['n_nodes']}{coordinates}")
     print(f"total mass        {facts['total_mass']:.6g} (model mass unit)")
-    print(f"unit system       {units.describe()}")
-    print(f"rigid-body modes  {facts['rigid_body_modes']}")
-    print("eigenfrequencies [Hz]:")
-    for k, f in enumerate(facts["eigenfrequencies_hz"], start=1):
-        print(f"  {k:4d}  {f:12.4f}" + ("  (rigid-body mode)" if f == 0.0 else ""))
-    return 0
+    print(f"unit system       {units}")
+    rigid = facts["rigid_body_modes"]
+    decision = facts["rigid_body_decision"]["explanation"]
+    print(f"rigid-body modes  {rigid} ({decision})")
+    if facts["mechanisms"]:
+        print(f"mechanisms        {facts['mechanisms']} further zero-energy modes")
+    print(f"matrix entries    {facts['rounding']}")
+    for note in facts["notes"]:
+        print(f"note              {note}")
+    labels = facts["rigid_body_motions"]
+    bounds = facts["eigenfrequency_bounds_hz"]
+    rounded = facts["rounding"] != "full double precision"
+    header = "  (+- first-order bound of the file's rounding)" if rounded else ""
+    print(f"eigenfrequencies [Hz]:{header}")
+    zero = rigid + facts["mechanisms"]
+    for k, (f, bound) in enumerate(zip(facts["eigenfrequencies_hz"], bounds, strict=True)):
+        if k < zero:
+            what = "zero-energy mode (mechanism)"
+            if k < rigid:
+                what = f"rigid-body mode: {labels[k]}" if k < len(labels) else "rigid-body mode"
+            print(f"  {k + 1:4d}  {f:12.4f}  ({what})")
+        else:
+            spread = f"  +- {bound:.3g}" if rounded else ""
+            print(f"  {k + 1:4d}  {f:12.4f}{spread}")
+    if "fixed_interface_hz" in facts:
+        values = facts["fixed_interface_hz"]
+        print(
+            "fixed-interface modes [Hz] (modal coordinates of the superelement): "
+            + ", ".join(f"{f:.6g}" for f in values[:12])
+            + (" ..." if len(values) > 12 else "")
+        )
 
 
 def _reduce(args: argparse.Namespace) -> int:

@@ -112,6 +112,8 @@ class UnitGuess:
         See the module docstring, model units (nan if not available).
     warnings : tuple of str
         One line each: implausible numbers.
+    reason : str
+        Why ``system`` is None (for :meth:`describe`).
     """
 
     system: UnitSystem | None
@@ -120,6 +122,7 @@ class UnitGuess:
     implied_density: float = float("nan")
     implied_wave_speed_squared: float = float("nan")
     warnings: tuple[str, ...] = field(default=())
+    reason: str = "no mass or fewer than two nodes"
 
     @property
     def name(self) -> str:
@@ -129,7 +132,7 @@ class UnitGuess:
     def describe(self) -> str:
         """One line for ``pymorembs info``."""
         if self.system is None:
-            return "unknown (no mass or fewer than two nodes)"
+            return f"unknown ({self.reason})"
         s = self.system
         text = f"{s.name} ({s.length}, {s.mass}, {s.time}, {s.force}; frequencies in "
         text += f"{s.frequency_unit})"
@@ -203,6 +206,8 @@ def detect_units(body: ElasticBody) -> UnitGuess:
         The nearest system in (log density, log c^2), normalised by the half-widths of the
         ranges; ``warnings`` holds one line if no system's ranges hold the numbers.
     """
+    if not body.has_coordinates:
+        return UnitGuess(None, False, reason="no coordinates: units cannot be judged")
     density, speed2 = implied_numbers(body)
     if not np.isfinite(density):
         return UnitGuess(None, False, (), density, speed2)

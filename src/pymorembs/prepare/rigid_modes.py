@@ -9,6 +9,8 @@ before anything is factorized.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from pymorembs.body import ElasticBody
@@ -29,6 +31,64 @@ KINEMATIC_TOL = 1e-9
 ENERGY_TOL = 1e-10
 
 
+@dataclass(frozen=True, eq=False)
+class AdmissibleFields:
+    """The rigid-body motions the fixed dofs and constraints of a prepared body admit.
+
+    Attributes
+    ----------
+    fields : ndarray, shape (n_independent, a)
+        Orthonormal combinations of the rigid-body fields (on the independent dofs) that vanish
+        on the fixed dofs and satisfy the constraint equations (``T r_i = r``).
+    coefficients : ndarray, shape (p, a)
+        The combinations, in terms of the ``p`` rigid-body fields the dof table has.
+    names : tuple of str
+        Names of those ``p`` fields (:data:`NAMES`).
+    """
+
+    fields: np.ndarray
+    coefficients: np.ndarray
+    names: tuple[str, ...]
+
+    def labels(self, combination: np.ndarray) -> list[str]:
+        """A name per column of ``fields @ combination``: its axes, or all six names."""
+        weights_all = self.coefficients @ combination
+        if weights_all.shape[1] == len(self.names) == len(NAMES):
+            return list(NAMES)
+        basis, _ = np.linalg.qr(weights_all)
+        labels = []
+        for k in range(basis.shape[1]):
+            weights = np.abs(basis[:, k])
+            axes = [self.names[j] for j in np.flatnonzero(weights > 0.3 * weights.max())]
+            labels.append(" + ".join(axes))
+        return labels
+
+
+def admissible_rigid_fields(body: ElasticBody, elimination: Elimination) -> AdmissibleFields:
+    """The rigid-body fields (about the coordinate origin: a tangent frame's node) that survive
+    fixed dofs and constraints, without looking at the stiffness (see :class:`AdmissibleFields`).
+    """
+    rigid = body.rigid_body_modes()
+    norms = np.linalg.norm(rigid, axis=0)
+    present = norms > 0
+    rigid = rigid[:, present] / norms[present]
+    names = tuple(name for name, keep in zip(NAMES, present, strict=True) if keep)
+    on_independent = rigid[elimination.independent]
+    admissibility = np.vstack(
+        [
+            rigid[elimination.fixed],
+            elimination.transform @ on_independent - rigid,
+        ]
+    )
+    k = rigid.shape[1]
+    if admissibility.shape[0] < k:  # pad to a square system: the null space stays the same
+        admissibility = np.vstack([admissibility, np.zeros((k - admissibility.shape[0], k))])
+    triangle = np.linalg.qr(admissibility, mode="r")  # k x k: no n x n factor is ever formed
+    _, sigma, vt = np.linalg.svd(triangle)
+    null = vt[sigma < KINEMATIC_TOL].T
+    return AdmissibleFields(on_independent @ null, null, names)
+
+
 def free_rigid_body_modes(
     body: ElasticBody, elimination: Elimination, system: SecondOrderSystem
 ) -> list[str]:
@@ -44,10 +104,10 @@ def free_rigid_body_motions(
 ) -> tuple[list[str], np.ndarray]:
     """The rigid-body motions that survive fixed dofs and constraints, unresisted.
 
-    A combination ``r = R a`` of the six rigid-body fields (about the coordinate origin) survives
-    when it vanishes on the fixed dofs and satisfies the constraint equations, ``T r_i = r``; it
-    is free when the stiffness of the independent dofs does no work on it, ``K* r_i = 0``
-    (springs to ground would resist it).
+    A combination ``r = R a`` of the six rigid-body fields survives when it vanishes on the
+    fixed dofs and satisfies the constraint equations, ``T r_i = r``
+    (:func:`admissible_rigid_fields`); it is free when the stiffness of the independent dofs
+    does no work on it, ``K* r_i = 0`` (springs to ground would resist it).
 
     Returns
     -------
@@ -56,41 +116,16 @@ def free_rigid_body_motions(
     motions : ndarray, shape (n_independent, r)
         The free motions on the independent dofs (orthonormal combinations of the rigid fields).
     """
-    rigid = body.rigid_body_modes()
-    norms = np.linalg.norm(rigid, axis=0)
-    present = norms > 0
-    rigid = rigid[:, present] / norms[present]
-    names = [name for name, keep in zip(NAMES, present, strict=True) if keep]
-    on_independent = rigid[elimination.independent]
-    admissibility = np.vstack(
-        [
-            rigid[elimination.fixed],
-            elimination.transform @ on_independent - rigid,
-        ]
-    )
-    k = rigid.shape[1]
-    if admissibility.shape[0] < k:  # pad to a square system: the null space stays the same
-        admissibility = np.vstack([admissibility, np.zeros((k - admissibility.shape[0], k))])
-    triangle = np.linalg.qr(admissibility, mode="r")  # k x k: no n x n factor is ever formed
-    _, sigma, vt = np.linalg.svd(triangle)
-    null = vt[sigma < KINEMATIC_TOL].T
+    admissible = admissible_rigid_fields(body, elimination)
     none = ([], np.zeros((elimination.n_independent, 0)))
-    if null.shape[1] == 0:
+    motions = admissible.fields
+    if motions.shape[1] == 0:
         return none
-    motions = on_independent @ null
     stiffness = system.stiffness
     scale = float(abs(stiffness).sum(axis=1).max()) or 1.0
     work = np.linalg.norm(stiffness @ motions, axis=0) / (scale * np.linalg.norm(motions, axis=0))
-    free = null[:, work < ENERGY_TOL]
-    if free.shape[1] == 0:
+    free = work < ENERGY_TOL
+    if not free.any():
         return none
-    # name each free motion by its axis if it is (nearly) one, else by its components
-    labels = []
-    basis, _ = np.linalg.qr(free)
-    for k in range(basis.shape[1]):
-        weights = np.abs(basis[:, k])
-        axes = [names[j] for j in np.flatnonzero(weights > 0.3 * weights.max())]
-        labels.append(" + ".join(axes))
-    if basis.shape[1] == len(names):
-        labels = list(names)
-    return labels, on_independent @ basis
+    combination, _ = np.linalg.qr(np.eye(motions.shape[1])[:, free])
+    return admissible.labels(combination), motions @ combination
