@@ -260,9 +260,12 @@ def parse_job(data: dict[str, Any], path: Path) -> Job:
     interfaces = _interfaces(top.get("interface", []), path)
     damping = _damping(top.get("damping"), path)
     frame = _frame(_Table(top.get("frame", required=True), "[frame]", path))
-    inputs = _ports(top.get("inputs", required=True), "inputs", path)
+    inputs_data = top.get("inputs")
+    inputs = () if inputs_data is None else _ports(inputs_data, "inputs", path)
     outputs_data = top.get("outputs")
     outputs = inputs if outputs_data is None else _ports(outputs_data, "outputs", path)
+    if outputs and not inputs:
+        raise UserError(f"{path}: [[outputs]] without [[inputs]]: give the inputs too")
     band = _Table(top.get("band", required=True), "[band]", path)
     f_min = band.number("f_min_hz", 0.0, minimum=0.0)
     f_max = band.number("f_max_hz", required=True)

@@ -34,6 +34,7 @@ from pymorembs.examples import build_example
 from pymorembs.export.outputs import BODY_OUTPUTS, write_outputs
 from pymorembs.io.atomic import atomic_path, write_text
 from pymorembs.io.formats import read_body
+from pymorembs.linalg.mass_split import mass_split
 from pymorembs.prepare import PreparedModel, prepare
 from pymorembs.prepare.interface import InterfaceSpec, add_interface_node, select_nodes
 from pymorembs.prepare.validation import ValidationReport, validate_body, validate_prepared
@@ -287,8 +288,20 @@ def check_requests(job: Job, body: ElasticBody) -> None:
             raise UserError(f"{job.path}: {key}: node {node} has no dofs in the model")
         return {int(d) for d in body.dofs.directions[indices]}
 
+    if not job.inputs and (body.ports is None or body.ports.inputs is None):
+        raise UserError(
+            f"{job.path}: [[inputs]] is missing and the model brings no input matrix B of its "
+            "own; give [[inputs]] (node and directions)"
+        )
     wants_body = any(kind in job.export.outputs for kind in BODY_OUTPUTS)
     spec = job.time_domain
+    if (wants_body or spec is not None) and not body.has_coordinates:
+        raise UserError(
+            f"{job.path}: the model has no node coordinates, which the "
+            f"{'[time_domain] check' if spec is not None else 'bodies for multibody codes'} "
+            "need; give the nodes (nodes = nodes.csv or the FE input file) or write only "
+            'matrices ([export] outputs = ["npz", "mtx", "mat"])'
+        )
     if wants_body or (spec is not None and spec.exudyn):
         for node in export_nodes(job):
             if not {0, 1, 2} <= dofs_of(node, "[export] nodes"):
@@ -508,6 +521,7 @@ def _run_job(
         if "report" in job.export.outputs:
             overview.append("report.html")
         timings["total_s"] = time.perf_counter() - clock
+        massless = mass_split(system.mass)
         summary = {
             "pymorembs_version": __version__,
             "job": str(job.path),
@@ -518,6 +532,14 @@ def _run_job(
                 "n_independent": system.order,
                 "n_dependent": int(prepared.elimination.dependent.size),
                 "n_fixed": int(prepared.elimination.fixed.size),
+                "n_massless": massless.n_massless,
+                "massless": {
+                    "dofs_without_mass": int(massless.zero_rows.size),
+                    "directions_in_mass_blocks": massless.n_block_null,
+                },
+                "dof_table": body.dofs.describe(),
+                "has_coordinates": bool(body.has_coordinates),
+                "notes": list(body.notes),
                 "n_inputs": system.n_inputs,
                 "n_outputs": system.n_outputs,
                 "inputs": list(system.input_labels),

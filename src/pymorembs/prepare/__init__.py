@@ -12,7 +12,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from pymorembs.body import ElasticBody
-from pymorembs.errors import UserError
+from pymorembs.errors import NumericalError, UserError
+from pymorembs.linalg.mass_split import mass_split
 from pymorembs.prepare.buckens_frame import buckens_frame, centre_of_gravity
 from pymorembs.prepare.elimination import Elimination, eliminate
 from pymorembs.prepare.ports import Port, selection_matrix
@@ -98,8 +99,9 @@ def prepare(
     body : ElasticBody
     frame : Frame
     inputs, outputs : list of Port, optional
-        Forces/moments in and displacements/rotations out. Without inputs (outputs), the system
-        gets an empty input (output) matrix.
+        Forces/moments in and displacements/rotations out. Without either, the ports that came
+        with the model file (``body.ports``: ``B`` and ``C``, or ``C = B^T``) are used; a body
+        without them gets empty input and output matrices.
     allow_rigid_body_modes : bool
         Accept a body that can still move as a rigid body (e.g. for its eigenfrequencies).
         Otherwise such a body is a :class:`UserError` naming the free motions: the reduction
@@ -114,18 +116,30 @@ def prepare(
         raise UserError("the model has no independent dofs left after fixing and elimination")
     warnings: list[str] = []
     n_i = elimination.n_independent
-    if inputs:
-        b_all, input_labels = _selection(framed, inputs, "inputs")
+    model_ports = body.ports if not inputs and not outputs else None
+    if model_ports is not None and model_ports.inputs is not None:
+        b_all, input_labels = model_ports.inputs, list(model_ports.input_labels)
+        if model_ports.outputs is None:
+            c_all, output_labels = b_all, list(model_ports.input_labels)
+        else:
+            c_all, output_labels = model_ports.outputs.T, list(model_ports.output_labels)
         b = elimination.inputs(b_all)
-        warnings += _zero_ports(b, input_labels, "input", axis=0)
-    else:
-        b, input_labels = np.zeros((n_i, 0)), []
-    if outputs:
-        c_all, output_labels = _selection(framed, outputs, "outputs")
         c = elimination.outputs(c_all.T)
+        warnings += _zero_ports(b, input_labels, "input", axis=0)
         warnings += _zero_ports(c, output_labels, "output", axis=1)
     else:
-        c, output_labels = np.zeros((0, n_i)), []
+        if inputs:
+            b_all, input_labels = _selection(framed, inputs, "inputs")
+            b = elimination.inputs(b_all)
+            warnings += _zero_ports(b, input_labels, "input", axis=0)
+        else:
+            b, input_labels = np.zeros((n_i, 0)), []
+        if outputs:
+            c_all, output_labels = _selection(framed, outputs, "outputs")
+            c = elimination.outputs(c_all.T)
+            warnings += _zero_ports(c, output_labels, "output", axis=1)
+        else:
+            c, output_labels = np.zeros((0, n_i)), []
 
     damping = framed.damping
     modal = damping.kind == "modal"
@@ -141,6 +155,7 @@ def prepare(
         output_labels=tuple(output_labels),
         static_load=elimination.load(framed.stiffness),
     )
+    warnings += _massless_ports(system)
     if frame.kind == "buckens":
         return PreparedModel(
             framed, elimination, _elastic_system(framed, elimination, system), tuple(warnings)
@@ -203,6 +218,47 @@ def _selection(body: ElasticBody, ports: list[Port], what: str) -> tuple:
         return selection_matrix(body, ports)
     except UserError as exc:
         raise UserError(f"[[{what}]]: {exc}") from None
+
+
+#: A port counts as acting on massless directions from this share of its norm on.
+MASSLESS_PORT_SHARE = 0.01
+
+
+def _massless_ports(system: SecondOrderSystem) -> list[str]:
+    """Warnings for ports that act (partly) on massless directions of the mass matrix.
+
+    Such an input (a moment at a beam node without rotary inertia) has a static part that is
+    transmitted without inertia: the transfer ``H(s)`` of collocated ports then holds a constant
+    part that a reduced body with a positive definite mass can carry only through a very stiff
+    mode, and eigenmode-based methods (modal reduction, the Gramians of the dense modal form)
+    miss it; methods that span static responses (Krylov at 0 Hz, SOAGA, Craig-Bampton, modal
+    with frequency response modes, the two-step Gramian) keep it.
+    """
+    if not system.input_labels and not system.output_labels:
+        return []
+    try:
+        split = mass_split(system.mass)
+    except NumericalError:  # an indefinite mass: the validation names it
+        return []
+    if not split.singular:
+        return []
+    out = []
+    for what, matrix, labels in (
+        ("input", system.input_matrix, system.input_labels),
+        ("output", system.output_matrix.T, system.output_labels),
+    ):
+        if matrix.size == 0:
+            continue
+        total = np.linalg.norm(matrix, axis=0)
+        share = np.linalg.norm(split.massless.T @ matrix, axis=0) / np.where(total > 0, total, 1)
+        for label, value in zip(labels, share, strict=True):
+            if value >= MASSLESS_PORT_SHARE:
+                out.append(
+                    f"{what} {label} acts on massless directions ({100 * value:.0f} % of it): its "
+                    "static part is transmitted without inertia; modal reduction and the dense "
+                    "Gramian miss it, Krylov, SOAGA, Craig-Bampton and modal with frm_hz keep it"
+                )
+    return out
 
 
 def _zero_ports(matrix: np.ndarray, labels: list[str], what: str, axis: int) -> list[str]:

@@ -185,6 +185,18 @@ def _with_dofs(body: ElasticBody, new: list[tuple[int, int]]) -> ElasticBody:
         sp.hstack([constraints.matrix, sp.csr_matrix((len(constraints), n_new - n_old))]),
         constraints.offset,
     )
+    ports = body.ports
+    if ports is not None:  # the model's own B and C act on the old dofs only
+        extra = len(new)
+        ports = replace(
+            ports,
+            inputs=None
+            if ports.inputs is None
+            else sp.vstack([ports.inputs, sp.csr_matrix((extra, ports.inputs.shape[1]))]),
+            outputs=None
+            if ports.outputs is None
+            else sp.hstack([ports.outputs, sp.csr_matrix((ports.outputs.shape[0], extra))]),
+        )
     return replace(
         body,
         dofs=DofTable(nodes, directions),
@@ -192,6 +204,7 @@ def _with_dofs(body: ElasticBody, new: list[tuple[int, int]]) -> ElasticBody:
         stiffness=pad(body.stiffness),
         damping_matrix=pad(body.damping_matrix),
         constraints=constraints,
+        ports=ports,
     )
 
 
