@@ -8,7 +8,7 @@ What ``pymorembs info`` reports, as a library function (:func:`model_spectrum`):
 
   - *by the spectrum*: the lowest eigenpairs of ``(K, M)`` are computed without any assumption;
     a mode counts as a zero-energy mode when its eigenvalue lies within the bound that the
-    rounding of the exported entries puts on it (:func:`~pymorembs.analysis.rounding.
+    rounding of the exported entries puts on it (:func:`~pymorembs.linalg.rounding.
     eigenvalue_bounds`; at least the rounding of the computation itself). An exact model gives
     rigid-body eigenvalues near 1e-10 of that bound's scale; a 10-digit punch of a free
     aircraft gives them at up to 1 Hz, some negative, while its first wing mode at 7.8 Hz is 25
@@ -37,10 +37,10 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from pymorembs.analysis.rounding import eigenvalue_bounds, relative_rounding
 from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
 from pymorembs.linalg.mass_split import MassSplit, dense_condensation, mass_split
+from pymorembs.linalg.rounding import eigenvalue_bounds, relative_rounding
 from pymorembs.prepare import PreparedModel, with_rigid_modes
 from pymorembs.prepare.rigid_modes import NAMES, admissible_rigid_fields
 from pymorembs.reduce.modal import eigenmodes

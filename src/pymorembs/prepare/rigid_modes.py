@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pymorembs.body import ElasticBody
+from pymorembs.linalg.rounding import relative_rounding
 from pymorembs.prepare.elimination import Elimination
 from pymorembs.system import SecondOrderSystem
 
@@ -27,8 +28,11 @@ NAMES = (
 )
 #: A combination of rigid modes is kinematically admissible below this residual.
 KINEMATIC_TOL = 1e-9
-#: ... and carries no strain energy when ``|K r| / (|K| |r|)`` is below this.
+#: ... and carries no strain energy when ``|K r| / (|K| |r|)`` is below this, or below
+#: :data:`ROUNDED_ENERGY_FACTOR` times the relative rounding of a file's entries
+#: (:func:`~pymorembs.linalg.rounding.relative_rounding`).
 ENERGY_TOL = 1e-10
+ROUNDED_ENERGY_FACTOR = 100.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -124,7 +128,9 @@ def free_rigid_body_motions(
     stiffness = system.stiffness
     scale = float(abs(stiffness).sum(axis=1).max()) or 1.0
     work = np.linalg.norm(stiffness @ motions, axis=0) / (scale * np.linalg.norm(motions, axis=0))
-    free = work < ENERGY_TOL
+    # entries rounded to a few digits (a 10-digit punch) break K r = 0 at their rounding level
+    eps, _ = relative_rounding(body.stiffness, body.mass)
+    free = work < max(ENERGY_TOL, ROUNDED_ENERGY_FACTOR * eps)
     if not free.any():
         return none
     combination, _ = np.linalg.qr(np.eye(motions.shape[1])[:, free])

@@ -41,12 +41,10 @@ def significant_digits(*arrays: np.ndarray) -> int | None:
     values is tested: the smallest ``d`` for which every sampled value, scaled by
     ``10^(d - 1 - floor(log10 |v|))``, is an integer.
     """
-    values = np.concatenate([np.asarray(a, dtype=float).ravel() for a in arrays])
+    values = _sample(arrays)
     values = np.abs(values[np.isfinite(values) & (values != 0.0)])
     if values.size == 0:
         return None
-    if values.size > _SAMPLE:
-        values = values[:: values.size // _SAMPLE + 1]
     exponent = np.floor(np.log10(values))
     for digits in range(1, MAX_DIGITS + 1):
         scaled = values * 10.0 ** (digits - 1 - exponent)
@@ -67,10 +65,20 @@ def relative_rounding(stiffness: sp.spmatrix, mass: sp.spmatrix) -> tuple[float,
     digits = significant_digits(k, m)
     if digits is not None:
         return max(0.5 * 10.0 ** (1 - digits), COMPUTATION_EPS), f"{digits} significant digits"
-    both = np.concatenate([k, m])
+    both = _sample((k, m))
     if both.size and np.array_equal(both.astype(np.float32).astype(float), both):
         return 2.0**-24, "single precision"
     return COMPUTATION_EPS, "full double precision"
+
+
+def _sample(arrays: tuple[np.ndarray, ...]) -> np.ndarray:
+    """At most :data:`_SAMPLE` values of each array (evenly strided), without copying them all."""
+    parts = []
+    for a in arrays:
+        flat = np.asarray(a).ravel()
+        step = flat.size // _SAMPLE + 1
+        parts.append(np.asarray(flat[::step], dtype=float))
+    return np.concatenate(parts) if parts else np.zeros(0)
 
 
 def eigenvalue_bounds(
