@@ -89,6 +89,7 @@ from pymorembs.io.abaqus_inp import (
     ABAQUS_DOF_NAMES,
     MAX_LABEL,
     InpModel,
+    ascii_data,
     derive_dof_table,
     read_inp,
 )
@@ -469,14 +470,10 @@ def _coordinate_body(
         )
     model = nodes.model
     n = max(f.size() for f in files.values())
-    indices = {role: _check_equations(f, n, f"equations 1..{n}") for role, f in files.items()}
-    matrices = _assemble(files, indices, n, lambda i: f"equation {i + 1}")
-    candidates = []
+    tables = []
     for order in ("file", "label"):
         table, types = derive_dof_table(model, order)
-        if candidates and np.array_equal(table.nodes, candidates[0][1].dofs.nodes):
-            continue
-        if len(table) != n:
+        if len(table) != n:  # (checked before any n-sized allocation)
             raise _fail(
                 k_file.path,
                 None,
@@ -484,6 +481,12 @@ def _coordinate_body(
                 f"equations ({table.describe()} from elements {types}) but the matrices have {n}; "
                 f"{_GIVE_DOFS}",
             )
+        if not tables or not np.array_equal(table.nodes, tables[0][0].nodes):
+            tables.append((table, order))
+    indices = {role: _check_equations(f, n, f"equations 1..{n}") for role, f in files.items()}
+    matrices = _assemble(files, indices, n, lambda i: f"equation {i + 1}")
+    candidates = []
+    for table, order in tables:
         where = "the *NODE order" if order == "file" else "the order of labels in each instance"
         note = f"dof table: {table.describe()} in {where} of {model.path.name} (elements {types})"
         body = _make_body(files, matrices, table, nodes, name, [note])
@@ -627,6 +630,7 @@ def _read_matrix_file(path: Path) -> _MatrixFile:
             "*ELEMENT MATRIX OUTPUT file, or an input file?); export with *MATRIX GENERATE and "
             "*MATRIX OUTPUT",
         )
+    text = ascii_data(path, text, 1, comment="*")
     first = _first_data_line(text)
     if first is None:
         raise _fail(path, None, "no matrix entries (the file is empty or holds only comments)")

@@ -65,6 +65,7 @@ __all__ = [
     "InpModel",
     "Placement",
     "Scope",
+    "ascii_data",
     "derive_dof_table",
     "element_dofs",
     "keyword_blocks",
@@ -106,6 +107,30 @@ def located_error(path: Path, line: int | None, message: str) -> UserError:
     """A one-line :class:`UserError` ``path:line: message`` (``path: message`` without line)."""
     where = str(path) if line is None else f"{path}:{line}"
     return UserError(f"{where}: {' '.join(message.splitlines())}")
+
+
+def ascii_data(path: Path, text: str, first_line: int, comment: str = "**") -> str:
+    """``text`` for NumPy's parsers: ASCII only, or a one-line error at the first other character.
+
+    Abaqus writes data lines in ASCII; other characters may stand in comments (from ``comment``
+    to the end of the line), which are then removed (line numbers stay). NumPy's text parsers
+    must not see them: ``np.loadtxt`` of NumPy 2.4 reads freed memory on some non-ASCII
+    characters in an integer field (e.g. ``"\U000c6c13 1 2"``) and may crash.
+    """
+    if text.isascii():
+        return text
+    lines = text.split("\n")
+    for offset, line in enumerate(lines):
+        data = line.split(comment, 1)[0]
+        if not data.isascii():
+            character = next(c for c in data if not c.isascii())
+            raise located_error(
+                path,
+                first_line + offset,
+                f"character {character!r} in a data line; Abaqus writes numbers in ASCII",
+            )
+        lines[offset] = data
+    return "\n".join(lines)
 
 
 # ============================================================================ the model
@@ -653,7 +678,7 @@ def _placement(path: Path, data: str, first_line: int) -> Placement:
 # ============================================================================ data lines
 def _parse_nodes(path: Path, data: str, first_line: int) -> tuple[np.ndarray, np.ndarray]:
     """Labels and coordinates of a block of ``*NODE`` data lines (vectorised; slow on error)."""
-    text = _COMMENT_LINE.sub("", data)
+    text = ascii_data(path, _COMMENT_LINE.sub("", data), first_line)
     if not text.strip():
         return np.zeros(0, dtype=np.int64), np.zeros((0, 3))
     if "D" in text or "d" in text:
@@ -721,7 +746,8 @@ def _parse_elements(
     block: ElementBlock, scopes: tuple[Scope, ...]
 ) -> tuple[np.ndarray, np.ndarray]:
     """Scope and label of every node reference of an element block (vectorised; slow on error)."""
-    text = _TRAILING_COMMA.sub("", _CONTINUED.sub(",", _COMMENT_LINE.sub("", block.text)))
+    text = ascii_data(block.path, _COMMENT_LINE.sub("", block.text), block.first_line)
+    text = _TRAILING_COMMA.sub("", _CONTINUED.sub(",", text))
     if not text.strip():
         return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
     try:

@@ -68,6 +68,7 @@ from pymorembs.io.abaqus import read_node_file
 from pymorembs.io.abaqus_inp import (
     ABAQUS_DOF_NAMES,
     MAX_LABEL,
+    ascii_data,
     keyword_blocks,
     located_error,
     parse_keyword,
@@ -367,7 +368,8 @@ def _matrix(
             _line_of_value(data, data_line, i * n + j),
             f"*MATRIX, TYPE={kind} (stored full) is not symmetric: entry ({table.label(i)}, "
             f"{table.label(j)}) = {float(dense[i, j])!r} but ({table.label(j)}, "
-            f"{table.label(i)}) = {float(dense[j, i])!r}; pymorembs needs symmetric stiffness and mass matrices",
+            f"{table.label(i)}) = {float(dense[j, i])!r}; pymorembs needs symmetric stiffness "
+            "and mass matrices",
         )
     matrix = sp.csr_matrix(0.5 * (dense + dense.T))
     matrix.eliminate_zeros()
@@ -380,7 +382,7 @@ def _matrix(
 
 def _values(path: Path, line: int, kind: str, data: str, data_line: int) -> np.ndarray:
     """The numbers of a ``*MATRIX`` block (C-speed parse; a bad token is located on error)."""
-    text = _COMMENT_LINE.sub("", data).replace(",", " ")
+    text = ascii_data(path, _COMMENT_LINE.sub("", data), data_line).replace(",", " ")
     if "D" in text or "d" in text:
         text = text.replace("D", "E").replace("d", "e")
     text = _FORTRAN_EXPONENT.sub(r"E\1", text)
