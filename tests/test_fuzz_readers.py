@@ -793,7 +793,7 @@ def test_abaqus_inp_node_label_beyond_int64() -> None:
     """Was OverflowError when the node list became an int64 array."""
     content = ABAQUS_INP.replace("2, 1.0, 0.0, 0.0", "99999999999999999999, 1.0").encode()
     message = _error("abaqus-inp", content)
-    assert re.search(r"job\.inp:6: node label 9+ is out of range", message), message
+    assert re.search(r"job\.inp:6: node label '9+' is out of range", message), message
 
 
 def test_op4_aset_grid_beyond_int64() -> None:

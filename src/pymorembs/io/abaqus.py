@@ -91,6 +91,7 @@ from pymorembs.io.abaqus_inp import (
     InpModel,
     ascii_data,
     derive_dof_table,
+    integer_field,
     read_inp,
 )
 from pymorembs.io.formats import assemble_symmetric, is_nodes_csv, read_text
@@ -679,12 +680,7 @@ def _locate_bad_line(path: Path, delimiter: str | None, names: tuple[str, ...]) 
                 "is the line cut?",
             )
         for text, what in zip(fields[:-1], names[:-1], strict=True):
-            try:
-                value = int(text)
-            except ValueError:
-                raise _fail(path, number, f"{what} {text!r} is not an integer") from None
-            if abs(value) > MAX_LABEL:
-                raise _fail(path, number, f"{what} {text!r} is out of range (at most 2**31 - 1)")
+            integer_field(path, number, text, what)
         try:
             float(fields[-1].replace("D", "E").replace("d", "e"))
         except ValueError:

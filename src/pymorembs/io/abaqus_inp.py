@@ -68,6 +68,7 @@ __all__ = [
     "ascii_data",
     "derive_dof_table",
     "element_dofs",
+    "integer_field",
     "keyword_blocks",
     "located_error",
     "parse_keyword",
@@ -107,6 +108,24 @@ def located_error(path: Path, line: int | None, message: str) -> UserError:
     """A one-line :class:`UserError` ``path:line: message`` (``path: message`` without line)."""
     where = str(path) if line is None else f"{path}:{line}"
     return UserError(f"{where}: {' '.join(message.splitlines())}")
+
+
+def integer_field(
+    path: Path, line: int | None, text: str, what: str, positive: bool = False
+) -> int:
+    """An integer field of an Abaqus file (a label, dof or count), range-checked to 32 bits.
+
+    Raises ``file:line: <what> '<text>' is not an integer`` or ``... is out of range``; with
+    ``positive`` a value below 1 is out of range too.
+    """
+    try:
+        value = int(text)
+    except ValueError:
+        raise located_error(path, line, f"{what} {text!r} is not an integer") from None
+    if abs(value) > MAX_LABEL or (positive and value < 1):
+        limit = "1 to 2**31 - 1" if positive else "at most 2**31 - 1"
+        raise located_error(path, line, f"{what} {text!r} is out of range ({limit})")
+    return value
 
 
 def ascii_data(path: Path, text: str, first_line: int, comment: str = "**") -> str:
@@ -713,16 +732,7 @@ def _parse_nodes_slowly(path: Path, data: str, first_line: int) -> tuple[np.ndar
             continue
         number = first_line + offset
         fields = [f.strip() for f in text.split(",")]
-        try:
-            node = int(fields[0])
-        except ValueError:
-            raise located_error(
-                path, number, f"node label {fields[0]!r} is not an integer"
-            ) from None
-        if abs(node) > MAX_LABEL:
-            raise located_error(
-                path, number, f"node label {node} is out of range (Abaqus labels are below 2**31)"
-            )
+        node = integer_field(path, number, fields[0], "node label")
         coords = [0.0, 0.0, 0.0]
         for axis, field_text in enumerate(fields[1:4]):
             if not field_text:
@@ -796,7 +806,7 @@ def _parse_elements_slowly(
                 f"this *ELEMENT, TYPE={block.type} block has {width[0] - 1}",
             )
         width = width or (len(fields), number)
-        _element_label(block, number, fields[0])
+        integer_field(block.path, number, fields[0], "element label", positive=True)
         for item in fields[1:]:
             scope, label = _node_reference(block, number, item, names)
             scope_of.append(scope)
@@ -804,17 +814,6 @@ def _parse_elements_slowly(
     if pending:
         raise located_error(block.path, start, "the last element line ends with a comma")
     return np.array(scope_of, dtype=np.int64), np.array(label_of, dtype=np.int64)
-
-
-def _element_label(block: ElementBlock, number: int, text: str) -> None:
-    try:
-        label = int(text)
-    except ValueError:
-        raise located_error(
-            block.path, number, f"element label {text!r} is not an integer"
-        ) from None
-    if not 0 < label <= MAX_LABEL:
-        raise located_error(block.path, number, f"element label {label} is out of range")
 
 
 def _node_reference(
@@ -829,13 +828,7 @@ def _node_reference(
                 block.path, number, f"node {instance}.{text}: there is no instance {instance}"
             )
         scope = names[instance.upper()]
-    try:
-        label = int(text)
-    except ValueError:
-        raise located_error(block.path, number, f"node label {text!r} is not an integer") from None
-    if not 0 < label <= MAX_LABEL:
-        raise located_error(block.path, number, f"node label {label} is out of range")
-    return scope, label
+    return scope, integer_field(block.path, number, text, "node label", positive=True)
 
 
 # ============================================================================ dofs of elements

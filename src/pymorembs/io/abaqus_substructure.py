@@ -67,8 +67,8 @@ from pymorembs.errors import UserError
 from pymorembs.io.abaqus import read_node_file
 from pymorembs.io.abaqus_inp import (
     ABAQUS_DOF_NAMES,
-    MAX_LABEL,
     ascii_data,
+    integer_field,
     keyword_blocks,
     located_error,
     parse_keyword,
@@ -263,13 +263,7 @@ def _integers(path: Path, number: int, text: str, what: str) -> list[int]:
         field_text = field_text.strip()
         if not field_text:
             continue
-        try:
-            value = int(field_text)
-        except ValueError:
-            raise located_error(path, number, f"{what} {field_text!r} is not an integer") from None
-        if abs(value) > MAX_LABEL:
-            raise located_error(path, number, f"{what} {value} is out of range")
-        out.append(value)
+        out.append(integer_field(path, number, field_text, what))
     return out
 
 
