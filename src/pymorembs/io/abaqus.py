@@ -93,6 +93,7 @@ from pymorembs.io.abaqus_inp import (
     derive_dof_table,
     integer_field,
     read_inp,
+    unique_values,
 )
 from pymorembs.io.formats import assemble_symmetric, is_nodes_csv, read_text
 from pymorembs.io.matrix_market import _fail, _read_dofs, _read_nodes
@@ -397,7 +398,7 @@ def _matrix_input_body(
     for f in files.values():
         _check_labels(f)
     all_keys = {role: f.keys() for role, f in files.items()}
-    keys = np.unique(np.concatenate([k for pair in all_keys.values() for k in pair]))
+    keys = unique_values(np.concatenate([k for pair in all_keys.values() for k in pair]))
     table = DofTable(keys // 8, keys % 8)
     indices = {
         role: (np.searchsorted(keys, key_i), np.searchsorted(keys, key_j))
@@ -410,7 +411,7 @@ def _matrix_input_body(
         "(FORMAT=MATRIX INPUT)"
     ]
     model = nodes.model if nodes is not None else None
-    holding = np.unique(model.node_scope) if model is not None else np.zeros(0, dtype=np.int64)
+    holding = unique_values(model.node_scope) if model is not None else np.zeros(0, dtype=np.int64)
     if model is None or not model.uses_parts or not holding.size:
         return release_penalties(_make_body(files, matrices, table, nodes, name, notes))
     if holding.size != 1 or model.scopes[int(holding[0])].kind != "instance":

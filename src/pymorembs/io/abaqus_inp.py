@@ -73,6 +73,7 @@ __all__ = [
     "located_error",
     "parse_keyword",
     "read_inp",
+    "unique_values",
 ]
 
 PathLike = str | os.PathLike[str]
@@ -108,6 +109,17 @@ def located_error(path: Path, line: int | None, message: str) -> UserError:
     """A one-line :class:`UserError` ``path:line: message`` (``path: message`` without line)."""
     where = str(path) if line is None else f"{path}:{line}"
     return UserError(f"{where}: {' '.join(message.splitlines())}")
+
+
+def unique_values(values: np.ndarray) -> np.ndarray:
+    """The sorted distinct values of an integer array, through a sort.
+
+    (Plain ``np.unique`` of NumPy 2.4 hashes: 2 s for 10**6 int64 values, against 0.02 s here.)
+    """
+    ordered = np.sort(np.asarray(values).ravel())
+    if ordered.size == 0:
+        return ordered
+    return ordered[np.concatenate([[True], ordered[1:] != ordered[:-1]])]
 
 
 def integer_field(
@@ -264,14 +276,25 @@ class InpModel:
 
     def index_of(self, scope: np.ndarray, label: np.ndarray) -> np.ndarray:
         """Node index of each (scope, label) pair, -1 where no such node exists."""
+        scope = np.asarray(scope, dtype=np.int64)
+        label = np.asarray(label, dtype=np.int64)
+        out = np.full(label.shape, -1, dtype=np.int64)
+        if not self.labels.size:
+            return out
+        low, high = int(self.labels.min()), int(self.labels.max())
+        width, count = high - low + 1, len(self.scopes)
+        if count * width <= 4 * self.labels.size + (1 << 20):  # labels dense enough: a table
+            table = np.full(count * width, -1, dtype=np.int64)
+            table[self.node_scope * width + (self.labels - low)] = np.arange(self.labels.size)
+            inside = (label >= low) & (label <= high) & (scope >= 0) & (scope < count)
+            out[inside] = table[scope[inside] * width + (label[inside] - low)]
+            return out
         keys = self.node_scope * (MAX_LABEL + 1) + self.labels
         order = np.argsort(keys, kind="stable")
-        wanted = np.asarray(scope, dtype=np.int64) * (MAX_LABEL + 1) + np.asarray(label)
-        out = np.full(wanted.shape, -1, dtype=np.int64)
-        if keys.size:
-            pos = np.minimum(np.searchsorted(keys[order], wanted), keys.size - 1)
-            hit = keys[order][pos] == wanted
-            out[hit] = order[pos[hit]]
+        wanted = scope * (MAX_LABEL + 1) + label
+        pos = np.minimum(np.searchsorted(keys[order], wanted), keys.size - 1)
+        hit = keys[order][pos] == wanted
+        out[hit] = order[pos[hit]]
         return out
 
     def placements_note(self) -> str | None:
@@ -605,12 +628,12 @@ def _node_ids(
     """The ids of the nodes and the sentence that says how they were made."""
     if not uses_parts:
         return labels.copy(), "node ids are the *NODE labels"
-    if np.unique(labels).size == labels.size:
+    if unique_values(labels).size == labels.size:
         return labels.copy(), "node ids are the labels (unique across the model)"
     digits = len(str(int(np.abs(labels).max())))
     base = 10**digits
     ids = (node_scope + 1) * base + labels
-    holding = np.unique(node_scope)
+    holding = unique_values(node_scope)
     where = ", ".join(f"{scopes[k].name}: {(k + 1) * base} + label" for k in holding.tolist())
     return ids, f"labels repeat across instances, so node ids are ({where})"
 
@@ -620,10 +643,11 @@ def _check_unique(blocks: list[_NodeBlock], scope: Scope) -> None:
     if not blocks:
         return
     labels = np.concatenate([block.labels for block in blocks])
-    values, counts = np.unique(labels, return_counts=True)
-    if np.all(counts == 1):
+    ordered = np.sort(labels)
+    repeated = ordered[1:] == ordered[:-1]
+    if not repeated.any():
         return
-    twice = values[counts > 1]
+    twice = unique_values(ordered[1:][repeated])
     hits = np.flatnonzero(np.isin(labels, twice))
     # the second occurrence of the first label that repeats, in file order
     seen: dict[int, int] = {}
