@@ -169,6 +169,57 @@ CASES: list[tuple[str, int, str]] = [
         2,
         r"^structural_DMPS1\.mtx: a structural damping matrix \(DMPS\)",
     ),
+    # Abaqus FORMAT=COORDINATE with the .inp (the equation order derived and proved)
+    (
+        "--stiffness cube_STIF1.mtx --mass cube_MASS1.mtx",
+        2,
+        r"^cube_STIF1\.mtx: FORMAT=COORDINATE files number the equations without node labels; "
+        r"give the Abaqus input file as inp",
+    ),
+    (
+        "--stiffness cube_STIF1.mtx --mass cube_MASS1.mtx --inp beams.inp",
+        2,
+        r"^cube_STIF1\.mtx: the equation order derived from beams\.inp gives 48 equations \(8 "
+        r"nodes x ux uy uz rx ry rz from elements B31\) but the matrices have 24; give the dof of "
+        r"every equation as dofs",
+    ),
+    (
+        "--stiffness cube_STIF1.mtx --mass cube_MASS1.mtx --inp unknown_element.inp",
+        2,
+        r"^unknown_element\.inp:19: element type C3D4X is a type pymorembs does not know; "
+        r"pymorembs cannot tell which equations Abaqus gives it$",
+    ),
+    (
+        "--stiffness cube_STIF1.mtx --mass cube_MASS1.mtx --inp swapped_nodes.inp",
+        2,
+        r"^cube_STIF1\.mtx: the equation order derived from swapped_nodes\.inp does not fit the "
+        r"matrices: rigid-body residual \S+ \(at most 1e-06 when order and coordinates belong",
+    ),
+    (
+        "--stiffness good_STIF1.mtx --mass good_MASS1.mtx --inp two_instances.inp",
+        2,
+        r"^two_instances\.inp: nodes in 2 places \(instance bar-1 \(part bar\), instance bar-2 "
+        r"\(part bar\)\): which labels Abaqus writes into FORMAT=MATRIX INPUT files",
+    ),
+    # Abaqus substructure matrices (*SUBSTRUCTURE MATRIX OUTPUT)
+    (
+        "cut_substructure.mtx",
+        2,
+        r"^cut_substructure\.mtx:10: \*MATRIX, TYPE=STIFFNESS block holds 3 of the 6 values of "
+        r"the lower triangle of 3 equations; is the file cut\?$",
+    ),
+    (
+        "unsym_substructure.mtx",
+        2,
+        r"^unsym_substructure\.mtx:9: \*MATRIX, TYPE=STIFFNESS \(stored full\) is not symmetric: "
+        r"entry \(7:ux, 9:uz\) = 500\.0 but \(9:uz, 7:ux\) = 600\.0; pymorembs needs symmetric",
+    ),
+    (
+        "stiffness_only_substructure.mtx",
+        2,
+        r"^stiffness_only_substructure\.mtx: the file holds only the stiffness matrix \(no "
+        r"\*MATRIX, TYPE=MASS block\)",
+    ),
     # Nastran DMIG
     ("no_mass.pch", 2, r"^no_mass\.pch: no DMIG matrix named MAAX \(mass\); the file holds: KAAX$"),
     ("complex.pch", 2, r"^complex\.pch:1: DMIG KAAX is complex \(TIN=3\); a real matrix is needed"),
@@ -208,7 +259,7 @@ CASES: list[tuple[str, int, str]] = [
 
 #: Valid files that the broken ones are combined with.
 HELPERS = {"K.mtx", "M.mtx", "dofs.csv", "good_MASS1.mtx", "good_STIF1.mtx", "good.pch"}
-HELPERS |= {"op4_dofs.csv"}
+HELPERS |= {"op4_dofs.csv", "cube_STIF1.mtx", "cube_MASS1.mtx"}
 
 
 def _ids() -> list[str]:

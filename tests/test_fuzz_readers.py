@@ -1,13 +1,15 @@
 """Property-based tests: every FE file reader either reads a file or raises one-line UserError.
 
 For each reader (Matrix Market and its CSV tables, Ansys ``.full`` and MMF/mapping, Abaqus
-``.mtx``/``.inp``, Nastran DMIG/GRID, OP4 ASCII/binary with dofs.csv or ASET cards, the native
-HDF5 file, and format detection through :func:`pymorembs.io.formats.read_body`) two kinds of
-input are tried: random bytes/text, and mutations of a small valid file (lines deleted,
-duplicated or swapped, numbers replaced by garbage, NaN or huge values, header counts changed,
-truncation, byte flips). The property: the reader returns a body whose matrices are finite,
-symmetric and of the size of the dof table, or raises :class:`~pymorembs.errors.UserError`
-whose message is a single line naming the fuzzed file. Any other exception fails the test.
+``.mtx``/``.inp`` (matrix input; coordinate with dofs.csv or with an ``.inp`` of parts and
+instances; penalty diagonals) and substructure files, Nastran DMIG/GRID, OP4 ASCII/binary with
+dofs.csv or ASET cards, the native HDF5 file, and format detection through
+:func:`pymorembs.io.formats.read_body`) two kinds of input are tried: random bytes/text, and
+mutations of a small valid file (lines deleted, duplicated or swapped, numbers replaced by
+garbage, NaN or huge values, header counts changed, truncation, byte flips). The property: the
+reader returns a body whose matrices are finite, symmetric and of the size of the dof table, or
+raises :class:`~pymorembs.errors.UserError` whose message is a single line naming the fuzzed
+file. Any other exception fails the test.
 
 The targets are also used by the long-run harness ``fuzz/fuzz_readers.py``.
 """
@@ -28,9 +30,19 @@ import scipy.sparse as sp
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from abaqus_models import (
+    coordinate_text,
+    cube,
+    element_lines,
+    node_lines,
+    rotate,
+    solid_matrices,
+    substructure_text,
+)
 from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
 from pymorembs.io.abaqus import read_abaqus
+from pymorembs.io.abaqus_substructure import read_abaqus_substructure
 from pymorembs.io.ansys import read_ansys_full, read_ansys_mmf
 from pymorembs.io.formats import detect_format, read_body
 from pymorembs.io.matrix_market import read_matrix_files, read_matrix_market
@@ -261,6 +273,62 @@ def _read_abaqus_coord(d: Path) -> ElasticBody:
     return read_abaqus(d / "c_STIF1.mtx", d / "c_MASS1.mtx", dofs=d / "dofs.csv")
 
 
+@functools.cache
+def abaqus_assembly() -> dict[str, str]:
+    """A C3D4 cube as part "cube" in a rotated instance, with FORMAT=COORDINATE K and M.
+
+    ``pen_STIF1.mtx`` is K with the dofs of node 1 fixed by 1e36 penalty diagonals.
+    """
+    xyz, tets = cube()
+    a, b = np.array([0.0, 0.0, 0.0]), np.array([0.0, 1.0, 1.0])
+    placed = rotate(xyz + np.array([1.0, 0.0, 0.0]), a, b, 30.0)
+    k, m = solid_matrices(placed, tets)
+    penalty = k.copy()
+    penalty[[0, 1, 2], [0, 1, 2]] = 1e36
+    part = ["*Part, name=cube", "*Node", *node_lines(range(1, 9), xyz), "*Element, type=C3D4"]
+    part += [*element_lines(tets + 1), "*End Part"]
+    assembly = ["*Assembly, name=Assembly", "*Instance, name=cube-1, part=cube", "1., 0., 0."]
+    assembly += ["0., 0., 0., 0., 1., 1., 30.", "*End Instance", "*End Assembly"]
+    inp = "\n".join(["*Heading", *part, *assembly])
+    return {
+        "cube_STIF1.mtx": coordinate_text(k),
+        "cube_MASS1.mtx": coordinate_text(m),
+        "pen_STIF1.mtx": coordinate_text(penalty),
+        "cube.inp": inp + "\n",
+    }
+
+
+def _assembly_file(name: str) -> Callable[[], bytes]:
+    return lambda: abaqus_assembly()[name].encode()
+
+
+ABQ_ASSEMBLY = tuple(
+    (name, _assembly_file(name))
+    for name in ("cube_STIF1.mtx", "cube_MASS1.mtx", "pen_STIF1.mtx", "cube.inp")
+)
+SUBSTRUCTURE = substructure_text(
+    [7, 9],
+    ["          1,          2", "          2,          3"],
+    {
+        "STIFFNESS": np.array([[4.0, -1.0, 0.5], [-1.0, 3.0, -0.25], [0.5, -0.25, 2.0]]) * 1e3,
+        "MASS": np.diag([1.0, 2.0, 3.0]),
+    },
+)
+SUBSTRUCTURE_NODES = "id,x,y,z\n7,0.0,0.0,0.0\n9,1.0,0.5,0.0\n"
+
+
+def _read_abaqus_assembly(d: Path) -> ElasticBody:
+    return read_abaqus(d / "cube_STIF1.mtx", d / "cube_MASS1.mtx", inp=d / "cube.inp")
+
+
+def _read_abaqus_penalty(d: Path) -> ElasticBody:
+    return read_abaqus(d / "pen_STIF1.mtx", d / "cube_MASS1.mtx", inp=d / "cube.inp")
+
+
+def _read_substructure(d: Path) -> ElasticBody:
+    return read_abaqus_substructure(d / "sub.mtx", inp=d / "nodes.csv")
+
+
 def _read_dmig(d: Path) -> ElasticBody:
     return read_dmig(d / "model.pch", nodes=d / "grids.bdf")
 
@@ -322,6 +390,34 @@ TARGETS: dict[str, Target] = {
             _text(ABAQUS_COORD_K),
             _read_abaqus_coord,
             ABQ_COORD,
+        ),
+        Target(
+            "abaqus-coordinate-inp",
+            "cube.inp",
+            _assembly_file("cube.inp"),
+            _read_abaqus_assembly,
+            ABQ_ASSEMBLY,
+        ),
+        Target(
+            "abaqus-coordinate-stiffness",
+            "cube_STIF1.mtx",
+            _assembly_file("cube_STIF1.mtx"),
+            _read_abaqus_assembly,
+            ABQ_ASSEMBLY,
+        ),
+        Target(
+            "abaqus-penalty",
+            "pen_STIF1.mtx",
+            _assembly_file("pen_STIF1.mtx"),
+            _read_abaqus_penalty,
+            ABQ_ASSEMBLY,
+        ),
+        Target(
+            "abaqus-substructure",
+            "sub.mtx",
+            _text(SUBSTRUCTURE),
+            _read_substructure,
+            (("nodes.csv", SUBSTRUCTURE_NODES),),
         ),
         Target(
             "dmig-punch",
@@ -697,7 +793,7 @@ def test_abaqus_inp_node_label_beyond_int64() -> None:
     """Was OverflowError when the node list became an int64 array."""
     content = ABAQUS_INP.replace("2, 1.0, 0.0, 0.0", "99999999999999999999, 1.0").encode()
     message = _error("abaqus-inp", content)
-    assert re.search(r"job\.inp:6: node label 9+ is out of range", message), message
+    assert re.search(r"job\.inp:6: node label '9+' is out of range", message), message
 
 
 def test_op4_aset_grid_beyond_int64() -> None:
@@ -764,3 +860,28 @@ def test_op4_dense_header_with_an_absurd_size() -> None:
     )
     message = _error("op4-ascii", text)
     assert "body.op4:1: matrix KAAX is 60000 x 60000 in dense format" in message
+
+
+def test_abaqus_coordinate_equation_beyond_the_derived_count() -> None:
+    """Was an allocation for 2**31 - 1 equations (17 GB of row pointers, the machine swapped):
+    the matrices were assembled before the equation count derived from the .inp was checked."""
+    content = (abaqus_assembly()["cube_STIF1.mtx"] + "2147483647 2147483647 1.0\n").encode()
+    message = _error("abaqus-coordinate-stiffness", content)
+    assert re.search(
+        r"cube_STIF1\.mtx: the equation order derived from cube\.inp gives 24 equations \(8 "
+        r"nodes x ux uy uz from elements C3D4\) but the matrices have 2147483647",
+        message,
+    ), message
+
+
+def test_abaqus_non_ascii_characters_never_reach_numpy() -> None:
+    """Was a segmentation fault now and then: NumPy 2.4's loadtxt reads freed memory (valgrind:
+    invalid read in npy_to_int64) on some non-ASCII characters in an integer field."""
+    message = _error("abaqus-coordinate", "\U000c6c13 1 2\n".encode())
+    assert message.endswith(r"c_STIF1.mtx:1: character '\U000c6c13' in a data line; Abaqus "
+                            "writes numbers in ASCII")  # fmt: skip
+    content = (ABAQUS_K + "** a comment may hold any character: \u00e9\U000c6c13\n").encode()
+    with tempfile.TemporaryDirectory() as d:
+        assert run_target(TARGETS["abaqus-stiffness"], content, Path(d)) == "ok"
+    message = _error("abaqus-inp", ABAQUS_INP.replace("2, 1.0", "2, 1\u00e9").encode())
+    assert re.search(r"job\.inp:6: character '\u00e9' in a data line", message), message

@@ -9,10 +9,9 @@ the body, with the boundary conditions of the body as it will be reduced, usuall
     *END STEP
 
 Abaqus writes ``jobname_STIFn.mtx``, ``jobname_MASSn.mtx`` and ``jobname_DMPVn.mtx`` (``n`` is the
-step number). ``FORMAT=MATRIX INPUT`` is the default and the layout to prefer. Read them with
-:func:`read_abaqus` (``pymorembs`` format ``abaqus``); the node coordinates come from the input
-file (``inp``). Write the input file without parts and assemblies (Abaqus/CAE: *Model > Edit
-Attributes > Do not use parts and assemblies in input files*) so that node labels are global.
+step number). Read them with :func:`read_abaqus` (``pymorembs`` format ``abaqus``), with the
+input file (``inp``) for the node coordinates; :func:`read_abaqus_stiffness` reads a stiffness
+file alone (a body without mass, for checks).
 
 Layouts (told apart by the number of fields on the first data line):
 
@@ -25,19 +24,47 @@ matrix input (``FORMAT=MATRIX INPUT``, default)
     potential, 11 temperature, ...) are rejected. Negative node labels are internal nodes that
     Abaqus creates, e.g. for the Lagrange multipliers of hybrid or connector elements and of
     constraints; their dofs are not nodal displacements, so such a matrix is rejected (use
-    formulations without Lagrange multipliers).
+    formulations without Lagrange multipliers). With an input file written with parts and
+    assemblies (the Abaqus/CAE default) the node labels are taken as those of the part of its
+    single instance; the coordinates (the instance placement applied) are then proved by the
+    rigid-body check below. Several instances are refused: how Abaqus labels their nodes in
+    this layout is not documented where pymorembs could verify it.
 coordinate (``FORMAT=COORDINATE``)
-    ``row, column, value`` with equation numbers from 1, comma or blank separated. These files
-    hold no node labels, so the dof of every equation must come from a ``dofs.csv`` (header
-    ``node,direction``, one row per equation in order; argument ``dofs``). Exporting with
-    ``FORMAT=MATRIX INPUT`` is simpler and safer.
+    ``row column value`` with equation numbers from 1, blank or comma separated; both triangles
+    are stored. The files hold no node labels. The dof of every equation comes from a
+    ``dofs.csv`` (header ``node,direction``, one row per equation in order; argument ``dofs``)
+    or, without it, is derived from the input file (:mod:`pymorembs.io.abaqus_inp`): the nodes
+    in the order Abaqus numbers them, each with the dofs its elements activate (solids,
+    membranes, trusses: ux uy uz; beams and shells: ux..rz; planar elements: ux uy (rz));
+    nodes that no element uses have none. Element types whose equations cannot be derived
+    (hybrid, modified, connector, coupled-field, user elements, ...) are refused.
 
-Stiffness, mass and damping may cover different (node, dof) sets: the dof table is their union,
-sorted by node and then dof, and a matrix is zero where its file has no entry (a dof only in the
-stiffness file is massless; a dof only in the mass file has no stiffness). Blank lines, ``**``
-comments and Fortran ``D`` exponents are accepted. Identical repeated entries are read once; the
-same position with two different values is an error naming both lines. Every mistake is a
-:class:`~pymorembs.errors.UserError` ``file:line: problem``.
+The rigid-body check
+    An equation order or a set of coordinates the reader derived is used only once it is
+    proved: the six rigid-body motions of the nodes must give no force,
+    ``|K r| / (|K|_inf |r|) <= 1e-6`` for each (:meth:`~pymorembs.body.ElasticBody.
+    rigid_body_residuals`, over the rows of dofs that are not fixed). Consistent files give
+    1e-17 to 1e-12; a wrong order or wrong coordinates give 1e-4 and more. A model whose
+    stiffness is tied to the ground (springs to ground, elastic foundations) cannot pass it:
+    give ``dofs.csv`` or a model without parts then. The notes of the body say what was derived
+    and the residual.
+
+Boundary conditions of the matrix step (``*BOUNDARY``)
+    Abaqus keeps the rows and columns of constrained dofs and writes a penalty diagonal of
+    1e36. Every diagonal of at least 1e30 is read as a fixed dof (``ElasticBody.fixed``). Its
+    couplings are kept as Abaqus wrote them, and its diagonal is rebuilt from the rest of its
+    row: the value for which a rigid translation along the dof (a rigid rotation about the
+    node, for a rotational dof) gives no force in that row. ``K`` is then the stiffness of the
+    free body and the fixed dofs clamp it; without coordinates, or where the rebuilt value is
+    not positive, the sum of the row's absolute couplings is used (the clamped model is the
+    same whatever the diagonal of a fixed dof).
+
+Stiffness, mass and damping may cover different (node, dof) sets in the matrix-input layout:
+the dof table is their union, sorted by node and then dof, and a matrix is zero where its file
+has no entry (a dof only in the stiffness file is massless; a dof only in the mass file has no
+stiffness). Blank lines, ``**`` comments and Fortran ``D`` exponents are accepted. Identical
+repeated entries are read once; the same position with two different values is an error naming
+both lines. Every mistake is a :class:`~pymorembs.errors.UserError` ``file:line: problem``.
 
 Structural (hysteretic) damping ``jobname_DMPSn.mtx`` is not a viscous damping matrix and is
 refused; use damping models of pymorembs instead.
@@ -49,34 +76,50 @@ import io
 import os
 import re
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Literal
 
 import numpy as np
+import scipy.sparse as sp
 
 from pymorembs.body import DIRECTIONS, DofTable, ElasticBody
 from pymorembs.errors import UserError
-from pymorembs.io.formats import assemble_symmetric, collect_nodes, is_nodes_csv, read_text
+from pymorembs.io.abaqus_inp import (
+    ABAQUS_DOF_NAMES,
+    MAX_LABEL,
+    InpModel,
+    ascii_data,
+    derive_dof_table,
+    integer_field,
+    read_inp,
+    unique_values,
+)
+from pymorembs.io.formats import assemble_symmetric, is_nodes_csv, read_text
 from pymorembs.io.matrix_market import _fail, _read_dofs, _read_nodes
 
-__all__ = ["read_abaqus", "read_inp_nodes"]
+__all__ = [
+    "PENALTY",
+    "RIGID_BODY_TOLERANCE",
+    "read_abaqus",
+    "read_abaqus_stiffness",
+    "read_inp_nodes",
+    "read_node_file",
+    "release_penalties",
+]
 
 PathLike = str | os.PathLike[str]
 
-#: Abaqus degrees of freedom beyond 1-6 (Abaqus Analysis User's Guide, "Conventions").
-_OTHER_DOFS = {
-    7: "the warping amplitude of open-section beams",
-    8: "a pore, hydrostatic fluid or acoustic pressure",
-    9: "an electric potential",
-    10: "a connector material flow",
-    11: "a temperature (or normalized concentration)",
-}
-_MAX_LABEL = 2**31 - 1  # largest Abaqus node label (32-bit)
+#: A stiffness diagonal of at least this value is a dof fixed by a penalty (Abaqus writes 1e36).
+PENALTY = 1e30
+#: Largest rigid-body residual that proves a derived equation order or coordinate system.
+RIGID_BODY_TOLERANCE = 1e-6
+
 _KEYWORD_LINE = re.compile(r"(?m)^[ \t]*\*(?!\*)")
 _MATRIX_INPUT = ("row node", "row dof", "column node", "column dof", "value")
 _COORDINATE = ("row", "column", "value")
 _KIND = "an Abaqus *MATRIX OUTPUT file"
+_GIVE_DOFS = "give the dof of every equation as dofs (a dofs.csv with header node,direction)"
 
 
 @dataclass
@@ -101,10 +144,31 @@ class _MatrixFile:
         node_i, dof_i, node_j, dof_j = self.columns
         return node_i * 8 + (dof_i - 1), node_j * 8 + (dof_j - 1)
 
+    def size(self) -> int:
+        """Largest equation number of a coordinate file."""
+        rows, cols = self.columns
+        return int(max(rows.max(initial=0), cols.max(initial=0)))
+
+
+@dataclass
+class _Nodes:
+    """Node coordinates from an input file or ``nodes.csv``, and what they are."""
+
+    path: Path
+    ids: np.ndarray
+    xyz: np.ndarray
+    model: InpModel | None  # None for nodes.csv
+
+    def note(self) -> str:
+        if self.model is None:
+            return f"coordinates: {self.path.name} ({self.ids.size} nodes)"
+        placed = self.model.placements_note()
+        return placed if placed is not None else f"coordinates: the *NODE data of {self.path.name}"
+
 
 def read_abaqus(
     stiffness: PathLike,
-    mass: PathLike,
+    mass: PathLike | None = None,
     inp: PathLike | None = None,
     damping: PathLike | None = None,
     name: str | None = None,
@@ -120,38 +184,117 @@ def read_abaqus(
         *END STEP
 
     which writes ``jobname_STIFn.mtx`` and ``jobname_MASSn.mtx`` (add ``VISCOUS DAMPING`` to both
-    keywords for ``jobname_DMPVn.mtx``). Layouts and rules are described in the module docstring.
+    keywords for ``jobname_DMPVn.mtx``). ``FORMAT=COORDINATE`` files are read too. Layouts and
+    rules are described in the module docstring.
 
     Parameters
     ----------
     stiffness, mass : path-like
-        ``jobname_STIFn.mtx`` and ``jobname_MASSn.mtx``.
+        ``jobname_STIFn.mtx`` and ``jobname_MASSn.mtx``. Without ``mass`` the reader stops with
+        a one-line message (use :func:`read_abaqus_stiffness` for a stiffness file alone).
     inp : path-like, optional
-        The Abaqus input file (``.inp``) whose ``*NODE`` blocks give the coordinates of every
-        node of the matrices (:func:`read_inp_nodes`), or a ``nodes.csv`` (header ``id,x,y,z``).
-        Without it every node lies at the origin.
+        The Abaqus input file (``.inp``) of the model (:func:`pymorembs.io.abaqus_inp.read_inp`),
+        or a ``nodes.csv`` (header ``id,x,y,z``): the node coordinates and, for
+        ``FORMAT=COORDINATE`` files without ``dofs``, the equation order. Without it every node
+        lies at the origin (``has_coordinates`` false).
     damping : path-like, optional
         ``jobname_DMPVn.mtx``, the viscous damping matrix.
     name : str, optional
         Label of the body; default: the stiffness file name without ``_STIFn.mtx``.
     dofs : path-like, optional
-        ``dofs.csv`` (header ``node,direction``) with the dof of every equation; required for
-        ``FORMAT=COORDINATE`` files and refused for matrix-input files, which label every entry.
+        ``dofs.csv`` (header ``node,direction``) with the dof of every equation of a
+        ``FORMAT=COORDINATE`` file (refused for matrix-input files, which label every entry).
 
     Returns
     -------
     ElasticBody
         Nodes: those of the dof table (in the order of first appearance there); dof table: the
-        union of the dofs of all matrices sorted by node and dof (matrix input) or ``dofs``
-        (coordinate).
+        union of the dofs of all matrices sorted by node and dof (matrix input), ``dofs``, or
+        derived from ``inp`` (coordinate); fixed: the dofs with a penalty diagonal; notes: what
+        was assumed, derived and proved.
 
     Raises
     ------
     UserError
         A missing or malformed file, an unsupported dof or internal node, a non-symmetric matrix,
-        conflicting duplicate entries, or a node missing in ``inp``; one line ``file:line: ...``.
+        conflicting duplicate entries, a node missing in ``inp``, or an equation order or
+        coordinates that cannot be derived or proved; one line ``file:line: ...``.
     """
-    paths = {"stiffness": Path(stiffness), "mass": Path(mass)}
+    if mass is None:
+        raise _fail(
+            Path(stiffness),
+            None,
+            "no mass file given: this file holds only the stiffness; give jobname_MASSn.mtx "
+            "(export with *MATRIX GENERATE, STIFFNESS, MASS and *MATRIX OUTPUT, STIFFNESS, MASS)",
+        )
+    return _read(Path(stiffness), Path(mass), inp, damping, name, dofs)
+
+
+def read_abaqus_stiffness(
+    stiffness: PathLike,
+    inp: PathLike | None = None,
+    name: str | None = None,
+    dofs: PathLike | None = None,
+) -> ElasticBody:
+    """Read an Abaqus stiffness file alone, as a body with a zero mass matrix.
+
+    For files exported without mass (``*MATRIX GENERATE, STIFFNESS``): the dof table,
+    coordinates, fixed dofs and the rigid-body check are those of :func:`read_abaqus`; a note
+    says that the mass is missing. Parameters as for :func:`read_abaqus`.
+    """
+    return _read(Path(stiffness), None, inp, None, name, dofs)
+
+
+def read_inp_nodes(path: PathLike) -> tuple[np.ndarray, np.ndarray]:
+    """Node ids and global coordinates of an Abaqus input file.
+
+    Reads the ``*NODE`` blocks with parts, instances and includes as
+    :func:`pymorembs.io.abaqus_inp.read_inp` does (ids and placements are described there).
+
+    Returns
+    -------
+    ids : ndarray of int, shape (n_nodes,)
+    coordinates : ndarray, shape (n_nodes, 3)
+
+    Raises
+    ------
+    UserError
+        ``file:line: problem`` for malformed or repeated nodes and unsupported keywords.
+    """
+    model = read_inp(path)
+    return model.node_ids, model.coordinates
+
+
+def read_node_file(path: PathLike) -> tuple[np.ndarray, np.ndarray, str]:
+    """Node ids, coordinates and a one-sentence note from an ``.inp`` or a ``nodes.csv``.
+
+    A file whose first content line is ``id,x,y,z`` is a ``nodes.csv``; anything else is read as
+    an Abaqus input file (:func:`pymorembs.io.abaqus_inp.read_inp`).
+    """
+    nodes = _read_node_source(Path(path))
+    return nodes.ids, nodes.xyz, nodes.note()
+
+
+def _read_node_source(path: Path) -> _Nodes:
+    if is_nodes_csv(path):
+        ids, xyz = _read_nodes(path)
+        return _Nodes(path, ids, xyz, None)
+    model = read_inp(path)
+    return _Nodes(path, model.node_ids, model.coordinates, model)
+
+
+# ============================================================================ reading
+def _read(
+    k_path: Path,
+    m_path: Path | None,
+    inp: PathLike | None,
+    damping: PathLike | None,
+    name: str | None,
+    dofs: PathLike | None,
+) -> ElasticBody:
+    paths = {"stiffness": k_path}
+    if m_path is not None:
+        paths["mass"] = m_path
     if damping is not None:
         paths["damping"] = Path(damping)
         if re.search(r"_DMPS\d*\.mtx$", paths["damping"].name, re.IGNORECASE):
@@ -172,9 +315,9 @@ def read_abaqus(
                 f"{_layout_name(k_file.layout)} layout; export all matrices with the same FORMAT "
                 f"({role} file)",
             )
-
-    dof_lines: list[int] | None = None
-    indices: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    nodes = _read_node_source(Path(inp)) if inp is not None else None
+    if name is None:
+        name = re.sub(r"_STIF\d*$", "", k_file.path.stem, flags=re.IGNORECASE) or "body"
     if k_file.layout == "input":
         if dofs is not None:
             raise _fail(
@@ -183,49 +326,55 @@ def read_abaqus(
                 "a dofs table is only used with FORMAT=COORDINATE files; the matrix-input files "
                 "label every entry with node and dof",
             )
-        for f in files.values():
-            _check_labels(f)
-        all_keys = {role: f.keys() for role, f in files.items()}
-        keys = np.unique(np.concatenate([k for pair in all_keys.values() for k in pair]))
-        table = DofTable(keys // 8, keys % 8)
-        for role, (key_i, key_j) in all_keys.items():
-            indices[role] = (np.searchsorted(keys, key_i), np.searchsorted(keys, key_j))
-
-        def label(i: int) -> str:
-            return table.label(i)
-
+        body = _matrix_input_body(files, nodes, name)
     else:
-        if dofs is None:
-            raise _fail(
-                k_file.path,
-                None,
-                "FORMAT=COORDINATE files number the equations without node labels; give the dof "
-                "of every equation as dofs (a dofs.csv with header node,direction) or export "
-                "with FORMAT=MATRIX INPUT (the default)",
-            )
-        table, dof_lines = _read_dofs(Path(dofs))
-        for role, f in files.items():
-            indices[role] = _check_equations(f, len(table), Path(dofs))
+        body = _coordinate_body(files, nodes, name, None if dofs is None else Path(dofs))
+    if m_path is None:
+        body = replace(
+            body,
+            notes=(
+                *body.notes,
+                f"no mass matrix: {k_file.path.name} was read alone, the mass is zero",
+            ),
+        )
+    return body
 
-        def label(i: int) -> str:
-            return f"{i + 1} = {table.label(i)}"
 
-    n = len(table)
+def _assemble(
+    files: dict[str, _MatrixFile],
+    indices: dict[str, tuple[np.ndarray, np.ndarray]],
+    n: int,
+    label: object,
+) -> dict[str, sp.csr_matrix]:
     matrices = {
         role: assemble_symmetric(
             *indices[role], f.values, n, path=f.path, line_of=f.line_of, label=label
         )
         for role, f in files.items()
     }
+    matrices.setdefault("mass", sp.csr_matrix((n, n)))
+    return matrices
 
+
+def _make_body(
+    files: dict[str, _MatrixFile],
+    matrices: dict[str, sp.csr_matrix],
+    table: DofTable,
+    nodes: _Nodes | None,
+    name: str,
+    notes: list[str],
+) -> ElasticBody:
+    """The body, its coordinates looked up in ``nodes``; the stiffness keeps its penalties."""
     _, first = np.unique(table.nodes, return_index=True)
     node_ids = table.nodes[np.sort(first)]
-    if inp is None:
+    if nodes is None:
         coordinates = np.zeros((node_ids.size, 3))
+        notes = [*notes, "no coordinates: no inp given, every node lies at the origin"]
     else:
-        coordinates = _coordinates(Path(inp), node_ids, files, table, dofs, dof_lines)
-    if name is None:
-        name = re.sub(r"_STIF\d*$", "", k_file.path.stem, flags=re.IGNORECASE) or "body"
+        coordinates = _coordinates(nodes, node_ids, files, table)
+        notes = [*notes, nodes.note()]
+    k_file = files["stiffness"]
+    fixed = np.flatnonzero(matrices["stiffness"].diagonal() >= PENALTY)
     try:
         return ElasticBody(
             node_ids=node_ids,
@@ -234,10 +383,201 @@ def read_abaqus(
             mass=matrices["mass"],
             stiffness=matrices["stiffness"],
             damping_matrix=matrices.get("damping"),
+            fixed=fixed,
             name=name,
+            has_coordinates=nodes is not None,
+            notes=tuple(notes),
         )
     except UserError as err:
         raise UserError(f"{k_file.path}: {err}") from None
+
+
+def _matrix_input_body(
+    files: dict[str, _MatrixFile], nodes: _Nodes | None, name: str
+) -> ElasticBody:
+    for f in files.values():
+        _check_labels(f)
+    all_keys = {role: f.keys() for role, f in files.items()}
+    keys = unique_values(np.concatenate([k for pair in all_keys.values() for k in pair]))
+    table = DofTable(keys // 8, keys % 8)
+    indices = {
+        role: (np.searchsorted(keys, key_i), np.searchsorted(keys, key_j))
+        for role, (key_i, key_j) in all_keys.items()
+    }
+    k_file = files["stiffness"]
+    matrices = _assemble(files, indices, len(table), table.label)
+    notes = [
+        f"dof table: {table.describe()} from the node and dof labels of {k_file.path.name} "
+        "(FORMAT=MATRIX INPUT)"
+    ]
+    model = nodes.model if nodes is not None else None
+    holding = unique_values(model.node_scope) if model is not None else np.zeros(0, dtype=np.int64)
+    if model is None or not model.uses_parts or not holding.size:
+        return release_penalties(_make_body(files, matrices, table, nodes, name, notes))
+    if holding.size != 1 or model.scopes[int(holding[0])].kind != "instance":
+        names = ", ".join(model.scopes[int(k)].describe() for k in holding)
+        raise _fail(
+            model.path,
+            None,
+            f"nodes in {holding.size} places ({names}): which labels Abaqus writes into "
+            "FORMAT=MATRIX INPUT files for such a model is not known to pymorembs; export with "
+            "FORMAT=COORDINATE (the equation order is then derived from the input file and "
+            "proved) or write the input file without parts and assemblies",
+        )
+    scope = model.scopes[int(holding[0])]
+    body = _make_body(files, matrices, table, nodes, name, notes)
+    worst = _worst_residual(body)
+    if not worst <= RIGID_BODY_TOLERANCE:
+        raise _fail(
+            k_file.path,
+            None,
+            f"the node labels of {scope.describe()} in {model.path.name} "
+            f"({scope.placement.describe()}) do not fit the matrices: rigid-body residual "
+            f"{worst:.1e} (at most {RIGID_BODY_TOLERANCE:g} when labels and coordinates belong to "
+            "the matrices); give "
+            "the coordinates as a nodes.csv or write the input file without parts and assemblies",
+        )
+    proof = f"node labels = the labels of {scope.describe()}; verified by the rigid-body check "
+    proof += f"(max residual {worst:.0e})"
+    return release_penalties(replace(body, notes=(*body.notes, proof)))
+
+
+def _coordinate_body(
+    files: dict[str, _MatrixFile], nodes: _Nodes | None, name: str, dofs: Path | None
+) -> ElasticBody:
+    k_file = files["stiffness"]
+    if dofs is not None:
+        table, dof_lines = _read_dofs(dofs)
+        where = f"the {len(table)} equations of {dofs}"
+        indices = {role: _check_equations(f, len(table), where) for role, f in files.items()}
+
+        def label(i: int) -> str:
+            return f"{i + 1} = {table.label(i)}"
+
+        matrices = _assemble(files, indices, len(table), label)
+        notes = [f"dof table: {table.describe()} from {dofs.name}"]
+        try:
+            body = _make_body(files, matrices, table, nodes, name, notes)
+        except _MissingNode as missing:
+            raise _fail(dofs, dof_lines[missing.equation], missing.problem) from None
+        return release_penalties(body)
+    if nodes is None or nodes.model is None:
+        given = "" if nodes is None else f" ({nodes.path.name} gives no elements)"
+        raise _fail(
+            k_file.path,
+            None,
+            "FORMAT=COORDINATE files number the equations without node labels; give the Abaqus "
+            f"input file as inp (the equation order is then derived from it){given}, or "
+            f"{_GIVE_DOFS}, or export with FORMAT=MATRIX INPUT (the default)",
+        )
+    model = nodes.model
+    n = max(f.size() for f in files.values())
+    tables = []
+    for order in ("file", "label"):
+        table, types = derive_dof_table(model, order)
+        if len(table) != n:  # (checked before any n-sized allocation)
+            raise _fail(
+                k_file.path,
+                None,
+                f"the equation order derived from {model.path.name} gives {len(table)} "
+                f"equations ({table.describe()} from elements {types}) but the matrices have {n}; "
+                f"{_GIVE_DOFS}",
+            )
+        if not tables or not np.array_equal(table.nodes, tables[0][0].nodes):
+            tables.append((table, order))
+    indices = {role: _check_equations(f, n, f"equations 1..{n}") for role, f in files.items()}
+    matrices = _assemble(files, indices, n, lambda i: f"equation {i + 1}")
+    candidates = []
+    for table, order in tables:
+        where = "the *NODE order" if order == "file" else "the order of labels in each instance"
+        note = f"dof table: {table.describe()} in {where} of {model.path.name} (elements {types})"
+        body = _make_body(files, matrices, table, nodes, name, [note])
+        candidates.append((_worst_residual(body), body, note))
+    proved = [c for c in candidates if c[0] <= RIGID_BODY_TOLERANCE]
+    if len(proved) != 1:
+        worst = min(c[0] for c in candidates)
+        problem = (
+            f"does not fit the matrices: rigid-body residual {worst:.1e} (at most "
+            f"{RIGID_BODY_TOLERANCE:g} when order and coordinates belong to the matrices)"
+            if not proved
+            else "is ambiguous: the nodes in file order and in label order both pass the "
+            "rigid-body check"
+        )
+        raise _fail(
+            k_file.path,
+            None,
+            f"the equation order derived from {model.path.name} {problem}; {_GIVE_DOFS}",
+        )
+    worst, body, note = proved[0]
+    notes = list(body.notes)
+    notes[notes.index(note)] = (
+        f"{note}; verified by the rigid-body check (max residual {worst:.0e})"
+    )
+    return release_penalties(replace(body, notes=tuple(notes)))
+
+
+def _worst_residual(body: ElasticBody) -> float:
+    """The largest rigid-body residual (NaN fields skipped); inf when there is none."""
+    residuals = body.rigid_body_residuals()
+    finite = residuals[np.isfinite(residuals)]
+    return float(finite.max()) if finite.size else float("inf")
+
+
+# ============================================================================ penalties
+def release_penalties(body: ElasticBody) -> ElasticBody:
+    """The body with its penalty diagonals (>= :data:`PENALTY`) replaced, those dofs fixed.
+
+    The diagonal of a fixed dof is rebuilt from the rest of its row so that a rigid translation
+    along the dof (for a rotational dof: a rigid rotation about its node) gives no force in the
+    row; without coordinates for a rotational dof, or where that value is not positive, the sum
+    of the absolute off-diagonal entries of the row is used. The off-diagonal entries stay as
+    they are. A note says how many dofs were fixed and how their diagonal was set.
+    """
+    k = body.stiffness
+    diagonal = k.diagonal()
+    fixed = np.flatnonzero(diagonal >= PENALTY)
+    if not fixed.size:
+        return body
+    penalties = sp.csr_matrix((diagonal[fixed], (fixed, fixed)), shape=k.shape)
+    rows = sp.csr_matrix((k - penalties)[fixed])
+    rows.eliminate_zeros()
+    forces = np.asarray(rows @ body.rigid_body_modes(np.zeros(3)))  # each row times each field
+    direction = body.dofs.directions[fixed]
+    rebuilt = np.full(fixed.size, np.nan)
+    along = np.flatnonzero(direction < 3)
+    rebuilt[along] = -forces[along, direction[along]]
+    about = np.flatnonzero((direction >= 3) & (direction < 6))
+    if body.has_coordinates and about.size:
+        order = np.argsort(body.node_ids)
+        where = order[np.searchsorted(body.node_ids, body.dofs.nodes[fixed[about]], sorter=order)]
+        axis = np.eye(3)[direction[about] - 3]
+        lever = np.cross(axis, body.coordinates[where])  # the node's own motion in the field
+        own = np.einsum("ij,ij->i", lever, forces[about, :3])
+        rebuilt[about] = -(forces[about, direction[about]] - own)
+    bound = np.asarray(abs(rows).sum(axis=1)).ravel()
+    fallback = ~(rebuilt > 0.0)
+    rebuilt[fallback] = bound[fallback]
+    stiffness = sp.csr_matrix(
+        k - penalties + sp.csr_matrix((rebuilt, (fixed, fixed)), shape=k.shape)
+    )
+    stiffness.eliminate_zeros()
+    values = np.unique(diagonal[fixed])
+    ends = values[:1] if values.size == 1 else values[[0, -1]]
+    value = " to ".join(f"{v:.0e}".replace("e+", "e") for v in ends)
+    n_nodes = np.unique(body.dofs.nodes[fixed]).size
+    note = (
+        f"{fixed.size} dofs of {n_nodes} node{'s' if n_nodes != 1 else ''} fixed in the matrix "
+        f"step (*BOUNDARY, {value} penalty diagonal); their stiffness diagonal was rebuilt from "
+        "the rest of the row (a rigid motion gives no force there)"
+    )
+    if fallback.any():
+        note += f", for {int(fallback.sum())} of them as the sum of the row's absolute couplings"
+    return replace(
+        body,
+        stiffness=stiffness,
+        fixed=np.union1d(body.fixed, fixed),
+        notes=(*body.notes, note),
+    )
 
 
 # ============================================================================ .mtx files
@@ -292,6 +632,7 @@ def _read_matrix_file(path: Path) -> _MatrixFile:
             "*ELEMENT MATRIX OUTPUT file, or an input file?); export with *MATRIX GENERATE and "
             "*MATRIX OUTPUT",
         )
+    text = ascii_data(path, text, 1, comment="*")
     first = _first_data_line(text)
     if first is None:
         raise _fail(path, None, "no matrix entries (the file is empty or holds only comments)")
@@ -340,12 +681,7 @@ def _locate_bad_line(path: Path, delimiter: str | None, names: tuple[str, ...]) 
                 "is the line cut?",
             )
         for text, what in zip(fields[:-1], names[:-1], strict=True):
-            try:
-                value = int(text)
-            except ValueError:
-                raise _fail(path, number, f"{what} {text!r} is not an integer") from None
-            if abs(value) > _MAX_LABEL:
-                raise _fail(path, number, f"{what} {text!r} is out of range (at most 2**31 - 1)")
+            integer_field(path, number, text, what)
         try:
             float(fields[-1].replace("D", "E").replace("d", "e"))
         except ValueError:
@@ -355,7 +691,7 @@ def _locate_bad_line(path: Path, delimiter: str | None, names: tuple[str, ...]) 
 def _check_labels(f: _MatrixFile) -> None:
     """Node labels positive and dofs 1..6 in a matrix-input file."""
     node_i, dof_i, node_j, dof_j = f.columns
-    huge = np.flatnonzero((node_i > _MAX_LABEL) | (node_j > _MAX_LABEL))
+    huge = np.flatnonzero((node_i > MAX_LABEL) | (node_j > MAX_LABEL))
     if huge.size:
         k = int(huge[0])
         node = int(max(node_i[k], node_j[k]))
@@ -385,7 +721,7 @@ def _check_labels(f: _MatrixFile) -> None:
             node, dof = int(node_j[k_dof]), int(dof_j[k_dof])
         else:
             node, dof = int(node_i[k_dof]), int(dof_i[k_dof])
-        what = _OTHER_DOFS.get(dof, "not a displacement or rotation")
+        what = ABAQUS_DOF_NAMES.get(dof, "not a displacement or rotation")
         raise _fail(
             f.path,
             f.line_of(k_dof),
@@ -394,7 +730,7 @@ def _check_labels(f: _MatrixFile) -> None:
         )
 
 
-def _check_equations(f: _MatrixFile, n: int, dofs: Path) -> tuple[np.ndarray, np.ndarray]:
+def _check_equations(f: _MatrixFile, n: int, where: str) -> tuple[np.ndarray, np.ndarray]:
     """Equation indices (from 0) of a coordinate file, checked against the ``n`` dofs."""
     rows, cols = f.columns
     bad = np.flatnonzero((rows < 1) | (rows > n) | (cols < 1) | (cols > n))
@@ -403,187 +739,40 @@ def _check_equations(f: _MatrixFile, n: int, dofs: Path) -> tuple[np.ndarray, np
         raise _fail(
             f.path,
             f.line_of(k),
-            f"entry ({rows[k]}, {cols[k]}) lies outside the {n} equations of {dofs} "
-            "(equations count from 1)",
+            f"entry ({rows[k]}, {cols[k]}) lies outside {where} (equations count from 1)",
         )
     return rows - 1, cols - 1
 
 
+class _MissingNode(Exception):
+    """A node of a dofs.csv that the coordinates lack (raised at the dofs.csv line)."""
+
+    def __init__(self, equation: int, problem: str) -> None:
+        super().__init__(problem)
+        self.equation, self.problem = equation, problem
+
+
 def _coordinates(
-    inp: Path,
-    node_ids: np.ndarray,
-    files: dict[str, _MatrixFile],
-    table: DofTable,
-    dofs: PathLike | None,
-    dof_lines: list[int] | None,
+    nodes: _Nodes, node_ids: np.ndarray, files: dict[str, _MatrixFile], table: DofTable
 ) -> np.ndarray:
-    """Coordinates of ``node_ids`` from an input file or ``nodes.csv``."""
-    csv = is_nodes_csv(inp)
-    ids, xyz = _read_nodes(inp) if csv else read_inp_nodes(inp)
-    order = np.argsort(ids, kind="stable")
-    sorted_ids = ids[order]
+    """Coordinates of ``node_ids``; a missing node is an error at its first use."""
+    order = np.argsort(nodes.ids, kind="stable")
+    sorted_ids = nodes.ids[order]
     pos = np.searchsorted(sorted_ids, node_ids)
     found = np.zeros(node_ids.size, dtype=bool)
     inside = pos < sorted_ids.size
     found[inside] = sorted_ids[pos[inside]] == node_ids[inside]
     if not found.all():
         node = int(node_ids[np.flatnonzero(~found)[0]])
-        problem = f"node {node} is not defined in {inp} (no {'row' if csv else '*NODE data line'})"
-        if dof_lines is not None and dofs is not None:
-            raise _fail(Path(dofs), dof_lines[int(np.flatnonzero(table.nodes == node)[0])], problem)
+        kind = "row" if nodes.model is None else "*NODE data line"
+        problem = f"node {node} is not defined in {nodes.path} (no {kind})"
+        if nodes.model is not None and nodes.model.uses_parts:
+            problem += f"; {nodes.model.id_rule}"
         for f in files.values():
-            node_i, _, node_j, _ = f.columns
-            hit = np.flatnonzero((node_i == node) | (node_j == node))
-            if hit.size:
-                raise _fail(f.path, f.line_of(int(hit[0])), problem)
-    return xyz[order[pos]]
-
-
-# ============================================================================ .inp files
-#: Keywords that make *NODE coordinates or matrix dof directions differ from what is read.
-_UNSUPPORTED = {
-    "PART": "parts and instances: node labels of a part are local to it, so they cannot be "
-    "matched with the matrix output; write the input file without parts and assemblies "
-    "(Abaqus/CAE: Model > Edit Attributes > Do not use parts and assemblies in input files)",
-    "INSTANCE": "parts and instances: node labels of a part are local to it, so they cannot be "
-    "matched with the matrix output; write the input file without parts and assemblies "
-    "(Abaqus/CAE: Model > Edit Attributes > Do not use parts and assemblies in input files)",
-    "SYSTEM": "*SYSTEM gives node coordinates in a local system, which pymorembs does not "
-    "convert; give the nodes in the global system",
-    "TRANSFORM": "*TRANSFORM puts the dofs of nodes in local directions, so the matrices are not "
-    "in global ux..rz; remove the transformation before generating the matrices",
-    "NMAP": "*NMAP moves nodes, which pymorembs does not do; write the final coordinates",
-    "NGEN": "nodes generated by *NGEN are not read; write every node in a *NODE block",
-    "NFILL": "nodes generated by *NFILL are not read; write every node in a *NODE block",
-    "NCOPY": "nodes generated by *NCOPY are not read; write every node in a *NODE block",
-}
-
-
-def read_inp_nodes(path: PathLike) -> tuple[np.ndarray, np.ndarray]:
-    """Node labels and coordinates of the ``*NODE`` blocks of an Abaqus input file.
-
-    Reads ``*NODE`` (any parameters such as ``NSET``; ``SYSTEM=R`` only; data lines
-    ``label, x[, y[, z[, ...]]]``, missing coordinates are 0; ``INPUT=file`` is followed) and
-    follows ``*INCLUDE, INPUT=file`` (relative to the including file). Keyword lines ending in a
-    comma continue on the next line; ``**`` comments and blank lines are skipped; ``D`` exponents
-    are accepted. ``*PART``/``*INSTANCE``, ``*SYSTEM``, ``*TRANSFORM``, ``*NMAP``, ``*NGEN``,
-    ``*NFILL`` and ``*NCOPY`` are refused with an explanation, since node labels, coordinates
-    or dof directions would not be those of the matrix output.
-
-    Returns
-    -------
-    ids : ndarray of int, shape (n_nodes,)
-    coordinates : ndarray, shape (n_nodes, 3)
-
-    Raises
-    ------
-    UserError
-        ``file:line: problem`` for malformed or repeated nodes and unsupported keywords.
-    """
-    return collect_nodes(_scan_inp, path)
-
-
-def _scan_inp(
-    path: Path,
-    ids: list[int],
-    xyz: list[tuple[float, float, float]],
-    seen: dict[int, tuple[Path, int]],
-    stack: tuple[Path, ...],
-) -> None:
-    resolved = path.resolve()
-    if resolved in stack:
-        raise _fail(path, None, "*INCLUDE loop: the file includes itself")
-    lines = read_text(path, "an Abaqus input file").split("\n")
-    in_node = False
-    k = 0
-    while k < len(lines):
-        number, stripped = k + 1, lines[k].strip()
-        k += 1
-        if not stripped or stripped.startswith("**"):
-            continue
-        if stripped.startswith("*"):
-            while stripped.endswith(",") and k < len(lines):  # continued keyword line
-                stripped += lines[k].strip()
-                k += 1
-            keyword, params = _parse_keyword(stripped)
-            in_node = False
-            if keyword in _UNSUPPORTED:
-                raise _fail(path, number, _UNSUPPORTED[keyword])
-            if keyword == "NODE":
-                system = params.get("SYSTEM", "R").upper()
-                if system != "R":
-                    raise _fail(
-                        path,
-                        number,
-                        f"*NODE, SYSTEM={system}: only rectangular coordinates (SYSTEM=R) are "
-                        "supported",
-                    )
-                if "INPUT" in params:
-                    node_file = path.parent / params["INPUT"]
-                    node_lines = read_text(node_file, "a file of *NODE data lines").split("\n")
-                    for j, line in enumerate(node_lines, start=1):
-                        text = line.strip()
-                        if text and not text.startswith("**"):
-                            _node_line(node_file, j, text, ids, xyz, seen)
-                else:
-                    in_node = True
-            elif keyword == "INCLUDE":
-                if "INPUT" not in params:
-                    raise _fail(path, number, "*INCLUDE without INPUT=file")
-                _scan_inp(path.parent / params["INPUT"], ids, xyz, seen, (*stack, resolved))
-            continue
-        if in_node:
-            _node_line(path, number, stripped, ids, xyz, seen)
-
-
-def _parse_keyword(text: str) -> tuple[str, dict[str, str]]:
-    """Keyword name (upper case, blanks removed) and parameters of a keyword line."""
-    parts = text[1:].split(",")
-    keyword = "".join(parts[0].upper().split())
-    params: dict[str, str] = {}
-    for part in parts[1:]:
-        key, _, value = part.partition("=")
-        key = "".join(key.upper().split())
-        if key:
-            params[key] = value.strip().strip('"').strip("'")
-    return keyword, params
-
-
-def _node_line(
-    path: Path,
-    number: int,
-    text: str,
-    ids: list[int],
-    xyz: list[tuple[float, float, float]],
-    seen: dict[int, tuple[Path, int]],
-) -> None:
-    """One ``*NODE`` data line: ``label, x, y, z`` (missing coordinates are 0)."""
-    fields = [f.strip() for f in text.split(",")]
-    try:
-        node = int(fields[0])
-    except ValueError:
-        raise _fail(path, number, f"node label {fields[0]!r} is not an integer") from None
-    if abs(node) > _MAX_LABEL:
-        raise _fail(
-            path, number, f"node label {node} is out of range (Abaqus labels are below 2**31)"
-        )
-    coords = [0.0, 0.0, 0.0]
-    for axis, field_text in enumerate(fields[1:4]):
-        if not field_text:
-            continue
-        try:
-            coords[axis] = float(field_text.replace("D", "E").replace("d", "e"))
-        except ValueError:
-            raise _fail(
-                path, number, f"coordinate {'xyz'[axis]} {field_text!r} is not a number"
-            ) from None
-        if not np.isfinite(coords[axis]):
-            raise _fail(path, number, f"coordinate {'xyz'[axis]} {field_text!r} is not finite")
-    if node in seen:
-        first_path, first_line = seen[node]
-        raise _fail(
-            path, number, f"node {node} is defined twice (first in {first_path}:{first_line})"
-        )
-    seen[node] = (path, number)
-    ids.append(node)
-    xyz.append((coords[0], coords[1], coords[2]))
+            if f.layout == "input":
+                node_i, _, node_j, _ = f.columns
+                hit = np.flatnonzero((node_i == node) | (node_j == node))
+                if hit.size:
+                    raise _fail(f.path, f.line_of(int(hit[0])), problem)
+        raise _MissingNode(int(np.flatnonzero(table.nodes == node)[0]), problem)
+    return nodes.xyz[order[pos]]
