@@ -58,6 +58,7 @@ from pymorembs.io.matrix_market import (
     check_symmetric,
     read_matrix_market,
 )
+from pymorembs.io.third_party import reason as _reason  # also used by nastran_op4
 
 __all__ = ["ANSYS_DOF_LABELS", "RIGID_BODY_TOLERANCE", "read_ansys_full", "read_ansys_mmf"]
 
@@ -1097,16 +1098,3 @@ def _make_body(source: Path, **fields: object) -> ElasticBody:
         return ElasticBody(**fields)  # type: ignore[arg-type]
     except UserError as err:
         raise _fail(source, None, str(err)) from None
-
-
-def _reason(err: BaseException) -> str:
-    """One line describing a third-party exception."""
-    text = " ".join(str(err).split())
-    if isinstance(err, OSError) and err.strerror:
-        text = err.strerror
-    if isinstance(err, MemoryError):
-        text = "not enough memory"
-    kind = type(err).__name__
-    if kind == "error":  # e.g. struct.error
-        kind = f"{type(err).__module__}.error"
-    return f"{kind}: {text}" if text else kind
