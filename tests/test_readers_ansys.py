@@ -565,6 +565,34 @@ def test_static_full_file_says_what_it_holds(tmp_path):
     )
 
 
+def test_static_full_through_pymorembs_info(tmp_path, capsys):
+    """The same refusal from the command line: exit code 2, one line, nothing on stdout."""
+    from pymorembs.cli import main
+
+    def static(header: np.ndarray) -> None:
+        header[header_item("ntermMl")] = 0
+        header[header_item("kan")] = 0
+
+    variant = rewrite_full(FULL, tmp_path / "static.full", {}, header_edit=static)
+    code = main(["info", str(variant)])
+    out, err = capsys.readouterr()
+    assert code == 2 and out == "" and err.count("\n") == 1
+    assert err.startswith(f"pymorembs: error: {variant}: the file holds no mass matrix")
+
+
+def test_info_with_the_archive(capsys):
+    """pymorembs info on the genuine .full with its .cdb: the published frequencies."""
+    import json
+
+    from pymorembs.cli import main
+
+    code = main(["info", str(FULL), "--nodes", str(CDB), "--modes", "4", "--json"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    hz = json.loads(out)["eigenfrequencies_hz"]
+    np.testing.assert_allclose(hz[:4], PUBLISHED_HZ, rtol=1e-6)
+
+
 @pytest.mark.parametrize("size", [0, 30, 500, 2000, 300_000, 801_592])
 def test_full_truncated(tmp_path, size):
     path = tmp_path / "cut.full"
@@ -636,7 +664,7 @@ def test_archive_problems(tmp_path):
         "field.cdb": (
             text.replace(" 2.5000000000000E-001", " 2.50000000000x0E-001"),
             39,
-            "NBLOCK: field 1 '2.50000000000x0E-001' is not a number",
+            "NBLOCK: x '2.50000000000x0E-001' is not a number",
         ),
         "twice.cdb": (
             text.replace("        4        0        0", "        3        0        0", 1),

@@ -175,6 +175,19 @@ def _header_fields(path: Path, lines: list[str], index: int) -> list[str]:
     return fields
 
 
+def _format_line(
+    path: Path, lines: list[str], index: int, block: str, form: re.Pattern[str], example: str
+) -> re.Match[str]:
+    """The Fortran format line after the block header at ``index``, matched by ``form``."""
+    if index + 1 >= len(lines):
+        raise _fail(path, index + 1, f"{block}: the format line is missing")
+    text = lines[index + 1].strip()
+    match = form.match(text)
+    if match is None:
+        raise _fail(path, index + 2, f"{block}: format {text!r} is not of the form {example}")
+    return match
+
+
 def _header_int(path: Path, line: int, text: str, what: str) -> int | None:
     """An optional integer field of a block header (None when blank)."""
     if not text:
@@ -201,9 +214,18 @@ _EBLOCK_END = re.compile(r"^\s*-1\s*$")
 
 
 def _fixed_width(
-    path: Path, rows: list[str], first_line: int, widths: list[int], kind: type, what: str
+    path: Path,
+    rows: list[str],
+    first_line: int,
+    widths: list[int],
+    kind: type,
+    what: str,
+    names: tuple[str, ...] = (),
 ) -> np.ndarray:
-    """Fixed-width fields of ``rows`` as an array (n_rows, len(widths)); blank fields are 0."""
+    """Fixed-width fields of ``rows`` as an array (n_rows, len(widths)); blank fields are 0.
+
+    ``names`` label the fields in messages (default: ``field 1``, ``field 2``, ...).
+    """
     total = sum(widths)
     if not rows:
         return np.zeros((0, len(widths)), dtype=kind)
@@ -223,8 +245,9 @@ def _fixed_width(
         except (ValueError, OverflowError):
             bad = _first_bad(field, kind)
             text = field[bad].decode("ascii").strip()
+            label = names[j] if j < len(names) else f"field {j + 1}"
             raise _fail(
-                path, first_line + bad, f"{what}: field {j + 1} {text!r} is not a number"
+                path, first_line + bad, f"{what}: {label} {text!r} is not a number"
             ) from None
         start += width
     if kind is float and not np.all(np.isfinite(out)):
@@ -261,15 +284,7 @@ def _read_nblock(
     line = index + 1
     n_real = _header_int(path, line, fields[1], "NBLOCK field count")
     announced = _header_int(path, line, fields[4], "NBLOCK node count") if len(fields) > 4 else None
-    if index + 1 >= len(lines):
-        raise _fail(path, line, "NBLOCK: the format line is missing")
-    match = _NBLOCK_FORMAT.match(lines[index + 1].strip())
-    if match is None:
-        raise _fail(
-            path,
-            index + 2,
-            f"NBLOCK: format {lines[index + 1].strip()!r} is not of the form (3i9,6e21.13e3)",
-        )
+    match = _format_line(path, lines, index, "NBLOCK", _NBLOCK_FORMAT, "(3i9,6e21.13e3)")
     n_int, int_width, n_float, float_width = (int(g) for g in match.groups())
     if not (1 <= n_int <= 3 and 1 <= int_width <= 20 and 3 <= n_float <= 6 and float_width <= 40):
         raise _fail(path, index + 2, f"NBLOCK: unexpected format {lines[index + 1].strip()!r}")
@@ -278,7 +293,9 @@ def _read_nblock(
     rows = _block_lines(lines, index + 2, _NBLOCK_END)
     first = index + 3
     _check_width(path, rows, first, n_int * int_width + n_float * float_width, "NBLOCK")
-    numbers = _fixed_width(path, rows, first, [int_width] * n_int, int, "NBLOCK")
+    numbers = _fixed_width(
+        path, rows, first, [int_width] * n_int, int, "NBLOCK", ("node number", "field 2", "field 3")
+    )
     reals = _fixed_width(
         path,
         [row[n_int * int_width :] for row in rows],
@@ -286,6 +303,7 @@ def _read_nblock(
         [float_width] * n_float,
         float,
         "NBLOCK",
+        ("x", "y", "z", "thxy", "thyz", "thzx"),
     )
     ids = numbers[:, 0].astype(np.int64)
     if ids.size == 0:
@@ -313,18 +331,9 @@ def _read_eblock(
     path: Path, lines: list[str], index: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     fields = _header_fields(path, lines, index)
-    line = index + 1
     if len(fields) < 3 or fields[2].upper() != "SOLID":
         return None  # another layout (contact, surface elements): no connectivity
-    if index + 1 >= len(lines):
-        raise _fail(path, line, "EBLOCK: the format line is missing")
-    match = _EBLOCK_FORMAT.match(lines[index + 1].strip())
-    if match is None:
-        raise _fail(
-            path,
-            index + 2,
-            f"EBLOCK: format {lines[index + 1].strip()!r} is not of the form (19i10)",
-        )
+    match = _format_line(path, lines, index, "EBLOCK", _EBLOCK_FORMAT, "(19i10)")
     per_line, width = int(match.group(1)), int(match.group(2))
     if not (_ELEMENT_FIELDS + 1 <= per_line <= 40 and 1 <= width <= 20):
         raise _fail(path, index + 2, f"EBLOCK: unexpected format {lines[index + 1].strip()!r}")

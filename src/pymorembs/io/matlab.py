@@ -51,6 +51,7 @@ import scipy.sparse as sp
 
 from pymorembs.body import SCALAR, DofTable, ElasticBody, ModelPorts
 from pymorembs.errors import UserError
+from pymorembs.io.mat5 import Mat5Entry, is_v5, load_v5, scan_v5
 from pymorembs.io.matrix_market import _fail, _read_dofs, _read_nodes, check_symmetric
 from pymorembs.io.third_party import reason
 
@@ -99,7 +100,7 @@ class MatVariable:
 
 # ============================================================================ storage
 def _version(path: Path) -> str:
-    """``"hdf5"`` for v7.3 files, ``"v5"`` for v4/v5/v7 ones (scipy tells those apart)."""
+    """``"hdf5"`` (v7.3), ``"v5"`` (level 5: v6, v7) or ``"v4"`` (no text header)."""
     try:
         if not path.is_file():
             if path.is_dir():
@@ -113,7 +114,19 @@ def _version(path: Path) -> str:
         raise _fail(path, None, "empty file (expected a MATLAB .mat file)")
     if head[_HDF5_OFFSET:] == _HDF5_SIGNATURE or head.startswith(_HDF5_SIGNATURE):
         return "hdf5"
-    return "v5"
+    if is_v5(head):
+        return "v5"
+    if 0 in head[:4]:  # the type code of a v4 matrix header (scipy's rule)
+        return "v4"
+    raise _fail(path, None, "not a MATLAB .mat file (no v5 or v7.3 header, not a v4 file)")
+
+
+def _v5_entries(path: Path) -> dict[str, Mat5Entry]:
+    try:
+        data = path.read_bytes()
+    except OSError as err:
+        raise _fail(path, None, f"cannot read: {err.strerror or err}") from None
+    return {entry.name: entry for entry in scan_v5(path, data)}
 
 
 def mat_variables(path: PathLike) -> list[MatVariable]:
@@ -125,8 +138,11 @@ def mat_variables(path: PathLike) -> list[MatVariable]:
         Not a MAT-file (or a damaged one), an HDF5 file without MATLAB variables.
     """
     path = Path(path)
-    if _version(path) == "hdf5":
+    version = _version(path)
+    if version == "hdf5":
         return _hdf5_inventory(path)
+    if version == "v5":
+        return [MatVariable(e.name, e.shape, e.kind) for e in _v5_entries(path).values()]
     from scipy.io import whosmat
 
     try:
@@ -173,8 +189,21 @@ def read_mat_variables(
         _check_loadable(path, inventory[name])
     if not names:
         return {}
-    if _version(path) == "hdf5":
+    version = _version(path)
+    if version == "hdf5":
         return _hdf5_load(path, names)
+    if version == "v5":
+        entries = _v5_entries(path)
+        return {name: _at_least_2d(load_v5(path, entries[name])) for name in names}
+    return _v4_load(path, names)
+
+
+def _at_least_2d(value: np.ndarray | sp.csc_matrix) -> np.ndarray | sp.csc_matrix:
+    return value if sp.issparse(value) else np.atleast_2d(value)
+
+
+def _v4_load(path: Path, names: list[str]) -> dict[str, np.ndarray | sp.csc_matrix]:
+    """Level-4 files through scipy (its v4 reader is written in Python)."""
     from scipy.io import loadmat
 
     try:
@@ -185,9 +214,7 @@ def read_mat_variables(
         raise _fail(path, None, f"cannot read the .mat file ({reason(err)})") from None
     out: dict[str, np.ndarray | sp.csc_matrix] = {}
     for name in names:
-        if name not in loaded:
-            raise _fail(path, None, f"variable {name!r} could not be read")
-        value = loaded[name]
+        value = loaded.get(name)
         if sp.issparse(value):
             out[name] = sp.csc_matrix(value)
         elif isinstance(value, np.ndarray) and value.dtype.kind in "biufc":
