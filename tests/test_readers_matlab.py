@@ -86,10 +86,7 @@ def test_scipy_files_of_matlab_4_2_to_7_4():
 def test_own_v5_reader_equals_scipy_on_the_genuine_files():
     """pymorembs reads level-5 files itself (scipy's reader crashes on damaged ones): on every
     MATLAB-written v5 file here it gives what scipy.io.loadmat gives."""
-    files = sorted(SCIPY.glob("*_7.4_GLNX86.mat")) + [
-        SPARSE / "sparse_v6.mat",
-        SPARSE / "sparse_v7.mat",
-    ]
+    files = [*sorted(SCIPY.glob("*_7.4_GLNX86.mat")), *(SPARSE / f"sparse_v{v}.mat" for v in "67")]
     files.remove(SCIPY / "testhdf5_7.4_GLNX86.mat")
     compared = 0
     for path in files:
