@@ -632,7 +632,7 @@ def test_full_wrong_files(tmp_path):
         read_ansys_full(tmp_path)
     notes = tmp_path / "nodes.txt"
     notes.write_text("no nodes here\n")
-    with pytest.raises(UserError) as excinfo:
+    with pytest.raises(UserError, match="neither a nodes.csv .* nor an Ansys archive") as excinfo:
         read_ansys_full(FULL, nodes=notes)
     _one_line_error(excinfo, notes)
 

@@ -969,9 +969,16 @@ def _coordinates(table: DofTable, nodes: PathLike | None, source: Path) -> _Geom
         node_ids, coordinates = _node_table(table, None, source)
         return _Geometry(node_ids, coordinates)
     path = Path(nodes)
-    if not path.is_file() or is_nodes_csv(path) or not looks_like_cdb(path):
+    if not path.is_file() or is_nodes_csv(path):
         node_ids, coordinates = _node_table(table, path, source)
         return _Geometry(node_ids, coordinates, path)
+    if not looks_like_cdb(path):
+        raise _fail(
+            path,
+            None,
+            "neither a nodes.csv (first line id,x,y,z) nor an Ansys archive (.cdb with an "
+            "NBLOCK, written by CDWRITE,DB)",
+        )
     archive = read_cdb(path)
     missing = np.unique(table.nodes[~np.isin(table.nodes, archive.node_ids)])
     if missing.size:

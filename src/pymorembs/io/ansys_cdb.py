@@ -100,14 +100,23 @@ class AnsysArchive:
         return np.union1d(near, nodes)
 
 
-def looks_like_cdb(path: Path) -> bool:
-    """Whether ``path`` holds an ``NBLOCK`` line in its first megabyte (an Ansys archive)."""
+def looks_like_cdb(path: Path, limit: int = 1 << 26) -> bool:
+    """Whether ``path`` holds an ``NBLOCK`` line in its first ``limit`` bytes (an Ansys archive)."""
+    pattern = re.compile(rb"(?im)^\s*NBLOCK\s*,")
+    tail = b""
     try:
         with open(path, "rb") as f:
-            head = f.read(1 << 20)
+            for _ in range(limit >> 20):
+                chunk = f.read(1 << 20)
+                if not chunk:
+                    return False
+                block = tail + chunk
+                if pattern.search(block):
+                    return True
+                tail = block[block.rfind(b"\n") + 1 :][-256:]
     except OSError:
         return False
-    return re.search(rb"(?im)^\s*NBLOCK\s*,", head) is not None
+    return False
 
 
 def read_cdb(path: PathLike) -> AnsysArchive:
