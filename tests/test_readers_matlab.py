@@ -31,6 +31,14 @@ SHAPES = {"col": (10, 1), "row": (1, 10), "wide": (10, 20), "square": (10, 10), 
 
 
 # ============================================================================ genuine storage
+def assert_identical(value, other) -> None:
+    """Two loaded variables hold the same numbers in the same shape (sparse or dense)."""
+    if sp.issparse(value):
+        assert sp.issparse(other) and value.shape == other.shape and (value != other).nnz == 0
+    else:
+        np.testing.assert_array_equal(value, other)
+
+
 @pytest.mark.parametrize("version", ["4", "6", "7", "73"])
 def test_matlab_written_sparse_matrices(version):
     """Every sparse shape of pymatreader's MATLAB files equals MATLAB's own CSV of it."""
@@ -57,11 +65,7 @@ def test_v73_and_v7_hold_the_same_numbers():
     v73 = read_mat_variables(SPARSE / "sparse_v73.mat")
     assert set(v7) == set(v73)
     for name, value in v7.items():
-        other = v73[name]
-        if sp.issparse(value):
-            assert value.shape == other.shape and (value != other).nnz == 0
-        else:
-            np.testing.assert_array_equal(value, other)
+        assert_identical(value, v73[name])
 
 
 def test_scipy_files_of_matlab_4_2_to_7_4():
@@ -97,11 +101,7 @@ def test_own_v5_reader_equals_scipy_on_the_genuine_files():
             n: (tuple(shape), kind) for n, shape, kind in sio.whosmat(path)
         }
         for name, value in ours.items():
-            other = theirs[name]
-            if sp.issparse(value):
-                assert value.shape == other.shape and (value != other).nnz == 0
-            else:
-                np.testing.assert_array_equal(value, other)
+            assert_identical(value, theirs[name])
             compared += 1
     assert compared >= 20
 
