@@ -132,6 +132,43 @@ CASES: list[tuple[str, int, str]] = [
         2,
         r"^comma_line\.mapping:3: expected 'equation node dof', got ','$",
     ),
+    # the matrices of a constrained model with a mapping file: the order cannot be proved
+    (
+        "--stiffness K.mtx --mass M.mtx --mapping chain.mapping",
+        2,
+        r"^chain\.mapping: the equation order is not proved: K maps the rigid-body translation "
+        r"in x to a residual of 1\.4e-01 \(at most 1e-06 for a free body\); .* or the model is "
+        r"constrained",
+    ),
+    (
+        "--stiffness K.mtx --mass M.mtx --mapping chain.mapping --nodes hand_edited.cdb",
+        2,
+        r"^hand_edited\.cdb:5: NBLOCK: x '2\.5000000000000E-00l' is not a number$",
+    ),
+    # MATLAB
+    (
+        "no_stiffness.mat",
+        2,
+        r"^no_stiffness\.mat: no stiffness matrix: the file holds M \(3x3 double\), B \(3x1 "
+        r"double\); name it with --stiffness-name$",
+    ),
+    (
+        "transposed_B.mat",
+        2,
+        r"^transposed_B\.mat: input matrix B is 1 x 3, expected 3 rows \(stored transposed\?",
+    ),
+    ("struct_K.mat", 2, r"^struct_K\.mat: variable K \(1x1 struct\) is a struct, not a matrix$"),
+    (
+        "ambiguous_C.mat",
+        2,
+        r"^ambiguous_C\.mat: variable C is 3 x 3 next to B: it may be the damping matrix",
+    ),
+    ("complex_K.mat", 2, r"^complex_K\.mat: variable K is complex; mass, stiffness, damping"),
+    (
+        "--format matlab plain_h5.mat",
+        2,
+        r"^plain_h5\.mat: an HDF5 file without MATLAB variables \(no MATLAB_class attributes\)",
+    ),
     # Abaqus
     (
         "--stiffness nonsym_STIF1.mtx --mass good_MASS1.mtx",

@@ -1,6 +1,7 @@
 """Property-based tests: every FE file reader either reads a file or raises one-line UserError.
 
-For each reader (Matrix Market and its CSV tables, Ansys ``.full`` and MMF/mapping, Abaqus
+For each reader (Matrix Market and its CSV tables, Ansys ``.full`` (plain and with compressed
+records), its ``.cdb`` archive and MMF/mapping, MATLAB ``.mat`` (v5 and v7.3), Abaqus
 ``.mtx``/``.inp`` (matrix input; coordinate with dofs.csv or with an ``.inp`` of parts and
 instances; penalty diagonals) and substructure files, Nastran DMIG/GRID, OP4 ASCII/binary with
 dofs.csv or ASET cards, the native HDF5 file, and format detection through
@@ -45,6 +46,7 @@ from pymorembs.io.abaqus import read_abaqus
 from pymorembs.io.abaqus_substructure import read_abaqus_substructure
 from pymorembs.io.ansys import read_ansys_full, read_ansys_mmf
 from pymorembs.io.formats import detect_format, read_body
+from pymorembs.io.matlab import read_matlab
 from pymorembs.io.matrix_market import read_matrix_files, read_matrix_market
 from pymorembs.io.nastran_dmig import read_dmig
 from pymorembs.io.nastran_op4 import read_op4
@@ -76,7 +78,20 @@ CONSTRAINTS_CSV = (
     "2,rz,0.0,1,ux,0.5\n2,rz,0.0,1,uy,0.25\n"
 )
 FIXED_CSV = "node,direction\n1,uy\n"
-MAPPING = "Matrix Eqn   Node   DOF\n1   1   UX\n2   1   UY\n3   2   ROTZ\n"
+# The Ansys MMF seed is a free body (a bar along x), so that its equation order is proved by the
+# rigid-body check the reader applies.
+MAPPING = "Matrix Eqn   Node   DOF\n1   1   UX\n2   1   UY\n3   2   UX\n4   2   UY\n"
+ANSYS_K = """%%MatrixMarket matrix coordinate real symmetric
+% a bar from node 1 to node 2 (UX couplings only)
+4 4 3
+1 1 1.0e3
+3 1 -1.0e3
+3 3 1.0e3
+"""
+ANSYS_M = (
+    "%%MatrixMarket matrix coordinate real symmetric\n4 4 4\n1 1 1.0\n2 2 1.0\n3 3 1.0\n4 4 1.0\n"
+)
+ANSYS_NODES = "id,x,y,z\n1,0.0,0.0,0.0\n2,2.0,0.0,0.0\n"
 
 ABAQUS_K = """** stiffness, matrix input layout
 1,1, 1,1, 2.0E+06
@@ -195,6 +210,56 @@ def ansys_full() -> bytes:
 
 
 @functools.cache
+def compressed_full() -> bytes:
+    """The example ``.full`` with records in the compressed forms of Ansys 19+ (windowed dofs per
+    node and dof information, bit-coded dof record), as built by ``test_readers_ansys``."""
+    from test_readers_ansys import BIT_SPARSE, WINDOWED, bit_sparse, rewrite_full, windowed
+
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "file.full"
+        encode = {
+            "ndof": (windowed, WINDOWED),
+            "const": (windowed, WINDOWED),
+            "dof": (bit_sparse, BIT_SPARSE),
+        }
+        source = Path(d) / "source.full"
+        source.write_bytes(ansys_full())
+        return rewrite_full(source, path, encode).read_bytes()
+
+
+@functools.cache
+def hexbeam_cdb() -> bytes:
+    """The genuine archive of the example's mesh (tests/data/pymapdl_reader_hexbeam)."""
+    return (Path(__file__).parent / "data" / "pymapdl_reader_hexbeam" / "HexBeam.cdb").read_bytes()
+
+
+def _matlab_model() -> dict[str, object]:
+    k = sp.csc_matrix(np.array([[2.0e3, -1.0e3, 0.0], [-1.0e3, 2.0e3, -1.0e3], [0, -1.0e3, 1.0e3]]))
+    return {"K": k, "M": np.diag([1.0, 2.0, 0.5]), "E": 1e-3 * k, "B": np.eye(3)[:, :1]}
+
+
+@functools.cache
+def matlab_v5() -> bytes:
+    """A small v5 MAT-file (scipy.io.savemat) with K (sparse), M, E, B."""
+    import io
+
+    import scipy.io
+
+    buffer = io.BytesIO()
+    scipy.io.savemat(buffer, _matlab_model(), do_compression=False)
+    return buffer.getvalue()
+
+
+@functools.cache
+def matlab_v73() -> bytes:
+    """The same model as a v7.3 (HDF5) MAT-file in MATLAB's layout."""
+    from test_readers_matlab import save_v73
+
+    with tempfile.TemporaryDirectory() as d:
+        return save_v73(Path(d) / "model.mat", _matlab_model()).read_bytes()
+
+
+@functools.cache
 def native_h5() -> bytes:
     """A small native body file (with constraints, fixed dofs and damping matrix)."""
     with tempfile.TemporaryDirectory() as d:
@@ -251,7 +316,12 @@ MM_COMPANIONS = (
     ("constraints.csv", CONSTRAINTS_CSV),
     ("fixed.csv", FIXED_CSV),
 )
-MMF_COMPANIONS = (("K.mtx", MM_K), ("M.mtx", MM_M), ("model.mapping", MAPPING))
+MMF_COMPANIONS = (
+    ("K.mtx", ANSYS_K),
+    ("M.mtx", ANSYS_M),
+    ("model.mapping", MAPPING),
+    ("nodes.csv", ANSYS_NODES),
+)
 ABQ_COMPANIONS = (("job_STIF1.mtx", ABAQUS_K), ("job_MASS1.mtx", ABAQUS_M), ("job.inp", ABAQUS_INP))
 ABQ_COORD = (
     ("c_STIF1.mtx", ABAQUS_COORD_K),
@@ -360,20 +430,30 @@ TARGETS: dict[str, Target] = {
         ),
         Target("mm-fixed", "fixed.csv", _text(FIXED_CSV), _mm_files, MM_COMPANIONS),
         Target("mm-single", "K.mtx", _text(MM_K), lambda d: read_matrix_market(d / "K.mtx"), ()),
+        Target("ansys-mapping", "model.mapping", _text(MAPPING), _read_mmf, MMF_COMPANIONS),
+        Target("ansys-mmf-matrix", "K.mtx", _text(ANSYS_K), _read_mmf, MMF_COMPANIONS),
+        Target("ansys-mmf-nodes", "nodes.csv", _text(ANSYS_NODES), _read_mmf, MMF_COMPANIONS),
         Target(
-            "ansys-mapping",
-            "model.mapping",
-            _text(MAPPING),
-            _read_mmf,
-            (*MMF_COMPANIONS, ("nodes.csv", NODES_CSV)),
+            "ansys-full-compressed",
+            "file.full",
+            compressed_full,
+            lambda d: read_ansys_full(d / "file.full"),
+            binary=True,
         ),
         Target(
-            "ansys-mmf-matrix",
-            "K.mtx",
-            _text(MM_K),
-            _read_mmf,
-            (*MMF_COMPANIONS, ("nodes.csv", NODES_CSV)),
+            "ansys-cdb",
+            "model.cdb",
+            hexbeam_cdb,
+            lambda d: read_ansys_full(d / "file.full", nodes=d / "model.cdb"),
+            (("file.full", ansys_full),),
         ),
+        Target(
+            "matlab-v5", "model.mat", matlab_v5, lambda d: read_matlab(d / "model.mat"), (), True
+        ),
+        Target(
+            "matlab-v73", "model.mat", matlab_v73, lambda d: read_matlab(d / "model.mat"), (), True
+        ),
+        Target("detect-matlab", "model.dat", matlab_v5, _read_any, (), binary=True),
         Target(
             "ansys-full",
             "file.full",
@@ -637,6 +717,11 @@ FAST = settings(
 )
 SLOW_TARGETS = {
     "ansys-full",
+    "ansys-full-compressed",
+    "ansys-cdb",
+    "matlab-v5",
+    "matlab-v73",
+    "detect-matlab",
     "native",
     "op4-ascii",
     "op4-binary",
@@ -762,6 +847,18 @@ def test_ansys_full_header_with_negative_low_word() -> None:
     assert message.endswith(
         "file.full: .full header: pointer ptrCE = 4294967295 lies outside the file (200399 "
         "words); the file is damaged"
+    )
+
+
+def test_mat_v5_sparse_with_a_cut_dimension_element() -> None:
+    """Was a segmentation fault inside scipy.io.loadmat (its compiled v5 reader): the dimension
+    element of the sparse K cut from 8 to 4 bytes. pymorembs now reads v5 files itself."""
+    data = bytearray(matlab_v5())
+    assert struct.unpack_from("<2I", data, 152) == (5, 8)  # K's dimensions: miINT32, 8 bytes
+    data[156:160] = struct.pack("<I", 4)
+    message = _error("matlab-v5", bytes(data))
+    assert message.endswith(
+        "model.mat: damaged MAT-file: dimensions must be 2 or more non-negative int32 numbers"
     )
 
 

@@ -4,18 +4,33 @@ Two routes lead from an Ansys model to an :class:`~pymorembs.body.ElasticBody`:
 
 :func:`read_ansys_full`
     The binary ``Jobname.full`` file written by a modal analysis (``WRFULL``), read with
-    ``ansys-mapdl-reader``. The file holds ``K``, ``M`` (and ``D`` of a damped analysis) over all
-    equations, the node and dof label of every equation and the constrained dofs, which become
-    fixed dofs of the body. It holds no node coordinates: give them as ``nodes.csv``.
+    ``ansys-mapdl-reader`` after a bounds-checked scan of every record the library's C code
+    touches. The file holds ``K``, ``M`` (and ``D`` of a damped analysis) over all equations, the
+    node and dof label of every equation and the constrained dofs, which become fixed dofs of the
+    body. It holds no node coordinates: give them as ``nodes.csv`` or as the model's archive
+    (``CDWRITE,DB``, a ``.cdb`` file, read by :mod:`pymorembs.io.ansys_cdb`).
 :func:`read_ansys_mmf`
     Matrix Market files written by APDL Math (``*SMAT`` ... ``*EXPORT,...,MMF``) plus the dof
     mapping file written by ``HBMAT`` with ``Mapping = YES``. These matrices are in the solver
-    ordering with the constrained dofs removed.
+    ordering with the constrained dofs removed; that the mapping file lists the equations in the
+    same order is proved by the rigid-body check (see the function).
 
-Node coordinates (``nodes.csv``, header ``id,x,y,z``, read like :mod:`pymorembs.io.matrix_market`)
-are optional for both routes; without them every node lies at the origin, which is fine for
-frequencies and frequency responses but not for anything that needs geometry (Buckens frames,
-rigid-body modes, the search for interface nodes by position).
+Compressed records: Ansys 19 and later may write records of a binary file "sparsified" (flag byte
+= high byte of the second word of the record header, little endian: bit 3 bit-coded sparse, bit 4
+windowed sparse, bit 5 zlib, bit 6 single precision or 16-bit integers, bit 7 integers). The scan
+decodes the two sparse forms exactly as ``ansys-mapdl-reader``'s ``binary_reader.cpp`` does, for
+the records the library decodes too (standard and ``.full`` headers, dof record, nodal
+equivalence table, dofs per node, dof information), and refuses what the library would misread:
+zlib records, 16-bit integer records, and compressed records in the matrix blocks (which the
+library reads raw).
+
+The rigid-body check: for a body without constraints, ``K`` maps each of the six rigid-body
+fields to zero (:meth:`~pymorembs.body.ElasticBody.rigid_body_residuals`); the three
+translations need no coordinates, the rotations need the right coordinates. Residuals up to
+:data:`RIGID_BODY_TOLERANCE` count as zero. An Ansys ``.full`` file of a constrained model has
+zero couplings between the constrained and the free dofs, so there the check uses only the
+equations of nodes that share no element with a constrained node (element connectivity from the
+``.cdb``).
 
 Every mistake raises :class:`~pymorembs.errors.UserError` with one line ``file: problem`` or
 ``file:line: problem``; no exception of ``ansys-mapdl-reader`` escapes.
@@ -25,7 +40,7 @@ from __future__ import annotations
 
 import os
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +48,8 @@ import scipy.sparse as sp
 
 from pymorembs.body import DIRECTIONS, DofTable, ElasticBody
 from pymorembs.errors import UserError
+from pymorembs.io.ansys_cdb import AnsysArchive, looks_like_cdb, read_cdb
+from pymorembs.io.formats import is_nodes_csv
 from pymorembs.io.matrix_market import (
     _fail,
     _read_lines,
@@ -41,13 +58,19 @@ from pymorembs.io.matrix_market import (
     check_symmetric,
     read_matrix_market,
 )
+from pymorembs.io.third_party import reason as _reason  # also used by nastran_op4
 
-__all__ = ["ANSYS_DOF_LABELS", "read_ansys_full", "read_ansys_mmf"]
+__all__ = ["ANSYS_DOF_LABELS", "RIGID_BODY_TOLERANCE", "read_ansys_full", "read_ansys_mmf"]
 
 PathLike = str | os.PathLike[str]
 
 #: Ansys structural dof labels and their direction codes (0..5 = ux uy uz rx ry rz).
 ANSYS_DOF_LABELS: dict[str, int] = {"UX": 0, "UY": 1, "UZ": 2, "ROTX": 3, "ROTY": 4, "ROTZ": 5}
+
+#: Largest rigid-body residual ``|K r| / (|K|_inf |r|)`` that counts as zero. Matrices, dof
+#: table and coordinates that belong together give 1e-16 .. 1e-9; a wrong equation order or wrong
+#: coordinates give 1e-4 and more.
+RIGID_BODY_TOLERANCE = 1e-6
 
 #: Ansys dof reference numbers (``fdfull``/``fdresu`` DOF record) and their labels.
 _ANSYS_DOF_NUMBERS: dict[int, str] = {
@@ -85,9 +108,31 @@ _OTHER_ANSYS_LABELS = {
     "PRES",
 }.difference(ANSYS_DOF_LABELS)
 
+#: Analysis types (header item ``kan``, the ANTYPE number).
+_ANALYSES = {
+    0: "a static analysis (ANTYPE,STATIC)",
+    1: "a buckling analysis (ANTYPE,BUCKLE)",
+    2: "a modal analysis (ANTYPE,MODAL)",
+    3: "a harmonic analysis (ANTYPE,HARMIC)",
+    4: "a transient analysis (ANTYPE,TRANS)",
+    7: "a substructure analysis (ANTYPE,SUBSTR)",
+    8: "a spectrum analysis (ANTYPE,SPECTR)",
+}
+_BUCKLING = 1
+
 _STRUCTURAL = "UX UY UZ ROTX ROTY ROTZ"
 _FULL_FILE_TYPE = 4  # item 1 of the standard header of a .full file
 _HEADER_WORDS = 100  # length of the standard header record
+_VERSION_WORD = 9  # item 10 of the standard header: the release, e.g. "15.0"
+
+# flag bits of a record (high byte of the second header word), as binary_reader.cpp reads them
+_BIT_SPARSE = 1 << 3
+_WINDOWED = 1 << 4
+_ZLIB = 1 << 5
+_SHORT = 1 << 6  # 16-bit integers or single precision reals
+_INTEGER = 1 << 7
+_FLAG_MASK = 0xF8  # the bits the library looks at
+_BIT_SPARSE_ITEMS = 32  # a bit-coded record holds at most 32 items (one bit each)
 
 
 # ============================================================================ .full
@@ -106,10 +151,16 @@ def read_ansys_full(
         SOLVE
         FINISH
 
-    Apply the displacement constraints (``D``) that belong to the body; constraint equations
-    (``CE``, ``CP``, MPC contact) cannot be read from a ``.full`` file -- use
-    :func:`read_ansys_mmf` for such models. Node coordinates are not reliably in the file; write
-    them as ``nodes.csv`` (header ``id,x,y,z``), for instance with::
+    and the node coordinates with the archive of the model (read by
+    :func:`~pymorembs.io.ansys_cdb.read_cdb`)::
+
+        /PREP7
+        CDWRITE,DB,Jobname,cdb
+
+    Apply the displacement constraints (``D``) that belong to the body, usually none; constraint
+    equations (``CE``, ``CP``, MPC contact) cannot be read from a ``.full`` file -- use
+    :func:`read_ansys_mmf` for such models. Instead of the archive the coordinates may come as
+    ``nodes.csv`` (header ``id,x,y,z``), written for instance with::
 
         *GET,nnode,NODE,0,COUNT
         *CFOPEN,nodes,csv
@@ -130,11 +181,14 @@ def read_ansys_full(
     ----------
     path : path-like
         The ``.full`` file (symmetric matrices from the sparse (symbolic) assembly, written on a
-        little-endian machine, records not compressed).
+        little-endian machine; records may be compressed in the sparse forms Ansys 19+ writes).
     nodes : path-like, optional
-        ``nodes.csv`` listing at least every node that has dofs. Without it all nodes lie at the
-        origin: frequencies and frequency responses are right, but Buckens frames, rigid-body modes
-        and the search for interface nodes by position need coordinates.
+        ``nodes.csv`` or the Ansys archive (``.cdb``), listing at least every node that has dofs.
+        The coordinates are checked with the rigid-body check (module docstring) where the model
+        allows it: an unconstrained model, or a constrained one with the element connectivity of
+        the archive. Without ``nodes`` all nodes lie at the origin (``has_coordinates`` false):
+        frequencies and frequency responses are right, but Buckens frames, rigid-body modes and
+        the search for interface nodes by position need coordinates.
     name : str, optional
         Label of the body; default: the file name without extension.
 
@@ -144,14 +198,17 @@ def read_ansys_full(
         Equations in the order of the file. ``K`` and ``M`` are the full symmetric matrices (the
         file stores one triangle). Dofs constrained in Ansys become the fixed dofs of the body
         (``ElasticBody.fixed``); their rows and columns are zero. A damped modal analysis also
-        gives the explicit damping matrix.
+        gives the explicit damping matrix. ``notes`` say how the dof table was built and how the
+        coordinates were checked.
 
     Raises
     ------
     UserError
         The file is missing, truncated, not a ``.full`` file, or holds something pymorembs cannot
         use (non-structural dofs such as ``TEMP``, lumped or unsymmetric matrices, constraint
-        equations, no mass matrix); the message is one line starting with the file name.
+        equations, no mass matrix, the stress-stiffening matrix of a buckling analysis, records
+        ansys-mapdl-reader cannot decode); coordinates that fail the rigid-body check; the
+        message is one line starting with the file name.
     """
     path = Path(path)
     info = _scan_full_file(path)
@@ -191,18 +248,37 @@ def read_ansys_full(
     damping = None if d_upper is None else _mirror(d_upper, path, "damping")
     fixed = np.flatnonzero(info.const < 0)
     _check_no_empty_dofs(stiffness, mass, table, fixed, path)
-    node_ids, coordinates = _node_table(table, nodes, path)
-    return _make_body(
+    geometry = _coordinates(table, nodes, path)
+    notes = [_full_note(path, info, table, fixed.size)]
+    body = _make_body(
         path,
-        node_ids=node_ids,
-        coordinates=coordinates,
+        node_ids=geometry.node_ids,
+        coordinates=geometry.coordinates,
         dofs=table,
         mass=mass,
         stiffness=stiffness,
         damping_matrix=damping,
         fixed=fixed,
         name=path.stem if name is None else name,
+        has_coordinates=geometry.source is not None,
+        notes=tuple(notes),
     )
+    note = _check_coordinates(body, geometry)
+    return _with_note(body, note)
+
+
+def _full_note(path: Path, info: _FullInfo, table: DofTable, n_fixed: int) -> str:
+    """The note that tells where the dof table of a ``.full`` file came from."""
+    release = f"Ansys MAPDL {info.release}, " if info.release else ""
+    text = (
+        f"dof table: {table.describe()} from the nodal equivalence table and the dof records of "
+        f"{path.name} ({release}{_ANALYSES.get(info.analysis, 'analysis type unknown')})"
+    )
+    if n_fixed:
+        text += f"; {n_fixed} dofs constrained in Ansys are fixed dofs"
+    if info.decoded:
+        text += f"; compressed records decoded: {', '.join(info.decoded)}"
+    return text
 
 
 @dataclass(frozen=True)
@@ -213,6 +289,9 @@ class _FullInfo:
     const: np.ndarray  # per equation: dof number, negative if constrained (file order)
     directions: np.ndarray  # per equation: direction code 0..5
     damping: tuple[int, int] | None  # (pointer, number of terms) of the damping matrix
+    analysis: int = -1  # header item kan (ANTYPE number)
+    release: str = ""  # e.g. "15.0"
+    decoded: tuple[str, ...] = ()  # records that were stored compressed, e.g. "dofs per node"
 
 
 def _scan_full_file(path: Path) -> _FullInfo:
@@ -220,8 +299,8 @@ def _scan_full_file(path: Path) -> _FullInfo:
 
     ``ansys-mapdl-reader`` trusts the record lengths and pointers in the file; a truncated or
     corrupt file can crash the interpreter. This walks every record the reader will use (header,
-    dof, nodal equivalence and constraint records and the matrix blocks) and checks lengths,
-    trailers and index ranges.
+    dof, nodal equivalence and constraint records and the matrix blocks), decodes compressed
+    records like the library does and checks lengths, trailers and index ranges.
     """
     try:
         from ansys.mapdl.reader.common import ANSYS_BINARY_FILE_TYPES
@@ -241,8 +320,10 @@ def _scan_full_file(path: Path) -> _FullInfo:
     if file_type != _FULL_FILE_TYPE:
         kind = ANSYS_BINARY_FILE_TYPES.get(file_type, f"file of type {file_type}")
         raise _fail(path, None, f"this is an Ansys {kind}, not a .full file")
+    release = header[_VERSION_WORD : _VERSION_WORD + 1].astype("<i4").tobytes()[::-1]
+    release_text = release.decode("latin-1").strip() if release.isascii() else ""
 
-    values, after = records.read(after, ".full header")
+    values, after = records.read(after, ".full header", limit=4 * _HEADER_WORDS)
     if values.size < 40:
         raise _fail(path, None, f".full header has {values.size} words; the file is damaged")
     # the first occurrence of every key; the library's parse_header fails on a low word of a
@@ -258,6 +339,7 @@ def _scan_full_file(path: Path) -> _FullInfo:
         return (item(key + "h") << 32) | (item(key + "l") & 0xFFFFFFFF)
 
     neqn, n_nodes, numdof = item("neqn"), item("nNodes"), item("numdof")
+    analysis = item("kan")
     if item("fun04") >= 0:
         raise _fail(path, None, "frontal-assembly .full files are not supported")
     if item("extopt") in (3, 4):
@@ -295,7 +377,7 @@ def _scan_full_file(path: Path) -> _FullInfo:
     curdof, after = records.read(after, "dof record", expect=numdof)
     if np.any((curdof < 1) | (curdof > 32)):
         raise _fail(path, None, "dof record holds unknown dof numbers; the file is damaged")
-    back, _ = records.read(after, "nodal equivalence table")
+    back, _ = records.read(after, "nodal equivalence table", limit=n_nodes + words.size)
     if back.size < n_nodes or np.any(back[:n_nodes] <= 0):
         raise _fail(path, None, "nodal equivalence table is damaged")
     if long_item("ptrDOF") <= 0:
@@ -309,23 +391,54 @@ def _scan_full_file(path: Path) -> _FullInfo:
     const = np.array(const, dtype=np.int32)
 
     n_stiffness, n_mass = long_item("ntermK"), long_item("ntermM")
-    if n_stiffness <= 0:
-        raise _fail(path, None, "the file holds no stiffness matrix")
-    if n_mass <= 0:
+    n_damping, damping_pointer = long_item("ntermD"), long_item("ptrDMP")
+    if n_stiffness <= 0 or n_mass <= 0:
+        raise _fail(path, None, _what_it_holds(neqn, n_stiffness, n_damping, analysis, h))
+    if analysis == _BUCKLING:
         raise _fail(
             path,
             None,
-            "the file holds no mass matrix; write it from a modal analysis (ANTYPE,MODAL)",
+            f"the file was written by {_ANALYSES[_BUCKLING]}: its second matrix is the "
+            "stress-stiffening matrix, not a mass matrix; write the .full file from a modal "
+            "analysis (ANTYPE,MODAL with WRFULL,1)",
         )
     records.matrix(long_item("ptrSTF"), neqn, n_stiffness, "stiffness matrix")
     records.matrix(long_item("ptrMAS"), neqn, n_mass, "mass matrix")
     damping = None
-    n_damping, damping_pointer = long_item("ntermD"), long_item("ptrDMP")
     if n_damping > 0 and damping_pointer > 0:
         records.matrix(damping_pointer, neqn, n_damping, "damping matrix")
         damping = (damping_pointer, n_damping)
     directions = _full_directions(path, np.asarray(curdof), const, np.repeat(back[:n_nodes], ndof))
-    return _FullInfo(neqn=neqn, const=const, directions=directions, damping=damping)
+    return _FullInfo(
+        neqn=neqn,
+        const=const,
+        directions=directions,
+        damping=damping,
+        analysis=analysis,
+        release=release_text,
+        decoded=tuple(records.decoded),
+    )
+
+
+def _what_it_holds(
+    neqn: int, n_stiffness: int, n_damping: int, analysis: int, header: dict[str, int]
+) -> str:
+    """The one-line refusal of a ``.full`` file without K or M, naming what it holds."""
+    held = []
+    if n_stiffness > 0:
+        held.append(f"a stiffness matrix ({neqn} equations)")
+    if n_damping > 0:
+        held.append("a damping matrix")
+    pointer = (header.get("ptrRHSh", 0) << 32) | (header.get("ptrRHSl", 0) & 0xFFFFFFFF)
+    if pointer > 0:
+        held.append("a load vector")
+    holds = " and ".join(held) if held else "no matrices"
+    missing = "no mass matrix" if n_stiffness > 0 else "neither stiffness nor mass matrix"
+    source = _ANALYSES.get(analysis, f"an analysis of type {analysis}")
+    return (
+        f"the file holds {missing}, only {holds}: it was written by {source}; write the .full "
+        "file from a modal analysis (ANTYPE,MODAL with WRFULL,1)"
+    )
 
 
 def _full_directions(
@@ -362,31 +475,72 @@ def _full_directions(
 
 
 class _Records:
-    """Bounds-checked access to the records ``[n, flags, n words, n]`` of an Ansys file."""
+    """Bounds-checked access to the records ``[n, flags, n words, n]`` of an Ansys file.
+
+    ``n`` is the number of words stored; the flag byte (module docstring) tells how they encode
+    the record. The last word repeats ``n`` (Ansys' ``fddesc.inc``).
+    """
 
     def __init__(self, path: Path, words: np.ndarray) -> None:
         self.path = path
         self.words = words
+        self.decoded: list[str] = []
 
-    def read(self, pointer: int, what: str, expect: int | None = None) -> tuple[np.ndarray, int]:
-        """The data of the integer record at ``pointer`` and the pointer of the next record."""
+    def read(
+        self, pointer: int, what: str, expect: int | None = None, limit: int | None = None
+    ) -> tuple[np.ndarray, int]:
+        """The (decoded) data of the integer record at ``pointer`` and the next record's pointer.
+
+        ``expect`` is the number of items the record must hold, ``limit`` an upper bound of
+        that number for records without a known size (checked before anything is allocated).
+        """
         words = self.words
         if pointer < 0 or pointer + 2 > words.size:
             raise self._truncated(what)
-        n = int(words[pointer])
-        if expect is not None and n != expect:
-            raise _fail(self.path, None, f"{what}: {n} entries, expected {expect}; file damaged")
-        end = pointer + 2 + n
-        if n < 0 or end >= words.size:
+        stored = int(words[pointer])
+        end = pointer + 2 + stored
+        if stored < 0 or end >= words.size:
             raise self._truncated(what)
-        if int(words[end]) != n or not int(words[pointer + 1]) & 0x80000000:
+        flags = (int(words[pointer + 1]) >> 24) & 0xFF
+        if int(words[end]) != stored or not flags & _INTEGER:
+            raise _fail(self.path, None, f"{what}: unexpected record layout (damaged file)")
+        if flags & _ZLIB:
             raise _fail(
-                self.path, None, f"{what}: unexpected record layout (damaged or compressed file)"
+                self.path,
+                None,
+                f"{what}: the record is zlib-compressed, which ansys-mapdl-reader cannot read; "
+                "write the file without zlib compression (/FCOMP)",
             )
-        return words[pointer + 2 : end], end + 1
+        if flags & _SHORT:
+            raise _fail(
+                self.path,
+                None,
+                f"{what}: the record holds 16-bit integers, which ansys-mapdl-reader cannot use",
+            )
+        raw = np.asarray(words[pointer + 2 : end])
+        bound = expect if expect is not None else limit
+        if flags & _BIT_SPARSE:
+            values = _decode_bit_sparse(raw, bound, lambda why: self._bad_record(what, why))
+            self.decoded.append(f"{what} (bit-coded)")
+        elif flags & _WINDOWED:
+            values = _decode_windowed(raw, bound, lambda why: self._bad_record(what, why))
+            self.decoded.append(f"{what} (windowed)")
+        else:
+            values = raw
+            if bound is not None and values.size > bound and expect is None:
+                raise self._bad_record(what, f"{values.size} items, at most {bound} expected")
+        if expect is not None and values.size != expect:
+            raise _fail(
+                self.path, None, f"{what}: {values.size} entries, expected {expect}; file damaged"
+            )
+        return values, end + 1
 
     def matrix(self, pointer: int, neqn: int, n_terms: int, what: str) -> None:
-        """Check the block of one matrix: per equation an index and a value record."""
+        """Check the block of one matrix: per equation an index and a value record.
+
+        ``ansys-mapdl-reader`` reads these records raw (no decompression), so they must be
+        uncompressed int32 index and float64 value records.
+        """
         words = self.words
         extent = 6 * neqn + 3 * n_terms
         if pointer <= 0 or pointer + extent > words.size:
@@ -398,29 +552,118 @@ class _Records:
         for i in range(neqn):
             n = block[p]
             if not 0 <= n <= neqn or p + 3 * n + 6 > extent:
-                raise self._bad(what, i)
+                raise self._bad(what, i, block, p)
             q = p + n + 3
             if block[q - 1] != n or block[q] != 2 * n or block[q + 2 * n + 2] != 2 * n:
-                raise self._bad(what, i)
+                raise self._bad(what, i, block, p)
             starts[i], counts[i] = p + 2, n
             p = q + 2 * n + 3
         if p != extent:
             raise _fail(self.path, None, f"{what}: term count does not match the header")
+        array = np.asarray(block)
+        index_flags = (array[starts - 1] >> 24) & _FLAG_MASK
+        value_flags = (array[starts + counts + 2] >> 24) & _FLAG_MASK
+        odd = np.flatnonzero((index_flags != _INTEGER) | (value_flags != 0))
+        if odd.size:
+            i = int(odd[0])
+            raise self._odd_flags(what, i, int(index_flags[i]) | int(value_flags[i]))
         total = int(counts.sum())
         offsets = np.repeat(starts - (np.cumsum(counts) - counts), counts)
-        rows = np.asarray(block)[offsets + np.arange(total)]
+        rows = array[offsets + np.arange(total)]
         if total and (rows.min() < 1 or rows.max() > neqn):
             raise _fail(self.path, None, f"{what}: row index out of range; the file is damaged")
 
     def _truncated(self, what: str) -> UserError:
         return _fail(self.path, None, f"file is truncated or damaged (cannot read the {what})")
 
-    def _bad(self, what: str, equation: int) -> UserError:
+    def _bad(self, what: str, equation: int, block: memoryview, p: int) -> UserError:
+        """A damaged matrix record; compressed flags (if they are the cause) are named."""
+        flags = (block[p + 1] >> 24) & _FLAG_MASK if p + 1 < len(block) else _INTEGER
+        if flags != _INTEGER:
+            return self._odd_flags(what, equation, flags)
         return _fail(
             self.path,
             None,
             f"{what}: damaged record at equation {equation + 1} (truncated or corrupt file)",
         )
+
+    def _odd_flags(self, what: str, equation: int, flags: int) -> UserError:
+        """Matrix records that are not plain int32 index / float64 value records."""
+        kind = "compressed" if flags & (_BIT_SPARSE | _WINDOWED | _ZLIB) else "unexpected"
+        return _fail(
+            self.path,
+            None,
+            f"{what}: {kind} records (first at equation {equation + 1}), which "
+            "ansys-mapdl-reader reads as plain int32/float64 records; write the file without "
+            "compression (/FCOMP)",
+        )
+
+    def _bad_record(self, what: str, why: str) -> UserError:
+        return _fail(self.path, None, f"{what}: damaged compressed record ({why})")
+
+
+def _decode_bit_sparse(raw: np.ndarray, bound: int | None, fail) -> np.ndarray:
+    """A bit-coded sparse integer record: ``size, bit code``, then the values whose bit is set.
+
+    Bit ``i`` of the 32-bit code tells whether item ``i`` is stored (else it is 0).
+    """
+    if raw.size < 2:
+        raise fail("shorter than its size and bit code")
+    size = int(raw[0])
+    if not 0 <= size <= _BIT_SPARSE_ITEMS:
+        raise fail(f"bit-coded record of {size} items; at most {_BIT_SPARSE_ITEMS} are possible")
+    if bound is not None and size > bound:
+        raise fail(f"{size} items, at most {bound} expected")
+    stored = ((int(raw[1]) & 0xFFFFFFFF) >> np.arange(size)) & 1 == 1
+    count = int(stored.sum())
+    if 2 + count > raw.size:
+        raise fail(f"the bit code announces {count} values but {raw.size - 2} are stored")
+    values = np.zeros(size, dtype=np.int32)
+    values[stored] = raw[2 : 2 + count]
+    return values
+
+
+def _decode_windowed(raw: np.ndarray, bound: int | None, fail) -> np.ndarray:
+    """A windowed sparse integer record: ``size, number of windows``, then the windows.
+
+    Each window starts with a location ``loc``: ``loc > 0`` is one isolated value at index
+    ``loc``; otherwise a window starts at index ``-loc`` and a length ``len`` follows: ``len > 0``
+    values, or (``len <= 0``) one value repeated ``max(-len, 1)`` times. Items not covered are 0.
+    """
+    if raw.size < 2:
+        raise fail("shorter than its size and window count")
+    size, n_windows = int(raw[0]), int(raw[1])
+    if size < 0:
+        raise fail(f"negative size {size}")
+    if bound is not None and size > bound:
+        raise fail(f"{size} items, at most {bound} expected")
+    values = np.zeros(size, dtype=np.int32)
+    k = 2
+    for window in range(max(n_windows, 0)):
+        if k >= raw.size:
+            raise fail(f"window {window + 1} of {n_windows} is missing")
+        location = int(raw[k])
+        k += 1
+        if location > 0:
+            if location >= size or k >= raw.size:
+                raise fail(f"isolated value at {location} outside {size} items")
+            values[location] = raw[k]
+            k += 1
+            continue
+        if k >= raw.size:
+            raise fail(f"window {window + 1} has no length")
+        start, length = -location, int(raw[k])
+        k += 1
+        count = length if length > 0 else max(-length, 1)
+        if start + count > size or k + (length if length > 0 else 1) > raw.size:
+            raise fail(f"window {window + 1} ({count} items from {start}) overruns the record")
+        if length > 0:
+            values[start : start + count] = raw[k : k + count]
+            k += count
+        else:
+            values[start : start + count] = raw[k]
+            k += 1
+    return values
 
 
 def _map_words(path: Path) -> np.ndarray:
@@ -471,8 +714,8 @@ def read_ansys_mmf(
 ) -> ElasticBody:
     """Read a body from Matrix Market files exported by APDL Math plus the dof mapping file.
 
-    After a modal analysis that wrote ``Jobname.full`` (``WRFULL,1``, see
-    :func:`read_ansys_full`), export the matrices in the solver ordering with::
+    After a modal analysis of the *unconstrained* body that wrote ``Jobname.full`` (``WRFULL,1``,
+    see :func:`read_ansys_full`), export the matrices in the solver ordering with::
 
         *SMAT,MatK,D,IMPORT,FULL,Jobname.full,STIFF
         *SMAT,MatM,D,IMPORT,FULL,Jobname.full,MASS
@@ -490,14 +733,25 @@ def read_ansys_mmf(
         HBMAT,model,txt,,ASCII,STIFF,NO,YES   ! Mapping = YES writes model.mapping
         FINISH
 
-    The constrained dofs are not part of these matrices; constraint equations are already
-    applied.
+    plus the coordinates (``CDWRITE,DB,Jobname,cdb`` in ``/PREP7``, or ``nodes.csv``). Couplings
+    and constraint equations (``CP``, ``CE``, rigid MPC contact) are applied in these matrices.
 
-    Mapping file layout (``Fname.mapping``): optional header lines such as
-    ``Matrix Eqn   Node   DOF``, then one row per equation, ``equation node label`` separated by
-    blanks (or commas), e.g. ``1   1   UX``. Equation numbers count from 1 and must cover
-    ``1 .. n`` exactly once (any order); labels are ``UX UY UZ ROTX ROTY ROTZ`` (any case). Blank
-    lines and lines starting with ``!``, ``#`` or ``%`` are ignored.
+    Ansys documents neither that ``HBMAT`` numbers the equations as ``*SMAT`` does nor how it
+    treats constrained dofs, and APDL Math cannot export its own mapping vector (``NOD2BCS``).
+    The reader therefore proves the equation order with the rigid-body check: ``K`` of a body
+    without constraints to ground maps the three rigid translations (which need no
+    coordinates) and, with coordinates, the three rotations to zero; a residual above
+    :data:`RIGID_BODY_TOLERANCE` refuses the files. This requires the export of the free body
+    (constrain it later with ``fixed.csv``); a constrained model can be read from its ``.full``
+    file instead. Equations that have only a diagonal stiffness entry and no mass or damping (the
+    way Ansys keeps a constrained dof in a ``.full`` file) become fixed dofs.
+
+    Mapping file layout (``Fname.mapping``, as HBMAT writes it): a header line
+    ``Matrix Eqn   Node   DOF``, then one row per equation, ``equation node label`` in
+    columns of 14, 14 and 8 characters, e.g. ``             1             1    UX``. The reader
+    accepts any blank- or comma-separated form: equation numbers count from 1 and must cover
+    ``1 .. n`` exactly once (any order); labels are ``UX UY UZ ROTX ROTY ROTZ`` (any case).
+    Blank lines and lines starting with ``!``, ``#`` or ``%`` are ignored.
 
     Parameters
     ----------
@@ -510,23 +764,25 @@ def read_ansys_mmf(
     damping : path-like, optional
         Matrix Market file of an explicit viscous damping matrix.
     nodes : path-like, optional
-        ``nodes.csv`` (header ``id,x,y,z``) listing every node of the mapping. Without it all
-        nodes lie at the origin (see :func:`read_ansys_full` for what needs coordinates).
+        ``nodes.csv`` (header ``id,x,y,z``) or the Ansys archive (``.cdb``) listing every node of
+        the mapping. Without it all nodes lie at the origin and only the translations are
+        checked.
     name : str, optional
         Label of the body; default: the name of the mapping file without extension.
 
     Returns
     -------
     ElasticBody
-        Equations in the order of the matrices (equation ``i`` is mapping row ``i``); no fixed
-        dofs.
+        Equations in the order of the matrices (equation ``i`` is mapping row ``i``). ``notes``
+        say what the rigid-body check proved.
 
     Raises
     ------
     UserError
         A malformed, non-symmetric or non-finite matrix, matrices of different sizes, a mapping
         with the wrong number of rows, a repeated equation or (node, dof), an unknown or
-        non-structural dof label; the message is one line ``file:line: problem``.
+        non-structural dof label, an equation order the rigid-body check does not prove; the
+        message is one line ``file:line: problem``.
     """
     k_path, m_path, map_path = Path(stiffness), Path(mass), Path(mapping)
     table = _read_mapping(map_path)
@@ -534,18 +790,87 @@ def read_ansys_mmf(
     k_matrix = _read_mmf_matrix(k_path, n, map_path)
     m_matrix = _read_mmf_matrix(m_path, n, map_path)
     d_matrix = None if damping is None else _read_mmf_matrix(Path(damping), n, map_path)
-    _check_no_empty_dofs(k_matrix, m_matrix, table, np.zeros(0, dtype=np.int64), k_path)
-    node_ids, coordinates = _node_table(table, nodes, map_path)
-    return _make_body(
+    fixed = _lone_diagonals(k_matrix, m_matrix, d_matrix)
+    _check_no_empty_dofs(k_matrix, m_matrix, table, fixed, k_path)
+    geometry = _coordinates(table, nodes, map_path)
+    notes = [f"dof table: {table.describe()} in the order of the mapping file {map_path.name}"]
+    if fixed.size:
+        notes.append(
+            f"{fixed.size} equations with only a diagonal stiffness entry and no mass (Ansys' "
+            "form of a constrained dof) are fixed dofs"
+        )
+    body = _make_body(
         k_path,
-        node_ids=node_ids,
-        coordinates=coordinates,
+        node_ids=geometry.node_ids,
+        coordinates=geometry.coordinates,
         dofs=table,
         mass=m_matrix,
         stiffness=k_matrix,
         damping_matrix=d_matrix,
+        fixed=fixed,
         name=map_path.stem if name is None else name,
+        has_coordinates=geometry.source is not None,
+        notes=tuple(notes),
     )
+    return _with_note(body, _prove_mapping_order(body, map_path, geometry))
+
+
+def _lone_diagonals(
+    stiffness: sp.csr_matrix, mass: sp.csr_matrix, damping: sp.csr_matrix | None
+) -> np.ndarray:
+    """Equations with a diagonal stiffness entry, no other stiffness term and no mass/damping."""
+    k = sp.csr_matrix(stiffness)
+    diagonal = k.diagonal() != 0
+    alone = diagonal & (np.diff(k.indptr) == 1)
+    for matrix in (mass, damping):
+        if matrix is not None:
+            alone &= np.diff(sp.csr_matrix(matrix).indptr) == 0
+    return np.flatnonzero(alone)
+
+
+def _prove_mapping_order(body: ElasticBody, mapping: Path, geometry: _Geometry) -> str:
+    """Prove the equation order of an MMF export with the rigid-body check, or refuse."""
+    residuals = body.rigid_body_residuals()
+    names = _FIELD_NAMES
+    checked = range(6) if body.has_coordinates else range(3)
+    present = [j for j in checked if np.isfinite(residuals[j])]
+    if not present:
+        raise _fail(
+            mapping,
+            None,
+            "the equation order cannot be proved: the model has no translational dofs"
+            + ("" if body.has_coordinates else " and no coordinates are given (nodes)"),
+        )
+    worst = max(present, key=lambda j: residuals[j])
+    largest = float(residuals[worst])
+    if largest > RIGID_BODY_TOLERANCE:
+        if worst < 3:
+            why = (
+                "the mapping does not list the equations of these matrices, or the model is "
+                "constrained; export the matrices of the free body (no D, CP or CE to ground) or "
+                "read the .full file (format ansys-full)"
+            )
+        else:
+            why = (
+                f"the node order of the mapping or the coordinates of {geometry.source} do not "
+                "belong to these matrices"
+            )
+        raise _fail(
+            mapping,
+            None,
+            f"the equation order is not proved: K maps the rigid-body {names[worst]} to a "
+            f"residual of {largest:.1e} (at most {RIGID_BODY_TOLERANCE:g} for a free body); {why}",
+        )
+    what = "translations and rotations" if max(present) >= 3 else "translations"
+    text = (
+        f"equation order of {mapping.name} verified by the rigid-body check of the {what} "
+        f"(max residual {largest:.1e})"
+    )
+    if not body.has_coordinates:
+        text += "; rotations not checked (no coordinates)"
+    else:
+        text += f"; coordinates from {geometry.source.name}"
+    return text
 
 
 def _read_mmf_matrix(path: Path, n: int, mapping: Path) -> sp.csr_matrix:
@@ -617,6 +942,121 @@ def _ansys_label(text: str, path: Path, line: int) -> int:
     raise _fail(path, line, f"unknown dof label {text!r}, expected one of {_STRUCTURAL}")
 
 
+# ============================================================================ coordinates
+_FIELD_NAMES = (
+    "translation in x",
+    "translation in y",
+    "translation in z",
+    "rotation about x",
+    "rotation about y",
+    "rotation about z",
+)
+
+
+@dataclass(frozen=True, eq=False)
+class _Geometry:
+    """Nodes of a body and where their coordinates came from."""
+
+    node_ids: np.ndarray
+    coordinates: np.ndarray
+    source: Path | None = None  # nodes.csv or the archive; None: all nodes at the origin
+    archive: AnsysArchive | None = None
+
+
+def _coordinates(table: DofTable, nodes: PathLike | None, source: Path) -> _Geometry:
+    """Node ids and coordinates from ``nodes.csv`` or an Ansys archive, or all at the origin."""
+    if nodes is None:
+        node_ids, coordinates = _node_table(table, None, source)
+        return _Geometry(node_ids, coordinates)
+    path = Path(nodes)
+    if not path.is_file() or is_nodes_csv(path):
+        node_ids, coordinates = _node_table(table, path, source)
+        return _Geometry(node_ids, coordinates, path)
+    if not looks_like_cdb(path):
+        raise _fail(
+            path,
+            None,
+            "neither a nodes.csv (first line id,x,y,z) nor an Ansys archive (.cdb with an "
+            "NBLOCK, written by CDWRITE,DB)",
+        )
+    archive = read_cdb(path)
+    missing = np.unique(table.nodes[~np.isin(table.nodes, archive.node_ids)])
+    if missing.size:
+        more = f" and {missing.size - 1} more" if missing.size > 1 else ""
+        raise _fail(path, None, f"node {int(missing[0])}{more} of {source} is not in the NBLOCK")
+    rotated = np.isin(archive.node_ids, table.nodes) & np.any(archive.angles != 0.0, axis=1)
+    if rotated.any():
+        k = int(np.flatnonzero(rotated)[0])
+        raise _fail(
+            path,
+            None,
+            f"node {int(archive.node_ids[k])} has a rotated nodal coordinate system (angles "
+            f"{', '.join(f'{a:g}' for a in archive.angles[k])} degrees); Ansys writes the dofs "
+            "of such nodes along the rotated axes, pymorembs reads global directions",
+        )
+    return _Geometry(archive.node_ids, archive.coordinates, path, archive)
+
+
+def _check_coordinates(body: ElasticBody, geometry: _Geometry) -> str:
+    """Check the coordinates of a ``.full`` body with the rigid-body check (module docstring).
+
+    Returns the note to add; raises when the translations vanish but a rotation does not (the
+    coordinates do not belong to the matrices).
+    """
+    if geometry.source is None:
+        return "no coordinates (nodes not given): all nodes lie at the origin"
+    source = geometry.source.name
+    rows = f"all {body.n_dof - body.fixed.size} free equations"
+    probe = body
+    if body.fixed.size:
+        archive = geometry.archive
+        if archive is None or not archive.has_elements:
+            return (
+                f"coordinates from {source}, not checked: the model has constrained "
+                "dofs and no element connectivity (give the .cdb archive to check them)"
+            )
+        near = archive.neighbours(body.dofs.nodes[body.fixed])
+        excluded = np.flatnonzero(np.isin(body.dofs.nodes, near))
+        probe = body.with_fixed(excluded)
+        remaining = body.n_dof - probe.fixed.size
+        if remaining == 0:
+            return (
+                f"coordinates from {source}, not checked: every node shares an element "
+                "with a constrained node"
+            )
+        rows = f"the {remaining} equations of nodes that share no element with a constrained node"
+    residuals = probe.rigid_body_residuals()
+    translations = [j for j in range(3) if np.isfinite(residuals[j])]
+    rotations = [j for j in range(3, 6) if np.isfinite(residuals[j])]
+    worst_t = max((residuals[j] for j in translations), default=0.0)
+    if worst_t > RIGID_BODY_TOLERANCE:
+        return (
+            f"coordinates from {source}, not checked: K maps the rigid-body translations "
+            f"on {rows} to a residual of {worst_t:.1e} (prestressed or grounded model?)"
+        )
+    if rotations:
+        worst = max(rotations, key=lambda j: residuals[j])
+        if residuals[worst] > RIGID_BODY_TOLERANCE:
+            raise _fail(
+                geometry.source,
+                None,
+                f"the coordinates do not belong to the matrices: K maps the rigid-body "
+                f"{_FIELD_NAMES[worst]} of these nodes to a residual of "
+                f"{residuals[worst]:.1e} on {rows} (translations {worst_t:.1e}, at most "
+                f"{RIGID_BODY_TOLERANCE:g} expected)",
+            )
+    largest = max((residuals[j] for j in translations + rotations), default=0.0)
+    return (
+        f"coordinates from {source}, verified by the rigid-body check on {rows} "
+        f"(max residual {largest:.1e})"
+    )
+
+
+def _with_note(body: ElasticBody, note: str) -> ElasticBody:
+    """The body with one more note."""
+    return replace(body, notes=(*body.notes, note))
+
+
 # ============================================================================ shared helpers
 def _node_table(
     table: DofTable, nodes: PathLike | None, source: Path
@@ -665,16 +1105,3 @@ def _make_body(source: Path, **fields: object) -> ElasticBody:
         return ElasticBody(**fields)  # type: ignore[arg-type]
     except UserError as err:
         raise _fail(source, None, str(err)) from None
-
-
-def _reason(err: BaseException) -> str:
-    """One line describing a third-party exception."""
-    text = " ".join(str(err).split())
-    if isinstance(err, OSError) and err.strerror:
-        text = err.strerror
-    if isinstance(err, MemoryError):
-        text = "not enough memory"
-    kind = type(err).__name__
-    if kind == "error":  # e.g. struct.error
-        kind = f"{type(err).__module__}.error"
-    return f"{kind}: {text}" if text else kind

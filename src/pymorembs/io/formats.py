@@ -52,9 +52,9 @@ Detection rules (:func:`detect_format`), applied to the first bytes of the file 
 10. the first data line (blank lines and ``**`` comments skipped) holds 5 comma-separated numbers
     (``node, dof, node, dof, value``) or 3 numbers (``row, column, value``) -> ``abaqus``.
 
-Before rule 2, a MATLAB header (``MATLAB 5.0 MAT-file`` for v5 to v7, ``MATLAB 7.3 MAT-file`` for
-the HDF5-based v7.3) -> ``matlab``; after it, the OP2 label ``NASTRAN FORT TAPE ID CODE`` in
-the first 512 bytes -> ``nastran-op2``.
+Before rule 2, a MATLAB header (``MATLAB 5.0 MAT-file`` for v5 to v7, ``MATLAB 7.3 MAT-file`` or
+``MATLAB 7.0 MAT-file`` for the HDF5-based v7.3) -> ``matlab``; after it, the OP2 label
+``NASTRAN FORT TAPE ID CODE`` in the first 512 bytes -> ``nastran-op2``.
 
 Anything else is a :class:`~pymorembs.errors.UserError`
 ``path: cannot tell the file format; give --format (one of ...)``.
@@ -209,8 +209,9 @@ _BULK_CARD = re.compile(
 )
 #: Keyword lines of an Abaqus substructure matrix file (*SUBSTRUCTURE MATRIX OUTPUT).
 _SUBSTRUCTURE = re.compile(rb"(?im)^\s*\*(USER\s+ELEMENT|MATRIX\s*,\s*TYPE\s*=)")
-_MATLAB_HEADER = b"MATLAB 5.0 MAT-file"
-_MATLAB_73_HEADER = b"MATLAB 7.3 MAT-file"
+#: The text header of a MAT-file: "MATLAB 5.0 MAT-file" (v5 to v7), "MATLAB 7.3 MAT-file" (HDF5),
+#: and "MATLAB 7.0 MAT-file" of the HDF5 files written by MATLAB 7.4 (scipy's test data).
+_MATLAB_HEADER = re.compile(rb"MATLAB \d+\.\d+ MAT-file")
 _OP2_LABEL = b"NASTRAN FORT TAPE ID CODE"
 _OP4_FORMAT = re.compile(r"\d+\s*[ED]\s*\d+\.\d+", re.IGNORECASE)
 _HEAD_BYTES = 1 << 16
@@ -298,7 +299,7 @@ def _hint(path: Path, head: bytes) -> str:
 
 def _detect_head(path: Path, head: bytes) -> str | None:
     """The format from the first bytes of a file, or None."""
-    if head.startswith((_MATLAB_HEADER, _MATLAB_73_HEADER)):
+    if _MATLAB_HEADER.match(head):
         return "matlab"  # v7.3 files are HDF5 with a MATLAB user block: test them first
     for offset in [0] + [512 << k for k in range(8)]:
         if head[offset : offset + 8] == _HDF5_SIGNATURE:

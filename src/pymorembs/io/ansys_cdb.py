@@ -1,0 +1,378 @@
+"""Node coordinates and element connectivity from an Ansys Mechanical APDL archive (``.cdb``).
+
+Write the archive of the model in ``/PREP7`` (or from Mechanical: *Tools > Write Input File*)::
+
+    CDWRITE,DB,Jobname,cdb
+
+:func:`read_cdb` reads the two blocks a body needs and nothing else:
+
+``NBLOCK``
+    ``NBLOCK,NUMFIELD,SOLID,NDMAX,NDSEL``, a Fortran format line such as ``(3i9,6e21.13e3)``, then
+    one fixed-width line per node: node number (plus the solid-model entity and line location
+    when the key ``SOLID`` is given), then up to ``NUMFIELD`` reals ``x y z thxy thyz thzx``;
+    trailing zero reals are left out. The block ends with ``N,R5.3,LOC,-1,`` (or ``-1``).
+    Coordinates are global Cartesian; ``thxy thyz thzx`` are the rotation angles (degrees) of
+    the nodal coordinate system, in which Ansys writes the dofs of that node.
+``EBLOCK``
+    ``EBLOCK,NUMFIELD,SOLID,NEMAX,NESEL``, a format line such as ``(19i10)``, then per element
+    the fields ``mat type real secnum esys death solidm shape nnodes 0 number`` and the
+    ``nnodes`` node numbers, wrapped after ``NUMFIELD`` fields per line; the block ends with
+    ``-1``. Only the ``SOLID`` layout is read; blocks in another layout (contact and surface
+    elements written without the key) are skipped.
+
+Everything else in the file (commands, components, materials, loads) is ignored. The parse is
+vectorised (fixed-width fields read by NumPy); a slow pass over the lines runs only to name the
+first bad line in an error message.
+
+This module deliberately does not use ``ansys.mapdl.reader.Archive``: its C parser crashes the
+interpreter (segmentation fault or abort) on damaged archives -- 11 of 60 randomly mutated copies
+of the genuine ``HexBeam.cdb`` in a trial -- and a reader must refuse such files with a message.
+The tests compare :func:`read_cdb` with ``Archive`` on the genuine archives that ship with
+ansys-mapdl-reader.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from pymorembs.io.matrix_market import _fail, _read_lines
+
+__all__ = ["AnsysArchive", "looks_like_cdb", "read_cdb"]
+
+PathLike = str | os.PathLike[str]
+
+#: Fortran format of the NBLOCK lines, e.g. ``(3i9,6e21.13e3)`` or ``(1i8,6e20.13)``.
+_NBLOCK_FORMAT = re.compile(
+    r"^\(\s*(\d+)\s*i\s*(\d+)\s*,\s*(\d+)\s*e\s*(\d+)\s*\.\s*\d+\s*(?:e\s*\d+)?\s*\)$", re.I
+)
+#: Fortran format of the EBLOCK lines, e.g. ``(19i10)``.
+_EBLOCK_FORMAT = re.compile(r"^\(\s*(\d+)\s*i\s*(\d+)\s*\)$", re.I)
+_ELEMENT_FIELDS = 11  # mat type real secnum esys death solidm shape nnodes 0 number
+_NODE_LIMIT = 2**31  # Ansys node and element numbers are 32-bit integers
+
+
+@dataclass(frozen=True, eq=False)
+class AnsysArchive:
+    """Nodes and (optionally) elements of an Ansys archive.
+
+    Parameters
+    ----------
+    node_ids : ndarray of int, shape (n_nodes,)
+        Node numbers in the order of the NBLOCK.
+    coordinates : ndarray, shape (n_nodes, 3)
+        Global Cartesian coordinates (model length unit).
+    angles : ndarray, shape (n_nodes, 3)
+        Rotation angles ``thxy thyz thzx`` (degrees) of the nodal coordinate systems.
+    element_ids : ndarray of int, shape (n_elements,)
+        Element numbers (empty without a readable EBLOCK).
+    element_offsets : ndarray of int, shape (n_elements + 1,)
+        Element ``k`` has the nodes ``element_nodes[element_offsets[k]:element_offsets[k + 1]]``.
+    element_nodes : ndarray of int
+        Node numbers of all elements, concatenated (zeros of dropped midside nodes removed).
+    """
+
+    node_ids: np.ndarray
+    coordinates: np.ndarray
+    angles: np.ndarray
+    element_ids: np.ndarray
+    element_offsets: np.ndarray
+    element_nodes: np.ndarray
+
+    @property
+    def has_elements(self) -> bool:
+        """Whether the archive gave element connectivity."""
+        return bool(self.element_ids.size)
+
+    def neighbours(self, nodes: np.ndarray) -> np.ndarray:
+        """The nodes that share an element with one of ``nodes`` (``nodes`` included), sorted."""
+        nodes = np.unique(np.asarray(nodes, dtype=np.int64))
+        counts = np.diff(self.element_offsets)
+        hit = np.isin(self.element_nodes, nodes).astype(np.int64)
+        touched = np.zeros(counts.size, dtype=bool)
+        filled = counts > 0
+        touched[filled] = np.add.reduceat(hit, self.element_offsets[:-1][filled]) > 0
+        near = self.element_nodes[np.repeat(touched, counts)]
+        return np.union1d(near, nodes)
+
+
+def looks_like_cdb(path: Path, limit: int = 1 << 26) -> bool:
+    """Whether ``path`` holds an ``NBLOCK`` line in its first ``limit`` bytes (an Ansys archive)."""
+    pattern = re.compile(rb"(?im)^\s*NBLOCK\s*,")
+    tail = b""
+    try:
+        with open(path, "rb") as f:
+            for _ in range(limit >> 20):
+                chunk = f.read(1 << 20)
+                if not chunk:
+                    return False
+                block = tail + chunk
+                if pattern.search(block):
+                    return True
+                tail = block[block.rfind(b"\n") + 1 :][-256:]
+    except OSError:
+        return False
+    return False
+
+
+def read_cdb(path: PathLike) -> AnsysArchive:
+    """Read nodes and element connectivity from an Ansys archive (``CDWRITE``).
+
+    Parameters
+    ----------
+    path : path-like
+        The ``.cdb`` file (layout in the module docstring).
+
+    Returns
+    -------
+    AnsysArchive
+
+    Raises
+    ------
+    UserError
+        No NBLOCK, an unreadable format line, a field that is not a number, a node listed twice,
+        fewer nodes than the NBLOCK header announces, an element that names a node the NBLOCK
+        does not define; one line ``file:line: problem``.
+    """
+    path = Path(path)
+    lines = _read_lines(path, "an Ansys archive (.cdb)")
+    heads = _block_starts(lines)
+    if "NBLOCK" not in heads:
+        raise _fail(
+            path, None, "no NBLOCK (node block) in the file; write the archive with CDWRITE,DB"
+        )
+    node_ids, coordinates, angles = _read_nblock(path, lines, heads["NBLOCK"])
+    element_ids = np.zeros(0, dtype=np.int64)
+    offsets = np.zeros(1, dtype=np.int64)
+    element_nodes = np.zeros(0, dtype=np.int64)
+    if "EBLOCK" in heads:
+        read = _read_eblock(path, lines, heads["EBLOCK"])
+        if read is not None:
+            element_ids, offsets, element_nodes = read
+            unknown = ~np.isin(element_nodes, node_ids)
+            if unknown.any():
+                k = int(np.searchsorted(offsets, np.flatnonzero(unknown)[0], side="right")) - 1
+                raise _fail(
+                    path,
+                    heads["EBLOCK"] + 1,
+                    f"EBLOCK: element {int(element_ids[k])} names node "
+                    f"{int(element_nodes[unknown][0])}, which the NBLOCK does not define",
+                )
+    return AnsysArchive(node_ids, coordinates, angles, element_ids, offsets, element_nodes)
+
+
+def _block_starts(lines: list[str]) -> dict[str, int]:
+    """Index of the first ``NBLOCK`` and ``EBLOCK`` header lines."""
+    starts: dict[str, int] = {}
+    for index, text in enumerate(lines):
+        word = text.lstrip()[:6].upper()
+        if word in ("NBLOCK", "EBLOCK") and word not in starts:
+            starts[word] = index
+            if len(starts) == 2:
+                break
+    return starts
+
+
+def _header_fields(path: Path, lines: list[str], index: int) -> list[str]:
+    fields = [field.strip() for field in lines[index].split("!", 1)[0].split(",")]
+    if len(fields) < 2:
+        raise _fail(path, index + 1, f"{fields[0]} header has no field count")
+    return fields
+
+
+def _format_line(
+    path: Path, lines: list[str], index: int, block: str, form: re.Pattern[str], example: str
+) -> re.Match[str]:
+    """The Fortran format line after the block header at ``index``, matched by ``form``."""
+    if index + 1 >= len(lines):
+        raise _fail(path, index + 1, f"{block}: the format line is missing")
+    text = lines[index + 1].strip()
+    match = form.match(text)
+    if match is None:
+        raise _fail(path, index + 2, f"{block}: format {text!r} is not of the form {example}")
+    return match
+
+
+def _header_int(path: Path, line: int, text: str, what: str) -> int | None:
+    """An optional integer field of a block header (None when blank)."""
+    if not text:
+        return None
+    try:
+        value = int(text)
+    except ValueError:
+        raise _fail(path, line, f"{what} {text!r} is not an integer") from None
+    if not 0 <= value < _NODE_LIMIT:
+        raise _fail(path, line, f"{what} {value} is out of range")
+    return value
+
+
+def _block_lines(lines: list[str], first: int, end: re.Pattern[str]) -> list[str]:
+    """The data lines from ``first`` up to (not including) the first line matching ``end``."""
+    stop = first
+    while stop < len(lines) and not end.match(lines[stop]):
+        stop += 1
+    return lines[first:stop]
+
+
+_NBLOCK_END = re.compile(r"^\s*(N\s*,\s*R5\.3\s*,\s*LOC\s*,|-1\s*$)", re.I)
+_EBLOCK_END = re.compile(r"^\s*-1\s*$")
+
+
+def _fixed_width(
+    path: Path,
+    rows: list[str],
+    first_line: int,
+    widths: list[int],
+    kind: type,
+    what: str,
+    names: tuple[str, ...] = (),
+) -> np.ndarray:
+    """Fixed-width fields of ``rows`` as an array (n_rows, len(widths)); blank fields are 0.
+
+    ``names`` label the fields in messages (default: ``field 1``, ``field 2``, ...).
+    """
+    total = sum(widths)
+    if not rows:
+        return np.zeros((0, len(widths)), dtype=kind)
+    try:
+        raw = "".join(row[:total].ljust(total) for row in rows).encode("ascii")
+    except UnicodeEncodeError:
+        bad = next(k for k, row in enumerate(rows) if not row.isascii())
+        raise _fail(path, first_line + bad, f"{what}: non-ASCII character") from None
+    chars = np.frombuffer(raw, dtype="S1").reshape(len(rows), total)
+    out = np.empty((len(rows), len(widths)), dtype=kind)
+    start = 0
+    for j, width in enumerate(widths):
+        field = np.ascontiguousarray(chars[:, start : start + width]).view(f"S{width}")[:, 0]
+        field = np.where(np.char.strip(field) == b"", b"0", field)
+        try:
+            out[:, j] = field.astype(kind)
+        except (ValueError, OverflowError):
+            bad = _first_bad(field, kind)
+            text = field[bad].decode("ascii").strip()
+            label = names[j] if j < len(names) else f"field {j + 1}"
+            raise _fail(
+                path, first_line + bad, f"{what}: {label} {text!r} is not a number"
+            ) from None
+        start += width
+    if kind is float and not np.all(np.isfinite(out)):
+        bad = int(np.flatnonzero(~np.all(np.isfinite(out), axis=1))[0])
+        raise _fail(path, first_line + bad, f"{what}: a value is not a finite number")
+    return out
+
+
+def _check_width(path: Path, rows: list[str], first_line: int, total: int, what: str) -> None:
+    """Refuse a line longer than the format (another layout than the format line says)."""
+    long = next((k for k, row in enumerate(rows) if len(row.rstrip()) > total), None)
+    if long is not None:
+        raise _fail(
+            path, first_line + long, f"{what}: line is longer than its format ({total} characters)"
+        )
+
+
+def _first_bad(field: np.ndarray, kind: type) -> int:
+    """Index of the first field that does not convert (the slow pass for the message)."""
+    for k, text in enumerate(field.tolist()):
+        try:
+            value = kind(text)
+            if kind is int and not -_NODE_LIMIT < value < _NODE_LIMIT:
+                return k
+        except ValueError:
+            return k
+    return 0
+
+
+def _read_nblock(
+    path: Path, lines: list[str], index: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    fields = _header_fields(path, lines, index)
+    line = index + 1
+    n_real = _header_int(path, line, fields[1], "NBLOCK field count")
+    announced = _header_int(path, line, fields[4], "NBLOCK node count") if len(fields) > 4 else None
+    match = _format_line(path, lines, index, "NBLOCK", _NBLOCK_FORMAT, "(3i9,6e21.13e3)")
+    n_int, int_width, n_float, float_width = (int(g) for g in match.groups())
+    if not (1 <= n_int <= 3 and 1 <= int_width <= 20 and 3 <= n_float <= 6 and float_width <= 40):
+        raise _fail(path, index + 2, f"NBLOCK: unexpected format {lines[index + 1].strip()!r}")
+    if n_real is not None and n_real < n_float:
+        n_float = max(3, n_real)
+    rows = _block_lines(lines, index + 2, _NBLOCK_END)
+    first = index + 3
+    _check_width(path, rows, first, n_int * int_width + n_float * float_width, "NBLOCK")
+    numbers = _fixed_width(
+        path, rows, first, [int_width] * n_int, int, "NBLOCK", ("node number", "field 2", "field 3")
+    )
+    reals = _fixed_width(
+        path,
+        [row[n_int * int_width :] for row in rows],
+        first,
+        [float_width] * n_float,
+        float,
+        "NBLOCK",
+        ("x", "y", "z", "thxy", "thyz", "thzx"),
+    )
+    ids = numbers[:, 0].astype(np.int64)
+    if ids.size == 0:
+        raise _fail(path, line, "NBLOCK holds no nodes")
+    bad = np.flatnonzero(ids <= 0)
+    if bad.size:
+        raise _fail(
+            path, first + int(bad[0]), f"NBLOCK: node number {ids[bad[0]]} must be positive"
+        )
+    order = np.argsort(ids, kind="stable")
+    repeat = np.flatnonzero(ids[order][1:] == ids[order][:-1])
+    if repeat.size:
+        a, b = sorted((int(order[repeat[0]]), int(order[repeat[0] + 1])))
+        raise _fail(
+            path, first + b, f"NBLOCK: node {ids[a]} is listed twice (first on line {first + a})"
+        )
+    if announced is not None and announced != ids.size:
+        raise _fail(path, line, f"NBLOCK announces {announced} nodes but holds {ids.size}")
+    angles = np.zeros((ids.size, 3))
+    angles[:, : max(0, n_float - 3)] = reals[:, 3:6]
+    return ids, reals[:, :3].copy(), angles
+
+
+def _read_eblock(
+    path: Path, lines: list[str], index: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    fields = _header_fields(path, lines, index)
+    if len(fields) < 3 or fields[2].upper() != "SOLID":
+        return None  # another layout (contact, surface elements): no connectivity
+    match = _format_line(path, lines, index, "EBLOCK", _EBLOCK_FORMAT, "(19i10)")
+    per_line, width = int(match.group(1)), int(match.group(2))
+    if not (_ELEMENT_FIELDS + 1 <= per_line <= 40 and 1 <= width <= 20):
+        raise _fail(path, index + 2, f"EBLOCK: unexpected format {lines[index + 1].strip()!r}")
+    rows = _block_lines(lines, index + 2, _EBLOCK_END)
+    first = index + 3
+    _check_width(path, rows, first, per_line * width, "EBLOCK")
+    table = _fixed_width(path, rows, first, [width] * per_line, int, "EBLOCK")
+    flat = table.astype(np.int64).ravel()
+    starts: list[int] = []
+    counts: list[int] = []
+    row = 0
+    while row < len(rows):
+        n_nodes = int(table[row, 8])
+        if not 1 <= n_nodes <= 64:
+            raise _fail(
+                path, first + row, f"EBLOCK: {n_nodes} nodes per element (field 9) is not plausible"
+            )
+        starts.append(row * per_line + _ELEMENT_FIELDS)
+        counts.append(n_nodes)
+        row += -(-(_ELEMENT_FIELDS + n_nodes) // per_line)
+    if row > len(rows):
+        raise _fail(path, first + len(rows) - 1, "EBLOCK: the last element is cut short")
+    start = np.array(starts, dtype=np.int64)
+    count = np.array(counts, dtype=np.int64)
+    element_ids = flat[start - 1]
+    index_of = np.repeat(start - np.cumsum(count) + count, count) + np.arange(int(count.sum()))
+    nodes = flat[index_of]
+    keep = nodes != 0  # a dropped midside node is written as 0
+    count = (
+        np.add.reduceat(keep.astype(np.int64), np.cumsum(count) - count) if count.size else count
+    )
+    offsets = np.concatenate([[0], np.cumsum(count)]).astype(np.int64)
+    return element_ids, offsets, nodes[keep]
