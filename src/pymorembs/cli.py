@@ -310,11 +310,15 @@ def _print_facts(facts: dict[str, Any], units: str) -> None:
     print(f"eigenfrequencies [Hz]:{header}")
     zero = rigid + facts["mechanisms"]
     for k, (f, bound) in enumerate(zip(facts["eigenfrequencies_hz"], bounds, strict=True)):
-        if k < zero:
-            what = "zero-energy mode (mechanism)"
-            if k < rigid:
-                what = f"rigid-body mode: {labels[k]}" if k < len(labels) else "rigid-body mode"
+        if k < rigid:
+            what = f"rigid-body mode: {labels[k]}" if k < len(labels) else "rigid-body mode"
             print(f"  {k + 1:4d}  {f:12.4f}  ({what})")
+        elif k < zero:
+            if k == rigid:  # all mechanisms on one line
+                span = f"{k + 1}-{zero}" if zero > k + 1 else f"{k + 1}"
+                print(
+                    f"  {span:>4}  {f:12.4f}  ({facts['mechanisms']} zero-energy modes: mechanisms)"
+                )
         else:
             spread = f"  +- {bound:.3g}" if rounded else ""
             print(f"  {k + 1:4d}  {f:12.4f}{spread}")

@@ -51,6 +51,9 @@ DENSE_LIMIT = 600
 RIGID_MAX = 6
 #: Eigenpairs computed beyond the requested elastic ones to count zero-energy modes.
 PROBE_EXTRA = RIGID_MAX + 2
+#: A ratio of consecutive eigenvalues from which the lower ones count as zero-energy modes
+#: (a frequency ratio of 1000).
+GAP = 1e6
 #: The fixed-interface modes of a superelement are computed up to this many scalar coordinates.
 FIXED_INTERFACE_LIMIT = 2000
 
@@ -193,15 +196,40 @@ def _hz(values: np.ndarray) -> np.ndarray:
 
 
 def _probe(
-    prepared: PreparedModel, split: MassSplit, count: int, dense: bool
+    prepared: PreparedModel, split: MassSplit, count: int, dense: bool, eps: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The ``count`` lowest eigenpairs of the prepared system, no assumption about rigid modes."""
+    """The lowest eigenpairs of the prepared system, no assumption about rigid-body modes.
+
+    Dense: all of them. Sparse: at least ``count``, more while every computed one is a
+    zero-energy mode (a model with many mechanisms), up to ``rank(M) - 1``.
+    """
     system = prepared.system
     if dense:
         condensation = dense_condensation(_dense(system.stiffness), _dense(system.mass), split)
         values, z = sla.eigh(condensation.stiffness, condensation.mass)
-        return values[:count], condensation.expand(z[:, :count])
-    return eigenmodes(system, count)
+        return values, condensation.expand(z)
+    while True:
+        values, vectors = eigenmodes(system, count)
+        zero = _zero_energy_count(system, values, vectors, eps)
+        if zero < count or count >= split.rank - 1:
+            return values, vectors
+        count = min(2 * count, split.rank - 1)
+
+
+def _zero_energy_count(system, values: np.ndarray, vectors: np.ndarray, eps: float) -> int:
+    """How many of the lowest eigenvalues belong to zero-energy modes.
+
+    The larger of two counts: the leading eigenvalues within the first-order bound of the
+    rounding of the entries, and the modes below the first gap of :data:`GAP` in the
+    eigenvalues (a frequency ratio of 1000, which no two consecutive elastic modes show).
+    """
+    bound = eigenvalue_bounds(system.stiffness, system.mass, values, vectors, eps)
+    within = np.abs(values) <= bound
+    by_bound = int(np.argmin(within)) if not within.all() else within.size
+    magnitude = np.maximum.accumulate(np.abs(values))
+    gaps = np.flatnonzero(values[1:] > GAP * np.maximum(magnitude[:-1], 1e-300))
+    by_gap = int(gaps[0]) + 1 if gaps.size else 0
+    return max(by_bound, by_gap)
 
 
 def _rigid_body_modes(
@@ -211,10 +239,13 @@ def _rigid_body_modes(
     system = prepared.system
     stiffness, mass = system.stiffness, system.mass
     probe = min(split.rank - (0 if dense else 1), modes + PROBE_EXTRA)
-    values, vectors = _probe(prepared, split, probe, dense)
-    within = np.abs(values) <= eigenvalue_bounds(stiffness, mass, values, vectors, eps)
-    spectral = int(np.argmin(within)) if not within.all() else within.size
-    above = f"{_hz(values[spectral : spectral + 1])[0]:.4g} Hz" if spectral < values.size else "-"
+    values, vectors = _probe(prepared, split, probe, dense, eps)
+    spectral = _zero_energy_count(system, values, vectors, eps)
+    above = (
+        f"{_hz(values[spectral : spectral + 1])[0]:.4g} Hz"
+        if spectral < values.size
+        else "beyond the computed modes"
+    )
     computed = _hz(values[:spectral])
     floor = f"|f| <= {np.abs(computed).max():.3g} Hz" if spectral else ""
     body = prepared.body
@@ -226,13 +257,14 @@ def _rigid_body_modes(
         if spectral:
             explanation = (
                 f"by the spectrum (no node coordinates to cross-check): {spectral} computed "
-                f"mode{'s lie' if spectral > 1 else ' lies'} within the bound that the rounding "
-                f"of the entries puts on eigenvalues ({floor}); the next mode is at {above}"
+                f"mode{'s' if spectral > 1 else ''} with zero energy, i.e. within the bound that "
+                "the rounding of the entries puts on eigenvalues or below a gap of 1000x in "
+                f"frequency ({floor}); the next mode is at {above}"
             )
         else:
             explanation = (
                 "by the spectrum (no node coordinates to cross-check): no mode lies within the "
-                f"rounding bound; the lowest is at {above}"
+                f"rounding bound or below a gap; the lowest is at {above}"
             )
         return RigidBodyModes(
             count=count,

@@ -28,7 +28,7 @@ COMPUTATION_EPS = 1e-14
 #: not values rounded to that many digits.
 MIN_ROUNDED_DIGITS = 5
 #: Largest digit count told apart from a full double (the test below is exact up to here).
-MAX_DIGITS = 13
+MAX_DIGITS = 14
 _SAMPLE = 20_000
 
 
