@@ -197,8 +197,8 @@ def _prepared_for_info(args: argparse.Namespace) -> tuple[ElasticBody, PreparedM
             return body, prepare(body, job.frame, allow_rigid_body_modes=True)
         except UserError as exc:
             raise UserError(f"{args.model}: {exc}") from None
-    if args.model is None and not ("stiffness" in given and "mass" in given):
-        raise UserError("info: give a model file, a job file, or both --stiffness and --mass")
+    if args.model is None and "stiffness" not in given:
+        raise UserError("info: give a model file, a job file, or --stiffness and --mass")
     if args.model is not None and ("stiffness" in given or "mass" in given):
         raise UserError("info: give either a model file or --stiffness/--mass, not both")
     files = {"file": args.model} if args.model is not None else {}

@@ -560,7 +560,12 @@ def _dispatch(fmt: str, given: dict[str, Any]) -> tuple[ElasticBody, set[str]]:
                     "stiffness and mass, not a single file"
                 )
             return read_matrix_directory(path, name=g("name")), {"name"}
-        _require(fmt, given, "stiffness", "mass")
+        _require(fmt, given, "stiffness")
+        if "mass" not in given:
+            raise UserError(
+                f"{given['stiffness']}: no mass file given: this is the stiffness only; "
+                "pymorembs needs the mass matrix too (mass, --mass)"
+            )
         keys = ("stiffness", "mass", "damping", "dofs", "nodes", "constraints", "fixed", "name")
         return read_matrix_files(**{k: given[k] for k in keys if k in given}), set(keys)
     if fmt == "ansys-full":
@@ -581,7 +586,7 @@ def _dispatch(fmt: str, given: dict[str, Any]) -> tuple[ElasticBody, set[str]]:
         )
         return body, {"name"}
     if fmt == "abaqus":
-        _require(fmt, given, "stiffness", "mass")
+        _require(fmt, given, "stiffness")  # without mass the reader says what the file holds
         from pymorembs.io.abaqus import read_abaqus
 
         body = read_abaqus(
