@@ -26,6 +26,7 @@ from typing import Literal
 import numpy as np
 import scipy.sparse as sp
 
+from pymorembs.arrays import first_duplicate, missing_from, sorted_unique
 from pymorembs.errors import UserError
 
 #: The six nodal directions and the scalar coordinate ``q``, in the order of the codes 0..6.
@@ -97,8 +98,8 @@ class DofTable:
         if directions.size and (directions.min() < 0 or directions.max() > SCALAR):
             raise UserError("dof table: direction codes must be 0..6 (ux uy uz rx ry rz q)")
         key = nodes * 8 + directions
-        if np.unique(key).size != key.size:
-            dup = _first_duplicate(key)
+        dup = first_duplicate(key)
+        if dup is not None:
             raise UserError(
                 f"dof table: (node {dup // 8}, {DIRECTIONS[dup % 8]}) appears more than once"
             )
@@ -199,10 +200,10 @@ class ConstraintEquations:
                 f"constraint equations: {dependent.size} dependent dofs, "
                 f"{matrix.shape[0]} rows of G and {offset.size} offsets"
             )
-        if np.unique(dependent).size != dependent.size:
+        twice = first_duplicate(dependent)
+        if twice is not None:
             raise UserError(
-                f"constraint equations: dof {_first_duplicate(dependent)} is dependent "
-                "in more than one equation"
+                f"constraint equations: dof {twice} is dependent in more than one equation"
             )
         if not (np.all(np.isfinite(matrix.data)) and np.all(np.isfinite(offset))):
             raise UserError("constraint equations: coefficients must be finite")
@@ -364,16 +365,17 @@ class ElasticBody:
                 f"nodes: {node_ids.size} ids but coordinates of shape {coordinates.shape}, "
                 f"expected ({node_ids.size}, 3)"
             )
-        if np.unique(node_ids).size != node_ids.size:
-            raise UserError(f"nodes: node id {_first_duplicate(node_ids)} appears more than once")
+        twice = first_duplicate(node_ids)
+        if twice is not None:
+            raise UserError(f"nodes: node id {twice} appears more than once")
         if not np.all(np.isfinite(coordinates)):
             raise UserError("nodes: coordinates must be finite")
         n = len(self.dofs)
         scalar = self.dofs.scalar
-        missing = np.setdiff1d(self.dofs.nodes[~scalar], node_ids)
+        missing = missing_from(self.dofs.nodes[~scalar], node_ids)
         if missing.size:
             raise UserError(f"dof table names node {missing[0]} which is not in the node list")
-        clash = np.intersect1d(self.dofs.nodes[scalar], node_ids)
+        clash = sorted_unique(self.dofs.nodes[scalar][np.isin(self.dofs.nodes[scalar], node_ids)])
         if clash.size:
             raise UserError(
                 f"dof table: scalar coordinate {clash[0]} has the id of a node; scalar points "
@@ -404,7 +406,7 @@ class ElasticBody:
             constraints.dependent.min() < 0 or constraints.dependent.max() >= n
         ):
             raise UserError("constraint equations name a dependent dof outside the dof table")
-        fixed = np.unique(np.asarray(self.fixed, dtype=np.int64).ravel())
+        fixed = sorted_unique(np.asarray(self.fixed, dtype=np.int64))
         if fixed.size and (fixed[0] < 0 or fixed[-1] >= n):
             raise UserError("fixed dofs: an index lies outside the dof table")
         object.__setattr__(self, "node_ids", node_ids)
@@ -523,12 +525,3 @@ class ElasticBody:
         if not parts:
             return None
         return sp.csr_matrix(sum(parts[1:], parts[0]))
-
-
-def _first_duplicate(values: np.ndarray) -> int:
-    seen: set[int] = set()
-    for v in np.asarray(values).ravel():
-        if int(v) in seen:
-            return int(v)
-        seen.add(int(v))
-    raise ValueError("no duplicate")
