@@ -141,7 +141,11 @@ def test_include_sections_duplicates_and_executive(tmp_path: Path) -> None:
         ("GRID                         1.\n", 1, "GRID ID is missing"),
         ("GRID,1,,1.,2.,3.,,,,5,6\n", 1, "more than 8 data fields"),
         ("GRID,1,,1.,2.,3.\nGRID,1,,1.,2.,4.\n", 2, "GRID 1 is defined twice with different"),
-        ("INCLUDE 'missing.bdf'\n", None, "file not found (included from"),
+        (
+            "INCLUDE 'missing.bdf'\n",
+            None,
+            "file not found (expected Nastran bulk data, included from",
+        ),
         ("INCLUDE 'loop.bdf'\n", 1, "INCLUDE loop"),
         ("INCLUDE nothing\n", 1, "INCLUDE without a quoted file name"),
     ],

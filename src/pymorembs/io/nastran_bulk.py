@@ -73,6 +73,7 @@ __all__ = [
     "parse_int",
     "parse_real",
     "read_bulk",
+    "read_card_file",
     "reals_of_fields",
     "significant_digits",
 ]
@@ -196,6 +197,27 @@ def line_fields(text: str, large: bool, free: bool, path: Path, line: int) -> li
         width = 16 if large else 8
         fields = [text[8 + k * width : 8 + (k + 1) * width].strip() for k in range(count)]
     return fields + [""] * (count - len(fields))
+
+
+def read_card_file(path: Path, kind: str) -> bytes:
+    """The bytes of a Nastran text file (byte order mark removed); one-line errors.
+
+    ``kind`` says what the file should be, e.g. ``"a Nastran punch file"``; a missing file, a
+    directory, an unreadable or a binary file (UTF-16 named as such) is a :class:`UserError`.
+    """
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise _fail(path, None, f"file not found (expected {kind})") from None
+    except IsADirectoryError:
+        raise _fail(path, None, f"is a directory, expected {kind}") from None
+    except OSError as err:
+        raise _fail(path, None, f"cannot read: {err.strerror or err}") from None
+    if raw.startswith(b"\xef\xbb\xbf"):
+        raw = raw[3:]
+    if b"\x00" in raw:
+        raise _fail(path, None, f"a binary file, expected {kind}{encoding_note(raw[:512])}")
+    return raw
 
 
 def _insert_short_exponent(block: np.ndarray) -> np.ndarray:
@@ -510,20 +532,8 @@ class BulkData:
 
     # ---------------------------------------------------------------- files
     def _read_file(self, path: Path, stack: tuple[Path, ...], section: int) -> None:
-        try:
-            raw = path.read_bytes()
-        except FileNotFoundError:
-            where = f" (included from {stack[-1]})" if stack else ""
-            raise _fail(path, None, f"file not found{where}") from None
-        except IsADirectoryError:
-            raise _fail(path, None, "is a directory, expected Nastran bulk data") from None
-        except OSError as err:
-            raise _fail(path, None, f"cannot read: {err.strerror or err}") from None
-        if raw.startswith(b"\xef\xbb\xbf"):
-            raw = raw[3:]
-        if b"\x00" in raw:
-            note = encoding_note(raw[:512])
-            raise _fail(path, None, f"a binary file, expected Nastran bulk data (text){note}")
+        where = f", included from {stack[-1]}" if stack else ""
+        raw = read_card_file(path, f"Nastran bulk data{where}")
         index = len(self.paths)
         self.paths.append(path)
         if not stack and _RESULTS.search(raw[: 1 << 16]):
@@ -616,15 +626,21 @@ class BulkData:
         return np.unique(np.concatenate(ids))
 
     def _point_list(self, card: Card) -> np.ndarray:
-        """Ids of a ``SPOINT ID ID ...`` / ``SPOINT ID1 THRU ID2`` card."""
+        """Ids of a ``SPOINT ID ID ...`` / ``SPOINT ID1 THRU ID2`` card (every id of a range)."""
+        return self._ids(card, card.fields, lambda first, last: self._range(first, last, card))
+
+    def _ids(self, card: Card, fields, thru) -> np.ndarray:
+        """Ids of ``ID ID ... ID1 THRU ID2 ...`` fields; ``thru(first, last)`` gives a range."""
         out: list[np.ndarray] = []
-        words = [f for f in card.fields if f]
+        words = [f for f in fields if f]
         k = 0
         while k < len(words):
             first = self._id(words[k], card, "point id")
             if k + 2 < len(words) and words[k + 1].upper() == "THRU":
                 last = self._id(words[k + 2], card, "point id")
-                out.append(self._range(first, last, card))
+                if last < first:
+                    raise _fail(card.path, card.line, f"{card.name}: {first} THRU {last} is empty")
+                out.append(thru(first, last))
                 k += 3
             else:
                 out.append(np.array([first], dtype=np.int64))
@@ -868,33 +884,22 @@ class BulkData:
         In a THRU range only the points that exist are members: grids for components 1-6,
         scalar points for component 0 (every id when the file has no such points at all).
         """
-        out: list[np.ndarray] = []
-        words = [f for f in card.fields if f]
-        k = 0
-        while k < len(words):
-            first = self._id(words[k], card, "point id")
-            if k + 2 < len(words) and words[k + 1].upper() == "THRU":
-                last = self._id(words[k + 2], card, "point id")
-                if last < first:
-                    raise _fail(card.path, card.line, f"{card.name}: {first} THRU {last} is empty")
-                known = self.scalar_points() if mask == 0 else self.grid["ids"]
-                if known.size:
-                    out.append(known[(known >= first) & (known <= last)])
-                else:
-                    count = (last - first + 1) * max(bin(mask).count("1"), 1)
-                    if limit is not None and count > max(limit, _EAGER_RANGE):
-                        raise _fail(
-                            card.path,
-                            card.line,
-                            f"{first} THRU {last} puts {count} dofs in the a-set, more than the "
-                            f"{limit} rows of the matrices",
-                        )
-                    out.append(self._range(first, last, card))
-                k += 3
-            else:
-                out.append(np.array([first], dtype=np.int64))
-                k += 1
-        return np.concatenate(out) if out else np.zeros(0, dtype=np.int64)
+        known = self.scalar_points() if mask == 0 else self.grid["ids"]
+
+        def thru(first: int, last: int) -> np.ndarray:
+            if known.size:
+                return known[(known >= first) & (known <= last)]
+            count = (last - first + 1) * max(bin(mask).count("1"), 1)
+            if limit is not None and count > max(limit, _EAGER_RANGE):
+                raise _fail(
+                    card.path,
+                    card.line,
+                    f"{first} THRU {last} puts {count} dofs in the a-set, more than the {limit} "
+                    "rows of the matrices",
+                )
+            return self._range(first, last, card)
+
+        return self._ids(card, card.fields, thru)
 
     def _seconct_members(self) -> list[tuple[np.ndarray, np.ndarray, str, Card]]:
         """Points of the superelement on ``SECONCT`` cards (ASMBULK): grids x 123456, scalars.

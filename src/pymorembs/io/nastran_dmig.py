@@ -67,12 +67,13 @@ import numpy as np
 
 from pymorembs.body import SCALAR, DofTable, ElasticBody
 from pymorembs.io.formats import assemble_symmetric
-from pymorembs.io.matrix_market import _fail, encoding_note
+from pymorembs.io.matrix_market import _fail
 from pymorembs.io.nastran_bulk import (
     MAX_ID,
     line_fields,
     parse_int,
     parse_real,
+    read_card_file,
     significant_digits,
 )
 from pymorembs.io.nastran_matrices import (
@@ -222,21 +223,7 @@ class _Punch:
 
     def __init__(self, path: Path) -> None:
         self.path = path
-        try:
-            raw = path.read_bytes()
-        except FileNotFoundError:
-            raise _fail(path, None, "file not found (expected a Nastran punch file)") from None
-        except IsADirectoryError:
-            raise _fail(path, None, "is a directory, expected a Nastran punch file") from None
-        except OSError as err:
-            raise _fail(path, None, f"cannot read: {err.strerror or err}") from None
-        if raw.startswith(b"\xef\xbb\xbf"):
-            raw = raw[3:]
-        if b"\x00" in raw:
-            note = encoding_note(raw[:512])
-            raise _fail(
-                path, None, f"a binary file, expected a Nastran punch file with DMIG cards{note}"
-            )
+        raw = read_card_file(path, "a Nastran punch file with DMIG cards")
         lines = raw.splitlines()
         if b"\t" in raw:
             lines = [line.expandtabs(8) if b"\t" in line else line for line in lines]

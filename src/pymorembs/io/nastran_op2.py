@@ -43,7 +43,7 @@ import numpy as np
 
 from pymorembs.body import SCALAR, DofTable, ElasticBody
 from pymorembs.errors import UserError
-from pymorembs.io.checks import reason
+from pymorembs.io.checks import reason, require_file
 from pymorembs.io.matrix_market import _fail
 from pymorembs.io.nastran_matrices import (
     MatrixInfo,
@@ -141,14 +141,7 @@ def read_op2(
 
 def _read(path: Path) -> Any:
     """The pyNastran OP2 object with every matrix and the geometry tables of the file."""
-    try:
-        if not path.is_file():
-            what = "is a directory" if path.is_dir() else "file not found"
-            raise _fail(path, None, f"{what} (expected a Nastran OP2 file)")
-        if path.stat().st_size == 0:
-            raise _fail(path, None, "empty file (expected a Nastran OP2 file)")
-    except OSError as err:
-        raise _fail(path, None, f"cannot read: {reason(err)}") from None
+    require_file(path, "a Nastran OP2 file")
     _check_records(path)
     try:
         op2_type = op2_class()
@@ -182,7 +175,11 @@ def _check_records(path: Path) -> None:
                 while at + 8 <= size:
                     (n,) = struct.unpack_from(endian + "i", data, at)
                     end = at + 4 + n
-                    if n < 0 or end + 4 > size or struct.unpack_from(endian + "i", data, end)[0] != n:
+                    if (
+                        n < 0
+                        or end + 4 > size
+                        or struct.unpack_from(endian + "i", data, end)[0] != n
+                    ):
                         break
                     at = end + 4
                 if at == size:

@@ -56,7 +56,7 @@ import scipy.sparse as sp
 
 from pymorembs.body import SCALAR, DofTable, ElasticBody
 from pymorembs.errors import UserError
-from pymorembs.io.checks import reason
+from pymorembs.io.checks import reason, require_file
 from pymorembs.io.matrix_market import _fail, _read_dofs, _read_lines
 from pymorembs.io.nastran_bulk import BulkData, read_bulk
 from pymorembs.io.nastran_matrices import (
@@ -252,14 +252,7 @@ class _Op4Matrix:
 
 def _read_op4_file(path: Path) -> dict[str, _Op4Matrix]:
     """All matrices of an OP4 file, keyed by upper-case name."""
-    try:
-        if not path.is_file():
-            what = "is a directory" if path.is_dir() else "file not found"
-            raise _fail(path, None, f"{what} (expected a Nastran OP4 file)")
-        if path.stat().st_size == 0:
-            raise _fail(path, None, "empty file (expected a Nastran OP4 file)")
-    except OSError as err:
-        raise _fail(path, None, f"cannot read: {reason(err)}") from None
+    require_file(path, "a Nastran OP4 file")
     _check_dense_sizes(path)
     try:
         from pyNastran.op4.op4 import OP4
