@@ -59,7 +59,6 @@ and lines whose numbers need Nastran's short exponent form, go through the line-
 from __future__ import annotations
 
 import os
-import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -92,7 +91,6 @@ PathLike = str | os.PathLike[str]
 
 _WIDTH = 72  # columns 1-72 hold field 1 and the eight data fields; 73-80 are ignored
 _SPACE, _STAR, _PLUS, _COMMA, _DOLLAR = (ord(c) for c in " *+,$")
-_GRID_CARD = re.compile(rb"(?im)^GRID[ *,\t]")
 
 
 def read_dmig(
@@ -175,7 +173,7 @@ def read_dmig(
         notes.append(digits)
     notes += modal_block_notes(table, matrices["stiffness"], matrices["mass"])
     source = nodes
-    if source is None and _GRID_CARD.search(b"\n".join(punch.lines)):
+    if source is None and punch.has_grid:
         source = path
     grids = node_source(source)
 
@@ -264,6 +262,7 @@ class _Punch:
         names = np.empty(starts.size, dtype=object)
         fixed = np.flatnonzero(letter & ~self.free[starts])
         word = np.char.upper(np.char.strip(self.u[starts[fixed], :8].copy().view("S8").ravel()))
+        self.has_grid = bool(np.any(np.char.startswith(word, b"GRID")))
         for large in (False, True):
             cards = fixed[word == (b"DMIG*" if large else b"DMIG")]
             rows = starts[cards]
@@ -287,6 +286,7 @@ class _Punch:
         for k in np.flatnonzero(letter & self.free[starts]).tolist():  # free field: slow path
             text = self.lines[starts[k]].decode("latin-1")
             word_k = text.split(",", 1)[0].strip().upper()
+            self.has_grid |= word_k.rstrip("*") == "GRID"
             if word_k.rstrip("*") != "DMIG":
                 continue
             number = int(starts[k]) + 1
