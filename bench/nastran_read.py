@@ -2,8 +2,9 @@
 
 Writes (to a temporary folder) a bulk data file with ``--grids`` GRID cards in small, large and
 free field, and the DMIG punch (large field, D exponents, as ``PARAM,EXTOUT,DMIGPCH`` writes it)
-of a chain of ``--grids`` / 10 grids x 6 dofs, then times :func:`pymorembs.io.nastran_bulk.read_bulk`
-(with the conversion to basic coordinates) and :func:`pymorembs.io.nastran_dmig.read_dmig`. The
+of a chain of ``--grids`` / 10 grids x 6 dofs, then times
+:func:`pymorembs.io.nastran_bulk.read_bulk` (with the conversion to basic coordinates) and
+:func:`pymorembs.io.nastran_dmig.read_dmig`. The
 baseline is a plain numpy parse of the same numbers (the fixed-width fields cut out of the lines
 and converted at once), the C-speed floor for a text format.
 
