@@ -689,11 +689,16 @@ class BulkData:
             out[mine] = frame.to_basic(self.grid["xyz"][rows[mine]])
         return out
 
-    def displacement_axes(self, rows: np.ndarray, basic: np.ndarray) -> np.ndarray:
-        """Displacement directions (n, 3, 3) of the grids at ``rows`` located at ``basic``."""
+    def displacement_axes(
+        self, rows: np.ndarray, basic: np.ndarray, cd: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Displacement directions (n, 3, 3) of the grids at ``rows`` located at ``basic``.
+
+        ``cd`` overrides the grids' displacement systems (default: their CD fields).
+        """
         rows = np.asarray(rows)
         out = np.broadcast_to(np.eye(3), (rows.size, 3, 3)).copy()
-        cds = self.grid["cd"][rows]
+        cds = self.grid["cd"][rows] if cd is None else np.asarray(cd)
         for cd in np.unique(cds).tolist():
             if cd == 0:
                 continue

@@ -431,8 +431,65 @@ def build_body(
     notes.append(text)
     cd = bulk.grid["cd"][rows]
     if not (cd != 0).any():
-        return _body(source, node_ids, coordinates, table, matrices, notes, name, True, fixed)
-    axes = bulk.displacement_axes(rows, coordinates)
+        body = _body(source, node_ids, coordinates, table, matrices, notes, name, True, fixed)
+    else:
+        body = _rotated_body(source, node_ids, coordinates, table, matrices, notes, name, fixed,
+                             bulk, rows, cd)  # fmt: skip
+    # an EXTBULK punch of MSC Nastran leaves CD blank where it equals CP (se_test_n11): when
+    # only that reading passes the rigid-body check, it is the one
+    blank = bulk.grid["cd_blank"][rows] & (cp != 0)
+    if blank.any() and not _passed(body):
+        other = cd.copy()
+        other[blank] = cp[blank]
+        try:
+            alternative = _rotated_body(
+                source,
+                node_ids,
+                coordinates,
+                table,
+                matrices,
+                notes,
+                name,
+                fixed,
+                bulk,
+                rows,
+                other,
+            )
+        except UserError:  # that reading cannot even be expressed: the standard one stands
+            return body
+        if _passed(alternative):
+            shown = ", ".join(str(g) for g in node_ids[blank][:6].tolist())
+            worst = float(np.nanmax(body.rigid_body_residuals()))
+            text = (
+                f"grids {shown} have a blank CD: their components are taken along their CP "
+                f"system (CD = CP), the only reading that passes the rigid-body check (with CD = "
+                f"0 its residual is {worst:.1e})"
+            )
+            return replace(alternative, notes=(*alternative.notes, text))
+    return body
+
+
+def _passed(body: ElasticBody) -> bool:
+    residuals = body.rigid_body_residuals()
+    return bool(np.isfinite(residuals).any() and np.nanmax(residuals) <= RIGID_PASS)
+
+
+def _rotated_body(
+    source: Path,
+    node_ids: np.ndarray,
+    coordinates: np.ndarray,
+    table: DofTable,
+    matrices: dict[str, sp.csr_matrix],
+    notes: list[str],
+    name: str,
+    fixed: np.ndarray,
+    bulk: BulkData,
+    rows: np.ndarray,
+    cd: np.ndarray,
+) -> ElasticBody:
+    """The body with the grids of ``cd != 0`` rotated to basic, noted and checked."""
+    notes = list(notes)
+    axes = bulk.displacement_axes(rows, coordinates, cd)
     local = _body(source, node_ids, coordinates, table, matrices, [], name, True, fixed, False)
     rotated, new_table = _to_basic(matrices, table, node_ids, axes, cd, source)
     systems = ", ".join(str(c) for c in np.unique(cd[cd != 0]).tolist())
