@@ -87,7 +87,7 @@ MAX_RANGE = 10_000_000
 _EAGER_RANGE = 1_000_000  # THRU ranges beyond the matrix size but below this are expanded
 
 _WIDTH = 72  # columns 1-72 hold field 1 and the eight data fields; 73-80 are ignored
-_SPACE, _STAR, _PLUS, _COMMA, _DOLLAR = (ord(c) for c in " *+,$")
+_SPACE, _STAR, _PLUS, _COMMA = (ord(c) for c in " *+,")
 _SHORT_EXPONENT = re.compile(r"^([+-]?(?:\d+\.?\d*|\.\d+))([+-]\d+)$")
 _SORTED_ECHO = re.compile(rb"S O R T E D   B U L K   D A T A   E C H O")
 _INPUT_ECHO = re.compile(rb"I N P U T   B U L K   D A T A   E C H O")
@@ -348,10 +348,6 @@ def _components(text: str, path: Path, line: int, card: str) -> int:
     for c in text:
         mask |= 1 << (int(c) - 1)
     return mask
-
-
-def _mask_text(mask: int) -> str:
-    return "".join(str(c + 1) for c in range(6) if mask >> c & 1) or "0"
 
 
 # ============================================================================ the data
