@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import scipy.linalg as la
+from threadpoolctl import threadpool_limits
 
 _ROW = re.compile(r"^\s+(\d+)\s+(\d+)\s+(\S+)\s+(\S+)\s+(\S+)\s+(\S+)\s+(\S+)\s*$")
 
@@ -68,6 +69,13 @@ def dense_frequencies(
     ``rigid`` (n, r): fields removed from ``k`` first (``P^T K P`` with the M-orthogonal
     projector ``P = I - R (R^T M R)^-1 R^T M``), which gives ``r`` exact zero frequencies.
     """
+    with threadpool_limits(
+        limits=1, user_api="blas"
+    ):  # small dense problems: one thread is fastest
+        return _dense_frequencies(k, m, rigid, tol)
+
+
+def _dense_frequencies(k, m, rigid, tol) -> np.ndarray:
     k = 0.5 * (k + k.T)
     if rigid is not None:
         p = np.eye(k.shape[0]) - rigid @ np.linalg.solve(rigid.T @ m @ rigid, rigid.T @ m)
