@@ -403,7 +403,8 @@ def build_body(
                 "no coordinates: every grid at the origin (give the bulk data with the GRID "
                 "cards, the .pch/.asm or the .f06 as nodes)"
             )
-        return _body(source, node_ids, coordinates, table, matrices, notes, name, False, fixed)
+        model = _Model(source, node_ids, coordinates, table, matrices, name, fixed)
+        return _body(model, notes, False)
     if nodes.csv is not None:
         ids, xyz = nodes.csv
         order = np.argsort(ids, kind="stable")
@@ -414,7 +415,7 @@ def build_body(
             raise _grid_missing(source, int(missing[0]), nodes.path, "row", where_grid)
         coordinates = xyz[order[pos]]
         notes.append(f"coordinates of {_grids(node_ids.size)} from {nodes.path.name}")
-        return _body(source, node_ids, coordinates, table, matrices, notes, name, True, fixed)
+        return _body(_Model(source, node_ids, coordinates, table, matrices, name, fixed), notes)
     bulk = nodes.bulk
     assert bulk is not None
     rows = bulk.grid_rows(node_ids)
@@ -430,11 +431,8 @@ def build_body(
         text += f" ({int((cp != 0).sum())} located in coordinate systems {systems}, converted)"
     notes.append(text)
     cd = bulk.grid["cd"][rows]
-    if not (cd != 0).any():
-        body = _body(source, node_ids, coordinates, table, matrices, notes, name, True, fixed)
-    else:
-        body = _rotated_body(source, node_ids, coordinates, table, matrices, notes, name, fixed,
-                             bulk, rows, cd)  # fmt: skip
+    model = _Model(source, node_ids, coordinates, table, matrices, name, fixed)
+    body = _rotated_body(model, notes, bulk, rows, cd) if (cd != 0).any() else _body(model, notes)
     # an EXTBULK punch of MSC Nastran leaves CD blank where it equals CP (se_test_n11): when
     # only that reading passes the rigid-body check, it is the one
     blank = bulk.grid["cd_blank"][rows] & (cp != 0)
@@ -442,19 +440,7 @@ def build_body(
         other = cd.copy()
         other[blank] = cp[blank]
         try:
-            alternative = _rotated_body(
-                source,
-                node_ids,
-                coordinates,
-                table,
-                matrices,
-                notes,
-                name,
-                fixed,
-                bulk,
-                rows,
-                other,
-            )
+            alternative = _rotated_body(model, notes, bulk, rows, other)
         except UserError:  # that reading cannot even be expressed: the standard one stands
             return body
         if _passed(alternative):
@@ -475,23 +461,13 @@ def _passed(body: ElasticBody) -> bool:
 
 
 def _rotated_body(
-    source: Path,
-    node_ids: np.ndarray,
-    coordinates: np.ndarray,
-    table: DofTable,
-    matrices: dict[str, sp.csr_matrix],
-    notes: list[str],
-    name: str,
-    fixed: np.ndarray,
-    bulk: BulkData,
-    rows: np.ndarray,
-    cd: np.ndarray,
+    model: _Model, notes: list[str], bulk: BulkData, rows: np.ndarray, cd: np.ndarray
 ) -> ElasticBody:
     """The body with the grids of ``cd != 0`` rotated to basic, noted and checked."""
     notes = list(notes)
-    axes = bulk.displacement_axes(rows, coordinates, cd)
-    local = _body(source, node_ids, coordinates, table, matrices, [], name, True, fixed, False)
-    rotated, new_table = _to_basic(matrices, table, node_ids, axes, cd, source)
+    axes = bulk.displacement_axes(rows, model.coordinates, cd)
+    local = _body(model, [], check=False)
+    rotated, table = _to_basic(model.matrices, model.table, model.node_ids, axes, cd, model.source)
     systems = ", ".join(str(c) for c in np.unique(cd[cd != 0]).tolist())
     count = int((cd != 0).sum())
     notes.append(
@@ -499,7 +475,7 @@ def _rotated_body(
         f"coordinate system{'s' if len(systems.split(',')) > 1 else ''} CD = {systems}; the "
         "matrices were rotated to the basic system"
     )
-    body = _body(source, node_ids, coordinates, new_table, rotated, notes, name, True, fixed)
+    body = _body(replace(model, table=table, matrices=rotated), notes)
     before = local.rigid_body_residuals()
     if np.isfinite(before).any():
         worst = float(np.nanmax(before))
@@ -537,6 +513,19 @@ def _empty_rows(
     return empty
 
 
+@dataclass(frozen=True)
+class _Model:
+    """What every body of one file shares (for the candidate readings of its CD fields)."""
+
+    source: Path
+    node_ids: np.ndarray
+    coordinates: np.ndarray
+    table: DofTable
+    matrices: dict[str, sp.csr_matrix]
+    name: str
+    fixed: np.ndarray
+
+
 def _grids(count: int) -> str:
     return f"{count} grid{'s' if count != 1 else ''}"
 
@@ -547,27 +536,19 @@ def _grid_missing(source: Path, grid: int, nodes: Path, what: str, where_grid) -
 
 
 def _body(
-    source: Path,
-    node_ids: np.ndarray,
-    coordinates: np.ndarray,
-    table: DofTable,
-    matrices: dict[str, sp.csr_matrix],
-    notes: list[str],
-    name: str,
-    has_coordinates: bool,
-    fixed: np.ndarray,
-    check: bool = True,
+    model: _Model, notes: list[str], has_coordinates: bool = True, check: bool = True
 ) -> ElasticBody:
+    """The body of ``model``; with coordinates and ``check``, the rigid-body check noted."""
     body = make_body(
-        source,
-        node_ids=node_ids,
-        coordinates=coordinates,
-        dofs=table,
-        stiffness=matrices["stiffness"],
-        mass=matrices["mass"],
-        damping_matrix=matrices.get("damping"),
-        fixed=fixed,
-        name=name,
+        model.source,
+        node_ids=model.node_ids,
+        coordinates=model.coordinates,
+        dofs=model.table,
+        stiffness=model.matrices["stiffness"],
+        mass=model.matrices["mass"],
+        damping_matrix=model.matrices.get("damping"),
+        fixed=model.fixed,
+        name=model.name,
         has_coordinates=has_coordinates,
         notes=tuple(notes),
     )
