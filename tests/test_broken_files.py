@@ -257,10 +257,20 @@ CASES: list[tuple[str, int, str]] = [
         r"^stiffness_only_substructure\.mtx: the file holds only the stiffness matrix \(no "
         r"\*MATRIX, TYPE=MASS block\)",
     ),
-    # Nastran DMIG
-    ("no_mass.pch", 2, r"^no_mass\.pch: no DMIG matrix named MAAX \(mass\); the file holds: KAAX$"),
+    # Nastran DMIG, bulk data and punches without matrices
+    (
+        "no_mass.pch",
+        2,
+        r"^no_mass\.pch: holds KAAX \(stiffness\) but no mass matrix \(no MAAX\); export the "
+        r"mass matrix too or name it with --mass-name$",
+    ),
     ("complex.pch", 2, r"^complex\.pch:1: DMIG KAAX is complex \(TIN=3\); a real matrix is needed"),
-    ("scalar_point.pch", 2, r"^scalar_point\.pch:5: column 9001 with component 0 .* scalar"),
+    (
+        "scalar_and_grid.pch",
+        2,
+        r"^scalar_and_grid\.pch: point 9001 appears as a scalar point \(component 0\) and as a "
+        r"grid \(components 1-6\)$",
+    ),
     (
         "nonsym.pch",
         2,
@@ -271,10 +281,55 @@ CASES: list[tuple[str, int, str]] = [
     (
         "good.pch --nodes duplicate_grid.bdf",
         2,
-        r"^duplicate_grid\.bdf:4: GRID 101 is defined twice \(first in duplicate_grid\.bdf:2\)$",
+        r"^duplicate_grid\.bdf:4: GRID 101 is defined twice with different data \(first in "
+        r"duplicate_grid\.bdf:2\)$",
     ),
-    # Nastran OP4
-    ("body.op4", 2, r"^body\.op4: an OP4 file has no dof labels; give dofs"),
+    (
+        "two_pairs.pch",
+        2,
+        r"^two_pairs\.pch: holds several stiffness/mass pairs: KAAX/MAAX, KGG/MGG; choose one "
+        r"with --stiffness-name and --mass-name$",
+    ),
+    (
+        "results.pch",
+        2,
+        r"^results\.pch: holds no DMIG matrices: a results punch \(\$EIGENVECTOR, 2 modes of a "
+        r"normal modes analysis\); write the matrices with PARAM,EXTOUT,DMIGPCH$",
+    ),
+    (
+        "extbulk.pch",
+        2,
+        r"^extbulk\.pch: holds no DMIG matrices: Nastran bulk data \(EXTRN, 2 GRID, 2 ASET, "
+        r"SPOINT\): the EXTBULK of external superelement 7; its matrices are in the OP4 file",
+    ),
+    (
+        "good.pch --nodes cd_partial.bdf",
+        2,
+        r"^good\.pch: grid 102 has CD=5 and only components 1 of its translations in the "
+        r"matrices; its local axes mix the basic directions",
+    ),
+    (
+        "good.pch --nodes cord_loop.bdf",
+        2,
+        r"^cord_loop\.bdf:2: coordinate systems refer to each other: 5 -> 6 -> 5$",
+    ),
+    # Nastran OP4 and OP2
+    (
+        "kgg_only.op4",
+        2,
+        r"^kgg_only\.op4: holds KGG \(stiffness, 2 x 2\) but no mass matrix \(no MGG\)",
+    ),
+    (
+        "body.op4 --dofs seqgp.bdf",
+        2,
+        r"^seqgp\.bdf:3: SEQGP resequences the points, so the row order of the matrices is not "
+        r"the ascending ids",
+    ),
+    (
+        "truncated.op2",
+        2,
+        r"^truncated\.op2: cannot read the OP2 file \(truncated, damaged or not an OP2 file\)",
+    ),
     (
         "body.op4 --dofs op4_dofs_three.csv",
         2,
@@ -296,7 +351,7 @@ CASES: list[tuple[str, int, str]] = [
 
 #: Valid files that the broken ones are combined with.
 HELPERS = {"K.mtx", "M.mtx", "dofs.csv", "good_MASS1.mtx", "good_STIF1.mtx", "good.pch"}
-HELPERS |= {"op4_dofs.csv", "cube_STIF1.mtx", "cube_MASS1.mtx"}
+HELPERS |= {"op4_dofs.csv", "body.op4", "cube_STIF1.mtx", "cube_MASS1.mtx"}
 
 
 def _ids() -> list[str]:

@@ -153,7 +153,7 @@ def test_format_override(tmp_path: Path) -> None:
     dmig = write(tmp_path / "k.mtx", DMIG)
     body = read_body("nastran_dmig", file=dmig, stiffness_name="kaax", mass_name="Maax")
     np.testing.assert_array_equal(body.mass.toarray(), M_DENSE)
-    with pytest.raises(UserError, match="no DMIG matrix named KAAX") as err:
+    with pytest.raises(UserError, match="holds no DMIG matrices") as err:
         read_body("nastran-dmig", file=k)
     one_line(err)
     with pytest.raises(UserError, match="unknown format 'ansys'"):

@@ -49,6 +49,7 @@ from pymorembs.io.formats import detect_format, read_body
 from pymorembs.io.matlab import read_matlab
 from pymorembs.io.matrix_market import read_matrix_files, read_matrix_market
 from pymorembs.io.nastran_dmig import read_dmig
+from pymorembs.io.nastran_op2 import read_op2
 from pymorembs.io.nastran_op4 import read_op4
 from pymorembs.io.native import read_body_h5, write_body_h5
 
@@ -162,6 +163,78 @@ GRID           7             2.0     0.0     0.0
 ENDDATA
 """
 
+# Nastran bulk data with coordinate systems: grid 101 in a CORD2R defined in a CORD2C (a RID
+# chain), 102 in and along the cylindrical system (at theta = 0, so u_r = basic x), 205 in a
+# CORD1S at phi = 90 degrees with CD = that system (u_phi = -basic x); the DMIG_PCH grids.
+SYSTEMS_BDF = """$ coordinate systems
+BEGIN BULK
+CORD2C,2,,0.,0.,0.,0.,0.,1.,+C2
++C2,1.,0.,0.
+CORD2R*                1               2             1.0            90.0
+*                    0.0             1.0            90.0             1.0
+*                    2.0            90.0             0.0
+CORD1S,3,301,302,303
+GRID         101       1     0.5    -.25   1.5+0
+GRID,102,2,2.,0.,1.,2
+GRID*                205               3             1.0            90.0
+*                   90.0               3
+GRID         301              0.      0.      0.
+GRID         302              0.      0.      1.
+GRID         303              1.      0.      0.
+ENDDATA
+"""
+F06_ECHO = """1    TEST                                                                  PAGE     3
+0                                                 S O R T E D   B U L K   D A T A   E C H O
+                 ENTRY
+                 COUNT        .   1  ..   2  ..   3  ..   4  ..   5  ..   6  ..   7  ..   8  ..
+                    1-        CORD2R  7               0.      0.      0.      0.      0.      1.
+                    2-        +       1.      0.      0.
+                    3-        GRID    101             0.      0.      0.
+                    4-        GRID    102     7       1.      2.      3.
+                    5-        GRID*   205                             1.5             2.5
+                    6-        *       3.5
+                              ENDDATA
+0                       TOTAL COUNT=         6
+"""
+# the EXTBULK punch of a Craig-Bampton superelement: grid 11 x 123456 (CD = 10, permuted axes)
+# and modal coordinates 9001, 9002; its matrices are SE_K, SE_M (8 x 8) in se.op4
+SE_PCH = """$ EXTBULK
+BEGIN SUPER       10
+CORD2R*               10               0 0.000000000E+00 0.000000000E+00
+*        0.000000000E+00 0.100000000E+01 0.000000000E+00 0.000000000E+00
+*        0.000000000E+00 0.100000000E+01 0.000000000E+00
+EXTRN         11  123456    9001       0    9002       0
+GRID*                 11               0 0.600000000E+03 0.300000000E+03
+*        0.300000000E+03              10               0               0
+ASET          11  123456
+QSET1          0    9001    THRU    9002
+SPOINT      9001    9002
+DTI     TUG1    0       36      32      32767   0       7       0
+        PHIP            7                       REAL           1ENDREC
+"""
+SE_K = np.diag([4.0e3, 4.0e3, 4.0e3, 1.0e2, 1.0e2, 1.0e2, 9.0e4, 1.6e5])
+SE_K[0, 4] = SE_K[4, 0] = 5.0
+SE_M = np.diag([2.0, 2.0, 2.0, 0.1, 0.1, 0.1, 1.0, 1.0])
+SE_M[0, 6] = SE_M[6, 0] = 0.3
+# a DMIG punch with generic names (KGG/MGG, BGG damping, K4GG structural) and a scalar point
+NAMES_PCH = "\n".join(
+    [
+        "$ names found by their suffix; 9001 is a scalar point",
+        *_dmig_small(
+            "KGG",
+            {
+                (101, 1): [(101, 1, 2.0e3)],
+                (9001, 0): [(101, 1, -1.0e3), (9001, 0, 2.0e3)],
+            },
+        ),
+        *_dmig_small("MGG", {(101, 1): [(101, 1, 1.0)], (9001, 0): [(9001, 0, 1.0)]}),
+        *_dmig_small("BGG", {(101, 1): [(101, 1, 0.5)]}),
+        *_dmig_small("K4GG", {(101, 1): [(101, 1, 0.01)]}),
+    ]
+)
+OP2_FILE = Path(__file__).parent / "data" / "pynastran" / "op2_kgg_kelm"
+OP2_FILE = OP2_FILE / "static_solid_shell_bar_kelm.op2"
+
 
 def _record(payload: bytes) -> bytes:
     """A Fortran unformatted sequential record."""
@@ -171,12 +244,24 @@ def _record(payload: bytes) -> bytes:
 @functools.cache
 def binary_op4() -> bytes:
     """Binary OUTPUT4 (dense columns, real double) of KAAX and MAAX, written record by record."""
+    return _op4_records({"KAAX": (6, K_OP4), "MAAX": (6, M_OP4)})
+
+
+@functools.cache
+def se_op4() -> bytes:
+    """The NX EXTSEOUT matrices of SE_PCH (KXX, MXX and a 1 x 1 zero placeholder BXX1)."""
+    return _op4_records({"KXX": (6, SE_K), "MXX": (6, SE_M), "BXX1": (6, np.zeros((1, 1)))})
+
+
+def _op4_records(matrices: dict) -> bytes:
     out = b""
-    for name, (form, a) in {"KAAX": (6, K_OP4), "MAAX": (6, M_OP4)}.items():
+    for name, (form, a) in matrices.items():
         n = a.shape[0]
         out += _record(struct.pack("<4i", n, n, form, 2) + name.ljust(8).encode())
         for j in range(n):
             nonzero = np.flatnonzero(a[:, j])
+            if nonzero.size == 0:
+                continue
             first, last = nonzero[0], nonzero[-1] + 1
             values = a[first:last, j].astype("<f8")
             out += _record(struct.pack("<3i", j + 1, first + 1, 2 * values.size) + values.tobytes())
@@ -411,6 +496,30 @@ def _read_op4_aset(d: Path) -> ElasticBody:
     return read_op4(d / "body.op4", dofs=d / "aset.bdf")
 
 
+def _read_dmig_systems(d: Path) -> ElasticBody:
+    return read_dmig(d / "model.pch", nodes=d / "systems.bdf")
+
+
+def _read_dmig_f06(d: Path) -> ElasticBody:
+    return read_dmig(d / "model.pch", nodes=d / "run.f06")
+
+
+def _read_dmig_names(d: Path) -> ElasticBody:
+    return read_dmig(d / "names.pch")
+
+
+def _read_op4_extbulk(d: Path) -> ElasticBody:
+    return read_op4(d / "se.op4", dofs=d / "se.pch")
+
+
+def _read_op2(d: Path) -> ElasticBody:
+    return read_op2(d / "model.op2", mass="KGG")
+
+
+def _op2_seed() -> bytes:
+    return OP2_FILE.read_bytes()
+
+
 def _read_any(d: Path) -> ElasticBody:
     """Format detection plus the detected reader, as ``pymorembs info FILE`` does."""
     path = d / "model.dat"
@@ -516,6 +625,37 @@ TARGETS: dict[str, Target] = {
         Target("op4-ascii", "body.op4", ascii_op4, _read_op4_csv, OP4_COMPANIONS),
         Target("op4-binary", "body.op4", binary_op4, _read_op4_csv, OP4_COMPANIONS, binary=True),
         Target("op4-aset", "aset.bdf", _text(OP4_ASET), _read_op4_aset, OP4_COMPANIONS),
+        Target(
+            "bulk-systems",
+            "systems.bdf",
+            _text(SYSTEMS_BDF),
+            _read_dmig_systems,
+            (("model.pch", DMIG_PCH), ("systems.bdf", SYSTEMS_BDF)),
+        ),
+        Target(
+            "bulk-f06-echo",
+            "run.f06",
+            _text(F06_ECHO),
+            _read_dmig_f06,
+            (("model.pch", DMIG_PCH), ("run.f06", F06_ECHO)),
+        ),
+        Target("dmig-names-scalar", "names.pch", _text(NAMES_PCH), _read_dmig_names),
+        Target(
+            "op4-extbulk",
+            "se.pch",
+            _text(SE_PCH),
+            _read_op4_extbulk,
+            (("se.op4", se_op4), ("se.pch", SE_PCH)),
+        ),
+        Target(
+            "op4-names",
+            "se.op4",
+            se_op4,
+            _read_op4_extbulk,
+            (("se.op4", se_op4), ("se.pch", SE_PCH)),
+            binary=True,
+        ),
+        Target("op2", "model.op2", _op2_seed, _read_op2, binary=True),
         Target("native", "model.h5", native_h5, lambda d: read_body_h5(d / "model.h5"), (), True),
         Target("detect-text", "model.dat", _text(DMIG_PCH), _read_any, OP4_COMPANIONS),
         Target("detect-binary", "model.dat", binary_op4, _read_any, OP4_COMPANIONS, binary=True),
@@ -728,10 +868,17 @@ SLOW_TARGETS = {
     "detect-binary",
     "detect-op4-ascii",
     "detect-full",
+    "op4-names",
+    "op4-extbulk",
 }
 
 
+VERY_SLOW_TARGETS = {"op2"}  # pyNastran's OP2 reader: about 0.3 s per file
+
+
 def _examples(key: str) -> int:
+    if key in VERY_SLOW_TARGETS:
+        return 4
     return 15 if key in SLOW_TARGETS else 40
 
 
@@ -897,7 +1044,7 @@ def test_op4_aset_grid_beyond_int64() -> None:
     """Was OverflowError when the a-set became an int64 dof table."""
     content = OP4_ASET.replace("ASET1,1,2,5", "ASET1,1,2,99999999999999999999").encode()
     message = _error("op4-aset", content)
-    assert re.search(r"aset\.bdf:2: grid id '9+' is out of range", message), message
+    assert re.search(r"aset\.bdf:2: ASET1 point id '9+' is out of range", message), message
 
 
 def test_csv_node_ids_that_overflow_the_dof_keys() -> None:

@@ -1,17 +1,26 @@
 """Read stiffness, mass and damping matrices from Nastran DMIG cards (punch files).
 
 Export: MSC or Simcenter (NX) Nastran, normal modes (SOL 103), with every dof the reduction in
-pymorembs needs in the analysis set (``ASET``/``ASET1``) and no ``QSET`` (no component modes),
-and in the bulk data::
+pymorembs needs in the analysis set (``ASET``/``ASET1``), and in the bulk data::
 
     PARAM,EXTOUT,DMIGPCH
 
 (or the case control command ``EXTSEOUT(STIFFNESS,MASS,DMIGPCH)``). Nastran punches the a-set
 matrices to ``jobname.pch`` as DMIG matrices ``KAAX`` (stiffness), ``MAAX`` (mass), ``BAAX``
-(viscous damping) and ``K4AAX`` (structural damping), read with :func:`read_dmig` (``pymorembs``
-format ``nastran-dmig``). Other writers name the matrices differently (e.g. OptiStruct after its
-``DMIGNAME``); give the names as arguments. The matrices are those of the a-set after multipoint
-constraints (RBE2, MPC) were applied and after ``ASET`` reduction.
+(viscous damping) and ``K4AAX`` (structural damping), besides rectangular ones (``VAX``,
+``MUG1T``, ...) and ``DTI`` tables, which are skipped. With a ``QSET`` (component modes) the
+punch is a Craig-Bampton superelement: its modal coordinates are scalar points (component 0)
+and become scalar coordinates (direction ``q``). Read with :func:`read_dmig` (``pymorembs``
+format ``nastran-dmig``). The matrices are those of the a-set after multipoint constraints
+(RBE2, MPC) were applied and after ``ASET`` reduction.
+
+Matrix names
+    Found automatically when the file holds one stiffness/mass pair ``K<s>``/``M<s>``
+    (``KAAX``/``MAAX``, ``KGG``/``MGG``, ``KXX``/``MXX`` ...), with ``B<s>`` as viscous damping
+    (:func:`pymorembs.io.nastran_matrices.choose_matrices`); other writers (e.g. OptiStruct
+    after its ``DMIGNAME``) or files with several pairs need the names
+    (``--stiffness-name``, ``--mass-name``, ``--damping-name``). A file without DMIG cards
+    is described in the error (a results punch, the EXTBULK of a superelement, an f06 ...).
 
 Card layout (Nastran Quick Reference Guide, DMIG)::
 
@@ -23,15 +32,24 @@ Card layout (Nastran Quick Reference Guide, DMIG)::
 symmetric); ``TIN`` 1 or 2 is real single or double precision (complex 3, 4 is refused).
 Small field (8 characters), large field (``DMIG*``, 16 characters, ``*`` continuation lines) and
 free field (commas) are read; columns 73-80 (continuation labels) are ignored; tabs are expanded
-to columns of 8. Numbers may use ``E`` or ``D`` exponents or Nastran's short form ``1.5+3``.
-Components 1-6 are T1 T2 T3 R1 R2 R3 = ux uy uz rx ry rz in the displacement coordinate system
-of the grid (which must be the basic system). Scalar and extra points (component 0 or blank) are
-refused: they are not nodal displacements (e.g. the modal coordinates of a ``QSET``).
+to columns of 8. Numbers may use ``E`` or ``D`` exponents or Nastran's short form ``1.5+3``; the
+number of significant digits of the values is noted on the body (it bounds the rounding of the
+export). Components 1-6 are T1 T2 T3 R1 R2 R3 in the displacement coordinate system of the
+grid; component 0 (or blank) is a scalar point.
+
+Coordinates
+    From ``nodes``: Nastran bulk data with the GRID cards (the input deck, an include file,
+    the EXTBULK ``.pch`` or ASMBULK ``.asm`` of a superelement) or the ``.f06`` of the run
+    (its sorted bulk data echo), read by :mod:`pymorembs.io.nastran_bulk` with the ``CP``
+    coordinate systems (CORD1R/C/S, CORD2R/C/S); or a ``nodes.csv``. Without ``nodes``, GRID
+    cards in the punch itself are used; otherwise every grid lies at the origin
+    (``has_coordinates`` false). Grids with a displacement coordinate system ``CD`` have their
+    matrix rows rotated to the basic system (:mod:`pymorembs.io.nastran_matrices`).
 
 Matrix names are compared without regard to case. Stiffness, mass and damping may cover different
-(grid, component) sets: the dof table is their union sorted by grid and component, and a matrix is
-zero where it has no entry (a dof without mass is massless). Identical repeated entries are read
-once; the same position with two values is an error naming both lines.
+(grid, component) sets: the dof table is their union sorted by point id and component, and a
+matrix is zero where it has no entry (a dof without mass is massless). Identical repeated entries
+are read once; the same position with two values is an error naming both lines.
 
 Large files are parsed with numpy: the lines are classified by their first byte, the fixed-width
 fields of all entry lines are cut out as one array and converted at once; only free-field lines,
@@ -41,32 +59,44 @@ and lines whose numbers need Nastran's short exponent form, go through the line-
 from __future__ import annotations
 
 import os
-import re
-from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from pymorembs.body import DofTable, ElasticBody
-from pymorembs.errors import UserError
-from pymorembs.io.formats import assemble_symmetric, collect_nodes, is_nodes_csv, read_text
-from pymorembs.io.matrix_market import _fail, _read_nodes, encoding_note
+from pymorembs.body import SCALAR, DofTable, ElasticBody
+from pymorembs.io.formats import assemble_symmetric
+from pymorembs.io.matrix_market import _fail
+from pymorembs.io.nastran_bulk import (
+    MAX_ID,
+    line_fields,
+    parse_int,
+    parse_real,
+    read_card_file,
+    significant_digits,
+)
+from pymorembs.io.nastran_matrices import (
+    MatrixInfo,
+    build_body,
+    choose_matrices,
+    digits_note,
+    explain_file,
+    modal_block_notes,
+    node_source,
+)
 
-__all__ = ["read_dmig", "read_grid_nodes"]
+__all__ = ["read_dmig"]
 
 PathLike = str | os.PathLike[str]
 
 _WIDTH = 72  # columns 1-72 hold field 1 and the eight data fields; 73-80 are ignored
 _SPACE, _STAR, _PLUS, _COMMA, _DOLLAR = (ord(c) for c in " *+,$")
-_MAX_INT = 2**31 - 1  # largest Nastran integer (ids are 32-bit)
-_SHORT_EXPONENT = re.compile(r"^([+-]?(?:\d+\.?\d*|\.\d+))([+-]\d+)$")
 
 
 def read_dmig(
     path: PathLike,
-    stiffness: str = "KAAX",
-    mass: str = "MAAX",
+    stiffness: str | None = None,
+    mass: str | None = None,
     damping: str | None = None,
     nodes: PathLike | None = None,
     name: str | None = None,
@@ -80,33 +110,39 @@ def read_dmig(
     ----------
     path : path-like
         The punch file (``.pch``) or any bulk data file with DMIG cards.
-    stiffness, mass : str
-        Names of the stiffness and mass matrices (any case), default ``KAAX`` and ``MAAX``.
+    stiffness, mass : str, optional
+        Names of the stiffness and mass matrices (any case); default: the one pair
+        ``K<s>``/``M<s>`` of the file (``KAAX``/``MAAX`` for ``PARAM,EXTOUT,DMIGPCH``).
     damping : str, optional
-        Name of a viscous damping matrix (e.g. ``BAAX``).
+        Name of a viscous damping matrix; default ``B<s>`` (e.g. ``BAAX``) if the file has it.
     nodes : path-like, optional
-        Coordinates: a Nastran bulk data file with GRID cards (:func:`read_grid_nodes`) or a
-        ``nodes.csv`` (header ``id,x,y,z``). Without it every grid lies at the origin.
+        Coordinates: Nastran bulk data, the superelement ``.pch``/``.asm``, the ``.f06`` with
+        its bulk data echo, or a ``nodes.csv`` (header ``id,x,y,z``).
     name : str, optional
         Label of the body; default: the file name without extension.
 
     Returns
     -------
     ElasticBody
+        Equations sorted by point id and component, in the basic coordinate system; scalar
+        points as scalar coordinates; notes on what was found and checked.
 
     Raises
     ------
     UserError
-        A missing matrix (the message lists the matrices in the file), a malformed card, a
-        complex or rectangular matrix, a scalar point, a non-symmetric matrix, conflicting
-        duplicate entries, or a grid missing in ``nodes``; one line ``file:line: ...``.
+        No DMIG matrices (the message says what the file holds), a missing or ambiguous matrix
+        name (the message lists the matrices), a malformed card, a complex or rectangular
+        matrix, a non-symmetric matrix, conflicting duplicate entries, a grid missing in
+        ``nodes``; one line ``file:line: ...``.
     """
     path = Path(path)
-    roles = {"stiffness": stiffness, "mass": mass}
-    if damping is not None:
-        roles["damping"] = damping
-    wanted = {role: str(matrix).strip().upper() for role, matrix in roles.items()}
     punch = _Punch(path)
+    choice = choose_matrices(
+        punch.infos(), path, "DMIG matrix", stiffness=stiffness, mass=mass, damping=damping
+    )
+    wanted = {"stiffness": choice.stiffness, "mass": choice.mass}
+    if choice.damping is not None:
+        wanted["damping"] = choice.damping
     punch.check_present(wanted)
     names = list(dict.fromkeys(wanted.values()))
     entries = punch.entries(names)
@@ -130,25 +166,32 @@ def read_dmig(
             label=table.label,
             storage="symmetric" if ifo == 6 else "square",
         )
+    notes = list(choice.notes)
+    notes.append(f"dof table from the DMIG labels: {table.describe()}")
+    digits = digits_note(entries.digits, ", ".join(names))
+    if digits is not None:
+        notes.append(digits)
+    notes += modal_block_notes(table, matrices["stiffness"], matrices["mass"])
+    source = nodes
+    if source is None and punch.has_grid:
+        source = path
+    grids = node_source(source)
 
-    _, first = np.unique(table.nodes, return_index=True)
-    node_ids = table.nodes[np.sort(first)]
-    if nodes is None:
-        coordinates = np.zeros((node_ids.size, 3))
-    else:
-        coordinates = _coordinates(Path(nodes), node_ids, path, entries, punch)
-    try:
-        return ElasticBody(
-            node_ids=node_ids,
-            coordinates=coordinates,
-            dofs=table,
-            mass=matrices["mass"],
-            stiffness=matrices["stiffness"],
-            damping_matrix=matrices.get("damping"),
-            name=path.stem if name is None else name,
-        )
-    except UserError as err:
-        raise UserError(f"{path}: {err}") from None
+    def where_grid(grid: int) -> int:
+        candidates = [int(entries.line[k]) for k in np.flatnonzero(entries.grid == grid)[:1]]
+        column = punch.column_line(grid)
+        candidates += [] if column is None else [column]
+        return min(candidates) + 1
+
+    return build_body(
+        path,
+        table,
+        matrices,
+        grids,
+        notes,
+        path.stem if name is None else name,
+        where_grid=where_grid,
+    )
 
 
 # ============================================================================ punch file
@@ -160,8 +203,9 @@ class _Entries:
     line: np.ndarray  # line index (from 0)
     value: np.ndarray
     grid: np.ndarray  # row grid
-    row_key: np.ndarray  # grid * 8 + component - 1
+    row_key: np.ndarray  # grid * 8 + direction code (SCALAR for component 0)
     col_key: np.ndarray
+    digits: np.ndarray  # significant digits of each value
 
 
 _OTHER, _COLUMN, _HEADER = 0, 1, 2
@@ -177,21 +221,7 @@ class _Punch:
 
     def __init__(self, path: Path) -> None:
         self.path = path
-        try:
-            raw = path.read_bytes()
-        except FileNotFoundError:
-            raise _fail(path, None, "file not found (expected a Nastran punch file)") from None
-        except IsADirectoryError:
-            raise _fail(path, None, "is a directory, expected a Nastran punch file") from None
-        except OSError as err:
-            raise _fail(path, None, f"cannot read: {err.strerror or err}") from None
-        if raw.startswith(b"\xef\xbb\xbf"):
-            raw = raw[3:]
-        if b"\x00" in raw:
-            note = encoding_note(raw[:512])
-            raise _fail(
-                path, None, f"a binary file, expected a Nastran punch file with DMIG cards{note}"
-            )
+        raw = read_card_file(path, "a Nastran punch file with DMIG cards")
         lines = raw.splitlines()
         if b"\t" in raw:
             lines = [line.expandtabs(8) if b"\t" in line else line for line in lines]
@@ -232,6 +262,7 @@ class _Punch:
         names = np.empty(starts.size, dtype=object)
         fixed = np.flatnonzero(letter & ~self.free[starts])
         word = np.char.upper(np.char.strip(self.u[starts[fixed], :8].copy().view("S8").ravel()))
+        self.has_grid = bool(np.any(np.char.startswith(word, b"GRID")))
         for large in (False, True):
             cards = fixed[word == (b"DMIG*" if large else b"DMIG")]
             rows = starts[cards]
@@ -255,15 +286,16 @@ class _Punch:
         for k in np.flatnonzero(letter & self.free[starts]).tolist():  # free field: slow path
             text = self.lines[starts[k]].decode("latin-1")
             word_k = text.split(",", 1)[0].strip().upper()
+            self.has_grid |= word_k.rstrip("*") == "GRID"
             if word_k.rstrip("*") != "DMIG":
                 continue
             number = int(starts[k]) + 1
-            fields = _line_fields(text, word_k.endswith("*"), True, self.path, number)
+            fields = line_fields(text, word_k.endswith("*"), True, self.path, number)
             names[k] = fields[0].upper()
-            gj = _int(fields[1], self.path, number, "column grid GJ (field 3)")
+            gj = parse_int(fields[1], self.path, number, "column grid GJ (field 3)")
             self.card_kind[k] = _HEADER if gj == 0 else _COLUMN
             self.card_gj[k] = gj
-            self.card_cj[k] = _int(fields[2] or "0", self.path, number, "column component CJ")
+            self.card_cj[k] = parse_int(fields[2] or "0", self.path, number, "column component CJ")
             self.card_large[k] = word_k.endswith("*")
         dmig = np.flatnonzero(self.card_kind != _OTHER)
         codes: dict[str, int] = {}
@@ -297,8 +329,8 @@ class _Punch:
             )
         fields = self._card_fields(cards[0])
         number = first + 1
-        ifo = _int(fields[2], self.path, number, f"form IFO (field 4) of DMIG {matrix}")
-        tin = _int(fields[3], self.path, number, f"type TIN (field 5) of DMIG {matrix}")
+        ifo = parse_int(fields[2], self.path, number, f"form IFO (field 4) of DMIG {matrix}")
+        tin = parse_int(fields[3], self.path, number, f"type TIN (field 5) of DMIG {matrix}")
         if tin in (3, 4):
             raise _fail(
                 self.path, number, f"DMIG {matrix} is complex (TIN={tin}); a real matrix is needed"
@@ -326,8 +358,25 @@ class _Punch:
                 continue
             text = self.lines[i].decode("latin-1")
             large = bool(self.card_large[card]) if i == first else bool(self.large_line[i])
-            fields.extend(_line_fields(text, large, bool(self.free[i]), self.path, i + 1))
+            fields.extend(line_fields(text, large, bool(self.free[i]), self.path, i + 1))
         return fields
+
+    def infos(self) -> dict[str, MatrixInfo]:
+        """The DMIG matrices of the file (``square`` from the header's IFO when it reads).
+
+        A file without DMIG cards raises :class:`UserError` saying what it holds instead.
+        """
+        if not self.names:
+            raise _fail(self.path, None, f"holds no DMIG matrices: {explain_file(self.path)}")
+        out = {}
+        for name in self.names:
+            square = True
+            cards = self.header_cards.get(name)
+            if cards:
+                field = self._card_fields(cards[0])[2] if cards else ""
+                square = field.strip() not in ("2", "9")
+            out[name] = MatrixInfo(name, None, square)
+        return out
 
     def check_present(self, wanted: dict[str, str]) -> None:
         """Raise :class:`UserError` if a wanted matrix has no cards or no header."""
@@ -362,7 +411,7 @@ class _Punch:
         codes = [self.names.index(m) for m in matrices]
         want = (self.card_kind == _COLUMN) & np.isin(self.card_matrix, codes)
         gj, cj = self.card_gj, self.card_cj
-        bad = np.flatnonzero(want & ((gj <= 0) | (cj < 1) | (cj > 6)))
+        bad = np.flatnonzero(want & ((gj <= 0) | (cj < 0) | (cj > 6)))
         if bad.size:
             k = int(bad[0])
             _check_dof(self.path, int(self.card_first[k]) + 1, "column", int(gj[k]), int(cj[k]))
@@ -399,6 +448,7 @@ class _Punch:
         used = ~(fields == _SPACE).all(axis=(1, 2))
         fields, lines, slots = fields[used], lines[used], slots[used]
         grid, component, value = self._convert(fields, lines)
+        digits = significant_digits(fields[:, 2])
 
         free_lines = np.flatnonzero(mine & self.free)  # free field: slow path
         if free_lines.size:
@@ -408,10 +458,11 @@ class _Punch:
             grid = np.concatenate([grid, extra[2]])
             component = np.concatenate([component, extra[3]])
             value = np.concatenate([value, extra[4]])
+            digits = np.concatenate([digits, extra[5]])
 
         order = np.argsort(lines * 8 + slots, kind="stable")
         lines, grid, component, value = lines[order], grid[order], component[order], value[order]
-        bad = np.flatnonzero((grid <= 0) | (component < 1) | (component > 6))
+        bad = np.flatnonzero((grid <= 0) | (component < 0) | (component > 6))
         if bad.size:
             k = int(bad[0])
             _check_dof(self.path, int(lines[k]) + 1, "row", int(grid[k]), int(component[k]))
@@ -419,8 +470,9 @@ class _Punch:
         lookup = np.full(max(len(self.names), 1), -1, dtype=np.int64)
         lookup[codes] = np.arange(len(codes))
         matrix = lookup[self.card_matrix[card]]
-        col_key = self.card_gj[card] * 8 + self.card_cj[card] - 1
-        return _Entries(matrix, lines, value, grid, grid * 8 + component - 1, col_key)
+        col_key = self.card_gj[card] * 8 + _direction(self.card_cj[card])
+        row_key = grid * 8 + _direction(component)
+        return _Entries(matrix, lines, value, grid, row_key, col_key, digits[order])
 
     def _convert(
         self, fields: np.ndarray, lines: np.ndarray
@@ -448,7 +500,7 @@ class _Punch:
         except ValueError:  # Nastran short exponents (1.5+3) or a bad field
             value = np.array(
                 [
-                    _real(_text(values[k]), self.path, int(lines[k]) + 1, "value")
+                    parse_real(_text(values[k]), self.path, int(lines[k]) + 1, "value")
                     for k in range(values.shape[0])
                 ],
                 dtype=np.float64,
@@ -463,27 +515,27 @@ class _Punch:
         except (ValueError, OverflowError):  # a bad field, or one only Python reads
             values = np.array(
                 [
-                    _int(_text(field[k]), self.path, int(lines[k]) + 1, what)
+                    parse_int(_text(field[k]), self.path, int(lines[k]) + 1, what)
                     for k in range(field.shape[0])
                 ],
                 dtype=np.int64,
             )
-        outside = np.flatnonzero(np.abs(values) > _MAX_INT)
+        outside = np.flatnonzero(np.abs(values) > MAX_ID)
         if outside.size:
             k = int(outside[0])
-            _int(_text(field[k]), self.path, int(lines[k]) + 1, what)
+            parse_int(_text(field[k]), self.path, int(lines[k]) + 1, what)
         return values
 
     def _free_entries(self, free_lines: np.ndarray, start_large: np.ndarray) -> tuple:
         """Entries of free-field lines: (lines, slots, grids, components, values)."""
-        out: list[list] = [[], [], [], [], []]
+        out: list[list] = [[], [], [], [], [], []]
         for i in free_lines.tolist():
             text = self.lines[i].decode("latin-1")
             number = i + 1
             if self.start[i]:
-                fields = _line_fields(text, bool(start_large[i]), True, self.path, number)[4:]
+                fields = line_fields(text, bool(start_large[i]), True, self.path, number)[4:]
             else:
-                fields = _line_fields(text, bool(self.large_line[i]), True, self.path, number)
+                fields = line_fields(text, bool(self.large_line[i]), True, self.path, number)
             for slot in range(len(fields) // 4):
                 g, c, a, _ = fields[4 * slot : 4 * slot + 4]
                 if not (g or c or a):
@@ -493,214 +545,37 @@ class _Punch:
                     raise _fail(self.path, number, f"entry without a {what}; is the line cut?")
                 out[0].append(i)
                 out[1].append(slot + (1 if self.start[i] else 0))
-                out[2].append(_int(g, self.path, number, "row grid"))
-                out[3].append(_int(c or "0", self.path, number, "row component"))
-                out[4].append(_real(a, self.path, number, "value"))
+                out[2].append(parse_int(g, self.path, number, "row grid"))
+                out[3].append(parse_int(c or "0", self.path, number, "row component"))
+                out[4].append(parse_real(a, self.path, number, "value"))
+                out[5].append(a.encode("latin-1")[:24])
         return (
             np.array(out[0], dtype=np.int64),
             np.array(out[1], dtype=np.int64),
             np.array(out[2], dtype=np.int64),
             np.array(out[3], dtype=np.int64),
             np.array(out[4], dtype=np.float64),
+            significant_digits(
+                np.array(out[5], dtype="S24").view(np.uint8).reshape(-1, 24)
+                if out[5]
+                else np.zeros((0, 24), dtype=np.uint8)
+            ),
         )
 
 
 # ============================================================================ fields and numbers
-def _line_fields(text: str, large: bool, free: bool, path: Path, line: int) -> list[str]:
-    """The data fields (2-9 small, 2-5 large) of one line, stripped; missing ones are ``""``.
-
-    A free-field line may hold one more field, the continuation marker (blank or ``+...``);
-    more fields would be lost, so they are an error.
-    """
-    count = 4 if large else 8
-    if free:
-        parts = [p.strip() for p in text.split(",")][1:]
-        fields = parts[:count]
-        extra = parts[count:]
-        if len(extra) > 1 or (extra and extra[0] and extra[0][0] not in "+*"):
-            raise _fail(
-                path,
-                line,
-                f"free-field line with more than {count} data fields; continue the card on the "
-                "next line",
-            )
-    else:
-        width = 16 if large else 8
-        fields = [text[8 + k * width : 8 + (k + 1) * width].strip() for k in range(count)]
-    return fields + [""] * (count - len(fields))
-
-
 def _text(field: np.ndarray) -> str:
     return bytes(field).decode("latin-1").strip()
-
-
-def _int(text: str, path: Path, line: int, what: str) -> int:
-    """A Nastran integer field; ids and codes lie within +-(2**31 - 1)."""
-    text = text.strip()
-    try:
-        value = int(text)
-    except ValueError:
-        problem = "is missing" if not text else f"{text!r} is not an integer"
-        raise _fail(path, line, f"{what} {problem}") from None
-    if abs(value) > _MAX_INT:
-        raise _fail(path, line, f"{what} {text!r} is out of range (Nastran ids are below 2**31)")
-    return value
-
-
-def _real(text: str, path: Path, line: int, what: str) -> float:
-    """A Nastran real: ``1.5E+3``, ``1.5D+3``, ``1.5+3``, ``-.5``, ``3.``."""
-    text = text.strip().upper().replace("D", "E")
-    try:
-        return float(text)
-    except ValueError:
-        pass
-    match = _SHORT_EXPONENT.match(text)
-    if match:
-        return float(f"{match.group(1)}E{match.group(2)}")
-    problem = "is missing" if not text else f"{text!r} is not a number"
-    raise _fail(path, line, f"{what} {problem}")
 
 
 def _check_dof(path: Path, line: int, what: str, grid: int, component: int) -> None:
     if grid <= 0:
         raise _fail(path, line, f"{what} grid {grid} is not a valid grid id")
-    if component == 0:
-        raise _fail(
-            path,
-            line,
-            f"{what} {grid} with component 0 (or blank) is a scalar or extra point; pymorembs "
-            "reads grid-point dofs (components 1-6) only: export without scalar points "
-            "(no QSET/SPOINT modal coordinates)",
-        )
-    if not 1 <= component <= 6:
-        raise _fail(path, line, f"{what} component {component} of grid {grid} is not 1-6")
+    if not 0 <= component <= 6:
+        raise _fail(path, line, f"{what} component {component} of grid {grid} is not 0-6")
 
 
-# ============================================================================ coordinates
-def _coordinates(
-    nodes: Path, node_ids: np.ndarray, path: Path, entries: _Entries, punch: _Punch
-) -> np.ndarray:
-    """Coordinates of ``node_ids`` from GRID cards or ``nodes.csv``."""
-    csv = is_nodes_csv(nodes)
-    ids, xyz = _read_nodes(nodes) if csv else read_grid_nodes(nodes)
-    order = np.argsort(ids, kind="stable")
-    sorted_ids = ids[order]
-    pos = np.searchsorted(sorted_ids, node_ids)
-    found = np.zeros(node_ids.size, dtype=bool)
-    inside = pos < sorted_ids.size
-    found[inside] = sorted_ids[pos[inside]] == node_ids[inside]
-    if not found.all():
-        grid = int(node_ids[np.flatnonzero(~found)[0]])
-        candidates = [int(entries.line[k]) for k in np.flatnonzero(entries.grid == grid)[:1]]
-        column = punch.column_line(grid)
-        candidates += [] if column is None else [column]
-        where = "row" if csv else "GRID card"
-        raise _fail(path, min(candidates) + 1, f"grid {grid} has no {where} in {nodes}")
-    return xyz[order[pos]]
-
-
-def read_grid_nodes(path: PathLike) -> tuple[np.ndarray, np.ndarray]:
-    """Grid ids and coordinates of the GRID cards of a Nastran bulk data file.
-
-    ``GRID ID CP X1 X2 X3 CD PS SEID`` in small, large (``GRID*``) or free field; ``INCLUDE``
-    statements (one line, quoted file name, relative to the including file) are followed. A
-    coordinate system other than the basic one (``CP`` or ``CD`` not blank or 0, also through
-    ``GRDSET``) is a :class:`UserError`: CP coordinates would need the coordinate system
-    definitions, and with CD the DMIG components would not be the global directions.
-
-    Returns
-    -------
-    ids : ndarray of int, shape (n_grids,)
-    coordinates : ndarray, shape (n_grids, 3)
-    """
-    return collect_nodes(_scan_bulk, path)
-
-
-def _scan_bulk(
-    path: Path,
-    ids: list[int],
-    xyz: list[tuple[float, float, float]],
-    seen: dict[int, tuple[Path, int]],
-    stack: tuple[Path, ...],
-) -> None:
-    resolved = path.resolve()
-    if resolved in stack:
-        raise _fail(path, None, "INCLUDE loop: the file includes itself")
-    for card, fields, number in _bulk_cards(path):
-        if card == "INCLUDE":
-            _scan_bulk(path.parent / fields[0], ids, xyz, seen, (*stack, resolved))
-            continue
-        fields = fields + [""] * (8 - len(fields))
-        if card == "GRDSET":
-            for value, what in ((fields[1], "CP"), (fields[5], "CD")):
-                if value not in ("", "0"):
-                    raise _fail(
-                        path,
-                        number,
-                        f"GRDSET sets {what}={value}; only the basic coordinate system is "
-                        "supported (not supported: local coordinate systems)",
-                    )
-            continue
-        grid = _int(fields[0], path, number, "GRID id")
-        if fields[1] not in ("", "0"):
-            raise _fail(
-                path,
-                number,
-                f"GRID {grid} has CP={fields[1]}: coordinates in a local coordinate system are not "
-                "supported; give them in the basic system (CP blank or 0)",
-            )
-        if fields[5] not in ("", "0"):
-            raise _fail(
-                path,
-                number,
-                f"GRID {grid} has CD={fields[5]}: its dofs are in a local coordinate system, so "
-                "the matrix components are not global ux..rz; this is not supported",
-            )
-        coords = tuple(
-            0.0 if not fields[2 + a] else _real(fields[2 + a], path, number, f"X{a + 1}")
-            for a in range(3)
-        )
-        if not all(np.isfinite(coords)):
-            raise _fail(path, number, f"GRID {grid} has a coordinate that is not finite")
-        if grid in seen:
-            first_path, first_line = seen[grid]
-            raise _fail(
-                path, number, f"GRID {grid} is defined twice (first in {first_path}:{first_line})"
-            )
-        seen[grid] = (path, number)
-        ids.append(grid)
-        xyz.append((coords[0], coords[1], coords[2]))
-
-
-def _bulk_cards(path: Path) -> Iterator[tuple[str, list[str], int]]:
-    """(card name, data fields, line) of the GRID, GRDSET and INCLUDE cards of a bulk file."""
-    wanted = ("GRID", "GRDSET")
-    current: tuple[str, list[str], int] | None = None
-    for number, raw in enumerate(read_text(path, "a Nastran bulk data file").split("\n"), 1):
-        line = raw.expandtabs(8) if "\t" in raw else raw
-        if not line.strip() or line.startswith("$"):
-            continue
-        first = line[0]
-        free = "," in line
-        if first.isalpha():
-            if current is not None:
-                yield current
-                current = None
-            word = (line.split(",", 1)[0] if free else line[:8]).strip().upper()
-            if word.startswith("INCLUDE"):
-                quoted = re.search(r"'([^']*)'", line)
-                if quoted is None:
-                    raise _fail(path, number, "INCLUDE without a quoted file name on the line")
-                yield "INCLUDE", [quoted.group(1).strip()], number
-                continue
-            base = word.rstrip("*")
-            if base in wanted:
-                current = (base, _line_fields(line, word.endswith("*"), free, path, number), number)
-        elif first in "+*, ":
-            if current is not None:
-                current[1].extend(_line_fields(line, first == "*", free, path, number))
-        elif current is not None:
-            yield current
-            current = None
-    if current is not None:
-        yield current
+def _direction(component: np.ndarray) -> np.ndarray:
+    """Direction codes of DMIG components: 1..6 -> 0..5, 0 (scalar point) -> ``SCALAR``."""
+    component = np.asarray(component, dtype=np.int64)
+    return np.where(component == 0, SCALAR, component - 1)
