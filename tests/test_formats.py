@@ -238,7 +238,7 @@ def test_dispatch_to_ansys_and_op4(tmp_path: Path, monkeypatch: pytest.MonkeyPat
         ("nastran-dmig", {"inp": "a.inp", "dofs": "d.csv"}, "options dofs, inp do not apply"),
         ("native", {"stiffness": "k.mtx"}, "option stiffness does not apply to format native"),
         ("matrix-market", {"mapping": "m"}, "option mapping does not apply"),
-        ("abaqus", {"stiffness": "k.mtx"}, "needs stiffness and mass"),
+        ("abaqus", {"stiffness": "k.mtx"}, "no mass file given"),
         ("ansys-mmf", {"stiffness": "k", "mass": "m"}, "missing: mapping"),
         ("nastran-op4", {}, "missing: file"),
         (None, {}, "no model given"),

@@ -341,6 +341,11 @@ class ElasticBody:
         table); shown by ``pymorembs info``.
     ports : ModelPorts, optional
         Inputs and outputs that came with the model file.
+    precision : float, optional
+        Relative rounding of the matrix entries as the file stores them, when the reader knows
+        it (single-precision binary ``2^-24``, decimal text of ``d`` digits ``0.5 * 10^(1 - d)``;
+        entries transformed after reading, e.g. rotated to the basic system, no longer show
+        it). ``None``: told from the values (:func:`pymorembs.linalg.rounding.relative_rounding`).
     """
 
     node_ids: np.ndarray
@@ -356,6 +361,7 @@ class ElasticBody:
     has_coordinates: bool = True
     notes: tuple[str, ...] = ()
     ports: ModelPorts | None = None
+    precision: float | None = None
 
     def __post_init__(self) -> None:
         node_ids = np.asarray(self.node_ids, dtype=np.int64).ravel()
@@ -383,6 +389,10 @@ class ElasticBody:
             )
         if self.ports is not None:
             self.ports.check(n)
+        if self.precision is not None and not (
+            np.isfinite(self.precision) and 0 < self.precision < 1
+        ):
+            raise UserError(f"precision of the entries must lie in (0, 1), got {self.precision!r}")
         matrices = {"mass": self.mass, "stiffness": self.stiffness}
         if self.damping_matrix is not None:
             matrices["damping"] = self.damping_matrix

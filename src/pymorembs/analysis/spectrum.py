@@ -154,7 +154,7 @@ def model_spectrum(body: ElasticBody, prepared: PreparedModel, modes: int) -> Sp
         raise UserError(f"--modes must be at least 1, got {modes}")
     system = prepared.system
     split = mass_split(system.mass)
-    eps, rounding = relative_rounding(body.stiffness, body.mass)
+    eps, rounding = relative_rounding(body.stiffness, body.mass, body.precision)
     dense = system.order <= DENSE_LIMIT
     if system.rigid_modes is not None:  # Buckens frame: removed by the frame
         rigid = RigidBodyModes(

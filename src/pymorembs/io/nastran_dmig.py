@@ -59,7 +59,7 @@ and lines whose numbers need Nastran's short exponent form, go through the line-
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -183,7 +183,7 @@ def read_dmig(
         candidates += [] if column is None else [column]
         return min(candidates) + 1
 
-    return build_body(
+    body = build_body(
         path,
         table,
         matrices,
@@ -192,6 +192,11 @@ def read_dmig(
         path.stem if name is None else name,
         where_grid=where_grid,
     )
+    counts = entries.digits[entries.digits > 0]
+    if counts.size == 0:
+        return body
+    common = int(np.bincount(counts).argmax())  # the digits the punch writes
+    return replace(body, precision=0.5 * 10.0 ** (1 - common))
 
 
 # ============================================================================ punch file

@@ -48,7 +48,7 @@ import struct
 import warnings
 from collections.abc import Iterable
 from contextlib import redirect_stderr, redirect_stdout
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -189,7 +189,9 @@ def read_op4(
         grids = node_source(bulk.path, bulk)
     else:
         grids = None
-    return build_body(path, table, matrices_out, grids, notes, path.stem if name is None else name)
+    body = build_body(path, table, matrices_out, grids, notes, path.stem if name is None else name)
+    single = bool(tin & {1, 3})  # real or complex single precision: 24-bit mantissas
+    return replace(body, precision=2.0**-24) if single else body
 
 
 def _read_dof_source(

@@ -3,7 +3,8 @@
 Layout (format version 2)::
 
     /                      attributes format="pymorembs-body", version=2, name,
-                           has_coordinates (version 2), notes (version 2, list of str)
+                           has_coordinates, notes (list of str), precision (NaN: unknown)
+                           (the last three from version 2 on)
     /nodes/ids             int64 (n_nodes,)
     /nodes/coordinates     float64 (n_nodes, 3)
     /dofs/nodes            int64 (n_dof,)
@@ -75,6 +76,7 @@ def write_body_h5(body: ElasticBody, path: str | os.PathLike[str]) -> Path:
         f.attrs["name"] = str(body.name)
         f.attrs["has_coordinates"] = bool(body.has_coordinates)
         f.attrs["notes"] = [str(note) for note in body.notes]
+        f.attrs["precision"] = np.nan if body.precision is None else float(body.precision)
         _put(f, "nodes/ids", body.node_ids, np.int64)
         _put(f, "nodes/coordinates", body.coordinates, np.float64)
         _put(f, "dofs/nodes", body.dofs.nodes, np.int64)
@@ -167,6 +169,7 @@ def _read_body(f: h5py.File) -> ElasticBody:
                 )
         ports = ModelPorts(**parts)
     notes = f.attrs.get("notes", [])
+    precision = float(f.attrs.get("precision", np.nan))
     return ElasticBody(
         node_ids=_get(f, "nodes/ids", _INT),
         coordinates=_get(f, "nodes/coordinates", _FLOAT, ndim=2),
@@ -190,6 +193,7 @@ def _read_body(f: h5py.File) -> ElasticBody:
         has_coordinates=bool(f.attrs.get("has_coordinates", True)),
         notes=tuple(_text(note) for note in np.atleast_1d(notes)),
         ports=ports,
+        precision=None if np.isnan(precision) else precision,
     )
 
 

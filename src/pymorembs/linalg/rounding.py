@@ -53,13 +53,27 @@ def significant_digits(*arrays: np.ndarray) -> int | None:
     return None
 
 
-def relative_rounding(stiffness: sp.spmatrix, mass: sp.spmatrix) -> tuple[float, str]:
+def relative_rounding(
+    stiffness: sp.spmatrix, mass: sp.spmatrix, precision: float | None = None
+) -> tuple[float, str]:
     """``eps`` of the stored entries of ``K`` and ``M`` and a phrase describing it.
 
-    Decimal text rounded to ``d`` digits: ``0.5 * 10^(1 - d)``; values that are exactly single
-    precision: ``2^-24``; otherwise :data:`COMPUTATION_EPS` (the rounding of the computation
-    dominates).
+    ``precision`` given (the reader knew it, :attr:`pymorembs.body.ElasticBody.precision`): that.
+    Otherwise from the values: decimal text rounded to ``d`` digits: ``0.5 * 10^(1 - d)``;
+    values that are exactly single precision: ``2^-24``; otherwise :data:`COMPUTATION_EPS` (the
+    rounding of the computation dominates).
     """
+    if precision is not None:
+        if precision == 2.0**-24:
+            text = "single precision"
+        else:
+            digits = 1.0 - np.log10(2.0 * precision)
+            text = (
+                f"{round(digits)} significant digits"
+                if abs(digits - round(digits)) < 1e-9
+                else f"relative rounding {precision:.1e}"
+            )
+        return max(float(precision), COMPUTATION_EPS), f"{text} (as the file stores them)"
     k = sp.csr_matrix(stiffness).data
     m = sp.csr_matrix(mass).data
     digits = significant_digits(k, m)

@@ -78,10 +78,15 @@ def admissible_rigid_fields(body: ElasticBody, elimination: Elimination) -> Admi
     rigid = rigid[:, present] / norms[present]
     names = tuple(name for name, keep in zip(NAMES, present, strict=True) if keep)
     on_independent = rigid[elimination.independent]
+    # a fixed dof that nothing couples to (an empty row and column, e.g. a rotation of a grid
+    # that only solid elements use, fixed as Nastran's AUTOSPC does) holds nothing back
+    coupled = (_touched(body.stiffness) | _touched(body.mass))[elimination.fixed]
+    unfixed = np.ones(body.n_dof, dtype=bool)
+    unfixed[elimination.fixed] = False  # the constraint equations, on the dofs that are not fixed
     admissibility = np.vstack(
         [
-            rigid[elimination.fixed],
-            elimination.transform @ on_independent - rigid,
+            rigid[elimination.fixed[coupled]],
+            (elimination.transform @ on_independent - rigid)[unfixed],
         ]
     )
     k = rigid.shape[1]
@@ -91,6 +96,15 @@ def admissible_rigid_fields(body: ElasticBody, elimination: Elimination) -> Admi
     _, sigma, vt = np.linalg.svd(triangle)
     null = vt[sigma < KINEMATIC_TOL].T
     return AdmissibleFields(on_independent @ null, null, names)
+
+
+def _touched(matrix) -> np.ndarray:
+    """Boolean mask of the equations with an entry in their row or column."""
+    coo = matrix.tocoo()
+    mask = np.zeros(matrix.shape[0], dtype=bool)
+    mask[coo.row[coo.data != 0]] = True
+    mask[coo.col[coo.data != 0]] = True
+    return mask
 
 
 def free_rigid_body_modes(
@@ -129,7 +143,7 @@ def free_rigid_body_motions(
     scale = float(abs(stiffness).sum(axis=1).max()) or 1.0
     work = np.linalg.norm(stiffness @ motions, axis=0) / (scale * np.linalg.norm(motions, axis=0))
     # entries rounded to a few digits (a 10-digit punch) break K r = 0 at their rounding level
-    eps, _ = relative_rounding(body.stiffness, body.mass)
+    eps, _ = relative_rounding(body.stiffness, body.mass, body.precision)
     free = work < max(ENERGY_TOL, ROUNDED_ENERGY_FACTOR * eps)
     if not free.any():
         return none
