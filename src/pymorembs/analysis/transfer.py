@@ -106,11 +106,31 @@ def _response_chunk(
         label = f"dynamic stiffness at {f:g} Hz"
         if f == 0 and system.rigid_modes is not None:  # free body: static solve by inertia relief
             factorization = InertiaRelief(system.stiffness, system.mass, system.rigid_modes, label)
+            x = factorization.solve(b)
         else:
             factorization = Factorization(terms, label=label)
-        out[k] = (c @ factorization.solve(b)) / scale
+            x = factorization.solve(b)
+            if system.rigid_modes is not None:
+                x = _in_complement(factorization, system.mass, system.rigid_modes, x)
+        out[k] = (c @ x) / scale
         del factorization  # free the factors before the next ones: one live factorization
     return out
+
+
+def _in_complement(
+    factorization: Factorization, mass, rigid: np.ndarray, x: np.ndarray
+) -> np.ndarray:
+    """The response of a free body in the mass-orthogonal complement of its rigid-body modes.
+
+    ``x = Z^-1 b`` becomes the solution of ``Z x = b + M R mu`` with ``R^T M x = 0``
+    (``Z = s^2 M + s D + K``): ``x - Y S^-1 (M R)^T x`` with ``Y = Z^-1 M R``,
+    ``S = (M R)^T Y``. For an exact model this changes nothing (its loads are self-equilibrated
+    and ``K R = 0``); for rounded entries (rigid-body modes at +-1 Hz) it takes out the
+    resonances of those rounded modes, which the Buckens frame excludes.
+    """
+    mr = np.asarray(mass @ rigid)
+    y = factorization.solve(mr.astype(x.dtype))
+    return x - y @ np.linalg.solve(mr.T @ y, mr.T @ x)
 
 
 def _dense_response(

@@ -53,6 +53,7 @@ import scipy.sparse as sp
 
 from pymorembs.body import DIRECTIONS, ElasticBody
 from pymorembs.errors import NumericalError, UserError
+from pymorembs.linalg.rounding import COMPUTATION_EPS, relative_rounding
 
 if TYPE_CHECKING:  # pragma: no cover
     from pymorembs.config import Job
@@ -79,6 +80,10 @@ RIGID_MODES = 6
 MECHANISM_TOL = 1e-14
 #: An eigenvalue of ``(K, M)`` below ``-NEGATIVE_EIGENVALUE_TOL * sigma_typ`` is no rounding.
 NEGATIVE_EIGENVALUE_TOL = 1e-12
+#: For a file whose entries are rounded (``eps`` of :func:`~pymorembs.linalg.rounding.
+#: relative_rounding` above the computation's), the shift and the two tolerances above are at
+#: least ``ROUNDING_FACTOR * eps``: such rounding moves eigenvalues by that much of sigma_typ.
+ROUNDING_FACTOR = 100.0
 #: Lanczos steps of the search for a negative Rayleigh quotient of ``M``.
 LANCZOS_STEPS = 30
 #: Block size and steps of the inverse iteration that looks for mechanisms.
@@ -423,7 +428,14 @@ def _inertia_and_mechanisms(
     typical = float(np.median(k_diag[massive] / m_diag[massive]))
     if not typical > 0:
         typical = float(np.max(np.abs(k_diag))) / float(np.max(m_diag))
-    sigma = (FREE_SHIFT if free_body else SHIFT) * typical
+    # a file rounded to a few digits (a 10-digit punch, single precision) moves eigenvalues by
+    # up to ROUNDING_FACTOR * eps * sigma_typ: rigid-body modes of a free aircraft at -40
+    # (rad/s)^2 (1 Hz); the tolerances grow with it
+    eps, _ = relative_rounding(body.stiffness, body.mass, body.precision)
+    noise = ROUNDING_FACTOR * eps if eps > COMPUTATION_EPS else 0.0
+    sigma = max(FREE_SHIFT if free_body else SHIFT, noise) * typical
+    negative_tol = max(NEGATIVE_EIGENVALUE_TOL, noise)
+    mechanism_tol = max(MECHANISM_TOL, noise)
     report.facts["sigma_typical"] = typical
     report.facts["sigma"] = sigma
     _mass_rayleigh_check(prepared, mass, where, report)
@@ -456,14 +468,14 @@ def _inertia_and_mechanisms(
         report.warnings.append("the mechanism check could not separate the lowest modes")
         return
     report.facts["lowest_eigenvalues"] = lam.tolist()
-    if lam[0] < -NEGATIVE_EIGENVALUE_TOL * typical:  # found even without the inertia
+    if lam[0] < -negative_tol * typical:  # found even without the inertia
         top = int(independent[int(np.argmax(np.abs(vectors[:, 0])))])
         raise NumericalError(
             f"{where}the stiffness matrix is not positive semidefinite: (K, M) has the "
             f"eigenvalue {lam[0]:.3g}, a motion largest at {_label(body, top)}; check the "
             "exported matrices"
         )
-    zero = np.flatnonzero(lam < MECHANISM_TOL * typical)
+    zero = np.flatnonzero(lam < mechanism_tol * typical)
     report.facts["zero_eigenvalues"] = int(zero.size)
     if free_body and zero.size > expected:
         part = _separate_part(prepared, stiffness, None)
