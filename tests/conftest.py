@@ -112,3 +112,16 @@ def space_truss(nx: int = 4, ny: int = 3, nz: int = 2, spacing: float = 0.1) -> 
         sp.csr_matrix(k_mat),
         name="truss",
     )
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _one_blas_thread():
+    """BLAS on one thread, as the command line runs it (``PYMOREMBS_BLAS_THREADS``, default 1).
+
+    The heavy work is sparse; threaded level-1 BLAS on small vectors (ARPACK, norms) is several
+    times slower on two cores, and the tests would measure that instead.
+    """
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        yield
