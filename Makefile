@@ -5,7 +5,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test lint clean bench
+.PHONY: demo test test-slow lint clean bench
 
 $(STAMP): pyproject.toml requirements-nodeps.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -19,8 +19,13 @@ demo: $(STAMP)
 	$(BIN)/pymorembs info out/demo/model/model.h5 --modes 12
 	$(BIN)/pymorembs reduce examples/rack-beams-demo.toml --out out/demo
 
+# `make test`: everything but the slow end-to-end cases (under 5 min on 2 cores);
+# `make test-slow`: those (CI runs both).
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -m "not slow"
+
+test-slow: $(STAMP)
+	$(BIN)/python -m pytest -q -m slow
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests examples bench fuzz

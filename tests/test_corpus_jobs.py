@@ -28,6 +28,9 @@ from abaqus_models import genuine
 from pymorembs.config import load_job
 from pymorembs.pipeline import prepare_job, run_job
 
+#: End-to-end jobs: in the slow set (``make test-slow``, which CI runs too).
+pytestmark = pytest.mark.slow
+
 DATA = Path(__file__).parent / "data"
 
 

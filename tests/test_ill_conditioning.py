@@ -62,6 +62,7 @@ def test_light_stiff_beams_are_ill_conditioned_and_solved_accurately(light) -> N
     assert deviation < 5e-5
 
 
+@pytest.mark.slow
 def test_reduced_model_as_accurate_as_with_moderate_stiffness(light) -> None:
     errors = {}
     for name, system in (("light", light), ("steel", _system("steel-beams"))):

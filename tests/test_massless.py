@@ -341,6 +341,7 @@ order = 30
 """
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("frame", "extra"),
     [

@@ -7,6 +7,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
+import pytest
 from threadpoolctl import threadpool_limits
 
 from pymorembs.analysis.time_domain import (
@@ -26,6 +27,7 @@ from pymorembs.prepare import Frame, Port, prepare
 from pymorembs.reduce.projection import reduced_model
 
 
+@pytest.mark.slow
 def test_two_step_model_of_rack_solid_follows_the_full_model_in_time():
     body = build_example("rack-solid", dofs=7365, interface="rigid")
     body = replace(body, damping=Damping("rayleigh", beta=2e-6))

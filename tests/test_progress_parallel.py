@@ -66,6 +66,7 @@ def test_parallel_sweep_equals_the_serial_one_bit_for_bit(rack_buckens):
 
 
 @needs_dask
+@pytest.mark.slow
 def test_sweep_on_a_dask_local_cluster_equals_the_serial_one(rack_buckens):
     system, frequencies = rack_buckens
     with threadpool_limits(limits=1, user_api="blas"):
@@ -151,6 +152,7 @@ def _summary(tmp_path: Path, stem: str) -> dict:
 
 
 @needs_dask
+@pytest.mark.slow
 def test_two_jobs_on_a_local_dask_cluster(two_jobs, tmp_path, capfd):
     code = main(["reduce", *map(str, two_jobs), "--scheduler", "local", "--workers", "2"])
     out, err = capfd.readouterr()

@@ -58,6 +58,7 @@ def _files(folder: Path, reduction: str) -> list[Path]:
     )
 
 
+@pytest.mark.slow
 def test_krylov_files_are_byte_identical(two_runs):
     first, second = two_runs
     names = _files(first, "krylov")
@@ -68,6 +69,7 @@ def test_krylov_files_are_byte_identical(two_runs):
     assert different == []
 
 
+@pytest.mark.slow
 def test_modal_files_are_byte_identical(two_runs):
     first, second = two_runs
     names = _files(first, "modal-40")
@@ -87,6 +89,7 @@ def _without_timings(value):
     return value
 
 
+@pytest.mark.slow
 def test_summary_records_inputs_software_and_settings(two_runs):
     first, second = two_runs
     summary = json.loads((first / "summary.json").read_text())
