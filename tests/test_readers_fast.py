@@ -95,6 +95,7 @@ def check_matrix_file(tmp_path: Path, monkeypatch, text: str | bytes) -> tuple[o
         (SYMMETRIC + "3 3 4\n1 1 1.0\n2 1 0.5\n2 2 2.0\n3 3 1\n", True),  # lower
         (SYMMETRIC + "3 3 4\n1 1 1.0\n1 2 0.5\n2 2 2.0\n3 3 1\n", True),  # upper
         (SYMMETRIC + "3 3 4\n3 3 1\n2 1 0.5\n1 1 1.0\n2 2 2.0\n", True),
+        (SYMMETRIC + "3 3 4\n1 1 0.0\n2 1 -0.0\n3 1 0\n3 3 1.0\n", True),  # explicit zeros
         (GENERAL + "   2   2   2\n    1    1   1.5e+00\n    2    2  -2.5E-01\n", True),
         ((GENERAL + "2 2 2\n1 1 1.0\n2 2 2.0\n").replace("\n", "\r\n"), True),
         (GENERAL + "2 2 2\n1\t1\t1.0\n2\t2\t2.0\n", True),

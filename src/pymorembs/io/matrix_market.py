@@ -53,6 +53,7 @@ index (``1 1.5 2.0`` as entry (1, 1) = 0.5).
 from __future__ import annotations
 
 import csv
+import io
 import itertools
 import math
 import os
@@ -449,6 +450,7 @@ class _Header:
     entries: int  # announced entries of a coordinate file (0 for an array file)
     size_line: int  # line number of the size line (from 1)
     data_index: int  # index in the lines of the first line after the size line
+    banner_storage: tuple[int, int]  # character span of the storage word in the banner
 
 
 def _parse_header(path: Path, lines: list[str]) -> _Header:
@@ -509,6 +511,7 @@ def _parse_header(path: Path, lines: list[str]) -> _Header:
         entries=sizes[2] if layout == "coordinate" else 0,
         size_line=size_line,
         data_index=size_index + 1,
+        banner_storage=(lines[0].rstrip().rfind(banner[4]), len(lines[0].rstrip())),
     )
 
 
@@ -548,18 +551,85 @@ def _read_coordinate_fast(path: Path) -> sp.csr_matrix | None:
     if count_plain_fields(path, offset) != 3 * entries:
         return None
     try:
-        coo = scipy.io.mmread(path, spmatrix=False)
+        if header.symmetric:  # read the stored triangle as it is (see _StoredTriangle)
+            with io.BufferedReader(_StoredTriangle(path, header.banner_storage), 1 << 20) as f:
+                coo = scipy.io.mmread(f, spmatrix=False)
+        else:
+            coo = scipy.io.mmread(path, spmatrix=False)
     except Exception:  # any complaint of the parser: the strict pass explains it
         return None
-    if not sp.issparse(coo) or coo.shape != (n, n) or coo.nnz < entries:
+    if not sp.issparse(coo) or coo.shape != (n, n) or coo.nnz != entries:
         return None
     rows, cols, values = coo.row, coo.col, coo.data
     del coo
     if not np.all(np.isfinite(values)):
         return None
-    if not header.symmetric:
-        return _general_csr(rows, cols, values, n) if rows.size == entries else None
-    return _symmetric_csr(rows, cols, values, n, entries)
+    if header.symmetric and np.any(rows > cols) and np.any(rows < cols):
+        return None  # both triangles: the strict pass names the entry
+    matrix = _general_csr(rows, cols, values, n)
+    if matrix is None or not header.symmetric:
+        return matrix
+    del rows, cols, values
+    return _mirrored(matrix)
+
+
+class _StoredTriangle(io.RawIOBase):
+    """The bytes of a symmetric Matrix Market file whose banner says ``general`` instead.
+
+    ``scipy.io.mmread`` mirrors a symmetric file in Python with array copies that take longer
+    than the parse itself (and need twice the memory of the result); read through this view it
+    returns the stored triangle, which :func:`_mirrored` completes in CSR form.
+    """
+
+    def __init__(self, path: Path, storage: tuple[int, int]) -> None:
+        super().__init__()
+        self._file = open(path, "rb", buffering=0)  # closed in close()
+        self._position = 0
+        start, stop = storage
+        self._patch = (start, b"general".ljust(stop - start))
+
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, buffer) -> int:
+        size = self._file.readinto(buffer)
+        start, patch = self._patch
+        first = max(start - self._position, 0)
+        last = min(start + len(patch) - self._position, size)
+        if first < last:
+            offset = self._position + first - start
+            buffer[first:last] = patch[offset : offset + last - first]
+        self._position += size
+        return size
+
+    def close(self) -> None:
+        self._file.close()
+        super().close()
+
+
+def _mirrored(stored: sp.csr_matrix) -> sp.csr_matrix:
+    """The full symmetric matrix of a canonical CSR matrix holding one triangle.
+
+    ``stored + U`` with ``U`` the transpose of ``stored`` without its diagonal: the patterns lie
+    on opposite sides of the diagonal, so the sparse sum only places entries (one merge pass in
+    C). Explicit zeros, which the sum would drop, keep their place through a stand-in value.
+    """
+    zero = stored.data == 0.0
+    if zero.any():
+        stored.data[zero] = np.inf  # every value is finite: inf marks the explicit zeros
+    mirror = stored.T.tocsr()
+    mirror.sort_indices()
+    rows = np.repeat(np.arange(mirror.shape[0], dtype=mirror.indices.dtype), np.diff(mirror.indptr))
+    mirror.data[mirror.indices == rows] = 0.0  # the diagonal, which stays in ``stored``
+    del rows
+    mirror.eliminate_zeros()
+    full = stored + mirror
+    del mirror
+    if zero.any():
+        full.data[np.isinf(full.data)] = 0.0
+        stored.data[zero] = 0.0
+    full.sort_indices()
+    return full
 
 
 def _fast_head(path: Path) -> tuple[_Header, int] | None:
@@ -586,8 +656,8 @@ def _fast_head(path: Path) -> tuple[_Header, int] | None:
         header = _parse_header(path, lines)
     except UserError:
         return None
-    if header.data_index > len(raw) - (0 if complete else 1):
-        return None  # the size line may be cut
+    if header.data_index > len(raw) - (0 if complete else 1) or not raw[0].isascii():
+        return None  # the size line may be cut; or character and byte offsets differ
     offset = sum(len(line) + 1 for line in raw[: header.data_index])
     return header, offset
 
@@ -601,23 +671,6 @@ def _general_csr(rows: np.ndarray, cols: np.ndarray, values: np.ndarray, n: int)
         if matrix.nnz != values.size:
             return None
     return matrix
-
-
-def _symmetric_csr(
-    rows: np.ndarray, cols: np.ndarray, values: np.ndarray, n: int, entries: int
-) -> sp.csr_matrix | None:
-    """The full matrix of a symmetric file, or None (both triangles, an entry twice).
-
-    ``scipy.io.mmread`` returns the file's entries followed by the mirrored off-diagonal ones.
-    For a file that stores the lower triangle row by row the CSR conversion of these arrays is
-    already sorted (each row: the stored entries, then the mirrored ones to the right of the
-    diagonal), so it needs no sort. The triangle test on the first ``entries`` entries is only
-    a shortcut: a file with both triangles also has duplicates once mirrored.
-    """
-    stored_rows, stored_cols = rows[:entries], cols[:entries]
-    if np.any(stored_rows > stored_cols) and np.any(stored_rows < stored_cols):
-        return None  # both triangles: the strict pass names the entry
-    return _general_csr(rows, cols, values, n)
 
 
 def check_symmetric(
@@ -678,16 +731,29 @@ def _transpose_gap(a: sp.csr_matrix) -> float | None:
             gap = np.maximum(gap, np.max(np.abs(block)))
         return float(gap)
     bounds = np.searchsorted(a.indptr, np.arange(0, a.nnz + _BLOCK, _BLOCK))
-    for first, last in itertools.pairwise(bounds):
+    for first, last in itertools.pairwise(np.minimum(bounds, a.shape[0])):
         if last > first:
-            block = (a[first:last] - t[first:last]).data
+            block = (_row_block(a, first, last) - _row_block(t, first, last)).data
             if block.size:
                 gap = np.maximum(gap, np.max(np.abs(block)))
     return float(gap)
 
 
+def _row_block(a: sp.csr_matrix, first: int, last: int) -> sp.csr_matrix:
+    """Rows ``first:last`` of a canonical CSR matrix, sharing its index and value arrays."""
+    lo, hi = a.indptr[first], a.indptr[last]
+    block = sp.csr_matrix(
+        (a.data[lo:hi], a.indices[lo:hi], a.indptr[first : last + 1] - lo),
+        shape=(last - first, a.shape[1]),
+        copy=False,
+    )
+    block.has_sorted_indices = True
+    block.has_canonical_format = True
+    return block
+
+
 #: Entries compared at a time by :func:`_transpose_gap`.
-_BLOCK = 1 << 18
+_BLOCK = 1 << 20
 
 
 def _read_symmetric(path: Path, like: tuple[Path, int] | None = None) -> sp.csr_matrix:
