@@ -116,6 +116,9 @@ def check_matrix_file(tmp_path: Path, monkeypatch, text: str | bytes) -> tuple[o
         (GENERAL + "2 2 2\n1 1 1-2\n2 2 2.0\n", False),
         (GENERAL + "2 2 2\n1 1 0x1p3\n2 2 2.0\n", False),
         (GENERAL + "2 2 2\n1 1 1.5e\n2 2 2.0\n", False),  # exponent without digits
+        (GENERAL + "2 2 2\n1 1 1e.5\n2 2 2.0\n", False),
+        (GENERAL + "2 2 2\n1 1 1ee5\n2 2 2.0\n", False),
+        (GENERAL + "2 2 2\n1 1 1.0-\n2 2 2.0\n", False),  # sign without digits
         (GENERAL + "2 2 2\n1 1 2.0\n2 2 1.5E-", False),  # cut short at the end
         (GENERAL + "2 2 2\n1 1 nan\n2 2 2.0\n", False),
         (GENERAL + "2 2 2\n1 1 1e400\n2 2 2.0\n", False),  # overflows to inf
@@ -247,6 +250,11 @@ def test_field_count_and_signs_across_chunk_boundaries(tmp_path, monkeypatch, ch
     assert count_plain_fields(path, offset=5) is None
     path.write_bytes(b"HEAD\n 12 3 1D+03\n")
     assert count_plain_fields(path, offset=5) is None
+    for text in (b"HEAD\n1 2 3.5e", b"HEAD\n1 2 3.5e-", b"HEAD\n1 2 3.5e \n", b"HEAD\n1 2 - 3\n"):
+        path.write_bytes(text)
+        assert count_plain_fields(path, offset=5) is None, text
+    path.write_bytes(b"HEAD\n1 2 3.5e-7\n4 5 -.5E+1")
+    assert count_plain_fields(path, offset=5) == 6
 
 
 def test_field_count_of_missing_and_empty_files(tmp_path) -> None:

@@ -30,6 +30,8 @@ PLAIN_NUMBER_BYTES = b"0123456789.eE+- \t\r\n"
 
 #: Bytes scanned at a time: small enough to stay in the caches, large enough for NumPy.
 _CHUNK = 1 << 20
+#: Threads that check chunks while the calling thread reads and translates the next one.
+_WORKERS = 2
 #: Bytes of the previous chunk kept in front of the next one (for the checks of byte pairs and
 #: triples that cross a chunk boundary).
 _CARRY = 2
@@ -43,14 +45,14 @@ def count_plain_fields(path: str | os.PathLike[str], offset: int = 0) -> int | N
     * any byte but ``0123456789.eE+-`` and white space (space, tab, carriage return, line feed):
       a letter as in ``1.0D+03`` or ``nan``, a comma, a comment sign, a NUL byte, non-ASCII text;
     * a sign directly after a digit or a decimal point (``0.12-105``, a Fortran exponent without
-      its letter, which lenient parsers read as 0.12);
-    * an exponent letter without digits (``1.5e``, ``1.5e+``; e.g. a number cut short at the end
-      of a truncated file);
+      its letter, which lenient parsers read as 0.12) or not followed by a digit or a point;
+    * an exponent letter not followed by a digit or a sign (``1.5e``, ``1e.5``, ``1ee5``; e.g. a
+      number cut short at the end of a truncated file);
 
     or when the file cannot be read. Together with a parser that reads one number per field and
     stops at the first byte that cannot continue a number, it proves that every number was read
-    whole, except for numbers malformed in their points and exponent letters alone (``1.0.5``,
-    ``1e5e5``, ``1e5.0``: such a parser reads the valid front part) and a decimal fraction in a
+    whole, except for a second decimal point or exponent in a number (``1.0.5``, ``1e5e5``,
+    ``1e5.0``: such a parser reads the valid front part) and a decimal fraction in a
     field that must hold an integer (whether a field is an integer depends on its place in the
     line, which these checks do not see). Finding those needs the field structure of every line
     and would double the cost of the scan.
@@ -70,16 +72,16 @@ def count_plain_fields(path: str | os.PathLike[str], offset: int = 0) -> int | N
     int or None
         Number of fields (maximal runs of non-white-space bytes), or None as described.
     """
-    slots = [_Slot() for _ in range(2)]  # one chunk is checked while the next one is read
+    slots = [_Slot() for _ in range(_WORKERS + 1)]  # chunks are checked while one is read
     carry = b" " * _CARRY  # the bytes before the region count as white space
     fields = 0
     pending: list[Future[int | None]] = []
     try:
-        with open(path, "rb", buffering=0) as stream, ThreadPoolExecutor(1) as worker:
+        with open(path, "rb", buffering=0) as stream, ThreadPoolExecutor(_WORKERS) as worker:
             stream.seek(offset)
             for index in itertools.count():
-                slot = slots[index % 2]
-                if len(pending) == 2:  # the slot's previous chunk must be done
+                slot = slots[index % len(slots)]
+                if len(pending) == len(slots):  # the slot's previous chunk must be done
                     result = pending.pop(0).result()
                     if result is None:
                         return None
@@ -101,8 +103,8 @@ def count_plain_fields(path: str | os.PathLike[str], offset: int = 0) -> int | N
                 fields += result
     except OSError:
         return None
-    # the region ends as if followed by white space: an exponent cut short at the very end
-    if carry.lower().endswith((b"e", b"e+", b"e-")):
+    # the last byte is followed by nothing: a sign or exponent letter there is cut short
+    if carry[-1:] in (b"+", b"-", b"e", b"E"):
         return None
     return fields
 
@@ -114,31 +116,40 @@ class _Slot:
         self.buffer = bytearray(_CARRY + _CHUNK)
         self.view = memoryview(self.buffer)
         self.data = np.frombuffer(self.buffer, dtype=np.uint8)
-        self.white, self.sign, self.other, self.pair = (
-            np.empty(len(self.buffer), dtype=bool) for _ in range(4)
+        self.white, self.sign, self.other = (
+            np.empty(len(self.buffer), dtype=bool) for _ in range(3)
         )
         self.scratch = np.empty_like(self.data)
 
     def check(self, end: int) -> int | None:
-        """Fields starting in ``buffer[_CARRY:end]`` (the carry holds the bytes before), or
-        None at a sign after a digit or point or an exponent letter without digits."""
+        """Fields starting in ``buffer[_CARRY:end]`` (the carry holds the two bytes before),
+        or None at a sign or exponent letter in the wrong place (see
+        :func:`count_plain_fields`). A sign or exponent letter in the last byte is checked
+        with the next chunk (or at the end of the region), where it lies in the carry."""
         u = self.data[:end]
         w = np.less_equal(u, 32, out=self.white[:end])
         fields = int(np.count_nonzero(w[_CARRY - 1 : end - 1] > w[_CARRY:end]))
-        # a sign (0x2B, 0x2D: the only plain bytes with b & 0xF9 == 0x29) after a digit or a
-        # point (0x2E .. 0x39, less the absent '/')
-        s = np.equal(np.bitwise_and(u, 0xF9, out=self.scratch[:end]), 0x29, out=self.sign[:end])
-        d = np.less_equal(np.subtract(u, 46, out=self.scratch[:end]), 11, out=self.other[:end])
-        if np.any(np.logical_and(s[1:], d[:-1], out=self.pair[: end - 1])):
-            return None
-        # an exponent letter followed by white space, or by a sign and white space
-        e = np.equal(np.bitwise_or(u, 0x20, out=self.scratch[:end]), 0x65, out=self.other[:end])
-        if np.any(np.logical_and(e[:-1], w[1:], out=self.pair[: end - 1])):
-            return None
-        triple = np.logical_and(e[:-2], s[1:-1], out=self.pair[: end - 2])
-        if np.any(np.logical_and(triple, w[2:], out=triple)):
+        # signs (0x2B, 0x2D: the plain bytes with b & 0xF9 == 0x29) and exponent letters
+        # (0x45, 0x65: b & 0xDF == 0x45); their neighbours are checked where they are
+        scratch, sign, other = self.scratch[:end], self.sign[:end], self.other[:end]
+        np.equal(np.bitwise_and(u, 0xF9, out=scratch), 0x29, out=sign)
+        np.equal(np.bitwise_and(u, 0xDF, out=scratch), 0x45, out=other)
+        special = np.logical_or(sign, other, out=sign)
+        at = np.flatnonzero(special[1 : end - 1]) + 1
+        if at.size and _misplaced(u[at], u[at - 1], u[at + 1]).any():
             return None
         return fields
+
+
+def _misplaced(byte: np.ndarray, before: np.ndarray, after: np.ndarray) -> np.ndarray:
+    """Which signs and exponent letters ``byte`` (with their neighbours) cannot belong to a
+    plain number: a sign after a digit or point or not followed by one; an exponent letter not
+    followed by a digit or sign."""
+    sign = (byte & 0xF9) == 0x29
+    digit_or_point_after = (after - np.uint8(46)) <= 11
+    digit_or_sign_after = ((after - np.uint8(48)) <= 9) | ((after & 0xF9) == 0x29)
+    digit_or_point_before = (before - np.uint8(46)) <= 11
+    return np.where(sign, digit_or_point_before | ~digit_or_point_after, ~digit_or_sign_after)
 
 
 def csr_from_sorted_coo(

@@ -687,7 +687,7 @@ def check_symmetric(
     gap = _transpose_gap(a)
     if gap is not None and gap <= tolerance * (float(np.max(np.abs(a.data))) if a.nnz else 0.0):
         return
-    if _exactly_symmetric(a):
+    if gap is None and _exactly_symmetric(a):
         return
     diff = (a - a.T).tocoo()
     worst = int(np.argmax(np.abs(diff.data)))
