@@ -11,6 +11,7 @@ result or the same one-line error). The strict pass is obtained by switching the
 from __future__ import annotations
 
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +28,12 @@ from pymorembs.io.fast_text import count_plain_fields, csr_from_sorted_coo
 
 GENERAL = "%%MatrixMarket matrix coordinate real general\n"
 SYMMETRIC = "%%MatrixMarket matrix coordinate real symmetric\n"
+
+
+@pytest.fixture(autouse=True)
+def fast_path_for_small_files(monkeypatch):
+    """The fast path is tried from 64 KiB of entries on; here for every file."""
+    monkeypatch.setattr(mm, "_FAST_FROM_BYTES", 0)
 
 
 def outcome(call):
@@ -358,3 +365,27 @@ def test_csv_errors_name_the_line(tmp_path) -> None:
     path.write_text("node,direction\n1,ux\n2,uy\n1,UX\n")
     with pytest.raises(UserError, match=re.escape("dofs.csv:4: dof 1:ux is listed twice")):
         mm._read_dofs(path)
+
+
+def test_index_at_the_int64_limit_is_named_without_a_warning(tmp_path) -> None:
+    """Was a RuntimeWarning (scalar overflow) beside the message, a second line on stderr."""
+    path = tmp_path / "limit.mtx"
+    path.write_text(GENERAL + "2 2 1\n-9223372036854775808 1 1.0\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(UserError, match=re.escape("entry (-9223372036854775808, 1) lies")):
+            mm.read_matrix_market(path)
+
+
+def test_fast_path_from_64_kib_of_entries(tmp_path, monkeypatch) -> None:
+    monkeypatch.setattr(mm, "_FAST_FROM_BYTES", 1 << 16)
+    small = mm.write_matrix_market(tmp_path / "small.mtx", sp.eye(10, format="csr"))
+    assert mm._read_coordinate_fast(small) is None  # the strict pass reads it
+    rng = np.random.default_rng(5)
+    a = sp.random(400, 400, density=0.05, random_state=rng, format="csr")
+    large = mm.write_matrix_market(tmp_path / "large.mtx", a + a.T)
+    assert large.stat().st_size > 1 << 16
+    with monkeypatch.context() as patch:
+        patch.setattr(mm, "_read_lines", lambda *args: pytest.fail("strict pass used"))
+        read = mm.read_matrix_market(large)
+    assert (read != a + a.T).nnz == 0

@@ -72,7 +72,23 @@ def count_plain_fields(path: str | os.PathLike[str], offset: int = 0) -> int | N
     int or None
         Number of fields (maximal runs of non-white-space bytes), or None as described.
     """
-    slots = [_Slot() for _ in range(_WORKERS + 1)]  # chunks are checked while one is read
+    try:
+        size = os.path.getsize(path) - offset
+    except OSError:
+        return None
+    if size <= _CHUNK:  # one chunk: checked here, without threads
+        slot = _Slot(max(size, 0))
+        try:
+            with open(path, "rb", buffering=0) as stream:
+                stream.seek(offset)
+                size = stream.readinto(slot.view[_CARRY:])
+        except OSError:
+            return None
+        chunk = bytes(slot.buffer[_CARRY : _CARRY + size])
+        if chunk.translate(None, PLAIN_NUMBER_BYTES) or chunk[-1:] in (b"+", b"-", b"e", b"E"):
+            return None
+        return slot.check(_CARRY + size)
+    slots = [_Slot(_CHUNK) for _ in range(_WORKERS + 1)]  # chunks are checked while one is read
     carry = b" " * _CARRY  # the bytes before the region count as white space
     fields = 0
     pending: list[Future[int | None]] = []
@@ -112,8 +128,8 @@ def count_plain_fields(path: str | os.PathLike[str], offset: int = 0) -> int | N
 class _Slot:
     """A chunk buffer of :func:`count_plain_fields` with the scratch arrays of its checks."""
 
-    def __init__(self) -> None:
-        self.buffer = bytearray(_CARRY + _CHUNK)
+    def __init__(self, size: int) -> None:
+        self.buffer = bytearray(b" " * _CARRY + bytes(size))  # white space before the region
         self.view = memoryview(self.buffer)
         self.data = np.frombuffer(self.buffer, dtype=np.uint8)
         self.white, self.sign, self.other = (

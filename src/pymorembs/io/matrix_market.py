@@ -521,6 +521,9 @@ def _parse_header(path: Path, lines: list[str]) -> _Header:
 _HEAD_BYTES = 1 << 16
 #: The shortest entry line, ``1 1 1`` and its line feed.
 _MIN_ENTRY_BYTES = 6
+#: Entry bytes from which the fast path is tried (a smaller file is read by the strict pass in
+#: well under a millisecond per kilobyte; thread start-up would cost more).
+_FAST_FROM_BYTES = 1 << 16
 
 
 def _read_coordinate_fast(path: Path) -> sp.csr_matrix | None:
@@ -546,6 +549,8 @@ def _read_coordinate_fast(path: Path) -> sp.csr_matrix | None:
         data_bytes = path.stat().st_size - offset
     except OSError:
         return None
+    if data_bytes < _FAST_FROM_BYTES:
+        return None  # the strict pass is quicker than starting the parser's threads
     if entries * _MIN_ENTRY_BYTES > data_bytes + 1 or (n > _MOSTLY_EMPTY_FROM and n > 2 * entries):
         return None
     if count_plain_fields(path, offset) != 3 * entries:
@@ -778,7 +783,7 @@ def _coordinate_matrix(
     outside = np.flatnonzero((rows < 0) | (rows >= n) | (cols < 0) | (cols >= n))
     if outside.size:
         k = int(outside[0])
-        data.fail(k, f"entry ({rows[k] + 1}, {cols[k] + 1}) lies outside the {n} x {n} matrix")
+        data.fail(k, f"entry {_entry(rows, cols, k)} lies outside the {n} x {n} matrix")
     data.require_finite(values)
     if symmetric:
         below, above = np.flatnonzero(rows > cols), np.flatnonzero(rows < cols)
@@ -787,7 +792,7 @@ def _coordinate_matrix(
             side = "above" if rows[k] < cols[k] else "below"
             data.fail(
                 k,
-                f"entry ({rows[k] + 1}, {cols[k] + 1}) lies {side} the diagonal but earlier "
+                f"entry {_entry(rows, cols, k)} lies {side} the diagonal but earlier "
                 "entries lie on the other side; a symmetric file stores one triangle only",
             )
     if symmetric:
@@ -802,8 +807,7 @@ def _coordinate_matrix(
         first = int(order[repeated[np.argmin(second)]])
         data.fail(
             k,
-            f"entry ({rows[k] + 1}, {cols[k] + 1}) is given twice "
-            f"(first on line {data.line_of(first)})",
+            f"entry {_entry(rows, cols, k)} is given twice (first on line {data.line_of(first)})",
         )
     if symmetric:
         off = rows != cols
@@ -813,6 +817,13 @@ def _coordinate_matrix(
     matrix.sum_duplicates()
     matrix.sort_indices()
     return matrix
+
+
+def _entry(rows: np.ndarray, cols: np.ndarray, k: int) -> str:
+    """``(row, column)`` of entry ``k`` as in the file (indices from 0 in the arrays; an index
+    of the file near the int64 limits wrapped around when 1 was subtracted, and wraps back)."""
+    with np.errstate(over="ignore"):
+        return f"({rows[k] + 1}, {cols[k] + 1})"
 
 
 class _DataLines:
