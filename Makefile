@@ -38,6 +38,7 @@ PEERS_DOFS   ?= 10000
 GRAMIAN_DOFS ?= 10000 35000
 REFERENCE_DOFS ?= 10000 35000
 SCALING_DOFS ?= 35000 70000 150000 300000
+READ_DOFS    ?= 35000 300000
 
 bench: $(STAMP)
 	@if grep -Eq '^fast *=' pyproject.toml; then \
@@ -52,6 +53,7 @@ bench: $(STAMP)
 	for n in $(GRAMIAN_DOFS); do $(BIN)/python bench/large_gramian.py --dofs $$n || exit 1; done
 	$(BIN)/python bench/reference.py --dofs $(REFERENCE_DOFS)
 	$(BIN)/python bench/scaling.py --dofs $(SCALING_DOFS)
+	$(BIN)/python bench/read_speed.py --dofs $(READ_DOFS) --repeat 2
 
 clean:
 	rm -rf $(VENV) out build src/*.egg-info

@@ -39,24 +39,38 @@ upper-case directions; the header line is required. Reading Matrix Market accept
 and ``array`` files with ``real``/``integer`` values and ``general``/``symmetric`` storage; a
 symmetric coordinate file may store either triangle (not both). Every mistake raises
 :class:`~pymorembs.errors.UserError` with one line ``file:line: what is wrong``.
+
+Speed: the numbers of a coordinate file are parsed by fast_matrix_market (``scipy.io.mmread``,
+multi-threaded) and those of a CSV table by NumPy's ``loadtxt``, each behind checks of the raw
+bytes that prove the result is the one of the strict line-by-line pass
+(:func:`pymorembs.io.fast_text.count_plain_fields`); a file that fails a check (a comment after
+the size line, an integer-valued matrix, any mistake) is read by the strict pass, which names the
+line. Two mistakes pass the checks and are read as fast_matrix_market reads them: a number with
+a second decimal point or exponent letter (``1.0.5`` as 1.0) and a decimal fraction in a column
+index (``1 1.5 2.0`` as entry (1, 1) = 0.5).
 """
 
 from __future__ import annotations
 
 import csv
+import io
+import itertools
 import math
 import os
 import warnings
 from collections.abc import Iterable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
 import numpy as np
+import scipy.io
 import scipy.sparse as sp
 
 from pymorembs.body import DIRECTIONS, ConstraintEquations, DofTable, ElasticBody, direction_code
 from pymorembs.errors import UserError
-from pymorembs.io.atomic import write_text
+from pymorembs.io.atomic import atomic_open, write_text
+from pymorembs.io.fast_text import count_plain_fields, csr_from_sorted_coo
 
 __all__ = [
     "FILE_NAMES",
@@ -337,13 +351,26 @@ def write_matrix_market(
     if comment:
         header.append("% " + " ".join(comment.split()))
     header.append(f"{a.shape[0]} {a.shape[1]} {coo.nnz}")
-    entries = (
-        f"{i} {j} {v!r}"
-        for i, j, v in zip(
-            (coo.row + 1).tolist(), (coo.col + 1).tolist(), coo.data.tolist(), strict=True
-        )
-    )
-    return write_text(path, "\n".join([*header, *entries]) + "\n")
+    with atomic_open(path, "w") as out:
+        out.write("\n".join(header) + "\n")
+        for start in range(0, coo.nnz, _WRITE_BLOCK):  # in blocks: memory stays small
+            block = slice(start, start + _WRITE_BLOCK)
+            out.write(
+                "".join(
+                    f"{i} {j} {v!r}\n"
+                    for i, j, v in zip(
+                        (coo.row[block] + 1).tolist(),
+                        (coo.col[block] + 1).tolist(),
+                        coo.data[block].tolist(),
+                        strict=True,
+                    )
+                )
+            )
+    return path
+
+
+#: Entries formatted at a time by :func:`write_matrix_market`.
+_WRITE_BLOCK = 1 << 16
 
 
 def read_matrix_market(path: PathLike) -> sp.csr_matrix:
@@ -369,7 +396,65 @@ def read_matrix_market(path: PathLike) -> sp.csr_matrix:
         and line.
     """
     path = Path(path)
+    matrix = _read_coordinate_fast(path)
+    if matrix is not None:
+        return matrix
     lines = _read_lines(path, "a Matrix Market file")
+    header = _parse_header(path, lines)
+    n, size_line = header.n, header.size_line
+    data = _DataLines(path, lines, header.data_index)
+    if header.layout == "coordinate":
+        table = data.parse((("row", int), ("column", int), ("value", float)))
+        if table.size != header.entries:
+            raise _fail(
+                path,
+                size_line,
+                f"size line announces {header.entries} entries but the file holds {table.size}",
+            )
+        if n > _MOSTLY_EMPTY_FROM and n > 2 * table.size:
+            raise _fail(
+                path,
+                size_line,
+                f"size line announces a {n} x {n} matrix but the file holds only {table.size} "
+                "entries, so most rows would be empty; is the size line right?",
+            )
+        return _coordinate_matrix(
+            data, table["row"] - 1, table["column"] - 1, table["value"], n, header.symmetric
+        )
+
+    values = data.parse((("value", float),))["value"]
+    expected = n * (n + 1) // 2 if header.symmetric else n * n
+    if values.size != expected:
+        raise _fail(
+            path, size_line, f"{n} x {n} array needs {expected} values, found {values.size}"
+        )
+    data.require_finite(values)
+    dense = np.zeros((n, n))
+    if header.symmetric:  # lower triangle, column by column
+        cols, rows = np.triu_indices(n)
+        dense[rows, cols] = values
+        dense[cols, rows] = values
+    else:
+        dense[:] = values.reshape((n, n), order="F")
+    return sp.csr_matrix(dense)
+
+
+@dataclass(frozen=True)
+class _Header:
+    """The banner and size line of a Matrix Market file."""
+
+    layout: str  # "coordinate" or "array"
+    field: str  # "real", "double" or "integer"
+    symmetric: bool
+    n: int
+    entries: int  # announced entries of a coordinate file (0 for an array file)
+    size_line: int  # line number of the size line (from 1)
+    data_index: int  # index in the lines of the first line after the size line
+    banner_storage: tuple[int, int]  # character span of the storage word in the banner
+
+
+def _parse_header(path: Path, lines: list[str]) -> _Header:
+    """Check the banner and the size line; :class:`UserError` names the line."""
     banner = lines[0].split()
     if not banner or banner[0].lower() != "%%matrixmarket":
         raise _fail(path, 1, "not a Matrix Market file (the first line must be %%MatrixMarket ...)")
@@ -394,7 +479,6 @@ def read_matrix_market(path: PathLike) -> sp.csr_matrix:
         raise _fail(
             path, 1, f"{banner[4]!r} storage is not supported, expected general or symmetric"
         )
-    symmetric = storage == "symmetric"
 
     size_index = next(
         (k for k in range(1, len(lines)) if lines[k].split("%", 1)[0].strip()),
@@ -412,50 +496,186 @@ def read_matrix_market(path: PathLike) -> sp.csr_matrix:
     n_rows, n_cols = sizes[0], sizes[1]
     if n_rows != n_cols:
         raise _fail(path, size_line, f"matrix is {n_rows} x {n_cols}, not square")
-    n = n_rows
-    if n > MAX_EQUATIONS:
+    if n_rows > MAX_EQUATIONS:
         raise _fail(
             path,
             size_line,
-            f"matrix size {n} exceeds the {MAX_EQUATIONS} equations pymorembs reads; is the size "
-            "line right?",
+            f"matrix size {n_rows} exceeds the {MAX_EQUATIONS} equations pymorembs reads; is the "
+            "size line right?",
         )
+    return _Header(
+        layout=layout,
+        field=field,
+        symmetric=storage == "symmetric",
+        n=n_rows,
+        entries=sizes[2] if layout == "coordinate" else 0,
+        size_line=size_line,
+        data_index=size_index + 1,
+        banner_storage=(lines[0].rstrip().rfind(banner[4]), len(lines[0].rstrip())),
+    )
 
-    data = _DataLines(path, lines, size_index + 1)
-    if layout == "coordinate":
-        table = data.parse((("row", int), ("column", int), ("value", float)))
-        if table.size != sizes[2]:
-            raise _fail(
-                path,
-                size_line,
-                f"size line announces {sizes[2]} entries but the file holds {table.size}",
-            )
-        if n > _MOSTLY_EMPTY_FROM and n > 2 * table.size:
-            raise _fail(
-                path,
-                size_line,
-                f"size line announces a {n} x {n} matrix but the file holds only {table.size} "
-                "entries, so most rows would be empty; is the size line right?",
-            )
-        return _coordinate_matrix(
-            data, table["row"] - 1, table["column"] - 1, table["value"], n, symmetric
-        )
 
-    values = data.parse((("value", float),))["value"]
-    expected = n * (n + 1) // 2 if symmetric else n * n
-    if values.size != expected:
-        raise _fail(
-            path, size_line, f"{n} x {n} array needs {expected} values, found {values.size}"
-        )
-    data.require_finite(values)
-    dense = np.zeros((n, n))
-    if symmetric:  # lower triangle, column by column
-        cols, rows = np.triu_indices(n)
-        dense[rows, cols] = values
-        dense[cols, rows] = values
-    else:
-        dense[:] = values.reshape((n, n), order="F")
-    return sp.csr_matrix(dense)
+# ---------------------------------------------------------------------------- the fast path
+#: Bytes read to find the banner and the size line of the fast path (a longer header is read by
+#: the strict pass).
+_HEAD_BYTES = 1 << 16
+#: The shortest entry line, ``1 1 1`` and its line feed.
+_MIN_ENTRY_BYTES = 6
+#: Entry bytes from which the fast path is tried (a smaller file is read by the strict pass in
+#: well under a millisecond per kilobyte; thread start-up would cost more).
+_FAST_FROM_BYTES = 1 << 16
+
+
+def _read_coordinate_fast(path: Path) -> sp.csr_matrix | None:
+    """The matrix of a well-formed coordinate file, or None to leave the file to the strict pass.
+
+    The numbers are parsed by fast_matrix_market (``scipy.io.mmread``, multi-threaded). Its
+    result is taken only when the header passes :func:`_parse_header`; the entry lines hold only
+    plain numbers, three fields per announced entry
+    (:func:`~pymorembs.io.fast_text.count_plain_fields`); the values are finite; a symmetric
+    file stores one triangle; no entry is given twice. Then it equals the result of the strict
+    pass, except for the two mistakes named in the module docstring. Anything else (a bad or
+    unusual line, an integer file, a comment after the size line, an error of the parser)
+    returns None, and the strict pass reads the file again and names the problem.
+    """
+    head = _fast_head(path)
+    if head is None:
+        return None
+    header, offset = head
+    n, entries = header.n, header.entries
+    if header.layout != "coordinate" or header.field == "integer":
+        return None
+    try:
+        data_bytes = path.stat().st_size - offset
+    except OSError:
+        return None
+    if data_bytes < _FAST_FROM_BYTES:
+        return None  # the strict pass is quicker than starting the parser's threads
+    if entries * _MIN_ENTRY_BYTES > data_bytes + 1 or (n > _MOSTLY_EMPTY_FROM and n > 2 * entries):
+        return None
+    if count_plain_fields(path, offset) != 3 * entries:
+        return None
+    try:
+        if header.symmetric:  # read the stored triangle as it is (see _StoredTriangle)
+            with io.BufferedReader(_StoredTriangle(path, header.banner_storage), 1 << 20) as f:
+                coo = scipy.io.mmread(f, spmatrix=False)
+        else:
+            coo = scipy.io.mmread(path, spmatrix=False)
+    except Exception:  # any complaint of the parser: the strict pass explains it
+        return None
+    if not sp.issparse(coo) or coo.shape != (n, n) or coo.nnz != entries:
+        return None
+    rows, cols, values = coo.row, coo.col, coo.data
+    del coo
+    if not np.all(np.isfinite(values)):
+        return None
+    if header.symmetric and np.any(rows > cols) and np.any(rows < cols):
+        return None  # both triangles: the strict pass names the entry
+    matrix = _general_csr(rows, cols, values, n)
+    if matrix is None or not header.symmetric:
+        return matrix
+    del rows, cols, values
+    return _mirrored(matrix)
+
+
+class _StoredTriangle(io.RawIOBase):
+    """The bytes of a symmetric Matrix Market file whose banner says ``general`` instead.
+
+    ``scipy.io.mmread`` mirrors a symmetric file in Python with array copies that take longer
+    than the parse itself (and need twice the memory of the result); read through this view it
+    returns the stored triangle, which :func:`_mirrored` completes in CSR form.
+    """
+
+    def __init__(self, path: Path, storage: tuple[int, int]) -> None:
+        super().__init__()
+        self._file = open(path, "rb", buffering=0)  # closed in close()
+        self._position = 0
+        start, stop = storage
+        self._patch = (start, b"general".ljust(stop - start))
+
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, buffer) -> int:
+        size = self._file.readinto(buffer)
+        start, patch = self._patch
+        first = max(start - self._position, 0)
+        last = min(start + len(patch) - self._position, size)
+        if first < last:
+            offset = self._position + first - start
+            buffer[first:last] = patch[offset : offset + last - first]
+        self._position += size
+        return size
+
+    def close(self) -> None:
+        self._file.close()
+        super().close()
+
+
+def _mirrored(stored: sp.csr_matrix) -> sp.csr_matrix:
+    """The full symmetric matrix of a canonical CSR matrix holding one triangle.
+
+    ``stored + U`` with ``U`` the transpose of ``stored`` without its diagonal: the patterns lie
+    on opposite sides of the diagonal, so the sparse sum only places entries (one merge pass in
+    C). Explicit zeros, which the sum would drop, keep their place through a stand-in value.
+    """
+    zero = stored.data == 0.0
+    if zero.any():
+        stored.data[zero] = np.inf  # every value is finite: inf marks the explicit zeros
+    mirror = stored.T.tocsr()
+    mirror.sort_indices()
+    rows = np.repeat(np.arange(mirror.shape[0], dtype=mirror.indices.dtype), np.diff(mirror.indptr))
+    mirror.data[mirror.indices == rows] = 0.0  # the diagonal, which stays in ``stored``
+    del rows
+    mirror.eliminate_zeros()
+    full = stored + mirror
+    del mirror
+    if zero.any():
+        full.data[np.isinf(full.data)] = 0.0
+        stored.data[zero] = 0.0
+    full.sort_indices()
+    return full
+
+
+def _fast_head(path: Path) -> tuple[_Header, int] | None:
+    """Header of a plain UTF-8 file with LF or CR LF line ends and the byte offset of its first
+    entry line, or None (unreadable, odd or too long a header: the strict pass)."""
+    try:
+        with open(path, "rb") as stream:
+            head = stream.read(_HEAD_BYTES)
+            complete = not stream.read(1)
+    except OSError:
+        return None
+    if not head.startswith(b"%%") or b"\x00" in head:
+        return None
+    raw = head.split(b"\n")
+    if not complete:
+        raw.pop()  # a partial last line
+    if any(b"\r" in line[:-1] for line in raw):
+        return None  # a carriage return that does not end a line
+    try:
+        lines = [line.decode("utf-8").rstrip("\r") for line in raw]
+    except UnicodeDecodeError:
+        return None
+    try:
+        header = _parse_header(path, lines)
+    except UserError:
+        return None
+    if header.data_index > len(raw) - (0 if complete else 1) or not raw[0].isascii():
+        return None  # the size line may be cut; or character and byte offsets differ
+    offset = sum(len(line) + 1 for line in raw[: header.data_index])
+    return header, offset
+
+
+def _general_csr(rows: np.ndarray, cols: np.ndarray, values: np.ndarray, n: int):
+    """CSR of a general file's entries, or None if an entry is given twice."""
+    matrix = csr_from_sorted_coo(rows, cols, values, n)
+    if matrix is None:
+        matrix = sp.csr_matrix((values, (rows, cols)), shape=(n, n))
+        matrix.sum_duplicates()
+        if matrix.nnz != values.size:
+            return None
+    return matrix
 
 
 def check_symmetric(
@@ -469,7 +689,10 @@ def check_symmetric(
     a = sp.csr_matrix(matrix)
     if a.shape[0] != a.shape[1]:
         raise UserError(f"{where}: matrix is {a.shape[0]} x {a.shape[1]}, not square")
-    if _exactly_symmetric(a):
+    gap = _transpose_gap(a)
+    if gap is not None and gap <= tolerance * (float(np.max(np.abs(a.data))) if a.nnz else 0.0):
+        return
+    if gap is None and _exactly_symmetric(a):
         return
     diff = (a - a.T).tocoo()
     worst = int(np.argmax(np.abs(diff.data)))
@@ -486,7 +709,56 @@ def check_symmetric(
 
 
 def _exactly_symmetric(a: sp.csr_matrix) -> bool:
-    return a.shape[0] == a.shape[1] and (a != a.T).nnz == 0
+    if a.shape[0] != a.shape[1]:
+        return False
+    gap = _transpose_gap(a)
+    if gap is not None:
+        return gap == 0.0
+    return (a != a.T).nnz == 0
+
+
+def _transpose_gap(a: sp.csr_matrix) -> float | None:
+    """``max |A - A^T|`` of a canonical square CSR matrix (NaN if it holds NaN), or None if it
+    is not canonical.
+
+    One transposition; when the pattern is symmetric (as in most FE matrices) the value arrays
+    of ``A`` and ``A^T`` are compared directly, else by sparse subtraction; both in blocks of
+    rows, so that no temporary of the size of ``A`` is made besides ``A^T``.
+    """
+    if not a.has_canonical_format:
+        return None
+    t = a.T.tocsr()
+    t.sort_indices()
+    gap = np.float64(0.0)
+    if np.array_equal(a.indptr, t.indptr) and np.array_equal(a.indices, t.indices):
+        for start in range(0, a.nnz, _BLOCK):
+            block = a.data[start : start + _BLOCK] - t.data[start : start + _BLOCK]
+            gap = np.maximum(gap, np.max(np.abs(block)))
+        return float(gap)
+    bounds = np.searchsorted(a.indptr, np.arange(0, a.nnz + _BLOCK, _BLOCK))
+    for first, last in itertools.pairwise(np.minimum(bounds, a.shape[0])):
+        if last > first:
+            block = (_row_block(a, first, last) - _row_block(t, first, last)).data
+            if block.size:
+                gap = np.maximum(gap, np.max(np.abs(block)))
+    return float(gap)
+
+
+def _row_block(a: sp.csr_matrix, first: int, last: int) -> sp.csr_matrix:
+    """Rows ``first:last`` of a canonical CSR matrix, sharing its index and value arrays."""
+    lo, hi = a.indptr[first], a.indptr[last]
+    block = sp.csr_matrix(
+        (a.data[lo:hi], a.indices[lo:hi], a.indptr[first : last + 1] - lo),
+        shape=(last - first, a.shape[1]),
+        copy=False,
+    )
+    block.has_sorted_indices = True
+    block.has_canonical_format = True
+    return block
+
+
+#: Entries compared at a time by :func:`_transpose_gap`.
+_BLOCK = 1 << 20
 
 
 def _read_symmetric(path: Path, like: tuple[Path, int] | None = None) -> sp.csr_matrix:
@@ -511,7 +783,7 @@ def _coordinate_matrix(
     outside = np.flatnonzero((rows < 0) | (rows >= n) | (cols < 0) | (cols >= n))
     if outside.size:
         k = int(outside[0])
-        data.fail(k, f"entry ({rows[k] + 1}, {cols[k] + 1}) lies outside the {n} x {n} matrix")
+        data.fail(k, f"entry {_entry(rows, cols, k)} lies outside the {n} x {n} matrix")
     data.require_finite(values)
     if symmetric:
         below, above = np.flatnonzero(rows > cols), np.flatnonzero(rows < cols)
@@ -520,7 +792,7 @@ def _coordinate_matrix(
             side = "above" if rows[k] < cols[k] else "below"
             data.fail(
                 k,
-                f"entry ({rows[k] + 1}, {cols[k] + 1}) lies {side} the diagonal but earlier "
+                f"entry {_entry(rows, cols, k)} lies {side} the diagonal but earlier "
                 "entries lie on the other side; a symmetric file stores one triangle only",
             )
     if symmetric:
@@ -535,8 +807,7 @@ def _coordinate_matrix(
         first = int(order[repeated[np.argmin(second)]])
         data.fail(
             k,
-            f"entry ({rows[k] + 1}, {cols[k] + 1}) is given twice "
-            f"(first on line {data.line_of(first)})",
+            f"entry {_entry(rows, cols, k)} is given twice (first on line {data.line_of(first)})",
         )
     if symmetric:
         off = rows != cols
@@ -546,6 +817,13 @@ def _coordinate_matrix(
     matrix.sum_duplicates()
     matrix.sort_indices()
     return matrix
+
+
+def _entry(rows: np.ndarray, cols: np.ndarray, k: int) -> str:
+    """``(row, column)`` of entry ``k`` as in the file (indices from 0 in the arrays; an index
+    of the file near the int64 limits wrapped around when 1 was subtracted, and wraps back)."""
+    with np.errstate(over="ignore"):
+        return f"({rows[k] + 1}, {cols[k] + 1})"
 
 
 class _DataLines:
@@ -676,6 +954,12 @@ def _read_csv(path: Path, header: tuple[str, ...]) -> list[tuple[int, list[str]]
 
 def _read_dofs(path: Path) -> tuple[DofTable, list[int]]:
     """Dof table from ``dofs.csv`` and the line number of each equation."""
+    fast = _csv_fast(path, _DOF_HEADER, (np.int64, _TEXT))
+    if fast is not None:
+        (nodes, names), numbers = fast
+        codes = _direction_codes(names)
+        if codes is not None and _plain_nodes(nodes) and _distinct(nodes * 8 + codes):
+            return DofTable(nodes, codes), numbers.tolist()
     seen: dict[tuple[int, int], int] = {}
     for number, (node_text, direction_text) in _read_csv(path, _DOF_HEADER):
         dof = (
@@ -696,6 +980,12 @@ def _read_dofs(path: Path) -> tuple[DofTable, list[int]]:
 
 def _read_nodes(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Node ids and coordinates from ``nodes.csv``."""
+    fast = _csv_fast(path, _NODE_HEADER, (np.int64, float, float, float))
+    if fast is not None:
+        (ids, x, y, z), _ = fast
+        coordinates = np.column_stack([x, y, z])
+        if _plain_nodes(ids) and _distinct(ids) and np.all(np.isfinite(coordinates)):
+            return ids, coordinates
     seen: dict[int, int] = {}
     coordinates = []
     for number, (id_text, *xyz) in _read_csv(path, _NODE_HEADER):
@@ -711,6 +1001,12 @@ def _read_nodes(path: Path) -> tuple[np.ndarray, np.ndarray]:
 
 def _read_fixed(path: Path, table: DofTable) -> np.ndarray:
     """Equation indices of the dofs in ``fixed.csv``."""
+    fast = _csv_fast(path, _DOF_HEADER, (np.int64, _TEXT))
+    if fast is not None:
+        (nodes, names), _ = fast
+        indices = _dof_indices(table, nodes, names)
+        if indices is not None:
+            return indices
     return np.array(
         [
             _to_dof(node, direction, table, path, number)
@@ -722,6 +1018,9 @@ def _read_fixed(path: Path, table: DofTable) -> np.ndarray:
 
 def _read_constraints(path: Path, table: DofTable) -> ConstraintEquations:
     """Constraint equations from ``constraints.csv`` (layout in the module docstring)."""
+    fast = _constraints_fast(path, table)
+    if fast is not None:
+        return fast
     equations: dict[int, tuple[float, int]] = {}  # dependent -> (offset, line)
     terms: dict[tuple[int, int], tuple[float, int]] = {}  # (dependent, dof) -> (coefficient, line)
     for number, fields in _read_csv(path, _CONSTRAINT_HEADER):
@@ -766,6 +1065,115 @@ def _read_constraints(path: Path, table: DofTable) -> ConstraintEquations:
         matrix,
         np.array([offset for offset, _ in equations.values()], dtype=float),
     )
+
+
+# ---------------------------------------------------------------------------- CSV fast path
+#: Text fields of the CSV fast path (directions); a field of this length or longer may have
+#: been cut by NumPy and goes to the strict pass.
+_TEXT = "U8"
+_TEXT_WIDTH = 8
+_CODE_OF = {name: code for code, name in enumerate(DIRECTIONS)}
+
+
+def _csv_fast(
+    path: Path, header: tuple[str, ...], kinds: tuple[type | str, ...]
+) -> tuple[list[np.ndarray], np.ndarray] | None:
+    """Columns of a plain CSV table parsed by NumPy's ``loadtxt`` and the line numbers of its
+    rows, or None to leave the file to the strict pass (:func:`_read_csv`).
+
+    Plain: UTF-8, the header on the first line, no quotes, no comment lines, no lines of blanks.
+    Text columns come stripped and in lower case.
+    """
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError):
+        return None
+    text = text.replace("\r\n", "\n")
+    if any(mark in text for mark in ('"', "#", "\r", "\x00")):
+        return None
+    lines = text.split("\n")
+    if [field.strip().lower() for field in lines[0].split(",")] != list(header):
+        return None
+    body = lines[1:]
+    dtype = [(f"f{k}", kind) for k, kind in enumerate(kinds)]
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # "input contained no data"
+            table = np.loadtxt(body, delimiter=",", dtype=dtype, comments=None, ndmin=1)
+    except (ValueError, OverflowError):
+        return None
+    if "" in body[:-1]:  # loadtxt skips empty lines
+        numbers = np.flatnonzero([line != "" for line in body]) + 2
+    else:
+        numbers = np.arange(2, table.size + 2)
+    columns = []
+    for name, kind in zip(table.dtype.names, kinds, strict=True):
+        column = table[name]
+        if kind == _TEXT:
+            if column.size and np.max(np.strings.str_len(column)) >= _TEXT_WIDTH:
+                return None
+            column = np.strings.lower(np.strings.strip(column))
+        columns.append(column)
+    return columns, numbers
+
+
+def _direction_codes(names: np.ndarray) -> np.ndarray | None:
+    """Direction codes of stripped lower-case names, or None if one is unknown."""
+    unique, inverse = np.unique(names, return_inverse=True)
+    codes = [_CODE_OF.get(str(name)) for name in unique]
+    if None in codes:
+        return None
+    return np.asarray(codes, dtype=np.int64)[inverse].reshape(-1)
+
+
+def _plain_nodes(ids: np.ndarray) -> bool:
+    """Whether every node id is within +-2**60 (see :func:`_to_node`)."""
+    return not ids.size or bool(np.max(np.abs(ids)) < _NODE_LIMIT)
+
+
+def _distinct(keys: np.ndarray) -> bool:
+    return np.unique(keys).size == keys.size
+
+
+def _dof_indices(table: DofTable, nodes: np.ndarray, names: np.ndarray) -> np.ndarray | None:
+    """Equation indices of the dofs (node ids, direction names), or None if one is unknown."""
+    codes = _direction_codes(names)
+    if codes is None or not _plain_nodes(nodes):
+        return None
+    keys = table.nodes * 8 + table.directions
+    order = np.argsort(keys, kind="stable")
+    wanted = nodes * 8 + codes
+    position = np.minimum(np.searchsorted(keys[order], wanted), max(keys.size - 1, 0))
+    if not keys.size or np.any(keys[order][position] != wanted):
+        return None
+    return order[position]
+
+
+def _constraints_fast(path: Path, table: DofTable) -> ConstraintEquations | None:
+    """Constraint equations of a plain ``constraints.csv`` whose rows all hold a term, or None
+    to leave the file to the strict pass (which also reads rows ``q_d = offset``)."""
+    kinds = (np.int64, _TEXT, float, np.int64, _TEXT, float)
+    fast = _csv_fast(path, _CONSTRAINT_HEADER, kinds)
+    if fast is None:
+        return None
+    (dep_nodes, dep_names, offsets, nodes, names, coefficients), _ = fast
+    if not (np.all(np.isfinite(offsets)) and np.all(np.isfinite(coefficients))):
+        return None
+    dependent = _dof_indices(table, dep_nodes, dep_names)
+    columns = _dof_indices(table, nodes, names)
+    if dependent is None or columns is None:
+        return None
+    if not _distinct(dependent * (len(table) + 1) + columns):
+        return None  # a term given twice
+    unique, first, row = np.unique(dependent, return_index=True, return_inverse=True)
+    if np.any(offsets != offsets[first][row]):
+        return None  # offsets of one equation differ
+    rank = np.empty(unique.size, dtype=np.int64)  # equations in the order of first appearance
+    rank[np.argsort(first, kind="stable")] = np.arange(unique.size)
+    matrix = sp.csr_matrix((coefficients, (rank[row], columns)), shape=(unique.size, len(table)))
+    matrix.sort_indices()
+    appearance = np.sort(first)
+    return ConstraintEquations(dependent[appearance], matrix, offsets[appearance])
 
 
 # ============================================================================ small helpers

@@ -1,0 +1,391 @@
+"""The fast paths of the Matrix Market and CSV readers agree with their strict passes.
+
+``read_matrix_market`` first tries fast_matrix_market (``scipy.io.mmread``) behind byte-level
+checks (:func:`pymorembs.io.fast_text.count_plain_fields`), the CSV tables first try NumPy's
+``loadtxt``; anything doubtful goes to the strict line-by-line pass, which names the bad line.
+The property tested here: whatever the fast path returns is exactly what the strict pass returns
+(same CSR arrays, same tables), and the public functions behave as the strict pass alone (same
+result or the same one-line error). The strict pass is obtained by switching the fast path off.
+"""
+
+from __future__ import annotations
+
+import re
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from pymorembs.body import DofTable
+from pymorembs.errors import UserError
+from pymorembs.io import fast_text
+from pymorembs.io import matrix_market as mm
+from pymorembs.io.fast_text import count_plain_fields, csr_from_sorted_coo
+
+GENERAL = "%%MatrixMarket matrix coordinate real general\n"
+SYMMETRIC = "%%MatrixMarket matrix coordinate real symmetric\n"
+
+
+@pytest.fixture(autouse=True)
+def fast_path_for_small_files(monkeypatch):
+    """The fast path is tried from 64 KiB of entries on; here for every file."""
+    monkeypatch.setattr(mm, "_FAST_FROM_BYTES", 0)
+
+
+def outcome(call):
+    """The result of ``call`` or the message of its UserError (without the file name)."""
+    try:
+        return call()
+    except UserError as err:
+        message = str(err)
+        assert "\n" not in message
+        return message.split(": ", 1)[1]
+
+
+def same(a, b) -> bool:
+    """Equal results: identical canonical CSR arrays, equal arrays/tuples, or equal messages."""
+    if isinstance(a, str) or isinstance(b, str):
+        return a == b
+    if sp.issparse(a) or sp.issparse(b):
+        return (
+            sp.issparse(a)
+            and sp.issparse(b)
+            and a.shape == b.shape
+            and np.array_equal(a.indptr, b.indptr)
+            and np.array_equal(a.indices, b.indices)
+            and np.array_equal(a.data, b.data)
+        )
+    if isinstance(a, tuple | list):
+        return len(a) == len(b) and all(same(x, y) for x, y in zip(a, b, strict=True))
+    if isinstance(a, DofTable):
+        return np.array_equal(a.nodes, b.nodes) and np.array_equal(a.directions, b.directions)
+    if hasattr(a, "dependent"):  # ConstraintEquations
+        return (
+            np.array_equal(a.dependent, b.dependent)
+            and same(a.matrix, b.matrix)
+            and np.array_equal(a.offset, b.offset)
+        )
+    return np.array_equal(a, b)
+
+
+def strict(monkeypatch, call):
+    """``call`` with the fast paths switched off."""
+    with monkeypatch.context() as patch:
+        patch.setattr(mm, "_read_coordinate_fast", lambda path: None)
+        patch.setattr(mm, "_csv_fast", lambda path, header, kinds: None)
+        patch.setattr(mm, "_constraints_fast", lambda path, table: None)
+        return outcome(call)
+
+
+def check_matrix_file(tmp_path: Path, monkeypatch, text: str | bytes) -> tuple[object, object]:
+    """Write ``text``; the fast path's matrix (or None) and the strict result, checked equal."""
+    path = tmp_path / "a.mtx"
+    path.write_bytes(text.encode() if isinstance(text, str) else text)
+    fast = mm._read_coordinate_fast(path)
+    reference = strict(monkeypatch, lambda: mm.read_matrix_market(path))
+    if fast is not None:
+        assert same(fast, reference), (text, fast, reference)
+    assert same(outcome(lambda: mm.read_matrix_market(path)), reference)
+    return fast, reference
+
+
+# ============================================================================ Matrix Market
+@pytest.mark.parametrize(
+    ("text", "fast"),
+    [
+        (GENERAL + "2 2 3\n1 1 1.0\n1 2 0.5\n2 2 2.0\n", True),
+        (GENERAL + "2 2 3\n2 2 2.0\n1 1 1.0\n1 2 0.5\n", True),  # unsorted
+        (SYMMETRIC + "3 3 4\n1 1 1.0\n2 1 0.5\n2 2 2.0\n3 3 1\n", True),  # lower
+        (SYMMETRIC + "3 3 4\n1 1 1.0\n1 2 0.5\n2 2 2.0\n3 3 1\n", True),  # upper
+        (SYMMETRIC + "3 3 4\n3 3 1\n2 1 0.5\n1 1 1.0\n2 2 2.0\n", True),
+        (SYMMETRIC + "3 3 4\n1 1 0.0\n2 1 -0.0\n3 1 0\n3 3 1.0\n", True),  # explicit zeros
+        (GENERAL + "   2   2   2\n    1    1   1.5e+00\n    2    2  -2.5E-01\n", True),
+        ((GENERAL + "2 2 2\n1 1 1.0\n2 2 2.0\n").replace("\n", "\r\n"), True),
+        (GENERAL + "2 2 2\n1\t1\t1.0\n2\t2\t2.0\n", True),
+        (GENERAL + "2 2 2\n\n1 1 1.0\n\n2 2 2.0\n\n", True),
+        (GENERAL + "% comment\n%\n\n2 2 2\n1 1 0.0\n2 2 -0.0\n", True),  # explicit zeros
+        (GENERAL + "2 2 2\n1 1 1.0\n2 2 2.0", True),  # no final line end
+        (GENERAL.replace("real", "double") + "2 2 1\n1 1 1\n", True),
+        (GENERAL + "2 2 0\n", True),
+        # the strict pass decides (and names the line where the file is wrong)
+        (SYMMETRIC + "2 2 3\n1 1 1.0\n2 1 0.5\n1 2 0.5\n", False),  # both triangles
+        (GENERAL + "2 2 3\n1 1 1.0\n1 1 0.5\n2 2 2.0\n", False),  # given twice
+        (SYMMETRIC + "2 2 3\n1 1 1.0\n2 1 0.5\n2 1 0.5\n", False),
+        (GENERAL + "2 2 2\n1 1 1.0D+03\n2 2 2.0\n", False),  # Fortran exponent
+        (GENERAL + "2 2 2\n1 1 1,5\n2 2 2.0\n", False),  # decimal comma
+        (GENERAL + "2 2 2\n1 1 1.0 0.0\n2 2 2.0 0.0\n", False),  # complex values
+        (GENERAL + "2 2 2\n1 1\n2 2\n", False),  # pattern values
+        (GENERAL + "2 2 2\n1 1 0.1-105\n2 2 2.0\n", False),  # exponent without its letter
+        (GENERAL + "2 2 2\n1 1 1-2\n2 2 2.0\n", False),
+        (GENERAL + "2 2 2\n1 1 0x1p3\n2 2 2.0\n", False),
+        (GENERAL + "2 2 2\n1 1 1.5e\n2 2 2.0\n", False),  # exponent without digits
+        (GENERAL + "2 2 2\n1 1 1e.5\n2 2 2.0\n", False),
+        (GENERAL + "2 2 2\n1 1 1ee5\n2 2 2.0\n", False),
+        (GENERAL + "2 2 2\n1 1 1.0-\n2 2 2.0\n", False),  # sign without digits
+        (GENERAL + "2 2 2\n1 1 2.0\n2 2 1.5E-", False),  # cut short at the end
+        (GENERAL + "2 2 2\n1 1 nan\n2 2 2.0\n", False),
+        (GENERAL + "2 2 2\n1 1 1e400\n2 2 2.0\n", False),  # overflows to inf
+        (GENERAL + "2 2 2\n1 1 1.0 % note\n2 2 2.0\n", False),  # comment after an entry
+        (GENERAL + "2 2 2\n1 1 1.0\n% note\n2 2 2.0\n", False),
+        (GENERAL + "2 2 2\n1 -0 1.0\n2 2 2.0\n", False),
+        (GENERAL + "2 2 2\n3 1 1.0\n2 2 2.0\n", False),  # outside
+        (GENERAL + "2 2 3\n1 1 1.0\n2 2 2.0\n", False),  # count
+        (GENERAL + "2 2 1\n1 1 1.0\n2 2 2.0\n", False),
+        (GENERAL + "2 2 2\n+1 1 1.0\n2 2 +2.0\n", False),  # leading plus: strict pass
+        (GENERAL.replace("real", "integer") + "2 2 2\n1 1 1.5\n2 2 2\n", False),
+        (GENERAL.upper() + "2 2 1\n1 1 1.0\n", False),  # an upper-case banner
+        ("\ufeff" + GENERAL + "2 2 1\n1 1 1.0\n", False),  # byte order mark
+        (GENERAL + "2 2 2\n1 1 1.0\r2 2 2.0\r", False),  # old Mac line ends
+        (GENERAL + "2 2 1\n1 1 1.0\x00\n", False),
+        (GENERAL + "2 2 1\n1 1 1.0\u00a0\n", False),  # non-ASCII blank
+    ],
+)
+def test_fast_path_equals_the_strict_pass(tmp_path, monkeypatch, text, fast) -> None:
+    result, reference = check_matrix_file(tmp_path, monkeypatch, text)
+    assert (result is not None) == fast, reference
+
+
+def test_messages_of_the_strict_pass_are_kept(tmp_path, monkeypatch) -> None:
+    path = tmp_path / "bad.mtx"
+    path.write_text(GENERAL + "2 2 2\n1 1 1.0D+03\n2 2 2.0\n")
+    with pytest.raises(UserError, match=r"bad\.mtx:3: value '1\.0D\+03' is not a number$"):
+        mm.read_matrix_market(path)
+    path.write_text(SYMMETRIC + "2 2 3\n1 1 1.0\n2 1 0.5\n2 1 0.5\n")
+    with pytest.raises(UserError, match=r"bad\.mtx:5: entry \(2, 1\) is given twice"):
+        mm.read_matrix_market(path)
+
+
+def test_written_files_take_the_fast_path(tmp_path, monkeypatch) -> None:
+    """pymorembs' own files never need the strict pass (it would read the lines)."""
+    rng = np.random.default_rng(3)
+    a = sp.random(60, 60, density=0.2, random_state=rng, format="csr")
+    for matrix in (a + a.T, a + 1e-9 * sp.eye(60)):  # symmetric and general storage
+        path = mm.write_matrix_market(tmp_path / "w.mtx", matrix)
+        with monkeypatch.context() as patch:
+            patch.setattr(mm, "_read_lines", lambda *args: pytest.fail("strict pass used"))
+            read = mm.read_matrix_market(path)
+        assert (read != sp.csr_matrix(matrix)).nnz == 0
+        assert read.has_canonical_format
+
+
+# Random files: a small matrix in a random layout, then a random edit drawn from the mistakes
+# and oddities that lenient parsers accept. The edits the byte checks cannot see (see
+# count_plain_fields) are not drawn: a second decimal point or exponent letter in a number, a
+# decimal point in a column index.
+EDITS = [
+    "", "", "", "D", "d", ",", ";", "%", " 0", " 15", "\t", "x", "nan", "inf", "-", "+", "0x",
+    "\x00", "\u00e9", "\r", "\n", "\n\n", " ", "#", "_", "1_0", "-1", "+-",
+]  # fmt: skip
+
+
+@st.composite
+def matrix_files(draw):
+    n = draw(st.integers(1, 5))
+    symmetric = draw(st.booleans())
+    positions = draw(st.lists(st.tuples(st.integers(0, n - 1), st.integers(0, n - 1)), max_size=12))
+    if symmetric:
+        lower = draw(st.booleans())
+        positions = [(max(ij), min(ij)) if lower else (min(ij), max(ij)) for ij in positions]
+    positions = list(dict.fromkeys(positions))
+    if draw(st.booleans()):
+        positions.sort()
+    values = draw(
+        st.lists(
+            st.floats(allow_nan=False, allow_infinity=False, width=64),
+            min_size=len(positions),
+            max_size=len(positions),
+        )
+    )
+    style = draw(st.sampled_from(["{!r}", "{:.15e}", "{:g}", "{:.3E}", "{: .15e}"]))
+    sep = draw(st.sampled_from([" ", "  ", "\t", "   "]))
+    lines = [
+        f"{i + 1}{sep}{j + 1}{sep}{style.format(v)}"
+        for (i, j), v in zip(positions, values, strict=True)
+    ]
+    if lines and draw(st.booleans()):  # one edit at a random place of one line
+        k = draw(st.integers(0, len(lines) - 1))
+        at = draw(st.integers(0, len(lines[k])))
+        edit = draw(st.sampled_from(EDITS))
+        lines[k] = lines[k][:at] + edit + lines[k][at:]
+    count = len(positions) + draw(st.sampled_from([0, 0, 0, 1, -1]))
+    banner = SYMMETRIC if symmetric else GENERAL
+    end = draw(st.sampled_from(["\n", "\r\n"]))
+    return (banner + f"{n} {n} {count}\n" + "\n".join(lines) + "\n").replace("\n", end)
+
+
+@settings(
+    max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(text=matrix_files())
+def test_random_files_fast_equals_strict(tmp_path, monkeypatch, text) -> None:
+    check_matrix_file(tmp_path, monkeypatch, text)
+
+
+@pytest.mark.parametrize(
+    ("line", "value", "message"),
+    [
+        ("1 1.5 2.0", 0.5, "column '1.5' is not an integer"),
+        ("1 1 1.0.5", 1.0, "value '1.0.5' is not a number"),
+        ("1 1 1e5e5", 1e5, "value '1e5e5' is not a number"),
+        ("1 1 1e5.0", 1e5, "value '1e5.0' is not a number"),
+    ],
+)
+def test_the_known_gaps(tmp_path, monkeypatch, line, value, message) -> None:
+    """The mistakes the byte checks cannot see (documented in count_plain_fields): the fast
+    path reads them as fast_matrix_market does, the strict pass refuses them. This test fails
+    when that changes; then update the docstrings and EDITS above."""
+    path = tmp_path / "gap.mtx"
+    path.write_text(GENERAL + f"2 2 2\n{line}\n2 2 2.0\n")
+    assert mm._read_coordinate_fast(path).toarray()[0, 0] == value
+    assert strict(monkeypatch, lambda: mm.read_matrix_market(path)) == message
+
+
+# ============================================================================ byte checks
+@pytest.mark.parametrize("chunk", [1, 2, 3, 5, 7, 64])
+def test_field_count_and_signs_across_chunk_boundaries(tmp_path, monkeypatch, chunk) -> None:
+    monkeypatch.setattr(fast_text, "_CHUNK", chunk)
+    path = tmp_path / "f.txt"
+    path.write_bytes(b"HEAD\n 12 3  -4.5e-06\n\n7\t8 9.0 \r\n10 11 .5")
+    assert count_plain_fields(path, offset=5) == 9
+    path.write_bytes(b"HEAD\n 12 3 4.5-06\n")
+    assert count_plain_fields(path, offset=5) is None
+    path.write_bytes(b"HEAD\n 12 3 4.-06\n")
+    assert count_plain_fields(path, offset=5) is None
+    path.write_bytes(b"HEAD\n 12 3 1D+03\n")
+    assert count_plain_fields(path, offset=5) is None
+    for text in (b"HEAD\n1 2 3.5e", b"HEAD\n1 2 3.5e-", b"HEAD\n1 2 3.5e \n", b"HEAD\n1 2 - 3\n"):
+        path.write_bytes(text)
+        assert count_plain_fields(path, offset=5) is None, text
+    path.write_bytes(b"HEAD\n1 2 3.5e-7\n4 5 -.5E+1")
+    assert count_plain_fields(path, offset=5) == 6
+
+
+def test_field_count_of_missing_and_empty_files(tmp_path) -> None:
+    assert count_plain_fields(tmp_path / "none.txt") is None
+    (tmp_path / "empty.txt").write_bytes(b"")
+    assert count_plain_fields(tmp_path / "empty.txt") == 0
+
+
+def test_csr_from_sorted_coo() -> None:
+    rows, cols = np.array([0, 0, 2, 2], dtype=np.int32), np.array([0, 3, 1, 2], dtype=np.int32)
+    values = np.array([1.0, 0.0, -2.0, 3.0])
+    a = csr_from_sorted_coo(rows, cols, values, 4)
+    assert same(a, sp.csr_matrix((values, (rows, cols)), shape=(4, 4)))
+    assert a.nnz == 4 and a.has_canonical_format  # the explicit zero is kept
+    assert csr_from_sorted_coo(rows[::-1], cols[::-1], values, 4) is None
+    assert csr_from_sorted_coo(rows, np.array([0, 3, 1, 1], dtype=np.int32), values, 4) is None
+
+
+# ============================================================================ symmetry test
+def test_check_symmetric_fast_and_general_patterns() -> None:
+    a = sp.csr_matrix(np.array([[4.0, 1.0, 0.0], [1.0, 3.0, 0.0], [0.0, 0.0, 2.0]]))
+    mm.check_symmetric(a, "a")  # symmetric pattern
+    b = a.tolil()
+    b[0, 2] = 1e-12  # one-sided tiny entry: pattern asymmetric, within the tolerance
+    mm.check_symmetric(b.tocsr(), "b")
+    b[0, 2] = 1e-3
+    with pytest.raises(UserError, match=r"^b: matrix is not symmetric: entry \(1, 3\) = 0\.001"):
+        mm.check_symmetric(b.tocsr(), "b")
+    c = a.copy()
+    c.data[1] = np.nan
+    with pytest.raises(UserError, match="not symmetric"):
+        mm.check_symmetric(c, "c")
+
+
+# ============================================================================ CSV tables
+DOF_TABLE = DofTable(np.array([1, 1, 2, 5]), np.array([0, 1, 5, 6]))
+
+CSV_CASES = [
+    ("dofs.csv", "node,direction\n1,ux\n1,uy\n2,rz\n5,q\n", True),
+    ("dofs.csv", "Node , Direction\r\n 1 , UX \r\n1,uy\r\n2,RZ\r\n5,Q\r\n", True),
+    ("dofs.csv", "node,direction\n1,ux\n\n1,uy\n2,rz\n", True),  # blank line: line numbers
+    ("dofs.csv", "# comment\nnode,direction\n1,ux\n", False),
+    ("dofs.csv", 'node,direction\n1,"ux"\n', False),
+    ("dofs.csv", "node,direction\n1,ux\n1,UX\n", False),  # twice
+    ("dofs.csv", "node,direction\n1,uxx\n", False),
+    ("dofs.csv", "node,direction\n1,ux      y\n", False),  # would be cut by NumPy
+    ("dofs.csv", "node,direction\n1.0,ux\n", False),
+    ("dofs.csv", f"node,direction\n{2**60},ux\n", False),
+    ("dofs.csv", "node,direction\n1,ux,3\n", False),
+    ("dofs.csv", "node,direction\n   \n1,ux\n", False),
+    ("nodes.csv", "id,x,y,z\n1,0.0,1e-3,-2\n2, 1.5 ,2,3\n5,0,0,0\n", True),
+    ("nodes.csv", "id,x,y,z\n1,nan,0,0\n", False),
+    ("nodes.csv", "id,x,y,z\n1,0,0,0\n1,1,1,1\n", False),
+    ("nodes.csv", "id,x,y,z\n1,1_0,0,0\n", False),
+    ("nodes.csv", "id,x,y,z\n1,0,0\n", False),
+    ("fixed.csv", "node,direction\n2,rz\n1,ux\n", True),
+    ("fixed.csv", "node,direction\n3,ux\n", False),
+    ("constraints.csv", "dependent_node,dependent_direction,offset,node,direction,coefficient\n"
+     "2,rz,0.0,1,ux,0.5\n2,rz,0.0,1,uy,0.25\n1,uy,1e-3,5,q,-1\n", True),
+    ("constraints.csv", "dependent_node,dependent_direction,offset,node,direction,coefficient\n"
+     "2,rz,0.0,1,ux,0.5\n2,rz,0.5,1,uy,0.25\n", False),  # offsets differ
+    ("constraints.csv", "dependent_node,dependent_direction,offset,node,direction,coefficient\n"
+     "2,rz,0.0,1,ux,0.5\n2,rz,0.0,1,ux,0.25\n", False),  # a term twice
+    ("constraints.csv", "dependent_node,dependent_direction,offset,node,direction,coefficient\n"
+     "2,rz,0.0,,,\n", False),  # q_d = offset
+    ("constraints.csv", "dependent_node,dependent_direction,offset,node,direction,coefficient\n"
+     "2,rz,0.0,9,ux,1\n", False),
+]  # fmt: skip
+
+
+def _read_table(name: str, path: Path):
+    if name == "dofs.csv":
+        return mm._read_dofs(path)
+    if name == "nodes.csv":
+        return mm._read_nodes(path)
+    if name == "fixed.csv":
+        return mm._read_fixed(path, DOF_TABLE)
+    return mm._read_constraints(path, DOF_TABLE)
+
+
+@pytest.mark.parametrize(("name", "text", "fast"), CSV_CASES)
+def test_csv_fast_path_equals_the_strict_pass(tmp_path, monkeypatch, name, text, fast) -> None:
+    path = tmp_path / name
+    path.write_bytes(text.encode())
+    reference = strict(monkeypatch, lambda: _read_table(name, path))
+    result = outcome(lambda: _read_table(name, path))
+    assert same(result, reference), (result, reference)
+    with monkeypatch.context() as patch:  # whether the fast path decided alone
+        patch.setattr(mm, "_read_csv", lambda *args: pytest.fail("strict pass used"))
+        try:
+            _read_table(name, path)
+            used_fast = True
+        except BaseException as err:  # pytest.fail raises outcomes.Failed
+            assert not isinstance(err, UserError)
+            used_fast = False
+    assert used_fast == fast
+
+
+def test_csv_errors_name_the_line(tmp_path) -> None:
+    path = tmp_path / "dofs.csv"
+    path.write_text("node,direction\n1,ux\n2,uy\n1,UX\n")
+    with pytest.raises(UserError, match=re.escape("dofs.csv:4: dof 1:ux is listed twice")):
+        mm._read_dofs(path)
+
+
+def test_index_at_the_int64_limit_is_named_without_a_warning(tmp_path) -> None:
+    """Was a RuntimeWarning (scalar overflow) beside the message, a second line on stderr."""
+    path = tmp_path / "limit.mtx"
+    path.write_text(GENERAL + "2 2 1\n-9223372036854775808 1 1.0\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(UserError, match=re.escape("entry (-9223372036854775808, 1) lies")):
+            mm.read_matrix_market(path)
+
+
+def test_fast_path_from_64_kib_of_entries(tmp_path, monkeypatch) -> None:
+    monkeypatch.setattr(mm, "_FAST_FROM_BYTES", 1 << 16)
+    small = mm.write_matrix_market(tmp_path / "small.mtx", sp.eye(10, format="csr"))
+    assert mm._read_coordinate_fast(small) is None  # the strict pass reads it
+    rng = np.random.default_rng(5)
+    a = sp.random(400, 400, density=0.05, random_state=rng, format="csr")
+    large = mm.write_matrix_market(tmp_path / "large.mtx", a + a.T)
+    assert large.stat().st_size > 1 << 16
+    with monkeypatch.context() as patch:
+        patch.setattr(mm, "_read_lines", lambda *args: pytest.fail("strict pass used"))
+        read = mm.read_matrix_market(large)
+    assert (read != a + a.T).nnz == 0
