@@ -76,6 +76,7 @@ import io
 import os
 import re
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Literal
@@ -96,7 +97,8 @@ from pymorembs.io.abaqus_inp import (
     unique_values,
 )
 from pymorembs.io.formats import assemble_symmetric, is_nodes_csv, read_text
-from pymorembs.io.matrix_market import _fail, _read_dofs, _read_nodes
+from pymorembs.io.matrix_market import SYMMETRY_TOLERANCE, _fail, _read_dofs, _read_nodes
+from pymorembs.io.symmetric_assembly import assemble_symmetric_triangle
 
 __all__ = [
     "PENALTY",
@@ -116,6 +118,11 @@ PENALTY = 1e30
 RIGID_BODY_TOLERANCE = 1e-6
 
 _KEYWORD_LINE = re.compile(r"(?m)^[ \t]*\*(?!\*)")
+_KEYWORD_BYTES = re.compile(rb"(?m)^[ \t]*\*(?!\*)")
+#: Bytes of a matrix file checked at a time before the parse on the path.
+_SCAN_CHUNK = 1 << 24
+#: Entries converted at a time (temporary arrays stay small).
+_BLOCK = 1 << 20
 _MATRIX_INPUT = ("row node", "row dof", "column node", "column dof", "value")
 _COORDINATE = ("row", "column", "value")
 _KIND = "an Abaqus *MATRIX OUTPUT file"
@@ -124,13 +131,37 @@ _GIVE_DOFS = "give the dof of every equation as dofs (a dofs.csv with header nod
 
 @dataclass
 class _MatrixFile:
-    """Entries of one ``.mtx`` file, in file order."""
+    """Entries of one ``.mtx`` file, in file order.
+
+    ``columns`` and ``values`` may be released once the matrix is assembled (to save memory);
+    they are then parsed again, strictly, when an error message needs them.
+    """
 
     path: Path
     layout: Literal["input", "coordinate"]
-    columns: tuple[np.ndarray, ...]  # (node_i, dof_i, node_j, dof_j) or (row, col)
-    values: np.ndarray
+    _columns: tuple[np.ndarray, ...] | None  # (node_i, dof_i, node_j, dof_j) or (row, col)
+    _values: np.ndarray | None
+    _span: tuple[int, int] = (0, 0)  # smallest and largest equation number (coordinate)
+    #: the matrix assembled at once from a coordinate file (equations from 0, size: the largest
+    #: equation number), or None
+    assembled: sp.csr_matrix | None = field(default=None, repr=False)
     _numbers: np.ndarray | None = field(default=None, repr=False)
+
+    @property
+    def columns(self) -> tuple[np.ndarray, ...]:
+        if self._columns is None:
+            self._columns, self._values = _parse_strictly(self.path)
+        return self._columns
+
+    @property
+    def values(self) -> np.ndarray:
+        if self._values is None:
+            self._columns, self._values = _parse_strictly(self.path)
+        return self._values
+
+    def release(self) -> None:
+        """Drop the parsed entries (they are parsed again if a message needs them)."""
+        self._columns = self._values = None
 
     def line_of(self, entry: int) -> int:
         """Line number of entry ``entry`` (from 0); reads the file again, for messages only."""
@@ -139,15 +170,13 @@ class _MatrixFile:
             self._numbers = np.array([n for n, _ in _content_lines(text)], dtype=np.int64)
         return int(self._numbers[entry])
 
-    def keys(self) -> tuple[np.ndarray, np.ndarray]:
-        """``node * 8 + direction`` of the row and column dof of every entry (matrix input)."""
-        node_i, dof_i, node_j, dof_j = self.columns
-        return node_i * 8 + (dof_i - 1), node_j * 8 + (dof_j - 1)
-
     def size(self) -> int:
         """Largest equation number of a coordinate file."""
-        rows, cols = self.columns
-        return int(max(rows.max(initial=0), cols.max(initial=0)))
+        return self._span[1]
+
+    def within(self, n: int) -> bool:
+        """Whether every equation number of a coordinate file lies in ``1..n``."""
+        return self._span[0] >= 1 and self._span[1] <= n
 
 
 @dataclass
@@ -342,18 +371,97 @@ def _read(
 
 def _assemble(
     files: dict[str, _MatrixFile],
-    indices: dict[str, tuple[np.ndarray, np.ndarray]],
+    indices: dict[str, tuple[np.ndarray, np.ndarray] | None],
     n: int,
-    label: object,
+    label: Callable[[int], str],
 ) -> dict[str, sp.csr_matrix]:
-    matrices = {
-        role: assemble_symmetric(
-            *indices[role], f.values, n, path=f.path, line_of=f.line_of, label=label
-        )
-        for role, f in files.items()
-    }
+    """The matrices of the files, ``n x n``; ``indices[role]`` None: ``f.assembled`` is used.
+
+    Entries in one of the sorted layouts FE programs write are assembled in linear time
+    (:func:`~pymorembs.io.symmetric_assembly.assemble_symmetric_triangle`), others (and every
+    file with a mistake, which is then named) by ``assemble_symmetric``. The parsed entries of
+    a file are released once its matrix is built.
+    """
+    matrices = {}
+    for role, f in files.items():
+        pair = indices.pop(role)
+        if pair is None:
+            matrix = _resized(f.assembled, n)
+        else:
+            rows, cols = pair
+            matrix = assemble_symmetric_triangle(rows, cols, f.values, n, SYMMETRY_TOLERANCE)
+            if matrix is None:
+                matrix = assemble_symmetric(
+                    rows, cols, f.values, n, path=f.path, line_of=f.line_of, label=label
+                )
+            del rows, cols, pair
+        f.release()
+        f.assembled = None
+        matrices[role] = matrix
     matrices.setdefault("mass", sp.csr_matrix((n, n)))
     return matrices
+
+
+def _resized(matrix: sp.csr_matrix, n: int) -> sp.csr_matrix:
+    """A square CSR matrix grown to ``n x n`` with empty rows and columns (no copy of entries)."""
+    size = matrix.shape[0]
+    if size == n:
+        return matrix
+    indptr = np.concatenate([matrix.indptr, np.full(n - size, matrix.indptr[-1])])
+    return sp.csr_matrix((matrix.data, matrix.indices, indptr), shape=(n, n), copy=False)
+
+
+def _equation_indices(
+    files: dict[str, _MatrixFile],
+) -> tuple[np.ndarray, dict[str, tuple[np.ndarray, np.ndarray] | None]]:
+    """The sorted ``node * 8 + direction`` keys of all dofs of matrix-input files, and the
+    equation indices (int32) of the row and column dof of every entry of each file.
+
+    Keys within a range of a few times the number of entries are looked up in a table (linear
+    time); other (sparse) labels through a sort.
+    """
+    blocks = []  # per file: (node, dof) column pairs of the row and the column dof
+    for f in files.values():
+        node_i, dof_i, node_j, dof_j = f.columns
+        blocks.append(((node_i, dof_i), (node_j, dof_j)))
+    low = min(int(n.min(initial=MAX_LABEL)) for pairs in blocks for n, _ in pairs)
+    high = max(int(n.max(initial=0)) for pairs in blocks for n, _ in pairs)
+    entries = sum(f.values.size for f in files.values())
+    span = (high - low + 1) * 8
+    if span > 4 * entries + (1 << 20):
+        every = [_keys(n, d) for pairs in blocks for n, d in pairs]
+        keys = unique_values(np.concatenate(every))
+        found = iter(np.searchsorted(keys, k).astype(np.int32) for k in every)
+        return keys, {role: (next(found), next(found)) for role in files}
+    present = np.zeros(span, dtype=bool)
+    for pairs in blocks:
+        for node, dof in pairs:
+            for start in range(0, node.size, _BLOCK):
+                present[_keys(node[start : start + _BLOCK], dof[start : start + _BLOCK], low)] = 1
+    keys = np.flatnonzero(present)
+    lookup = np.cumsum(present, dtype=np.int32) - 1
+    del present
+    indices: dict[str, tuple[np.ndarray, np.ndarray] | None] = {}
+    for role, pairs in zip(files, blocks, strict=True):
+        found = []
+        for node, dof in pairs:
+            out = np.empty(node.size, dtype=np.int32)
+            for start in range(0, node.size, _BLOCK):
+                stop = start + _BLOCK
+                out[start:stop] = lookup[_keys(node[start:stop], dof[start:stop], low)]
+            found.append(out)
+        indices[role] = (found[0], found[1])
+    return keys + low * 8, indices
+
+
+def _keys(node: np.ndarray, dof: np.ndarray, low: int = 0) -> np.ndarray:
+    """``(node - low) * 8 + dof - 1`` as int64."""
+    key = node.astype(np.int64)
+    key -= low
+    key *= 8
+    key += dof
+    key -= 1
+    return key
 
 
 def _make_body(
@@ -397,13 +505,8 @@ def _matrix_input_body(
 ) -> ElasticBody:
     for f in files.values():
         _check_labels(f)
-    all_keys = {role: f.keys() for role, f in files.items()}
-    keys = unique_values(np.concatenate([k for pair in all_keys.values() for k in pair]))
+    keys, indices = _equation_indices(files)
     table = DofTable(keys // 8, keys % 8)
-    indices = {
-        role: (np.searchsorted(keys, key_i), np.searchsorted(keys, key_j))
-        for role, (key_i, key_j) in all_keys.items()
-    }
     k_file = files["stiffness"]
     matrices = _assemble(files, indices, len(table), table.label)
     notes = [
@@ -619,7 +722,83 @@ def _split(data: str, delimiter: str | None) -> list[str]:
 
 
 def _read_matrix_file(path: Path) -> _MatrixFile:
-    """Parse one ``.mtx`` file (vectorised; a bad line is located in a second pass)."""
+    """Parse one ``.mtx`` file: :func:`_parse_plain` when the file is plain ASCII numbers, else
+    (or when that parse fails) :func:`_parse_strictly`, which names the bad line."""
+    fast = _parse_plain(path)
+    if fast is None:
+        columns, values = _parse_strictly(path)
+        layout: Literal["input", "coordinate"] = "input" if len(columns) == 4 else "coordinate"
+    else:
+        layout, columns, values = fast
+    f = _MatrixFile(path, layout, columns, values)
+    if layout == "coordinate":
+        rows, cols = columns
+        low = min(int(rows.min(initial=1)), int(cols.min(initial=1)))
+        f._span = (low, int(max(rows.max(initial=0), cols.max(initial=0))))
+        if low >= 1 and f._span[1] < 2**31 - 1:  # assembled at once: the entries can go
+            f.assembled = assemble_symmetric_triangle(
+                rows - 1, cols - 1, values, f._span[1], SYMMETRY_TOLERANCE
+            )
+            if f.assembled is not None:
+                f.release()
+    return f
+
+
+def _parse_plain(
+    path: Path,
+) -> tuple[Literal["input", "coordinate"], tuple[np.ndarray, ...], np.ndarray] | None:
+    """Layout, columns and values of a file of plain ASCII numbers, parsed by ``np.loadtxt`` on
+    the path (at C speed, without the text in memory), or None.
+
+    None when a chunk of the file holds a byte that is not ASCII, a NUL byte, a ``D`` exponent
+    or a keyword line, when the first chunk holds no data line of 3 or 5 fields, or when the
+    parse fails: :func:`_parse_strictly` then reads the file (and names the bad line). Node
+    labels and equation numbers are parsed as int32 and dofs as int8 (memory): a value beyond
+    their range fails the parse, and the strict pass then reports it.
+    """
+    head, chunks = "", 0
+    buffer = bytearray(_SCAN_CHUNK)  # reused: no fresh pages for every chunk
+    try:
+        with open(path, "rb", buffering=0) as stream:
+            while size := stream.readinto(buffer):
+                chunk = buffer if size == len(buffer) else bytes(buffer[:size])
+                if not chunk.isascii() or any(b in chunk for b in (b"\0", b"D", b"d")):
+                    return None
+                if b"*" in chunk and _KEYWORD_BYTES.search(chunk) is not None:
+                    return None
+                if not chunks:
+                    head = chunk.decode("ascii").replace("\r", "\n")
+                chunks += 1
+    except OSError:
+        return None
+    if chunks > 1:  # the first chunk may end inside a line
+        head = head[: head.rfind("\n") + 1]
+    first = _first_data_line(head)
+    if first is None:
+        return None
+    delimiter = "," if "," in first[0] else None
+    count = len(_split(first[0], delimiter))
+    if count == 5:
+        layout: Literal["input", "coordinate"] = "input"
+        kinds = (np.int32, np.int8, np.int32, np.int8)
+    elif count == 3:
+        layout, kinds = "coordinate", (np.int32, np.int32)
+    else:
+        return None
+    dtype = [(f"c{i}", kind) for i, kind in enumerate(kinds)] + [("value", np.float64)]
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            table = np.loadtxt(path, dtype=dtype, delimiter=delimiter, comments="*", ndmin=1)
+    except (ValueError, OverflowError, OSError):
+        return None
+    columns = tuple(table[f"c{i}"] for i in range(len(kinds)))
+    return layout, columns, table["value"]
+
+
+def _parse_strictly(path: Path) -> tuple[tuple[np.ndarray, ...], np.ndarray]:
+    """Columns (int64) and values of one ``.mtx`` file from its decoded text (D exponents,
+    ``**`` comments, keyword lines and non-ASCII text are handled; a bad line is named)."""
     text = read_text(path, _KIND)
     keyword = _KEYWORD_LINE.search(text)
     if keyword is not None:
@@ -640,10 +819,9 @@ def _read_matrix_file(path: Path) -> _MatrixFile:
     delimiter = "," if "," in data else None
     count = len(_split(data, delimiter))
     if count == 5:
-        layout: Literal["input", "coordinate"] = "input"
         names = _MATRIX_INPUT
     elif count == 3:
-        layout, names = "coordinate", _COORDINATE
+        names = _COORDINATE
     else:
         raise _fail(
             path,
@@ -665,7 +843,7 @@ def _read_matrix_file(path: Path) -> _MatrixFile:
         raise _fail(path, None, f"cannot read the entries: {err}") from None
     del text
     columns = tuple(np.ascontiguousarray(table[f"c{i}"]) for i in range(count - 1))
-    return _MatrixFile(path, layout, columns, np.ascontiguousarray(table["value"]))
+    return columns, np.ascontiguousarray(table["value"])
 
 
 def _locate_bad_line(path: Path, delimiter: str | None, names: tuple[str, ...]) -> None:
@@ -730,8 +908,12 @@ def _check_labels(f: _MatrixFile) -> None:
         )
 
 
-def _check_equations(f: _MatrixFile, n: int, where: str) -> tuple[np.ndarray, np.ndarray]:
-    """Equation indices (from 0) of a coordinate file, checked against the ``n`` dofs."""
+def _check_equations(f: _MatrixFile, n: int, where: str) -> tuple[np.ndarray, np.ndarray] | None:
+    """Equation indices (from 0) of a coordinate file, checked against the ``n`` dofs; None
+    when the file's matrix is assembled already (``f.assembled``) and fits."""
+    if f.assembled is not None and f.within(n):
+        return None
+    f.assembled = None
     rows, cols = f.columns
     bad = np.flatnonzero((rows < 1) | (rows > n) | (cols < 1) | (cols > n))
     if bad.size:
