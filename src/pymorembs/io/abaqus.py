@@ -98,7 +98,7 @@ from pymorembs.io.abaqus_inp import (
 )
 from pymorembs.io.formats import assemble_symmetric, is_nodes_csv, read_text
 from pymorembs.io.matrix_market import SYMMETRY_TOLERANCE, _fail, _read_dofs, _read_nodes
-from pymorembs.io.symmetric_assembly import assemble_symmetric_triangle
+from pymorembs.io.symmetric_assembly import half_of_entries, symmetric_from_half
 
 __all__ = [
     "PENALTY",
@@ -371,30 +371,34 @@ def _read(
 
 def _assemble(
     files: dict[str, _MatrixFile],
-    indices: dict[str, tuple[np.ndarray, np.ndarray] | None],
+    indices: Callable[[str], tuple[np.ndarray, np.ndarray] | None],
     n: int,
     label: Callable[[int], str],
 ) -> dict[str, sp.csr_matrix]:
-    """The matrices of the files, ``n x n``; ``indices[role]`` None: ``f.assembled`` is used.
+    """The ``n x n`` matrices of the files, one after the other.
 
-    Entries in one of the sorted layouts FE programs write are assembled in linear time
-    (:func:`~pymorembs.io.symmetric_assembly.assemble_symmetric_triangle`), others (and every
+    ``indices(role)``: the equation indices (from 0) of the row and column of every entry, or
+    None when ``f.assembled`` is the matrix. Entries in the layouts FE programs write are
+    assembled in compiled code (:mod:`pymorembs.io.symmetric_assembly`), others (and every
     file with a mistake, which is then named) by ``assemble_symmetric``. The parsed entries of
-    a file are released once its matrix is built.
+    a file are released once its matrix is built (and parsed again if a message needs them).
     """
     matrices = {}
     for role, f in files.items():
-        pair = indices.pop(role)
+        pair = indices(role)
         if pair is None:
             matrix = _resized(f.assembled, n)
         else:
-            rows, cols = pair
-            matrix = assemble_symmetric_triangle(rows, cols, f.values, n, SYMMETRY_TOLERANCE)
+            half = half_of_entries(*pair, f.values, n, SYMMETRY_TOLERANCE)
+            del pair
+            f.release()
+            matrix = None if half is None else symmetric_from_half(half)
+            del half
             if matrix is None:
+                rows, cols = indices(role)
                 matrix = assemble_symmetric(
                     rows, cols, f.values, n, path=f.path, line_of=f.line_of, label=label
                 )
-            del rows, cols, pair
         f.release()
         f.assembled = None
         matrices[role] = matrix
@@ -413,45 +417,56 @@ def _resized(matrix: sp.csr_matrix, n: int) -> sp.csr_matrix:
 
 def _equation_indices(
     files: dict[str, _MatrixFile],
-) -> tuple[np.ndarray, dict[str, tuple[np.ndarray, np.ndarray] | None]]:
-    """The sorted ``node * 8 + direction`` keys of all dofs of matrix-input files, and the
-    equation indices (int32) of the row and column dof of every entry of each file.
+) -> tuple[np.ndarray, Callable[[str], tuple[np.ndarray, np.ndarray]]]:
+    """The sorted ``node * 8 + direction`` keys of all dofs of matrix-input files, and a
+    function giving the equation indices (int32) of the row and column dof of every entry of
+    a file (computed when asked, so that only one file's indices exist at a time).
 
     Keys within a range of a few times the number of entries are looked up in a table (linear
     time); other (sparse) labels through a sort.
     """
-    blocks = []  # per file: (node, dof) column pairs of the row and the column dof
-    for f in files.values():
+
+    def pairs(f: _MatrixFile) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
         node_i, dof_i, node_j, dof_j = f.columns
-        blocks.append(((node_i, dof_i), (node_j, dof_j)))
-    low = min(int(n.min(initial=MAX_LABEL)) for pairs in blocks for n, _ in pairs)
-    high = max(int(n.max(initial=0)) for pairs in blocks for n, _ in pairs)
+        return (node_i, dof_i), (node_j, dof_j)
+
+    nodes = [node for f in files.values() for node, _ in pairs(f)]
+    low = min(int(node.min(initial=MAX_LABEL)) for node in nodes)
+    high = max(int(node.max(initial=0)) for node in nodes)
+    del nodes
     entries = sum(f.values.size for f in files.values())
     span = (high - low + 1) * 8
-    if span > 4 * entries + (1 << 20):
-        every = [_keys(n, d) for pairs in blocks for n, d in pairs]
-        keys = unique_values(np.concatenate(every))
-        found = iter(np.searchsorted(keys, k).astype(np.int32) for k in every)
-        return keys, {role: (next(found), next(found)) for role in files}
+    if span > 4 * entries + (1 << 20):  # sparse labels: a sort
+        keys = unique_values(
+            np.concatenate([_keys(n, d) for f in files.values() for n, d in pairs(f)])
+        )
+
+        def found(role: str) -> tuple[np.ndarray, np.ndarray]:
+            (ni, di), (nj, dj) = pairs(files[role])
+            return (
+                np.searchsorted(keys, _keys(ni, di)).astype(np.int32),
+                np.searchsorted(keys, _keys(nj, dj)).astype(np.int32),
+            )
+
+        return keys, found
     present = np.zeros(span, dtype=bool)
-    for pairs in blocks:
-        for node, dof in pairs:
+    for f in files.values():
+        for node, dof in pairs(f):
             for start in range(0, node.size, _BLOCK):
                 present[_keys(node[start : start + _BLOCK], dof[start : start + _BLOCK], low)] = 1
-    keys = np.flatnonzero(present)
     lookup = np.cumsum(present, dtype=np.int32) - 1
-    del present
-    indices: dict[str, tuple[np.ndarray, np.ndarray] | None] = {}
-    for role, pairs in zip(files, blocks, strict=True):
-        found = []
-        for node, dof in pairs:
-            out = np.empty(node.size, dtype=np.int32)
+
+    def looked_up(role: str) -> tuple[np.ndarray, np.ndarray]:
+        out = []
+        for node, dof in pairs(files[role]):
+            index = np.empty(node.size, dtype=np.int32)
             for start in range(0, node.size, _BLOCK):
                 stop = start + _BLOCK
-                out[start:stop] = lookup[_keys(node[start:stop], dof[start:stop], low)]
-            found.append(out)
-        indices[role] = (found[0], found[1])
-    return keys + low * 8, indices
+                index[start:stop] = lookup[_keys(node[start:stop], dof[start:stop], low)]
+            out.append(index)
+        return out[0], out[1]
+
+    return np.flatnonzero(present) + low * 8, looked_up
 
 
 def _keys(node: np.ndarray, dof: np.ndarray, low: int = 0) -> np.ndarray:
@@ -552,7 +567,8 @@ def _coordinate_body(
     if dofs is not None:
         table, dof_lines = _read_dofs(dofs)
         where = f"the {len(table)} equations of {dofs}"
-        indices = {role: _check_equations(f, len(table), where) for role, f in files.items()}
+        checked = {role: _check_equations(f, len(table), where) for role, f in files.items()}
+        indices = checked.get
 
         def label(i: int) -> str:
             return f"{i + 1} = {table.label(i)}"
@@ -588,8 +604,8 @@ def _coordinate_body(
             )
         if not tables or not np.array_equal(table.nodes, tables[0][0].nodes):
             tables.append((table, order))
-    indices = {role: _check_equations(f, n, f"equations 1..{n}") for role, f in files.items()}
-    matrices = _assemble(files, indices, n, lambda i: f"equation {i + 1}")
+    checked = {role: _check_equations(f, n, f"equations 1..{n}") for role, f in files.items()}
+    matrices = _assemble(files, checked.get, n, lambda i: f"equation {i + 1}")
     candidates = []
     for table, order in tables:
         where = "the *NODE order" if order == "file" else "the order of labels in each instance"
@@ -730,17 +746,18 @@ def _read_matrix_file(path: Path) -> _MatrixFile:
         layout: Literal["input", "coordinate"] = "input" if len(columns) == 4 else "coordinate"
     else:
         layout, columns, values = fast
+        del fast
     f = _MatrixFile(path, layout, columns, values)
     if layout == "coordinate":
         rows, cols = columns
         low = min(int(rows.min(initial=1)), int(cols.min(initial=1)))
         f._span = (low, int(max(rows.max(initial=0), cols.max(initial=0))))
         if low >= 1 and f._span[1] < 2**31 - 1:  # assembled at once: the entries can go
-            f.assembled = assemble_symmetric_triangle(
-                rows - 1, cols - 1, values, f._span[1], SYMMETRY_TOLERANCE
-            )
-            if f.assembled is not None:
+            half = half_of_entries(rows, cols, values, f._span[1], SYMMETRY_TOLERANCE, base=1)
+            if half is not None:
+                del rows, cols, columns, values
                 f.release()
+                f.assembled = symmetric_from_half(half)
     return f
 
 
@@ -750,13 +767,16 @@ def _parse_plain(
     """Layout, columns and values of a file of plain ASCII numbers, parsed by ``np.loadtxt`` on
     the path (at C speed, without the text in memory), or None.
 
+    The result is allocated once, for at most as many rows as the file has line ends
+    (``max_rows``; NumPy counts only data rows towards it, so every row is read).
+
     None when a chunk of the file holds a byte that is not ASCII, a NUL byte, a ``D`` exponent
     or a keyword line, when the first chunk holds no data line of 3 or 5 fields, or when the
     parse fails: :func:`_parse_strictly` then reads the file (and names the bad line). Node
     labels and equation numbers are parsed as int32 and dofs as int8 (memory): a value beyond
     their range fails the parse, and the strict pass then reports it.
     """
-    head, chunks = "", 0
+    head, chunks, lines = "", 0, 0
     buffer = bytearray(_SCAN_CHUNK)  # reused: no fresh pages for every chunk
     try:
         with open(path, "rb", buffering=0) as stream:
@@ -769,8 +789,10 @@ def _parse_plain(
                 if not chunks:
                     head = chunk.decode("ascii").replace("\r", "\n")
                 chunks += 1
+                lines += chunk.count(b"\n") + chunk.count(b"\r")
     except OSError:
         return None
+    del buffer
     if chunks > 1:  # the first chunk may end inside a line
         head = head[: head.rfind("\n") + 1]
     first = _first_data_line(head)
@@ -789,7 +811,9 @@ def _parse_plain(
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            table = np.loadtxt(path, dtype=dtype, delimiter=delimiter, comments="*", ndmin=1)
+            table = np.loadtxt(  # max_rows: one allocation of the result, no regrowth
+                path, dtype=dtype, delimiter=delimiter, comments="*", ndmin=1, max_rows=lines + 1
+            )
     except (ValueError, OverflowError, OSError):
         return None
     columns = tuple(table[f"c{i}"] for i in range(len(kinds)))
