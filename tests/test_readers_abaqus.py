@@ -607,3 +607,67 @@ def test_wrong_dof_count_unused_nodes_and_broken_structure(tmp_path: Path) -> No
     )
     message = read(f"{nodes}\n*Element, type=C3D4\n1, 1, 2, 3\n2, 1, 2, 3, 4\n")
     assert "element with 4 nodes, but the element on line 11" in message
+
+
+# ============================================================================ the fast path
+def _mirrored_coordinate(path: Path, matrix: np.ndarray, newline: str = "\n") -> Path:
+    """Both triangles, upper row by row, each off-diagonal entry followed by its mirror (the
+    layout of Abaqus/CAE 2021), ``% .15e`` values."""
+    lines = []
+    for i, j in zip(*np.nonzero(np.triu(matrix)), strict=True):
+        lines.append(f"{i + 1} {j + 1} {matrix[i, j]: .15e}")
+        if i != j:
+            lines.append(f"{j + 1} {i + 1} {matrix[j, i]: .15e}")
+    path.write_bytes((newline.join(lines) + newline).encode())
+    return path
+
+
+def _dofs_csv(path: Path) -> Path:
+    names = ["ux", "uy", "uz", "rx", "ry", "rz"]
+    path.write_text("node,direction\n" + "".join(f"{n},{names[d - 1]}\n" for n, d in KEYS))
+    return path
+
+
+@pytest.mark.parametrize("newline", ["\n", "\r\n", "\r"])
+def test_coordinate_files_with_mirrors_on_the_next_line(tmp_path: Path, newline: str) -> None:
+    k_values = np.array([float(f"{x:.15e}") for x in K.ravel()]).reshape(K.shape)
+    m_values = np.array([float(f"{x:.15e}") for x in M.ravel()]).reshape(M.shape)
+    k = _mirrored_coordinate(tmp_path / "k.mtx", k_values, newline)
+    m = _mirrored_coordinate(tmp_path / "m.mtx", m_values, newline)
+    body = read_abaqus(k, m, dofs=_dofs_csv(tmp_path / "dofs.csv"))
+    np.testing.assert_array_equal(body.stiffness.toarray(), k_values)  # every line read
+    np.testing.assert_array_equal(body.mass.toarray(), m_values)
+
+
+@pytest.mark.parametrize(
+    ("line", "words"),
+    [
+        ("2 1 1.0.5", "value '1.0.5' is not a number"),  # read as 1.0 by lenient parsers
+        ("2 1.5 1.0", "column '1.5' is not an integer"),  # read as (2, 1) = 0.5 by them
+        ("2 1 1.0e5e5", "value '1.0e5e5' is not a number"),
+        ("2 3000000000 1.0", "lies outside the 2 equations"),  # beyond the int32 fast parse
+    ],
+)
+def test_numbers_the_fast_parse_must_not_misread(tmp_path: Path, line: str, words: str) -> None:
+    k = tmp_path / "k.mtx"
+    k.write_text(f"1 1 2.0\n{line}\n2 2 3.0\n")
+    m = tmp_path / "m.mtx"
+    m.write_text("1 1 1.0\n2 2 1.0\n")
+    dofs = tmp_path / "dofs.csv"
+    dofs.write_text("node,direction\n1,ux\n1,uy\n")
+    with pytest.raises(UserError, match=r"k\.mtx:2: ") as err:
+        read_abaqus(k, m, dofs=dofs)
+    assert words in one_line(err)
+
+
+def test_matrix_input_fast_parse_refuses_wide_dofs_and_labels(tmp_path: Path) -> None:
+    m = write_input(tmp_path / "m.mtx", M)
+    for line, words in [
+        ("10,300, 10,1, 1.0", "dof 300 of node 10"),  # beyond the int8 dof column
+        ("2147483648,1, 10,1, 1.0", "node label 2147483648"),  # beyond the int32 labels
+    ]:
+        k = tmp_path / "k.mtx"
+        k.write_text(write_input(tmp_path / "k0.mtx", K).read_text() + line + "\n")
+        with pytest.raises(UserError, match=r"k\.mtx:\d+: ") as err:
+            read_abaqus(k, m)
+        assert words in one_line(err)
