@@ -536,6 +536,7 @@ def _mm_fast_path(d: Path) -> sp.csr_matrix:
     try:
         matrix_market._FAST_FROM_BYTES = 0
         fast = fast_reader(path)
+        fast = None if fast is None else fast[0]
         matrix_market._read_coordinate_fast = lambda path: None
         try:
             strict = read_matrix_market(path)

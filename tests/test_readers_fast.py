@@ -86,6 +86,11 @@ def check_matrix_file(tmp_path: Path, monkeypatch, text: str | bytes) -> tuple[o
     path = tmp_path / "a.mtx"
     path.write_bytes(text.encode() if isinstance(text, str) else text)
     fast = mm._read_coordinate_fast(path)
+    if fast is not None:
+        matrix, symmetric = fast
+        raw = text if isinstance(text, bytes) else text.encode()
+        assert symmetric == (b"symmetric" in raw.split(b"\n")[0].lower())
+        fast = matrix
     reference = strict(monkeypatch, lambda: mm.read_matrix_market(path))
     if fast is not None:
         assert same(fast, reference), (text, fast, reference)

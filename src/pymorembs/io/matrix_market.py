@@ -80,6 +80,7 @@ __all__ = [
     "read_matrix_directory",
     "read_matrix_files",
     "read_matrix_market",
+    "read_matrix_market_with_storage",
     "write_matrix_files",
     "write_matrix_market",
 ]
@@ -394,10 +395,28 @@ def read_matrix_market(path: PathLike) -> sp.csr_matrix:
         on) a coordinate file whose entries would leave most rows empty; the message names file
         and line.
     """
-    path = Path(path)
-    matrix = _read_coordinate_fast(path)
-    if matrix is not None:
-        return matrix
+    return _read_matrix_market(Path(path))[0]
+
+
+def read_matrix_market_with_storage(path: PathLike) -> tuple[sp.csr_matrix, bool]:
+    """Read a Matrix Market file as :func:`read_matrix_market` does, and tell its storage.
+
+    Returns
+    -------
+    matrix : scipy.sparse.csr_matrix
+        As :func:`read_matrix_market`.
+    mirrored : bool
+        True for ``symmetric`` storage: the stored triangle was mirrored exactly, so the matrix
+        is symmetric by construction and needs no :func:`check_symmetric`.
+    """
+    return _read_matrix_market(Path(path))
+
+
+def _read_matrix_market(path: Path) -> tuple[sp.csr_matrix, bool]:
+    """The matrix of :func:`read_matrix_market` and whether the file had symmetric storage."""
+    fast = _read_coordinate_fast(path)
+    if fast is not None:
+        return fast
     lines = _read_lines(path, "a Matrix Market file")
     header = _parse_header(path, lines)
     n, size_line = header.n, header.size_line
@@ -417,9 +436,10 @@ def read_matrix_market(path: PathLike) -> sp.csr_matrix:
                 f"size line announces a {n} x {n} matrix but the file holds only {table.size} "
                 "entries, so most rows would be empty; is the size line right?",
             )
-        return _coordinate_matrix(
+        matrix = _coordinate_matrix(
             data, table["row"] - 1, table["column"] - 1, table["value"], n, header.symmetric
         )
+        return matrix, header.symmetric
 
     values = data.parse((("value", float),))["value"]
     expected = n * (n + 1) // 2 if header.symmetric else n * n
@@ -435,7 +455,7 @@ def read_matrix_market(path: PathLike) -> sp.csr_matrix:
         dense[cols, rows] = values
     else:
         dense[:] = values.reshape((n, n), order="F")
-    return sp.csr_matrix(dense)
+    return sp.csr_matrix(dense), header.symmetric
 
 
 @dataclass(frozen=True)
@@ -525,8 +545,9 @@ _MIN_ENTRY_BYTES = 6
 _FAST_FROM_BYTES = 1 << 16
 
 
-def _read_coordinate_fast(path: Path) -> sp.csr_matrix | None:
-    """The matrix of a well-formed coordinate file, or None to leave the file to the strict pass.
+def _read_coordinate_fast(path: Path) -> tuple[sp.csr_matrix, bool] | None:
+    """The matrix of a well-formed coordinate file and whether its storage is symmetric, or None
+    to leave the file to the strict pass.
 
     The numbers are parsed by fast_matrix_market (``scipy.io.mmread``, multi-threaded) while the
     bytes it reads pass the checks of :class:`~pymorembs.io.fast_text.PlainNumberScan` (the file
@@ -577,10 +598,12 @@ def _read_coordinate_fast(path: Path) -> sp.csr_matrix | None:
     if header.symmetric and np.any(rows > cols) and np.any(rows < cols):
         return None  # both triangles: the strict pass names the entry
     matrix = _general_csr(rows, cols, values, n)
-    if matrix is None or not header.symmetric:
-        return matrix
+    if matrix is None:
+        return None
+    if not header.symmetric:
+        return matrix, False
     del rows, cols, values
-    return _mirrored(matrix)
+    return _mirrored(matrix), True
 
 
 def _mirrored(stored: sp.csr_matrix) -> sp.csr_matrix:
@@ -734,11 +757,12 @@ _BLOCK = 1 << 20
 
 def _read_symmetric(path: Path, like: tuple[Path, int] | None = None) -> sp.csr_matrix:
     """Read a Matrix Market file, check symmetry and, with ``like``, its size."""
-    matrix = read_matrix_market(path)
+    matrix, mirrored = _read_matrix_market(path)
     if like is not None and matrix.shape[0] != like[1]:
         n = matrix.shape[0]
         raise _fail(path, None, f"matrix is {n} x {n} but {like[0]} is {like[1]} x {like[1]}")
-    check_symmetric(matrix, str(path))
+    if not mirrored:  # a symmetric file is mirrored exactly
+        check_symmetric(matrix, str(path))
     return matrix
 
 
