@@ -56,6 +56,17 @@ CASES: list[tuple[str, int, str]] = [
     ("cut.full", 2, r"^cut\.full: file is truncated or damaged \(cannot read the \.full header\)"),
     # Matrix Market + CSV tables
     ("--stiffness truncated_K.mtx --mass M.mtx", 2, r"^truncated_K\.mtx:7: 2 values, expected 3"),
+    # past 64 KiB of entries the fast path reads first; it must decline these, not misread them
+    (
+        "--stiffness double_point_K.mtx --mass M.mtx",
+        2,
+        r"^double_point_K\.mtx:3002: value '1\.0\.5' is not a number$",
+    ),
+    (
+        "--stiffness fraction_index_K.mtx --mass M.mtx",
+        2,
+        r"^fraction_index_K\.mtx:4002: column '4000\.5' is not an integer$",
+    ),
     (
         "--stiffness count_mismatch_K.mtx --mass M.mtx",
         2,

@@ -42,6 +42,7 @@ from abaqus_models import (
 )
 from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
+from pymorembs.io import matrix_market
 from pymorembs.io.abaqus import read_abaqus
 from pymorembs.io.abaqus_substructure import read_abaqus_substructure
 from pymorembs.io.ansys import read_ansys_full, read_ansys_mmf
@@ -527,6 +528,29 @@ def _read_any(d: Path) -> ElasticBody:
     return read_body(None, file=path, **extra)
 
 
+def _mm_fast_path(d: Path) -> sp.csr_matrix:
+    """The fast path of read_matrix_market tried on every size: its matrix, if any, must equal
+    the strict pass's result, and whenever the strict pass refuses the file it must decline."""
+    path = d / "K.mtx"
+    threshold, fast_reader = matrix_market._FAST_FROM_BYTES, matrix_market._read_coordinate_fast
+    try:
+        matrix_market._FAST_FROM_BYTES = 0
+        fast = fast_reader(path)
+        fast = None if fast is None else fast[0]
+        matrix_market._read_coordinate_fast = lambda path: None
+        try:
+            strict = read_matrix_market(path)
+        except UserError:
+            assert fast is None, "the fast path read a file the strict pass refuses"
+            raise
+    finally:
+        matrix_market._FAST_FROM_BYTES = threshold
+        matrix_market._read_coordinate_fast = fast_reader
+    if fast is not None:
+        assert (fast != strict).nnz == 0 and fast.nnz == strict.nnz, "fast and strict differ"
+    return strict
+
+
 TARGETS: dict[str, Target] = {
     t.key: t
     for t in [
@@ -539,6 +563,7 @@ TARGETS: dict[str, Target] = {
         ),
         Target("mm-fixed", "fixed.csv", _text(FIXED_CSV), _mm_files, MM_COMPANIONS),
         Target("mm-single", "K.mtx", _text(MM_K), lambda d: read_matrix_market(d / "K.mtx"), ()),
+        Target("mm-fast-path", "K.mtx", _text(MM_K), _mm_fast_path, ()),
         Target("ansys-mapping", "model.mapping", _text(MAPPING), _read_mmf, MMF_COMPANIONS),
         Target("ansys-mmf-matrix", "K.mtx", _text(ANSYS_K), _read_mmf, MMF_COMPANIONS),
         Target("ansys-mmf-nodes", "nodes.csv", _text(ANSYS_NODES), _read_mmf, MMF_COMPANIONS),
@@ -753,6 +778,13 @@ GARBAGE_NUMBERS = [
     "THRU",
     "1e",
     "--1",
+    "1.0.5",
+    "1..0",
+    "1e5e3",
+    "1e5.0",
+    ".e5",
+    "1.5",
+    "1e0",
 ]
 HUGE_COUNTS = [2**24 + 1, 10**7, 2**31 - 1, 2**31, 2**60, 2**63 - 1, 2**63, 10**30, -(2**63)]
 NUMBER = re.compile(rb"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eEdD][-+]?\d+)?")

@@ -923,3 +923,42 @@ def test_mmf_missing_node(mmf):
 
 def test_tolerance_is_between_rounding_and_wrong():
     assert 1e-9 < RIGID_BODY_TOLERANCE < 1e-4
+
+
+@pytest.mark.parametrize(
+    ("text", "fast"),
+    [
+        (MAPPING, True),
+        (MAPPING.replace("\n", "\r\n"), True),
+        ("       2       10     uy\n       1       10     UX\n", True),  # no header, any order
+        (MAPPING.replace("   ROTZ", "   ROTZZZZZZ"), False),  # too long: the strict pass
+        (MAPPING.replace("       3 ", "       2 "), False),  # equation twice
+        (MAPPING.replace("20     UX", "10     UX"), False),  # dof twice
+        (MAPPING.replace("       4 ", "       5 "), False),  # equation 4 missing
+        (MAPPING.replace("     UY", "     UQ"), False),
+        ("! comment\n" + MAPPING, False),
+        (MAPPING.replace("10     UY", "10,    UY"), False),
+        (MAPPING.replace("10     UY", "1.5     UY"), False),
+        (MAPPING.replace("UY", "U\u00ff"), False),  # non-ASCII never reaches NumPy
+    ],
+)
+def test_mapping_fast_path_equals_the_line_by_line_pass(tmp_path, monkeypatch, text, fast):
+    from pymorembs.io import ansys
+
+    path = tmp_path / "model.mapping"
+    path.write_bytes(text.encode("utf-8"))
+    result = ansys._read_mapping_fast(path)
+    assert (result is not None) == fast
+
+    def outcome():
+        try:
+            table = ansys._read_mapping(path)
+        except UserError as err:
+            return str(err)
+        return table.nodes.tolist(), table.directions.tolist()
+
+    with_fast = outcome()
+    monkeypatch.setattr(ansys, "_read_mapping_fast", lambda path: None)
+    assert outcome() == with_fast
+    if result is not None:
+        assert (result.nodes.tolist(), result.directions.tolist()) == with_fast

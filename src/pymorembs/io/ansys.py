@@ -38,6 +38,7 @@ Every mistake raises :class:`~pymorembs.errors.UserError` with one line ``file: 
 
 from __future__ import annotations
 
+import io
 import os
 import warnings
 from dataclasses import dataclass, replace
@@ -56,7 +57,7 @@ from pymorembs.io.matrix_market import (
     _read_nodes,
     _to_int,
     check_symmetric,
-    read_matrix_market,
+    read_matrix_market_with_storage,
 )
 from pymorembs.io.third_party import reason as _reason  # also used by nastran_op4
 
@@ -874,17 +875,22 @@ def _prove_mapping_order(body: ElasticBody, mapping: Path, geometry: _Geometry) 
 
 
 def _read_mmf_matrix(path: Path, n: int, mapping: Path) -> sp.csr_matrix:
-    """A symmetric Matrix Market matrix of the size given by the mapping file."""
-    matrix = read_matrix_market(path)
+    """A symmetric Matrix Market matrix of the size given by the mapping file (a file with
+    symmetric storage is mirrored exactly and needs no symmetry check)."""
+    matrix, mirrored = read_matrix_market_with_storage(path)
     if matrix.shape[0] != n:
         size = matrix.shape[0]
         raise _fail(path, None, f"matrix is {size} x {size} but {mapping} maps {n} equations")
-    check_symmetric(matrix, str(path))
+    if not mirrored:
+        check_symmetric(matrix, str(path))
     return matrix
 
 
 def _read_mapping(path: Path) -> DofTable:
     """Dof table from an Ansys ``.mapping`` file (layout in :func:`read_ansys_mmf`)."""
+    fast = _read_mapping_fast(path)
+    if fast is not None:
+        return fast
     lines = _read_lines(path, "an Ansys dof mapping file")
     equations: dict[int, tuple[int, int, int]] = {}  # equation -> (node, code, line)
     dofs: dict[tuple[int, int], int] = {}  # (node, code) -> line
@@ -929,6 +935,62 @@ def _read_mapping(path: Path) -> DofTable:
         np.array([node for node, _, _ in ordered], dtype=np.int64),
         np.array([code for _, code, _ in ordered], dtype=np.int64),
     )
+
+
+#: Label field of the mapping fast path; a label of this length or longer may have been cut by
+#: NumPy and goes to the strict pass.
+_LABEL_WIDTH = 8
+
+
+def _read_mapping_fast(path: Path) -> DofTable | None:
+    """The dof table of a plain mapping file parsed by NumPy's ``loadtxt``, or None to leave
+    the file to the line-by-line pass (which names the bad line).
+
+    Plain: ASCII (no other bytes reach NumPy's parser), no comment lines, no commas, at most one
+    header line, three fields per row, known labels, equations ``1 .. n`` once each and no
+    (node, dof) twice.
+    """
+    try:
+        data = path.read_bytes()
+    except OSError:
+        return None
+    if not data.isascii() or any(mark in data for mark in (b"!", b"#", b"%", b",", b"\x00")):
+        return None
+    first, _, rest = data.partition(b"\n")
+    words = first.split()
+    header = not words or not words[0].lstrip(b"+-").isdigit()
+    if header:
+        second = rest.lstrip().split(None, 1)
+        if not second or not second[0].lstrip(b"+-").isdigit():
+            return None  # blank lines or more header lines: the strict pass decides
+    dtype = [("equation", np.int64), ("node", np.int64), ("label", f"U{_LABEL_WIDTH}")]
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # "input contained no data"
+            rows = np.loadtxt(
+                io.BytesIO(data), dtype=dtype, skiprows=int(header), comments=None, ndmin=1
+            )
+    except (ValueError, OverflowError):
+        return None
+    n = rows.size
+    if n == 0 or np.max(np.strings.str_len(rows["label"])) >= _LABEL_WIDTH:
+        return None
+    labels, inverse = np.unique(np.strings.upper(rows["label"]), return_inverse=True)
+    codes = [ANSYS_DOF_LABELS.get(str(label)) for label in labels]
+    if None in codes:
+        return None
+    code = np.asarray(codes, dtype=np.int64)[inverse.reshape(-1)]
+    equation, node = rows["equation"], rows["node"]
+    if equation.min() < 1 or equation.max() != n or np.max(np.abs(node)) >= 2**59:
+        return None
+    if np.any(np.bincount(equation - 1, minlength=n) != 1):
+        return None  # an equation twice (and another missing)
+    order = np.empty(n, dtype=np.int64)
+    order[equation - 1] = np.arange(n)
+    node, code = node[order], code[order]
+    if np.unique(node * 8 + code).size != n:
+        return None  # a (node, dof) twice
+    return DofTable(node, code)
 
 
 def _ansys_label(text: str, path: Path, line: int) -> int:
@@ -1083,9 +1145,7 @@ def _check_no_empty_dofs(
     where: Path,
 ) -> None:
     """Refuse equations with neither stiffness nor mass (e.g. rotations of solid-element nodes)."""
-    k_rows = np.asarray(abs(stiffness).sum(axis=1)).ravel()
-    m_rows = np.asarray(abs(mass).sum(axis=1)).ravel()
-    empty = (k_rows == 0) & (m_rows == 0)
+    empty = ~(_rows_with_entries(stiffness) | _rows_with_entries(mass))
     empty[np.asarray(fixed, dtype=np.int64)] = False
     bad = np.flatnonzero(empty)
     if bad.size:
@@ -1097,6 +1157,16 @@ def _check_no_empty_dofs(
             f"equation {first + 1} ({table.nodes[first]}:{DIRECTIONS[table.directions[first]]})"
             f"{more} has neither stiffness nor mass; remove such dofs from the export",
         )
+
+
+def _rows_with_entries(matrix: sp.csr_matrix) -> np.ndarray:
+    """Which rows of a CSR matrix hold a non-zero (or NaN) value; no copy of the matrix."""
+    a = sp.csr_matrix(matrix)
+    out = np.zeros(a.shape[0], dtype=bool)
+    rows = np.flatnonzero(np.diff(a.indptr))
+    if rows.size:
+        out[rows] = np.logical_or.reduceat(a.data != 0, a.indptr[rows])
+    return out
 
 
 def _make_body(source: Path, **fields: object) -> ElasticBody:

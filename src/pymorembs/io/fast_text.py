@@ -2,18 +2,22 @@
 
 The readers parse the bulk of their numbers with compiled parsers (fast_matrix_market through
 ``scipy.io.mmread``, NumPy's ``loadtxt``). Such parsers are lenient in ways pymorembs is not:
-fast_matrix_market, for example, ignores whatever follows the third number of a line, so
-``1 1 1.0D+03`` reads as 1.0, ``1 1 1,5`` (a decimal comma) as 1.0 and ``1 1 1.0 2.0`` as 1.0.
-:func:`count_plain_fields` checks cheaply, with NumPy over the raw bytes, that a region of a
-file holds nothing such a parser misreads (the exceptions are listed there), so that a reader
-can take the fast result or else fall back to its strict line-by-line pass, which then names the
-bad line.
+fast_matrix_market, for example, ignores whatever follows the third number of a line and starts
+a number where the previous one stopped, so ``1 1 1.0D+03`` reads as 1.0, ``1 1 1,5`` (a decimal
+comma) as 1.0, ``1 1 1.0 2.0`` as 1.0, ``1 1 1.0.5`` as 1.0 and ``1 1.5 2.0`` as entry (1, 1) =
+0.5. :func:`count_plain_fields` and :class:`PlainNumberScan` check cheaply, with NumPy over the
+raw bytes, that a region of a file holds nothing such a parser misreads (the rules are listed
+at :class:`PlainNumberScan`), so that a reader can take the fast result or else fall back to its
+strict line-by-line pass, which then names the bad line. :class:`CheckedReader` runs the checks
+on the bytes while a parser reads them, so that a large file is read from disk once.
 """
 
 from __future__ import annotations
 
-import itertools
+import io
 import os
+import threading
+from collections import deque
 from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
@@ -21,6 +25,8 @@ import scipy.sparse as sp
 
 __all__ = [
     "PLAIN_NUMBER_BYTES",
+    "CheckedReader",
+    "PlainNumberScan",
     "count_plain_fields",
     "csr_from_sorted_coo",
 ]
@@ -30,35 +36,190 @@ PLAIN_NUMBER_BYTES = b"0123456789.eE+- \t\r\n"
 
 #: Bytes scanned at a time: small enough to stay in the caches, large enough for NumPy.
 _CHUNK = 1 << 20
-#: Threads that check chunks while the calling thread reads and translates the next one.
+#: Longest line accepted (a region with a longer line is refused: no number file has one).
+_LONGEST_LINE = 1 << 22
+#: Threads of :func:`count_plain_fields` that check chunks while the calling thread reads.
 _WORKERS = 2
-#: Bytes of the previous chunk kept in front of the next one (for the checks of byte pairs and
-#: triples that cross a chunk boundary).
-_CARRY = 2
+
+_NEWLINE, _POINT = 10, 46
+#: The plain bytes that are not digits.
+_NOT_DIGITS = PLAIN_NUMBER_BYTES[10:]
 
 
-def count_plain_fields(path: str | os.PathLike[str], offset: int = 0) -> int | None:
-    """Number of white-space separated plain numeric fields in a file from byte ``offset`` on.
+class PlainNumberScan:
+    """Checks of a text region of plain numbers, fed chunk by chunk.
 
-    Returns None when the region holds
+    The region fails (:attr:`fields` becomes None) when it holds
 
     * any byte but ``0123456789.eE+-`` and white space (space, tab, carriage return, line feed):
       a letter as in ``1.0D+03`` or ``nan``, a comma, a comment sign, a NUL byte, non-ASCII text;
     * a sign directly after a digit or a decimal point (``0.12-105``, a Fortran exponent without
-      its letter, which lenient parsers read as 0.12) or not followed by a digit or a point;
-    * an exponent letter not followed by a digit or a sign (``1.5e``, ``1e.5``, ``1ee5``; e.g. a
-      number cut short at the end of a truncated file);
+      its letter, which lenient parsers read as 0.12), or not followed by a digit or a point;
+    * an exponent letter not followed by a digit or a sign, or not preceded by a digit or a point
+      (``1.5e``, ``e5``, ``.e5``; e.g. a number cut short at the end of a truncated file);
+    * a decimal point without a digit on either side (``.``, ``-.e5``);
+    * a second decimal point or exponent letter in a number, or a point after the exponent
+      letter (``1.0.5``, ``1..0``, ``1e5e3``, ``1e5.0``, ``1e-5.0``);
+    * with ``fields_per_line``: a line that holds another number of fields (blank lines are
+      fine);
+    * with ``integer_fields``: a decimal point, exponent letter or sign in one of the first
+      ``integer_fields`` fields of a line (``1 1.5 2.0``, ``1e0 1 2.0``).
 
-    or when the file cannot be read. Together with a parser that reads one number per field and
-    stops at the first byte that cannot continue a number, it proves that every number was read
-    whole, except for a second decimal point or exponent in a number (``1.0.5``, ``1e5e5``,
-    ``1e5.0``: such a parser reads the valid front part) and a decimal fraction in a
-    field that must hold an integer (whether a field is an integer depends on its place in the
-    line, which these checks do not see). Finding those needs the field structure of every line
-    and would double the cost of the scan.
+    What passes consists of white-space separated fields that each read, whole, as a decimal
+    number ``[sign] digits [. digits] [e [sign] digits]`` (digits before or after the point),
+    the integer fields as ``digits``: exactly what a strict parser (Python's ``float`` and
+    ``int``) accepts of these bytes. A parser that reads one number per field and stops at the
+    first byte that cannot continue a number (fast_matrix_market, ``np.fromstring``) reads every
+    field whole, so its numbers equal the strict ones.
 
-    The scan runs over chunks of the file: one ``bytes.translate`` pass per chunk, and a few
-    NumPy comparisons per byte in a second thread, on the previous chunk, meanwhile.
+    Parameters
+    ----------
+    fields_per_line : int, optional
+        Fields every non-blank line must hold.
+    integer_fields : int
+        Leading fields of every line that must be unsigned integers (with ``fields_per_line``).
+    """
+
+    def __init__(self, fields_per_line: int | None = None, integer_fields: int = 0) -> None:
+        self.fields_per_line = fields_per_line
+        self.integer_fields = integer_fields if fields_per_line else 0
+        self._fields: int | None = 0
+        self._tail = b""
+        self._done = False
+
+    @property
+    def fields(self) -> int | None:
+        """Fields (maximal runs of non-white-space bytes) so far, or None if a check failed."""
+        return self._fields
+
+    def feed(self, data: bytes | bytearray | memoryview) -> bool:
+        """Check the complete lines of ``data`` (the rest waits for the next chunk); False once
+        a check has failed."""
+        chunk = self.split(data)
+        if chunk is not None:
+            self.add(check_chunk(chunk, self.fields_per_line, self.integer_fields))
+        return self._fields is not None
+
+    def finish(self) -> int | None:
+        """Check the last line (which may lack its line end); :attr:`fields` or None."""
+        if not self._done:
+            self._done = True
+            if self._tail and self._fields is not None:
+                chunk = b"\n" + self._tail + b"\n"
+                self.add(check_chunk(chunk, self.fields_per_line, self.integer_fields))
+            self._tail = b""
+        return self._fields
+
+    def split(self, data: bytes | bytearray | memoryview) -> bytes | None:
+        """The complete lines of the kept tail plus ``data``, framed by line ends as
+        :func:`check_chunk` needs them; the rest is kept. None if there is no complete line
+        (or a line is too long, which fails the scan)."""
+        if self._fields is None:
+            return None
+        raw = data if isinstance(data, bytes) else bytes(data)
+        cut = raw.rfind(b"\n")
+        if cut < 0:
+            self._tail += raw
+            if len(self._tail) > _LONGEST_LINE:
+                self._fields = None
+            return None
+        view = memoryview(raw)
+        chunk = b"".join((b"\n", self._tail, view[: cut + 1]))
+        self._tail = bytes(view[cut + 1 :])
+        return chunk
+
+    def add(self, fields: int | None) -> None:
+        """Count the fields of a checked chunk (None: the chunk failed)."""
+        if self._fields is not None:
+            self._fields = None if fields is None else self._fields + fields
+
+
+def check_chunk(
+    chunk: bytes, fields_per_line: int | None = None, integer_fields: int = 0
+) -> int | None:
+    """Fields of a chunk of whole lines, or None if it fails a check of :class:`PlainNumberScan`.
+
+    ``chunk`` must start and end with a line feed (the frame is not part of the region). The
+    checks run on the bytes that are not digits (white space, signs, points, exponent letters:
+    a sixth of a typical file), in file order: a field starts after a white byte that is
+    followed by digits or by another such byte, and two such bytes are neighbours in the file
+    unless digits lie between them.
+    """
+    u = np.frombuffer(chunk, dtype=np.uint8)
+    scratch, non_digit = _scratch(u.size)
+    np.greater(np.subtract(u, 48, out=scratch), 9, out=non_digit)
+    kind = np.compress(non_digit, u)  # the entries: every byte but the digits, in order
+    if kind.tobytes().translate(None, _NOT_DIGITS):
+        return None  # a byte that is not part of a plain number or white space
+    # digits between entry j and entry j + 1 (the last byte, a line feed, is an entry)
+    digit_next = np.logical_not(non_digit[1:], out=scratch.view(bool)[1:])
+    digits_after = np.compress(non_digit[:-1], digit_next)
+    white = kind <= 32
+    starts = white[:-1] & (digits_after | ~white[1:])  # a field starts after entry j
+    point = kind == _POINT
+    letter = (kind | 32) == 101  # e, E
+    special = ~white
+    sign = special & ~point & ~letter  # + and -
+    # neighbours: a digit when digits lie between two entries, else the neighbouring entry
+    adjacent = ~digits_after
+    digit_before = np.concatenate(([False], digits_after))
+    digit_after = np.concatenate((digits_after, [False]))
+    point_before = np.concatenate(([False], point[:-1] & adjacent))
+    point_after = np.concatenate((point[1:] & adjacent, [False]))
+    sign_after = np.concatenate((sign[1:] & adjacent, [False]))
+    bad = sign & (digit_before | point_before | ~(digit_after | point_after))
+    bad |= letter & ~((digit_after | sign_after) & (digit_before | point_before))
+    bad |= point & ~(digit_before | digit_after)
+    # within a field (no white entry between): no point or letter after a letter, no point
+    # after a point; a sign between them lies directly after the letter (checked above)
+    bad[:-1] |= (point[:-1] & point[1:]) | (letter[:-1] & (point[1:] | letter[1:]))
+    bad[:-2] |= letter[:-2] & sign[1:-1] & (point[2:] | letter[2:])
+    if bad.any():
+        return None
+    fields = int(np.count_nonzero(starts))
+    if fields_per_line:
+        # fields started up to each entry (the chunk holds less than 2**31 bytes)
+        before = np.concatenate(([0], np.cumsum(starts, dtype=np.int32)))
+        per_line = np.diff(before[np.flatnonzero(kind == _NEWLINE)])
+        if np.any((per_line != 0) & (per_line != fields_per_line)):
+            return None
+        # every line holds the same number of fields: field q (from 1) of the chunk is field
+        # (q - 1) % fields_per_line + 1 of its line
+        if integer_fields:
+            index = (before[np.flatnonzero(special)] - 1) % fields_per_line
+            if np.any(index < integer_fields):
+                return None  # a point, letter or sign in an integer field
+    return fields
+
+
+_SCRATCH = threading.local()
+
+
+def _scratch(size: int) -> tuple[np.ndarray, np.ndarray]:
+    """Two arrays (bytes, booleans) of ``size`` elements, kept per thread: fresh arrays of the
+    size of a chunk cost more (page faults) than the checks that fill them."""
+    kept = getattr(_SCRATCH, "arrays", None)
+    if kept is None or kept[0].size < size:
+        kept = (
+            np.empty(max(size, _CHUNK + 2), dtype=np.uint8),
+            np.empty(max(size, _CHUNK + 2), bool),
+        )
+        _SCRATCH.arrays = kept
+    return kept[0][:size], kept[1][:size]
+
+
+def count_plain_fields(
+    path: str | os.PathLike[str],
+    offset: int = 0,
+    *,
+    fields_per_line: int | None = None,
+    integer_fields: int = 0,
+) -> int | None:
+    """Number of white-space separated plain numeric fields in a file from byte ``offset`` on.
+
+    Returns None when the region fails a check of :class:`PlainNumberScan` (with
+    ``fields_per_line`` and ``integer_fields`` as there) or the file cannot be read. The chunks
+    are checked by worker threads while the calling thread reads the next one.
 
     Parameters
     ----------
@@ -66,106 +227,121 @@ def count_plain_fields(path: str | os.PathLike[str], offset: int = 0) -> int | N
         The file.
     offset : int
         Byte offset of the region (e.g. the first byte after a header).
+    fields_per_line, integer_fields : int, optional
+        See :class:`PlainNumberScan`.
 
     Returns
     -------
     int or None
         Number of fields (maximal runs of non-white-space bytes), or None as described.
     """
+    scan = PlainNumberScan(fields_per_line, integer_fields)
     try:
-        size = os.path.getsize(path) - offset
-    except OSError:
-        return None
-    if size <= _CHUNK:  # one chunk: checked here, without threads
-        slot = _Slot(max(size, 0))
-        try:
-            with open(path, "rb", buffering=0) as stream:
+        small = os.path.getsize(path) - offset <= _CHUNK
+        if small:  # one chunk: checked here, without threads
+            with open(path, "rb") as stream:
                 stream.seek(offset)
-                size = stream.readinto(slot.view[_CARRY:])
-        except OSError:
-            return None
-        chunk = bytes(slot.buffer[_CARRY : _CARRY + size])
-        if chunk.translate(None, PLAIN_NUMBER_BYTES) or chunk[-1:] in (b"+", b"-", b"e", b"E"):
-            return None
-        return slot.check(_CARRY + size)
-    slots = [_Slot(_CHUNK) for _ in range(_WORKERS + 1)]  # chunks are checked while one is read
-    carry = b" " * _CARRY  # the bytes before the region count as white space
-    fields = 0
-    pending: list[Future[int | None]] = []
-    try:
-        with open(path, "rb", buffering=0) as stream, ThreadPoolExecutor(_WORKERS) as worker:
-            stream.seek(offset)
-            for index in itertools.count():
-                slot = slots[index % len(slots)]
-                if len(pending) == len(slots):  # the slot's previous chunk must be done
-                    result = pending.pop(0).result()
-                    if result is None:
-                        return None
-                    fields += result
-                slot.buffer[:_CARRY] = carry
-                size = stream.readinto(slot.view[_CARRY:])
-                if not size:
-                    break
-                end = _CARRY + size
-                chunk = slot.buffer if size == _CHUNK else bytes(slot.buffer[:end])
-                if chunk.translate(None, PLAIN_NUMBER_BYTES):
-                    return None  # a byte that is not part of a plain number or white space
-                carry = bytes(slot.buffer[end - _CARRY : end])
-                pending.append(worker.submit(slot.check, end))
-            for job in pending:
-                result = job.result()
-                if result is None:
-                    return None
-                fields += result
+                scan.feed(stream.read())
+            return scan.finish()
     except OSError:
         return None
-    # the last byte is followed by nothing: a sign or exponent letter there is cut short
-    if carry[-1:] in (b"+", b"-", b"e", b"E"):
+    pending: deque[Future[int | None]] = deque()
+    try:
+        with open(path, "rb", buffering=0) as stream, ThreadPoolExecutor(_WORKERS) as workers:
+            stream.seek(offset)
+            while True:
+                block = stream.read(_CHUNK)
+                if not block:
+                    break
+                chunk = scan.split(block)
+                if chunk is None:
+                    if scan.fields is None:
+                        return None
+                    continue
+                pending.append(
+                    workers.submit(check_chunk, chunk, fields_per_line, scan.integer_fields)
+                )
+                while len(pending) > _WORKERS or (pending and pending[0].done()):
+                    scan.add(pending.popleft().result())
+                if scan.fields is None:
+                    return None
+            for job in pending:
+                scan.add(job.result())
+    except OSError:
         return None
-    return fields
+    return scan.finish()
 
 
-class _Slot:
-    """A chunk buffer of :func:`count_plain_fields` with the scratch arrays of its checks."""
+class CheckedReader(io.RawIOBase):
+    """A binary file whose bytes from ``offset`` on pass through a :class:`PlainNumberScan`.
 
-    def __init__(self, size: int) -> None:
-        self.buffer = bytearray(b" " * _CARRY + bytes(size))  # white space before the region
-        self.view = memoryview(self.buffer)
-        self.data = np.frombuffer(self.buffer, dtype=np.uint8)
-        self.white, self.sign, self.other = (
-            np.empty(len(self.buffer), dtype=bool) for _ in range(3)
-        )
-        self.scratch = np.empty_like(self.data)
+    Hand it (in an ``io.BufferedReader``) to a parser such as ``scipy.io.mmread``: the file is
+    read once, and checked while the parser reads. A failed check makes the next read raise
+    ``ValueError`` (so the parser stops); afterwards :attr:`fields` is None. :attr:`fields` is
+    the field count once the parser has read to the end of the file (else None).
 
-    def check(self, end: int) -> int | None:
-        """Fields starting in ``buffer[_CARRY:end]`` (the carry holds the two bytes before),
-        or None at a sign or exponent letter in the wrong place (see
-        :func:`count_plain_fields`). A sign or exponent letter in the last byte is checked
-        with the next chunk (or at the end of the region), where it lies in the carry."""
-        u = self.data[:end]
-        w = np.less_equal(u, 32, out=self.white[:end])
-        fields = int(np.count_nonzero(w[_CARRY - 1 : end - 1] > w[_CARRY:end]))
-        # signs (0x2B, 0x2D: the plain bytes with b & 0xF9 == 0x29) and exponent letters
-        # (0x45, 0x65: b & 0xDF == 0x45); their neighbours are checked where they are
-        scratch, sign, other = self.scratch[:end], self.sign[:end], self.other[:end]
-        np.equal(np.bitwise_and(u, 0xF9, out=scratch), 0x29, out=sign)
-        np.equal(np.bitwise_and(u, 0xDF, out=scratch), 0x45, out=other)
-        special = np.logical_or(sign, other, out=sign)
-        at = np.flatnonzero(special[1 : end - 1]) + 1
-        if at.size and _misplaced(u[at], u[at - 1], u[at + 1]).any():
-            return None
-        return fields
+    Parameters
+    ----------
+    path : path-like
+        The file.
+    offset : int
+        First byte of the checked region (the header before it passes unchecked).
+    scan : PlainNumberScan
+        The checks.
+    patch : tuple of (int, bytes), optional
+        Bytes to show instead of the file's at a position within the header (e.g. ``general``
+        in place of ``symmetric`` in a Matrix Market banner).
+    """
 
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        offset: int,
+        scan: PlainNumberScan,
+        patch: tuple[int, bytes] | None = None,
+    ) -> None:
+        super().__init__()
+        self._file = open(path, "rb", buffering=0)  # closed in close()
+        self._position = 0
+        self._offset = offset
+        self._scan = scan
+        self._patch = patch
+        self._eof = False
 
-def _misplaced(byte: np.ndarray, before: np.ndarray, after: np.ndarray) -> np.ndarray:
-    """Which signs and exponent letters ``byte`` (with their neighbours) cannot belong to a
-    plain number: a sign after a digit or point or not followed by one; an exponent letter not
-    followed by a digit or sign."""
-    sign = (byte & 0xF9) == 0x29
-    digit_or_point_after = (after - np.uint8(46)) <= 11
-    digit_or_sign_after = ((after - np.uint8(48)) <= 9) | ((after & 0xF9) == 0x29)
-    digit_or_point_before = (before - np.uint8(46)) <= 11
-    return np.where(sign, digit_or_point_before | ~digit_or_point_after, ~digit_or_sign_after)
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, buffer) -> int:
+        if self._scan.fields is None:
+            raise ValueError("the bytes fail the plain-number checks")
+        size = self._file.readinto(buffer)
+        view = memoryview(buffer).cast("B")
+        if self._patch is not None:
+            start, patch = self._patch
+            first = max(start - self._position, 0)
+            last = min(start + len(patch) - self._position, size)
+            if first < last:
+                shift = self._position + first - start
+                view[first:last] = patch[shift : shift + last - first]
+        skip = min(max(self._offset - self._position, 0), size)
+        self._position += size
+        if size == 0:
+            self._eof = True
+            self._scan.finish()
+        elif skip < size:
+            self._scan.feed(view[skip:size])
+        if self._scan.fields is None:
+            raise ValueError("the bytes fail the plain-number checks")
+        return size
+
+    @property
+    def fields(self) -> int | None:
+        """Fields of the region once it was read to its end and passed every check, else None."""
+        return self._scan.fields if self._eof else None
+
+    def close(self) -> None:
+        self._file.close()
+        super().close()
 
 
 def csr_from_sorted_coo(

@@ -43,11 +43,10 @@ symmetric coordinate file may store either triangle (not both). Every mistake ra
 Speed: the numbers of a coordinate file are parsed by fast_matrix_market (``scipy.io.mmread``,
 multi-threaded) and those of a CSV table by NumPy's ``loadtxt``, each behind checks of the raw
 bytes that prove the result is the one of the strict line-by-line pass
-(:func:`pymorembs.io.fast_text.count_plain_fields`); a file that fails a check (a comment after
-the size line, an integer-valued matrix, any mistake) is read by the strict pass, which names the
-line. Two mistakes pass the checks and are read as fast_matrix_market reads them: a number with
-a second decimal point or exponent letter (``1.0.5`` as 1.0) and a decimal fraction in a column
-index (``1 1.5 2.0`` as entry (1, 1) = 0.5).
+(:class:`pymorembs.io.fast_text.PlainNumberScan`, run on the bytes while fast_matrix_market
+reads them, so the file is read once); a file that fails a check (a comment after the size line,
+an integer-valued matrix, any mistake such as ``1.0.5`` or ``1 1.5 2.0``) is read by the strict
+pass, which names the line.
 """
 
 from __future__ import annotations
@@ -70,7 +69,7 @@ import scipy.sparse as sp
 from pymorembs.body import DIRECTIONS, ConstraintEquations, DofTable, ElasticBody, direction_code
 from pymorembs.errors import UserError
 from pymorembs.io.atomic import atomic_open, write_text
-from pymorembs.io.fast_text import count_plain_fields, csr_from_sorted_coo
+from pymorembs.io.fast_text import CheckedReader, PlainNumberScan, csr_from_sorted_coo
 
 __all__ = [
     "FILE_NAMES",
@@ -81,6 +80,7 @@ __all__ = [
     "read_matrix_directory",
     "read_matrix_files",
     "read_matrix_market",
+    "read_matrix_market_with_storage",
     "write_matrix_files",
     "write_matrix_market",
 ]
@@ -395,10 +395,28 @@ def read_matrix_market(path: PathLike) -> sp.csr_matrix:
         on) a coordinate file whose entries would leave most rows empty; the message names file
         and line.
     """
-    path = Path(path)
-    matrix = _read_coordinate_fast(path)
-    if matrix is not None:
-        return matrix
+    return _read_matrix_market(Path(path))[0]
+
+
+def read_matrix_market_with_storage(path: PathLike) -> tuple[sp.csr_matrix, bool]:
+    """Read a Matrix Market file as :func:`read_matrix_market` does, and tell its storage.
+
+    Returns
+    -------
+    matrix : scipy.sparse.csr_matrix
+        As :func:`read_matrix_market`.
+    mirrored : bool
+        True for ``symmetric`` storage: the stored triangle was mirrored exactly, so the matrix
+        is symmetric by construction and needs no :func:`check_symmetric`.
+    """
+    return _read_matrix_market(Path(path))
+
+
+def _read_matrix_market(path: Path) -> tuple[sp.csr_matrix, bool]:
+    """The matrix of :func:`read_matrix_market` and whether the file had symmetric storage."""
+    fast = _read_coordinate_fast(path)
+    if fast is not None:
+        return fast
     lines = _read_lines(path, "a Matrix Market file")
     header = _parse_header(path, lines)
     n, size_line = header.n, header.size_line
@@ -418,9 +436,10 @@ def read_matrix_market(path: PathLike) -> sp.csr_matrix:
                 f"size line announces a {n} x {n} matrix but the file holds only {table.size} "
                 "entries, so most rows would be empty; is the size line right?",
             )
-        return _coordinate_matrix(
+        matrix = _coordinate_matrix(
             data, table["row"] - 1, table["column"] - 1, table["value"], n, header.symmetric
         )
+        return matrix, header.symmetric
 
     values = data.parse((("value", float),))["value"]
     expected = n * (n + 1) // 2 if header.symmetric else n * n
@@ -436,7 +455,7 @@ def read_matrix_market(path: PathLike) -> sp.csr_matrix:
         dense[cols, rows] = values
     else:
         dense[:] = values.reshape((n, n), order="F")
-    return sp.csr_matrix(dense)
+    return sp.csr_matrix(dense), header.symmetric
 
 
 @dataclass(frozen=True)
@@ -526,17 +545,19 @@ _MIN_ENTRY_BYTES = 6
 _FAST_FROM_BYTES = 1 << 16
 
 
-def _read_coordinate_fast(path: Path) -> sp.csr_matrix | None:
-    """The matrix of a well-formed coordinate file, or None to leave the file to the strict pass.
+def _read_coordinate_fast(path: Path) -> tuple[sp.csr_matrix, bool] | None:
+    """The matrix of a well-formed coordinate file and whether its storage is symmetric, or None
+    to leave the file to the strict pass.
 
-    The numbers are parsed by fast_matrix_market (``scipy.io.mmread``, multi-threaded). Its
-    result is taken only when the header passes :func:`_parse_header`; the entry lines hold only
-    plain numbers, three fields per announced entry
-    (:func:`~pymorembs.io.fast_text.count_plain_fields`); the values are finite; a symmetric
-    file stores one triangle; no entry is given twice. Then it equals the result of the strict
-    pass, except for the two mistakes named in the module docstring. Anything else (a bad or
-    unusual line, an integer file, a comment after the size line, an error of the parser)
-    returns None, and the strict pass reads the file again and names the problem.
+    The numbers are parsed by fast_matrix_market (``scipy.io.mmread``, multi-threaded) while the
+    bytes it reads pass the checks of :class:`~pymorembs.io.fast_text.PlainNumberScan` (the file
+    is read once). Its result is taken only when the header passes :func:`_parse_header`; the
+    entry lines hold only plain numbers, three fields on every non-blank line of which the first
+    two are unsigned integers, one line per announced entry; the values are finite; a symmetric
+    file stores one triangle; no entry is given twice. Then every field was read whole and the
+    result equals the one of the strict pass. Anything else (a bad or unusual line, an integer
+    file, a comment after the size line, an error of the parser) returns None, and the strict
+    pass reads the file again and names the problem.
     """
     head = _fast_head(path)
     if head is None:
@@ -553,15 +574,20 @@ def _read_coordinate_fast(path: Path) -> sp.csr_matrix | None:
         return None  # the strict pass is quicker than starting the parser's threads
     if entries * _MIN_ENTRY_BYTES > data_bytes + 1 or (n > _MOSTLY_EMPTY_FROM and n > 2 * entries):
         return None
-    if count_plain_fields(path, offset) != 3 * entries:
-        return None
+    # a symmetric file is read as stored: scipy.io.mmread mirrors a symmetric file in Python
+    # with array copies that take longer than the parse itself (and twice the memory of the
+    # result); _mirrored completes the stored triangle in CSR form
+    start, stop = header.banner_storage
+    patch = (start, b"general".ljust(stop - start)) if header.symmetric else None
+    scan = PlainNumberScan(fields_per_line=3, integer_fields=2)
     try:
-        if header.symmetric:  # read the stored triangle as it is (see _StoredTriangle)
-            with io.BufferedReader(_StoredTriangle(path, header.banner_storage), 1 << 20) as f:
-                coo = scipy.io.mmread(f, spmatrix=False)
-        else:
-            coo = scipy.io.mmread(path, spmatrix=False)
-    except Exception:  # any complaint of the parser: the strict pass explains it
+        raw = CheckedReader(path, offset, scan, patch)
+        with io.BufferedReader(raw, 1 << 20) as stream:
+            coo = scipy.io.mmread(stream, spmatrix=False)
+            fields = raw.fields
+    except Exception:  # any complaint of the parser or the checks: the strict pass explains it
+        return None
+    if fields != 3 * entries:
         return None
     if not sp.issparse(coo) or coo.shape != (n, n) or coo.nnz != entries:
         return None
@@ -572,44 +598,12 @@ def _read_coordinate_fast(path: Path) -> sp.csr_matrix | None:
     if header.symmetric and np.any(rows > cols) and np.any(rows < cols):
         return None  # both triangles: the strict pass names the entry
     matrix = _general_csr(rows, cols, values, n)
-    if matrix is None or not header.symmetric:
-        return matrix
+    if matrix is None:
+        return None
+    if not header.symmetric:
+        return matrix, False
     del rows, cols, values
-    return _mirrored(matrix)
-
-
-class _StoredTriangle(io.RawIOBase):
-    """The bytes of a symmetric Matrix Market file whose banner says ``general`` instead.
-
-    ``scipy.io.mmread`` mirrors a symmetric file in Python with array copies that take longer
-    than the parse itself (and need twice the memory of the result); read through this view it
-    returns the stored triangle, which :func:`_mirrored` completes in CSR form.
-    """
-
-    def __init__(self, path: Path, storage: tuple[int, int]) -> None:
-        super().__init__()
-        self._file = open(path, "rb", buffering=0)  # closed in close()
-        self._position = 0
-        start, stop = storage
-        self._patch = (start, b"general".ljust(stop - start))
-
-    def readable(self) -> bool:
-        return True
-
-    def readinto(self, buffer) -> int:
-        size = self._file.readinto(buffer)
-        start, patch = self._patch
-        first = max(start - self._position, 0)
-        last = min(start + len(patch) - self._position, size)
-        if first < last:
-            offset = self._position + first - start
-            buffer[first:last] = patch[offset : offset + last - first]
-        self._position += size
-        return size
-
-    def close(self) -> None:
-        self._file.close()
-        super().close()
+    return _mirrored(matrix), True
 
 
 def _mirrored(stored: sp.csr_matrix) -> sp.csr_matrix:
@@ -763,11 +757,12 @@ _BLOCK = 1 << 20
 
 def _read_symmetric(path: Path, like: tuple[Path, int] | None = None) -> sp.csr_matrix:
     """Read a Matrix Market file, check symmetry and, with ``like``, its size."""
-    matrix = read_matrix_market(path)
+    matrix, mirrored = _read_matrix_market(path)
     if like is not None and matrix.shape[0] != like[1]:
         n = matrix.shape[0]
         raise _fail(path, None, f"matrix is {n} x {n} but {like[0]} is {like[1]} x {like[1]}")
-    check_symmetric(matrix, str(path))
+    if not mirrored:  # a symmetric file is mirrored exactly
+        check_symmetric(matrix, str(path))
     return matrix
 
 
