@@ -447,6 +447,16 @@ class ElasticBody:
         except KeyError:
             raise UserError(f"node {node} does not exist in the model") from None
 
+    def dof_positions(self) -> np.ndarray:
+        """The position of the node of each equation, shape (n_dof, 3); scalar coordinates: 0."""
+        out = np.zeros((self.n_dof, 3))
+        geometric = ~self.dofs.scalar
+        if geometric.any():
+            order = np.argsort(self.node_ids)
+            rows = order[np.searchsorted(self.node_ids, self.dofs.nodes[geometric], sorter=order)]
+            out[geometric] = self.coordinates[rows]
+        return out
+
     def rigid_body_modes(self, origin: np.ndarray | None = None) -> np.ndarray:
         """The six rigid-body displacement fields over all equations, shape (n_dof, 6).
 
@@ -458,11 +468,8 @@ class ElasticBody:
         """
         origin = np.zeros(3) if origin is None else np.asarray(origin, dtype=float)
         geometric = ~self.dofs.scalar
-        r = np.zeros((self.n_dof, 3))
-        if geometric.any():
-            order = np.argsort(self.node_ids)
-            rows = order[np.searchsorted(self.node_ids, self.dofs.nodes[geometric], sorter=order)]
-            r[geometric] = self.coordinates[rows] - origin
+        r = self.dof_positions()
+        r[geometric] -= origin
         d = self.dofs.directions
         modes = np.zeros((self.n_dof, 6))
         for axis in range(3):

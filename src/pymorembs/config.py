@@ -19,7 +19,7 @@ from typing import Any
 from pymorembs.body import Damping
 from pymorembs.errors import UserError
 from pymorembs.io.formats import FORMATS
-from pymorembs.prepare import Frame, Port
+from pymorembs.prepare import INERTIA_LOAD_CASES, Frame, Port
 
 #: Options each method accepts besides ``name``, ``method`` and ``order``.
 METHOD_OPTIONS: dict[str, tuple[str, ...]] = {
@@ -47,6 +47,8 @@ INTERFACE_KINDS = ("rigid", "distributing", "beams", "springs")
 #: Files a job can write per reduction (``[export] outputs``), and the job's HTML report.
 EXPORT_KINDS = ("npz", "mtx", "mat", "sid", "neweul", "exudyn", "report")
 DEFAULT_EXPORTS = ("npz", "mtx")
+#: Exports of a body for a multibody code: inertia loads are inputs by default for these.
+MULTIBODY_EXPORTS = ("sid", "neweul", "exudyn")
 #: ``[band] reference``: what the error of eq. 27 is measured against
 #: (:mod:`pymorembs.analysis.reference`).
 REFERENCE_KINDS = ("auto", "full", "surrogate")
@@ -129,6 +131,25 @@ class TimeDomainSpec:
 
 
 @dataclass(frozen=True)
+class InertiaLoadSpec:
+    """``[inertia_loads]``: the frame's d'Alembert loads as inputs of every reduction.
+
+    ``enabled`` None: on when the job exports a body for a multibody code
+    (:data:`MULTIBODY_EXPORTS`), off otherwise. ``cases``: the load cases
+    (:data:`~pymorembs.prepare.INERTIA_LOAD_CASES`).
+    """
+
+    enabled: bool | None = None
+    cases: tuple[str, ...] = INERTIA_LOAD_CASES
+
+    def active(self, exports: tuple[str, ...]) -> bool:
+        """Whether the loads are inputs for a job writing ``exports``."""
+        if self.enabled is None:
+            return any(kind in MULTIBODY_EXPORTS for kind in exports)
+        return self.enabled
+
+
+@dataclass(frozen=True)
 class Job:
     """A parsed reduction job."""
 
@@ -147,6 +168,7 @@ class Job:
     time_domain: TimeDomainSpec | None = None
     reference: str = "auto"
     check_points: int = DEFAULT_CHECKS
+    inertia_loads: InertiaLoadSpec = InertiaLoadSpec()
 
 
 class _Table:
@@ -283,6 +305,7 @@ def parse_job(data: dict[str, Any], path: Path) -> Job:
     reductions = _reductions(top.get("reduction", required=True), path)
     export = _export(top.get("export"), path)
     time_domain = _time_domain(top.get("time_domain"), path)
+    inertia = _inertia_loads(top.get("inertia_loads"), path)
     top.done()
     return Job(
         path,
@@ -300,7 +323,31 @@ def parse_job(data: dict[str, Any], path: Path) -> Job:
         time_domain,
         reference,
         check_points,
+        inertia,
     )
+
+
+def _inertia_loads(data: Any, path: Path) -> InertiaLoadSpec:
+    if data is None:
+        return InertiaLoadSpec()
+    table = _Table(data, "[inertia_loads]", path)
+    enabled = table.get("enabled")
+    if enabled is not None and not isinstance(enabled, bool):
+        raise table.error("enabled", f"must be true or false, got {enabled!r}")
+    cases = table.get("cases", list(INERTIA_LOAD_CASES))
+    if not isinstance(cases, list) or not cases or not all(isinstance(c, str) for c in cases):
+        raise table.error("cases", f"must be a list of load cases like {list(INERTIA_LOAD_CASES)}")
+    for case in cases:
+        if case not in INERTIA_LOAD_CASES:
+            hint = difflib.get_close_matches(case, INERTIA_LOAD_CASES, n=1)
+            more = (
+                f"; did you mean '{hint[0]}'?"
+                if hint
+                else f" (one of {', '.join(INERTIA_LOAD_CASES)})"
+            )
+            raise table.error("cases", f"unknown load case {case!r}{more}")
+    table.done()
+    return InertiaLoadSpec(enabled, tuple(dict.fromkeys(cases)))
 
 
 def _model(table: _Table, base: Path) -> ModelSpec:

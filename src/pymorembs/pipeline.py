@@ -15,6 +15,7 @@ import shutil
 import tempfile
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -22,7 +23,7 @@ import numpy as np
 import scipy
 
 from pymorembs import __version__
-from pymorembs.analysis.error import frequency_grid
+from pymorembs.analysis.error import frequency_grid, relative_error
 from pymorembs.analysis.reference import ReferenceResponse, choose_kind, reference_response
 from pymorembs.analysis.time_domain import clamped_full_system
 from pymorembs.analysis.time_domain_job import time_domain_checks
@@ -35,7 +36,8 @@ from pymorembs.export.outputs import BODY_OUTPUTS, write_outputs
 from pymorembs.io.atomic import atomic_path, write_text
 from pymorembs.io.formats import read_body
 from pymorembs.linalg.mass_split import mass_split
-from pymorembs.prepare import PreparedModel, prepare
+from pymorembs.prepare import PreparedModel, prepare, with_inertia_loads
+from pymorembs.prepare.inertia_loads import is_inertia_label
 from pymorembs.prepare.interface import InterfaceSpec, add_interface_node, select_nodes
 from pymorembs.prepare.validation import ValidationReport, validate_body, validate_prepared
 from pymorembs.progress import Progress as ProgressBar
@@ -167,11 +169,15 @@ def run_reduction(
             )
         return modal_reduction(system, spec.order, shift_hz=shift)
     if spec.method == "craig-bampton":
+        # the interface: the dofs of the port forces; inertia loads add static load modes
+        inertia = np.array([is_inertia_label(label) for label in system.input_labels], dtype=bool)
+        ports = replace(system, input_matrix=system.input_matrix[:, ~inertia])
         return craig_bampton(
             system,
-            boundary_dofs_of_inputs(system),
+            boundary_dofs_of_inputs(ports),
             options["fixed_modes"],
             shift_hz=options.get("shift_hz", 1.0),
+            static_loads=system.input_matrix[:, inertia] if inertia.any() else None,
         )
     if spec.method == "krylov":
         return krylov_reduction(
@@ -404,9 +410,14 @@ def _run_job(
         "loading the model",
     )
     body, prepared, validation = prepare_and_validate(job)  # before anything expensive
-    system = prepared.system
     timings["prepare_s"] = time.perf_counter() - clock
     timings["validation_s"] = validation.seconds
+    if job.inertia_loads.active(job.export.outputs):
+        tick = time.perf_counter()
+        say("inertia loads of the frame motion as further inputs (one static factorization)")
+        prepared = with_inertia_loads(prepared, job.inertia_loads.cases)
+        timings["inertia_loads_s"] = time.perf_counter() - tick
+    system = prepared.reduction_system  # what every reduction and the reference see
     units = detect_units(body)
     warnings = [*prepared.warnings, *validation.warnings, *units.warnings]
     for warning in warnings:
@@ -451,12 +462,19 @@ def _run_job(
                 for spec, (_, response, _) in zip(job.reductions, reduced_runs, strict=True)
             ]
         timings["reference_s"] = reference.seconds
-        for spec, (model, _, elapsed), eps in zip(
+        ports, inertia = error_blocks(system)
+        for spec, (model, response, elapsed), eps in zip(
             job.reductions, reduced_runs, all_eps, strict=True
         ):
+            if inertia is not None:  # eq. 27 over the ports, and over the inertia loads
+                eps_inertia = relative_error(reference.response, response, inertia)
+                eps = relative_error(reference.response, response, ports)
+            else:
+                eps_inertia = None
             entry = _write_one(
-                prepared, spec, model, eps, elapsed, reference, staging, outputs, nodes
-            )
+                prepared, spec, model, (eps, eps_inertia), elapsed, reference, staging, outputs,
+                nodes,
+            )  # fmt: skip
             projection = model.projection
             models[spec.name] = model
             if projection.error_curve is not None:
@@ -473,6 +491,8 @@ def _run_job(
                 say(f"warning: {warnings[-1]}")
             entries.append(entry)
             errors[spec.name] = eps
+            if eps_inertia is not None:
+                errors[f"{spec.name} (inertia loads)"] = eps_inertia
         computed = [f for e in entries for f in e["eigenfrequencies_hz"]]
         for warning in frequency_warnings(units, job.band_hz, np.asarray(computed)):
             warnings.append(warning)
@@ -487,6 +507,10 @@ def _run_job(
         )
         overview = ["summary.json", "error.png"]
         caption = "Relative error ε(f) of eq. 27 of every reduction"
+        if prepared.inertia is not None:
+            caption += (
+                " over the ports, and '(inertia loads)' over the inertia loads of the frame motion"
+            )
         if reference.kind == "surrogate":
             caption += (
                 f" against a reference model of order {reference.parameters['order']}, "
@@ -540,10 +564,11 @@ def _run_job(
                 "dof_table": body.dofs.describe(),
                 "has_coordinates": bool(body.has_coordinates),
                 "notes": list(body.notes),
-                "n_inputs": system.n_inputs,
-                "n_outputs": system.n_outputs,
-                "inputs": list(system.input_labels),
-                "outputs": list(system.output_labels),
+                "n_inputs": prepared.system.n_inputs,
+                "n_outputs": prepared.system.n_outputs,
+                "inputs": list(prepared.system.input_labels),
+                "outputs": list(prepared.system.output_labels),
+                "inertia_loads": _inertia_summary(prepared),
                 "total_mass": body.total_mass(),
                 "damping": {
                     "kind": body.damping.kind,
@@ -590,12 +615,39 @@ def _reduce_one(
     (:meth:`ReferenceResponse.settle`).
     """
     tick = time.perf_counter()
-    projection = run_reduction(prepared.system, spec, band_hz)
-    model = reduced_model(prepared.system, projection)  # checked before anything is written
+    projection = run_reduction(prepared.reduction_system, spec, band_hz)
+    model = reduced_model(prepared.reduction_system, projection)  # checked before writing
     elapsed = time.perf_counter() - tick
     response = transfer_function(model.system, reference.frequencies_hz)
     _checked_errors(spec, reference, response)
     return model, response, elapsed
+
+
+def _inertia_summary(prepared: PreparedModel) -> dict[str, Any] | None:
+    """The inertia loads of a prepared model for the summary (None: not used)."""
+    loads = prepared.inertia
+    if loads is None:
+        return None
+    return {
+        "cases": list(loads.cases),
+        "dropped": list(loads.dropped),
+        "scales": loads.scales.tolist(),
+        "scaling": "each load's static compliance equals the median of the port forces'",
+    }
+
+
+def error_blocks(system: SecondOrderSystem) -> tuple[np.ndarray, np.ndarray | None]:
+    """Entries of ``H`` (n_outputs, n_inputs) of the ports and of the inertia loads.
+
+    Ports: port outputs to port inputs, the ``eps`` of eq. 27 as without inertia loads. Inertia
+    loads: every entry with an inertia load as input or its collocated output (how the frame
+    motion deforms the body at the ports and in the generalised coordinates the frame's
+    equations see). None when the system has no inertia loads.
+    """
+    cols = np.array([is_inertia_label(label) for label in system.input_labels], dtype=bool)
+    rows = np.array([is_inertia_label(label) for label in system.output_labels], dtype=bool)
+    ports = ~rows[:, None] & ~cols[None, :]
+    return ports, (None if ports.all() else ~ports)
 
 
 def _checked_errors(
@@ -616,14 +668,18 @@ def _write_one(
     prepared: PreparedModel,
     spec: ReductionSpec,
     model: ReducedModel,
-    eps: np.ndarray,
+    errors: tuple[np.ndarray, np.ndarray | None],
     elapsed: float,
     reference: ReferenceResponse,
     staging: Path,
     outputs: tuple[str, ...],
     nodes: list[int],
 ) -> dict[str, Any]:
-    """Write a reduction's files into ``staging/<name>``; its entry of the summary."""
+    """Write a reduction's files into ``staging/<name>``; its entry of the summary.
+
+    ``errors``: ``eps(f)`` over the ports and over the inertia loads (None without them).
+    """
+    eps, eps_inertia = errors
     projection = model.projection
     frequencies = reference.frequencies_hz
     static = float(eps[0]) if frequencies[0] == 0.0 else None
@@ -631,9 +687,12 @@ def _write_one(
     folder.mkdir()
     files = write_outputs(model, prepared, spec.name, outputs, nodes, folder)
     curve = {} if projection.error_curve is None else {spec.name: projection.error_curve}
+    curves = {spec.name: eps}
+    if eps_inertia is not None:
+        curves[f"{spec.name} (inertia loads)"] = eps_inertia
     plot_relative_errors(
         frequencies,
-        {spec.name: eps},
+        curves,
         folder / "error.png",
         title=f"Relative error of '{spec.name}' ({spec.method}, n = {projection.order})",
         estimates=curve,
@@ -641,6 +700,9 @@ def _write_one(
     )
     table = np.column_stack([frequencies, eps])
     header = "frequency_hz,relative_error"
+    if eps_inertia is not None:
+        table = np.column_stack([table, eps_inertia])
+        header += ",relative_error_inertia_loads"
     if reference.kind == "surrogate":  # 1: measured against the full model, 0: surrogate
         table = np.column_stack([table, reference.exact.astype(float)])
         header += ",checked_against_full_model"
@@ -666,11 +728,19 @@ def _write_one(
         "error_estimate": projection.error_estimate,
         "error_bound": projection.error_bound,
         "reference_resolved": reference.resolved(eps),
+        "error_covers": "ports: the port outputs to the port inputs",
         "time_s": elapsed,
         "parameters": _jsonable(projection.parameters),
         "eigenfrequencies_hz": model.eigenfrequencies_hz.tolist(),
         "files": [f"{spec.name}/{name}" for name in files],
     }
+    if eps_inertia is not None:
+        entry["inertia_loads"] = {
+            "max_rel_error": float(np.max(eps_inertia)),
+            "static_rel_error": float(eps_inertia[0]) if frequencies[0] == 0.0 else None,
+            "covers": "the inertia loads of the frame motion to the port outputs and their "
+            "collocated outputs, and the port inputs to those",
+        }
     return entry
 
 
