@@ -18,7 +18,7 @@ from pymorembs.cli import main
 from pymorembs.config import parse_job
 from pymorembs.errors import UserError
 from pymorembs.io.matrix_market import write_matrix_files
-from pymorembs.pipeline import error_blocks
+from pymorembs.pipeline import error_blocks, inertia_warning
 from pymorembs.prepare import (
     INERTIA_LOAD_CASES,
     Frame,
@@ -221,6 +221,7 @@ def test_a_multibody_job_reports_both_errors(tmp_path):
     assert model["inertia_loads"]["cases"] == ["wxx", "wyy", "wzz", "wxy", "wyz", "wxz"]
     entry = summary["reductions"][0]
     assert entry["inertia_loads"]["max_rel_error"] > 0
+    assert entry["inertia_loads"]["static_rel_error"] < 1e-12  # 12 columns at 0 Hz, 9 inputs
     assert "inertia loads" in entry["inertia_loads"]["covers"]
     table = np.loadtxt(tmp_path / "out" / "krylov" / "error.csv", delimiter=",", skiprows=1)
     assert table.shape[1] == 3
@@ -234,6 +235,15 @@ def test_a_multibody_job_reports_both_errors(tmp_path):
     off = json.loads((tmp_path / "off" / "summary.json").read_text())
     assert off["model"]["inertia_loads"] is None
     assert "inertia_loads" not in off["reductions"][0]
+
+
+def test_a_body_accurate_only_at_its_ports_is_named():
+    tiny, large = np.full(5, 1e-9), np.array([1e-9, 0.3, 1.2, 0.1, 0.0])
+    message = inertia_warning("krylov-30", tiny, large)
+    assert message.startswith("reduction 'krylov-30': max error 1.0e-09 over the ports but 1.2e+00")
+    assert inertia_warning("k", tiny, np.full(5, 5e-3)) is None  # small in absolute terms
+    assert inertia_warning("k", np.full(5, 0.1), np.full(5, 0.5)) is None  # both poor alike
+    assert inertia_warning("k", tiny, None) is None
 
 
 def test_static_solve_reference_is_independent():

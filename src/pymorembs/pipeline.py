@@ -231,6 +231,12 @@ def run_reduction(
     raise UserError(f"unknown method {spec.method!r}")  # config rejects it earlier
 
 
+#: A reduction whose error under the inertia loads exceeds this and ...
+INERTIA_WARNING = 1e-2
+#: ... this many times its error over the ports gets a warning: it misses a direction the frame
+#: motion excites.
+INERTIA_RATIO = 100.0
+
 #: Largest sparse model whose Gramians are computed directly (beyond: two-step).
 DIRECT_GRAMIAN_LIMIT = 2000
 
@@ -489,6 +495,10 @@ def _run_job(
                     "the Krylov space is exhausted (the reduced model is exact for these ports)"
                 )
                 say(f"warning: {warnings[-1]}")
+            missing = inertia_warning(spec.name, eps, eps_inertia)
+            if missing:
+                warnings.append(missing)
+                say(f"warning: {missing}")
             entries.append(entry)
             errors[spec.name] = eps
             if eps_inertia is not None:
@@ -621,6 +631,24 @@ def _reduce_one(
     response = transfer_function(model.system, reference.frequencies_hz)
     _checked_errors(spec, reference, response)
     return model, response, elapsed
+
+
+def inertia_warning(name: str, eps: np.ndarray, eps_inertia: np.ndarray | None) -> str | None:
+    """A warning when a reduction is far less accurate under the inertia loads than at the ports.
+
+    Given when the largest error under the inertia loads exceeds :data:`INERTIA_WARNING` and
+    :data:`INERTIA_RATIO` times the largest error over the ports.
+    """
+    if eps_inertia is None:
+        return None
+    ports, loads = float(np.max(eps)), float(np.max(eps_inertia))
+    if loads <= max(INERTIA_WARNING, INERTIA_RATIO * ports):
+        return None
+    return (
+        f"reduction '{name}': max error {ports:.1e} over the ports but {loads:.1e} under the "
+        "inertia loads of the frame motion: the body misses directions the frame's motion "
+        "excites (raise the order, or add frm_hz / expansion points)"
+    )
 
 
 def _inertia_summary(prepared: PreparedModel) -> dict[str, Any] | None:
