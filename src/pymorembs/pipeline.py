@@ -915,6 +915,11 @@ def job_settings(job: Job) -> dict[str, Any]:
         },
         "interfaces": len(job.interfaces),
         "time_domain": job.time_domain is not None,
+        "inertia_loads": {
+            "active": job.inertia_loads.active(job.export.outputs),
+            "enabled": job.inertia_loads.enabled,
+            "cases": list(job.inertia_loads.cases),
+        },
     }
 
 
