@@ -38,6 +38,10 @@ METHOD_OPTIONS: dict[str, tuple[str, ...]] = {
     "pod": ("tolerance", "snapshots"),
 }
 
+#: Options every method accepts: ``max_frequency_hz`` removes the reduced model's directions
+#: above it (:func:`~pymorembs.reduce.projection.without_stiff_directions`).
+COMMON_OPTIONS: tuple[str, ...] = ("max_frequency_hz",)
+
 MODEL_FILE_KEYS = (
     "file", "stiffness", "mass", "damping", "dofs", "nodes", "constraints", "fixed", "mapping",
     "inp",
@@ -599,9 +603,13 @@ def _reductions(data: Any, path: Path) -> tuple[ReductionSpec, ...]:
                 "name", f"{name!r} is the name of a file of the job's output folder; choose another"
             )
         order = table.integer("order")
-        options = {key: table.get(key) for key in METHOD_OPTIONS[method] if key in table.data}
-        table.done(METHOD_OPTIONS[method])
+        known = METHOD_OPTIONS[method] + COMMON_OPTIONS
+        options = {key: table.get(key) for key in known if key in table.data}
+        table.done(known)
         _check_options(table, method, order, options)
+        limit = table.number("max_frequency_hz")
+        if limit is not None and not limit > 0:
+            raise table.error("max_frequency_hz", f"must be a frequency > 0 (Hz), got {limit!r}")
         specs.append(ReductionSpec(name, method, order, options))
     return tuple(specs)
 

@@ -50,7 +50,13 @@ from pymorembs.reduce.modal_family import (
     craig_bampton,
     modes_with_frm,
 )
-from pymorembs.reduce.projection import Projection, ReducedModel, reduced_model
+from pymorembs.reduce.projection import (
+    Projection,
+    ReducedModel,
+    explicit_step_s,
+    reduced_model,
+    without_stiff_directions,
+)
 from pymorembs.reduce.rational_gramian import rational_gramian_reduction
 from pymorembs.reduce.soaga import soaga_reduction
 from pymorembs.report.html_report import write_report
@@ -625,8 +631,23 @@ def _reduce_one(
     (:meth:`ReferenceResponse.settle`).
     """
     tick = time.perf_counter()
-    projection = run_reduction(prepared.reduction_system, spec, band_hz)
-    model = reduced_model(prepared.reduction_system, projection)  # checked before writing
+    system = prepared.reduction_system
+    projection = run_reduction(system, spec, band_hz)
+    model = reduced_model(system, projection)  # checked before writing
+    limit = spec.options.get("max_frequency_hz")
+    if limit is not None and model.eigenfrequencies_hz.max() > limit:
+        before = transfer_function(model.system, reference.frequencies_hz)
+        model = without_stiff_directions(system, model, limit)
+        # what the removal costs: the errors before it, to compare with the entry's own
+        ports, inertia = error_blocks(system)
+        frequencies = reference.frequencies_hz
+        for key, block in (("", ports), ("inertia_", inertia)):
+            if block is None:
+                continue
+            eps = relative_error(reference.response, before, block)
+            model.projection.parameters[f"{key}max_rel_error_before_removal"] = float(eps.max())
+            if frequencies[0] == 0.0:
+                model.projection.parameters[f"{key}static_rel_error_before_removal"] = float(eps[0])
     elapsed = time.perf_counter() - tick
     response = transfer_function(model.system, reference.frequencies_hz)
     _checked_errors(spec, reference, response)
@@ -760,6 +781,8 @@ def _write_one(
         "time_s": elapsed,
         "parameters": _jsonable(projection.parameters),
         "eigenfrequencies_hz": model.eigenfrequencies_hz.tolist(),
+        "highest_frequency_hz": float(model.eigenfrequencies_hz.max(initial=0.0)),
+        "explicit_step_s": explicit_step_s(model.eigenfrequencies_hz),
         "files": [f"{spec.name}/{name}" for name in files],
     }
     if eps_inertia is not None:
