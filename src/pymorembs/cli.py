@@ -54,6 +54,8 @@ def build_parser() -> argparse.ArgumentParser:
     ex.add_argument("--out", required=True, type=Path, help="output folder")
     ex.add_argument("--dofs", type=int, help="rack-solid: about this many dofs (35000)")
     ex.add_argument("--interface", help="rack-solid: interface variant of node 2")
+    ex.add_argument("--hub-radius", type=float, help="blade: root distance from the axis (m)")
+    ex.add_argument("--elements", type=int, help="blade: elements along the length (40)")
 
     info = sub.add_parser("info", help="facts and eigenfrequencies of a model or a job")
     info.add_argument(
@@ -154,7 +156,9 @@ BUG_REPORT = (
 
 def _example(args: argparse.Namespace) -> int:
     options = {
-        key: getattr(args, key) for key in ("dofs", "interface") if getattr(args, key) is not None
+        key: getattr(args, key)
+        for key in ("dofs", "interface", "hub_radius", "elements")
+        if getattr(args, key) is not None
     }
     body = build_example(args.name, **options)
     out: Path = args.out

@@ -364,6 +364,12 @@ def _model(table: _Table, base: Path) -> ModelSpec:
         variant = table.string("interface")
         if variant is not None:
             options["interface"] = variant
+        hub = table.number("hub_radius", minimum=0.0)
+        if hub is not None:
+            options["hub_radius"] = hub
+        count = table.integer("elements", minimum=4)
+        if count is not None:
+            options["elements"] = count
         table.done()
         return ModelSpec(example=example, options=options)
     fmt = table.string("format")

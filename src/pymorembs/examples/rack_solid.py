@@ -324,7 +324,7 @@ def _lattice(n: int, grading: Callable[[np.ndarray], np.ndarray] | None = None) 
     return params
 
 
-def _block(
+def structured_block(
     mapping: Mapping,
     counts: tuple[int, int, int],
     radial_grading: Callable[[np.ndarray], np.ndarray] | None = None,
@@ -344,7 +344,7 @@ def _block(
     Returns
     -------
     points : ndarray, shape (n_points, 3)
-        All lattice points (some used by no element; :func:`_merge` drops those).
+        All lattice points (some used by no element; :func:`merge_blocks` drops those).
     elements : ndarray of int, shape (n_el, 20)
         Rows of ``points``, ordered so that every element is right-handed.
     """
@@ -363,7 +363,7 @@ def _block(
     return points, elements
 
 
-def _merge(
+def merge_blocks(
     blocks: list[tuple[np.ndarray, np.ndarray]], tolerance: float = 1e-9
 ) -> tuple[np.ndarray, np.ndarray]:
     """One mesh from blocks: coincident nodes merged, unused lattice points dropped.
@@ -621,21 +621,22 @@ def mesh_rack(plan: MeshPlan, design: RackDesign | None = None) -> SolidMesh:
     square, ring, along = plan.rod
     around_x, around_y, radial, thick = plan.upper
     parts = [
-        [_block(_extruded(_rectangle_section(lower.length / 2, lower.width / 2), -z_rods,
+        [structured_block(_extruded(_rectangle_section(lower.length / 2, lower.width / 2), -z_rods,
                           lower.thickness), (nx, ny, nz))],
         *[
-            [_block(_extruded(sec, z_rods, d.rod_length), (square, n_t, along))
+            [structured_block(_extruded(sec, z_rods, d.rod_length), (square, n_t, along))
              for sec, n_t in zip(_disc_sections(d.rod_diameter / 2, xy), (square, *4 * [ring]),
                                  strict=True)]
             for xy in d.rod_positions
         ],
-        [_block(_extruded(sec, z_upper, upper.thickness), (n_s, radial, thick), _hole_grading)
+        [structured_block(_extruded(sec, z_upper, upper.thickness), (n_s, radial, thick),
+                          _hole_grading)
          for sec, n_s in zip(
              _holed_rectangle_sections(upper.length / 2, upper.width / 2,
                                        upper.hole_diameter / 2),
              (around_x, around_y, around_x, around_y), strict=True)],
     ]  # fmt: skip
-    merged = [_merge(blocks) for blocks in parts]
+    merged = [merge_blocks(blocks) for blocks in parts]
     sizes = [c.shape[0] for c, _ in merged]
     offsets = np.cumsum([0, *sizes[:-1]])
     coordinates = np.concatenate([c for c, _ in merged])
