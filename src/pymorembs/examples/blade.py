@@ -24,6 +24,8 @@ flapwise bending); the tests check within 1 %.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from pymorembs.body import Damping, DofTable, ElasticBody
@@ -31,10 +33,67 @@ from pymorembs.errors import UserError
 from pymorembs.examples.rack_beams import STEEL_E, STEEL_NU, STEEL_RHO
 from pymorembs.examples.rack_solid import assemble_hex20, merge_blocks, structured_block
 
-__all__ = ["blade"]
+__all__ = ["BladeMesh", "blade", "blade_mesh"]
 
 #: Node ids of the tip and root centres; mesh nodes from :data:`FIRST_MESH_ID` on.
 TIP_NODE, ROOT_NODE, FIRST_MESH_ID = 1, 2, 1001
+
+
+@dataclass(frozen=True, eq=False)
+class BladeMesh:
+    """The blade's nodes and elements.
+
+    Attributes
+    ----------
+    node_ids : ndarray of int, shape (n_nodes,)
+        Ascending (1, 2, then 1001, ...).
+    coordinates : ndarray, shape (n_nodes, 3)
+        In the order of ``node_ids`` (m).
+    elements : ndarray of int, shape (n_el, 20)
+        Rows of ``coordinates`` of each 20-node hexahedron (order of
+        :data:`~pymorembs.examples.rack_solid.HEX20_NODES`).
+    root : ndarray of int
+        Rows of the nodes of the root face.
+    """
+
+    node_ids: np.ndarray
+    coordinates: np.ndarray
+    elements: np.ndarray
+    root: np.ndarray
+
+
+def blade_mesh(
+    hub_radius: float = 0.0,
+    length: float = 1.0,
+    chord: float = 0.04,
+    thickness: float = 0.01,
+    elements: int = 40,
+) -> BladeMesh:
+    """The mesh of :func:`blade` (same parameters)."""
+    for label, value in (("length", length), ("chord", chord), ("thickness", thickness)):
+        if not (np.isfinite(value) and value > 0):
+            raise UserError(f"blade: {label} must be a length > 0 (m), got {value!r}")
+    if not (np.isfinite(hub_radius) and hub_radius >= 0):
+        raise UserError(f"blade: hub_radius must be >= 0 (m), got {hub_radius!r}")
+    if isinstance(elements, bool) or not isinstance(elements, int | np.integer) or elements < 4:
+        raise UserError(f"blade: elements must be a whole number >= 4, got {elements!r}")
+
+    def box(s: np.ndarray, t: np.ndarray, u: np.ndarray) -> np.ndarray:
+        return np.stack(
+            [hub_radius + length * s, chord * (t - 0.5), thickness * (u - 0.5)], axis=-1
+        )
+
+    coordinates, connectivity = merge_blocks([structured_block(box, (int(elements), 2, 2))])
+    ids = FIRST_MESH_ID + np.arange(coordinates.shape[0])
+    scale = max(length, chord, thickness)
+    for node, x in ((TIP_NODE, hub_radius + length), (ROOT_NODE, hub_radius)):
+        centre = np.flatnonzero(np.linalg.norm(coordinates - [x, 0.0, 0.0], axis=1) < 1e-9 * scale)
+        ids[centre[0]] = node
+    order = np.argsort(ids)
+    rows = np.empty_like(order)
+    rows[order] = np.arange(order.size)  # mesh row -> sorted row
+    root = np.flatnonzero(np.abs(coordinates[order, 0] - hub_radius) < 1e-9 * scale)
+    return BladeMesh(ids[order], coordinates[order], rows[connectivity], root)
 
 
 def blade(
@@ -58,44 +117,19 @@ def blade(
     Returns
     -------
     ElasticBody
-        Named ``"blade"``, undamped, root nodes fixed.
+        Named ``"blade"``, undamped, root nodes fixed; equation ``3 r + i`` is direction ``i``
+        of the node in row ``r`` of :func:`blade_mesh`.
     """
-    for label, value in (("length", length), ("chord", chord), ("thickness", thickness)):
-        if not (np.isfinite(value) and value > 0):
-            raise UserError(f"blade: {label} must be a length > 0 (m), got {value!r}")
-    if not (np.isfinite(hub_radius) and hub_radius >= 0):
-        raise UserError(f"blade: hub_radius must be >= 0 (m), got {hub_radius!r}")
-    if isinstance(elements, bool) or not isinstance(elements, int | np.integer) or elements < 4:
-        raise UserError(f"blade: elements must be a whole number >= 4, got {elements!r}")
-
-    def box(s: np.ndarray, t: np.ndarray, u: np.ndarray) -> np.ndarray:
-        return np.stack(
-            [hub_radius + length * s, chord * (t - 0.5), thickness * (u - 0.5)], axis=-1
-        )
-
-    coordinates, connectivity = merge_blocks([structured_block(box, (int(elements), 2, 2))])
-    stiffness, mass = assemble_hex20(coordinates, connectivity, STEEL_E, STEEL_NU, STEEL_RHO)
-    n_nodes = coordinates.shape[0]
-    ids = FIRST_MESH_ID + np.arange(n_nodes)
-    scale = max(length, chord, thickness)
-    for node, x in ((TIP_NODE, hub_radius + length), (ROOT_NODE, hub_radius)):
-        centre = np.flatnonzero(np.linalg.norm(coordinates - [x, 0.0, 0.0], axis=1) < 1e-9 * scale)
-        ids[centre[0]] = node
-    order = np.argsort(ids)
-    coordinates, ids = coordinates[order], ids[order]
-    # equation 3 r + i of the assembly is direction i of the node in mesh row r
-    equations = (3 * order[:, None] + np.arange(3)).ravel()
-    stiffness = stiffness[equations][:, equations].tocsr()
-    mass = mass[equations][:, equations].tocsr()
-    root = np.flatnonzero(np.abs(coordinates[:, 0] - hub_radius) < 1e-9 * scale)
-    fixed = (3 * root[:, None] + np.arange(3)).ravel()
+    mesh = blade_mesh(hub_radius, length, chord, thickness, elements)
+    stiffness, mass = assemble_hex20(mesh.coordinates, mesh.elements, STEEL_E, STEEL_NU, STEEL_RHO)
+    n_nodes = mesh.node_ids.size
     return ElasticBody(
-        node_ids=ids,
-        coordinates=coordinates,
-        dofs=DofTable(np.repeat(ids, 3), np.tile(np.arange(3), n_nodes)),
+        node_ids=mesh.node_ids,
+        coordinates=mesh.coordinates,
+        dofs=DofTable(np.repeat(mesh.node_ids, 3), np.tile(np.arange(3), n_nodes)),
         mass=mass,
         stiffness=stiffness,
-        fixed=np.sort(fixed),
+        fixed=(3 * mesh.root[:, None] + np.arange(3)).ravel(),
         damping=Damping(),
         name="blade",
     )
