@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from pymorembs.analysis.large_motion import LARGE_MOTION_CASES, LargeMotionSettings
 from pymorembs.body import Damping
 from pymorembs.errors import UserError
 from pymorembs.io.formats import FORMATS
@@ -173,6 +174,7 @@ class Job:
     reference: str = "auto"
     check_points: int = DEFAULT_CHECKS
     inertia_loads: InertiaLoadSpec = InertiaLoadSpec()
+    large_motion: LargeMotionSettings | None = None
 
 
 class _Table:
@@ -310,6 +312,7 @@ def parse_job(data: dict[str, Any], path: Path) -> Job:
     export = _export(top.get("export"), path)
     time_domain = _time_domain(top.get("time_domain"), path)
     inertia = _inertia_loads(top.get("inertia_loads"), path)
+    large_motion = _large_motion(top.get("large_motion"), path)
     top.done()
     return Job(
         path,
@@ -328,6 +331,7 @@ def parse_job(data: dict[str, Any], path: Path) -> Job:
         reference,
         check_points,
         inertia,
+        large_motion,
     )
 
 
@@ -552,6 +556,56 @@ def _time_domain(data: Any, path: Path) -> TimeDomainSpec | None:
         raise UserError(f"{path}: [time_domain]: clamp_node and load_node are the same node")
     return TimeDomainSpec(
         clamp, load, force, harmonic, tuple(cases), duration, step, rho_inf, exudyn
+    )
+
+
+def _large_motion(data: Any, path: Path) -> LargeMotionSettings | None:
+    if data is None:
+        return None
+    table = _Table(data, "[large_motion]", path)
+    joint = table.integer("joint_node", required=True, minimum=-(2**62))
+    cases = table.get("cases", list(LARGE_MOTION_CASES))
+    if (
+        not isinstance(cases, list)
+        or not cases
+        or not all(c in LARGE_MOTION_CASES for c in cases)
+        or len(set(cases)) != len(cases)
+    ):
+        raise table.error("cases", f"must be a list of 'pendulum' and/or 'spin-up', got {cases!r}")
+    duration = table.number("duration_s", 1.0)
+    step = table.number("step_s")
+    spin = table.number("spin_rad_s")
+    axis = _vector(table, "spin_axis")
+    spin_up = table.number("spin_up_s")
+    gravity = table.number("gravity_m_s2", 9.81, minimum=0.0)
+    order = table.integer("reference_order", 120, minimum=2)
+    rho_inf = table.number("rho_inf", 0.9, minimum=0.0)
+    table.done()
+    for key, value in (("duration_s", duration), ("step_s", step), ("spin_rad_s", spin),
+                       ("spin_up_s", spin_up)):  # fmt: skip
+        if value is not None and not value > 0:
+            raise table.error(key, f"must be > 0, got {value!r}")
+    if step is not None and duration / step > 1e6:
+        raise table.error("step_s", f"gives {duration / step:.3g} steps; use at most 1e6")
+    if spin_up is not None and spin_up > duration:
+        raise table.error("spin_up_s", f"({spin_up}) is longer than duration_s ({duration})")
+    if axis is not None and not any(axis):
+        raise table.error("spin_axis", "must not be the zero vector")
+    if rho_inf > 1:
+        raise table.error("rho_inf", f"must lie in [0, 1], got {rho_inf}")
+    if "pendulum" in cases and not gravity > 0:
+        raise table.error("gravity_m_s2", "must be > 0 for the pendulum")
+    return LargeMotionSettings(
+        joint_node=joint,
+        cases=tuple(cases),
+        duration_s=duration,
+        step_s=step,
+        spin_rad_s=spin,
+        spin_axis=axis if axis is not None else LargeMotionSettings.spin_axis,
+        spin_up_s=spin_up,
+        gravity_m_s2=gravity,
+        reference_order=order,
+        rho_inf=rho_inf,
     )
 
 

@@ -24,6 +24,7 @@ import scipy
 
 from pymorembs import __version__
 from pymorembs.analysis.error import frequency_grid, relative_error
+from pymorembs.analysis.large_motion import large_motion_checks
 from pymorembs.analysis.reference import ReferenceResponse, choose_kind, reference_response
 from pymorembs.analysis.time_domain import clamped_full_system
 from pymorembs.analysis.time_domain_job import time_domain_checks
@@ -312,6 +313,8 @@ def check_requests(job: Job, body: ElasticBody) -> None:
             "own; give [[inputs]] (node and directions)"
         )
     wants_body = any(kind in job.export.outputs for kind in BODY_OUTPUTS)
+    if job.large_motion is not None:
+        _check_large_motion(job, body, dofs_of)
     spec = job.time_domain
     if (wants_body or spec is not None) and not body.has_coordinates:
         raise UserError(
@@ -360,6 +363,36 @@ def check_requests(job: Job, body: ElasticBody) -> None:
         )
 
 
+def _check_large_motion(job: Job, body: ElasticBody, dofs_of: Callable) -> None:
+    """``[large_motion]`` needs Exudyn, coordinates, one-sided reductions and a joint it can
+    act on (the frame's node, or a node with all six dofs)."""
+    spec = job.large_motion
+    try:
+        import exudyn  # noqa: F401
+    except ImportError:
+        raise UserError(
+            f"{job.path}: [large_motion] needs Exudyn (pip install exudyn), which is not installed"
+        ) from None
+    if not body.has_coordinates:
+        raise UserError(f"{job.path}: [large_motion] needs node coordinates; the model has none")
+    directions = dofs_of(spec.joint_node, "[large_motion] joint_node")
+    on_frame = (job.frame.kind == "tangent" and job.frame.node == spec.joint_node) or (
+        job.frame.kind == "none" and body.fixed.size > 0
+    )
+    if not on_frame and directions != set(range(6)):
+        raise UserError(
+            f"{job.path}: [large_motion] joint_node: node {spec.joint_node} needs all six dofs "
+            "for a hinge on a body whose frame is elsewhere (add an interface node there, or "
+            "use a tangent frame at it)"
+        )
+    for reduction in job.reductions:
+        if reduction.options.get("two_sided"):
+            raise UserError(
+                f"{job.path}: reduction '{reduction.name}': [large_motion] needs one-sided "
+                "(Galerkin) bodies; drop two_sided"
+            )
+
+
 def run_job(
     job: Job,
     out_dir: str | Path,
@@ -390,7 +423,9 @@ def run_job(
         ``"local"`` or a Dask scheduler address to run that frequency response on.
     """
     say = progress or (lambda _msg: None)
-    n_stages = 2 + len(job.reductions) + (job.time_domain is not None)
+    n_stages = (
+        2 + len(job.reductions) + (job.time_domain is not None) + (job.large_motion is not None)
+    )
     started = [False]
     with ProgressBar(f"job {Path(job.path).stem}", total=n_stages, unit="stage", every=1) as bar:
 
@@ -558,6 +593,27 @@ def _run_job(
                     for row in case["reductions"]
                     if row["name"] == entry["name"]
                 }
+        large_motion = None
+        if job.large_motion is not None:
+            stage("large motion in Exudyn", "large motion", line=False)
+            tick = time.perf_counter()
+            large_motion = large_motion_checks(
+                job.large_motion, job.frame, prepared, one_sided(models), nodes,
+                staging / "large_motion.png", say,
+            )  # fmt: skip
+            timings["large_motion_s"] = time.perf_counter() - tick
+            overview.append("large_motion.png")
+            figures.append(
+                (staging / "large_motion.png", "Large motions in Exudyn: each body against "
+                 f"the modal reference of order {large_motion['reference']['order']}")
+            )  # fmt: skip
+            for entry in entries:
+                entry["large_motion"] = {
+                    case["name"]: row
+                    for case in large_motion["cases"]
+                    for row in case["reductions"]
+                    if row["name"] == entry["name"]
+                }
         if "report" in job.export.outputs:
             overview.append("report.html")
         timings["total_s"] = time.perf_counter() - clock
@@ -607,6 +663,8 @@ def _run_job(
         summary["provenance"] = provenance(job, validation)
         if time_domain is not None:
             summary["time_domain"] = time_domain
+        if large_motion is not None:
+            summary["large_motion"] = large_motion
         if job.title:
             summary["title"] = job.title
         if "report" in job.export.outputs:
@@ -670,6 +728,11 @@ def inertia_warning(name: str, eps: np.ndarray, eps_inertia: np.ndarray | None) 
         "inertia loads of the frame motion: the body misses directions the frame's motion "
         "excites (raise the order, or add frm_hz / expansion points)"
     )
+
+
+def one_sided(models: dict[str, ReducedModel]) -> dict[str, ReducedModel]:
+    """The reduced models with a Galerkin projection (those that give bodies)."""
+    return {name: model for name, model in models.items() if model.projection.one_sided}
 
 
 def _inertia_summary(prepared: PreparedModel) -> dict[str, Any] | None:

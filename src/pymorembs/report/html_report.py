@@ -77,6 +77,9 @@ def write_report(
     time_domain = summary.get("time_domain")
     if time_domain:
         parts += ["<h2>Time domain (paper section 5.1)</h2>", _time_table(time_domain)]
+    large_motion = summary.get("large_motion")
+    if large_motion:
+        parts += ["<h2>Large motions in Exudyn</h2>", _large_motion_table(large_motion)]
     if figures:
         parts.append("<h2>Figures</h2>")
     for figure, caption in figures:
@@ -235,6 +238,46 @@ def _methods_table(reductions: list[dict[str, Any]]) -> str:
         for r in reductions
     ]
     return "<table>" + header + "".join(rows) + "</table>"
+
+
+def _large_motion_table(large_motion: dict[str, Any]) -> str:
+    header = _row(
+        ["motion", "body", "frame ω: max rel. deviation", "deflection: max rel. deviation",
+         "Exudyn time [s]"],
+        header=True,
+        text_columns=2,
+    )  # fmt: skip
+    rows, notes = [], []
+    for case in large_motion.get("cases", []):
+        for entry in case.get("reductions", []):
+            rows.append(
+                _row(
+                    [
+                        case["name"],
+                        entry["name"],
+                        _number(entry.get("frame_max_rel_deviation")),
+                        _number(entry.get("deflection_max_rel_deviation")),
+                        _number(entry.get("wall_time_s")),
+                    ],
+                    text_columns=2,
+                )
+            )
+        convergence = case.get("reference_convergence", {})
+        notes.append(
+            f"{case['name']}: swing {case.get('swing_deg', 0.0):.0f}°, peak |ω| "
+            f"{case.get('reference_peak_angular_velocity_rad_s', 0.0):.3g} rad/s; the reference "
+            "against the modal body of half its order: frame "
+            f"{_number(convergence.get('frame_max_rel_deviation'))}, deflection "
+            f"{_number(convergence.get('deflection_max_rel_deviation'))}"
+        )
+    reference = large_motion.get("reference", {})
+    explain = (
+        f"Hinged at node {large_motion.get('joint_node')}; reference: modal body of order "
+        f"{reference.get('order')}; compared: {large_motion.get('covers', '')}; nodes "
+        f"{large_motion.get('nodes')} (node {large_motion.get('off_axis_node')} lies off every "
+        "symmetry axis). " + "; ".join(notes) + "."
+    )
+    return "<table>" + header + "".join(rows) + "</table>" + f"<p>{html.escape(explain)}</p>"
 
 
 def _time_table(time_domain: dict[str, Any]) -> str:
