@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 import scipy.sparse.linalg as spla
 
+from pymorembs.elements.hex20 import assemble_hex20_geometric
 from pymorembs.examples.blade import blade, blade_mesh
-from pymorembs.examples.rack_solid import assemble_hex20_geometric
 
 E, NU, RHO, B, H, L = 2.1e11, 0.3, 7850.0, 0.04, 0.01, 1.0
 

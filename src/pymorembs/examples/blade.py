@@ -29,9 +29,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from pymorembs.body import Damping, DofTable, ElasticBody
+from pymorembs.elements.hex20 import assemble_hex20
 from pymorembs.errors import UserError
 from pymorembs.examples.rack_beams import STEEL_E, STEEL_NU, STEEL_RHO
-from pymorembs.examples.rack_solid import assemble_hex20, merge_blocks, structured_block
+from pymorembs.examples.rack_solid import merge_blocks, structured_block
 
 __all__ = ["BladeMesh", "blade", "blade_mesh"]
 
