@@ -155,6 +155,20 @@ class InertiaLoadSpec:
 
 
 @dataclass(frozen=True)
+class StiffeningSpec:
+    """``[stiffening]``: geometric stiffening of the exported bodies (SID_NOTES §4.6).
+
+    ``source`` ``"mesh"`` (the model's solid elements), ``"matrices"`` (``matrices``: load case ->
+    Matrix Market file, ``kind`` ``"geometric"`` for ``K_G`` or ``"prestressed"`` for
+    ``K_pre``) or ``"none"``.
+    """
+
+    source: str = "none"
+    matrices: tuple[tuple[str, Path], ...] = ()
+    kind: str = "geometric"
+
+
+@dataclass(frozen=True)
 class Job:
     """A parsed reduction job."""
 
@@ -175,6 +189,7 @@ class Job:
     check_points: int = DEFAULT_CHECKS
     inertia_loads: InertiaLoadSpec = InertiaLoadSpec()
     large_motion: LargeMotionSettings | None = None
+    stiffening: StiffeningSpec = StiffeningSpec()
 
 
 class _Table:
@@ -313,6 +328,7 @@ def parse_job(data: dict[str, Any], path: Path) -> Job:
     time_domain = _time_domain(top.get("time_domain"), path)
     inertia = _inertia_loads(top.get("inertia_loads"), path)
     large_motion = _large_motion(top.get("large_motion"), path)
+    stiffening = _stiffening(top.get("stiffening"), path)
     top.done()
     return Job(
         path,
@@ -332,6 +348,7 @@ def parse_job(data: dict[str, Any], path: Path) -> Job:
         check_points,
         inertia,
         large_motion,
+        stiffening,
     )
 
 
@@ -557,6 +574,36 @@ def _time_domain(data: Any, path: Path) -> TimeDomainSpec | None:
     return TimeDomainSpec(
         clamp, load, force, harmonic, tuple(cases), duration, step, rho_inf, exudyn
     )
+
+
+def _stiffening(data: Any, path: Path) -> StiffeningSpec:
+    if data is None:
+        return StiffeningSpec()
+    table = _Table(data, "[stiffening]", path)
+    source = table.string("source", "none")
+    if source not in ("mesh", "matrices", "none"):
+        raise table.error("source", f"must be 'mesh', 'matrices' or 'none', got {source!r}")
+    kind = table.string("kind", "geometric")
+    if kind not in ("geometric", "prestressed"):
+        raise table.error("kind", f"must be 'geometric' or 'prestressed', got {kind!r}")
+    files = table.get("matrices", {})
+    if not isinstance(files, dict) or not all(isinstance(v, str) for v in files.values()):
+        raise table.error("matrices", 'must be a table of load case = "file.mtx"')
+    for case in files:
+        if case not in INERTIA_LOAD_CASES:
+            hint = difflib.get_close_matches(case, INERTIA_LOAD_CASES, n=1)
+            more = f"; did you mean '{hint[0]}'?" if hint else ""
+            raise table.error("matrices", f"unknown load case {case!r}{more}")
+    table.done()
+    if source == "matrices" and not files:
+        raise table.error("matrices", 'source = "matrices" needs at least one load case file')
+    if source != "matrices" and files:
+        raise table.error("matrices", f'given, but source is "{source}" (use "matrices")')
+    matrices = tuple((case, (path.parent / name).resolve()) for case, name in files.items())
+    for case, file in matrices:
+        if not file.is_file():
+            raise table.error("matrices", f"{case}: file {file} not found")
+    return StiffeningSpec(source, matrices, kind)
 
 
 def _large_motion(data: Any, path: Path) -> LargeMotionSettings | None:

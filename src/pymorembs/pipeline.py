@@ -29,7 +29,7 @@ from pymorembs.analysis.reference import ReferenceResponse, choose_kind, referen
 from pymorembs.analysis.time_domain import clamped_full_system
 from pymorembs.analysis.time_domain_job import time_domain_checks
 from pymorembs.analysis.transfer import transfer_function
-from pymorembs.body import ElasticBody
+from pymorembs.body import DIRECTIONS, ElasticBody
 from pymorembs.config import Job, ModelSpec, ReductionSpec
 from pymorembs.errors import NumericalError, PymorembsError, UserError
 from pymorembs.examples import build_example
@@ -40,6 +40,11 @@ from pymorembs.linalg.mass_split import mass_split
 from pymorembs.prepare import PreparedModel, prepare, with_inertia_loads
 from pymorembs.prepare.inertia_loads import is_inertia_label
 from pymorembs.prepare.interface import InterfaceSpec, add_interface_node, select_nodes
+from pymorembs.prepare.stiffening import (
+    stiffening_from_matrices,
+    stiffening_from_mesh,
+    with_stiffening,
+)
 from pymorembs.prepare.validation import ValidationReport, validate_body, validate_prepared
 from pymorembs.progress import Progress as ProgressBar
 from pymorembs.reduce.gramian import gramian_reduction, pod_reduction
@@ -464,6 +469,18 @@ def _run_job(
         say("inertia loads of the frame motion as further inputs (one static factorization)")
         prepared = with_inertia_loads(prepared, job.inertia_loads.cases)
         timings["inertia_loads_s"] = time.perf_counter() - tick
+    if job.stiffening.source != "none":
+        tick = time.perf_counter()
+        say(f"geometric stiffening from the {job.stiffening.source} (one static factorization)")
+        prepared = _with_stiffening(prepared, job)
+        timings["stiffening_s"] = time.perf_counter() - tick
+        missing = [k for k in ("neweul", "exudyn") if k in job.export.outputs]
+        if missing:
+            note = (
+                "geometric stiffening is written into the SID body only; the "
+                f"{' and '.join(missing)} bodies do not carry it yet"
+            )
+            prepared = replace(prepared, warnings=(*prepared.warnings, note))
     system = prepared.reduction_system  # what every reduction and the reference see
     units = detect_units(body)
     warnings = [*prepared.warnings, *validation.warnings, *units.warnings]
@@ -641,6 +658,16 @@ def _run_job(
                 "inputs": list(prepared.system.input_labels),
                 "outputs": list(prepared.system.output_labels),
                 "inertia_loads": _inertia_summary(prepared),
+                "stiffening": None
+                if prepared.stiffening is None
+                else {
+                    "source": prepared.stiffening.source,
+                    "cases": sorted(prepared.stiffening.cases),
+                    "node_loads": [
+                        f"{n}:{DIRECTIONS[d]}" for n, d in sorted(prepared.stiffening.nodes)
+                    ],
+                    "written_to": ["sid"],
+                },
                 "total_mass": body.total_mass(),
                 "damping": {
                     "kind": body.damping.kind,
@@ -733,6 +760,19 @@ def inertia_warning(name: str, eps: np.ndarray, eps_inertia: np.ndarray | None) 
 def one_sided(models: dict[str, ReducedModel]) -> dict[str, ReducedModel]:
     """The reduced models with a Galerkin projection (those that give bodies)."""
     return {name: model for name, model in models.items() if model.projection.one_sided}
+
+
+def _with_stiffening(prepared: PreparedModel, job: Job) -> PreparedModel:
+    """The prepared model with the geometric stiffening of ``[stiffening]``."""
+    spec = job.stiffening
+    try:
+        if spec.source == "mesh":
+            stiffening = stiffening_from_mesh(prepared, nodes=export_nodes(job))
+        else:
+            stiffening = stiffening_from_matrices(prepared, dict(spec.matrices), spec.kind)
+    except UserError as exc:
+        raise UserError(f"{job.path}: {exc}") from None
+    return with_stiffening(prepared, stiffening)
 
 
 def _inertia_summary(prepared: PreparedModel) -> dict[str, Any] | None:

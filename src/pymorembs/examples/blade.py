@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pymorembs.body import Damping, DofTable, ElasticBody
+from pymorembs.body import Damping, DofTable, ElasticBody, ElementMesh
 from pymorembs.elements.hex20 import assemble_hex20
 from pymorembs.errors import UserError
 from pymorembs.examples.rack_beams import STEEL_E, STEEL_NU, STEEL_RHO
@@ -133,4 +133,5 @@ def blade(
         fixed=(3 * mesh.root[:, None] + np.arange(3)).ravel(),
         damping=Damping(),
         name="blade",
+        mesh=ElementMesh("hex20", mesh.node_ids[mesh.elements], STEEL_E, STEEL_NU),
     )

@@ -115,7 +115,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from pymorembs.body import ConstraintEquations, Damping, DofTable, ElasticBody
+from pymorembs.body import ConstraintEquations, Damping, DofTable, ElasticBody, ElementMesh
 from pymorembs.elements.hex20 import (
     FACE_NODES,
     HEX20_NODES,
@@ -667,6 +667,7 @@ def rack_solid(dofs: int = 35_000, interface: str = "light-beams") -> ElasticBod
         constraints=tie_rods(mesh, design),
         damping=Damping(),
         name="rack-solid",
+        mesh=ElementMesh("hex20", mesh.node_ids[mesh.elements], STEEL_E, STEEL_NU),
     )
     if interface == "none":
         return body

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -22,6 +23,9 @@ from pymorembs.prepare.ports import Port, selection_matrix
 from pymorembs.prepare.rigid_modes import free_rigid_body_modes
 from pymorembs.prepare.tangent_frame import tangent_frame
 from pymorembs.system import SecondOrderSystem
+
+if TYPE_CHECKING:
+    from pymorembs.prepare.stiffening import Stiffening
 
 __all__ = [
     "INERTIA_LOAD_CASES",
@@ -81,6 +85,9 @@ class PreparedModel:
     inertia : InertiaLoads or None
         The inertia loads of the frame motion, when they are inputs too
         (:func:`with_inertia_loads`).
+    stiffening : Stiffening or None
+        Geometric stiffness of the unit loads of the frame motion
+        (:mod:`pymorembs.prepare.stiffening`), when the exported bodies carry it.
     """
 
     body: ElasticBody
@@ -88,6 +95,7 @@ class PreparedModel:
     system: SecondOrderSystem
     warnings: tuple[str, ...] = ()
     inertia: InertiaLoads | None = None
+    stiffening: Stiffening | None = None
 
     @cached_property
     def reduction_system(self) -> SecondOrderSystem:

@@ -54,6 +54,7 @@ __all__ = [
     "inertia_loads",
     "is_inertia_label",
     "static_compliances",
+    "static_solver",
 ]
 
 #: The load cases in the order of their columns (names as in ``[stiffening] matrices``).
@@ -172,12 +173,16 @@ def static_compliances(system: SecondOrderSystem, loads: np.ndarray, label: str)
     """
     if loads.shape[1] == 0:
         return np.zeros(0)
-    if system.rigid_modes is not None:
-        solver = InertiaRelief(system.stiffness, system.mass, system.rigid_modes, label)
-    else:
-        solver = Factorization(system.stiffness, label=label)
-    x = solver.solve(loads)
+    x = static_solver(system, label).solve(loads)
     return np.einsum("ij,ij->j", loads, x)
+
+
+def static_solver(system: SecondOrderSystem, label: str) -> Factorization | InertiaRelief:
+    """The static solve ``K^+`` of a system: a factorization of ``K``, or for a free body
+    (``system.rigid_modes`` set) inertia relief on the mass-orthogonal complement."""
+    if system.rigid_modes is not None:
+        return InertiaRelief(system.stiffness, system.mass, system.rigid_modes, label)
+    return Factorization(system.stiffness, label=label)
 
 
 def inertia_loads(
