@@ -72,7 +72,7 @@ CASES = [
     ("duplicate_reduction_names", 2, r"\[\[reduction\]\] #2\.name: 'modal-6' is used by another "
      r"reduction"),
     ("damping_ratio_percent", 2, r"\[damping\]: modal damping ratio must lie in \(0, 1\), got 2"),
-    ("unknown_example", 2, r"unknown example 'rack-bems'; available: rack-beams, rack-solid"),
+    ("unknown_example", 2, r"unknown example 'rack-bems'; available: blade, rack-beams"),
     ("missing_band", 2, r"job: missing key 'band'"),
     ("time_domain_with_modal_damping", 2, r"\[time_domain\]: modal damping is a loss factor"),
     ("dangling_constraint", 2, r"\[model\]: .*lattice-dangling/constraints\.csv:2: node 999 has "

@@ -8,8 +8,8 @@ import scipy.sparse as sp
 from threadpoolctl import threadpool_limits
 
 from pymorembs.body import DofTable, ElasticBody
+from pymorembs.elements.hex20 import HEX20_NODES, assemble_hex20, hex20_shape_functions
 from pymorembs.errors import UserError
-from pymorembs.examples.rack_solid import HEX20_NODES, assemble_hex20, hex20_shape_functions
 from pymorembs.export.invariants import compute_invariants
 
 
@@ -170,7 +170,7 @@ def hex20_box(lower, size, counts, seed=0):
 def test_hex20_box_mass_centre_and_inertia_are_analytic_and_mass_is_kronecker():
     lower, size, rho = np.array([0.3, -0.1, 0.2]), np.array([0.4, 0.25, 0.15]), 7850.0
     coords, elements = hex20_box(lower, size, (3, 2, 2))
-    stiffness, mass = assemble_hex20(coords, elements, density=rho)
+    stiffness, mass = assemble_hex20(coords, elements, 2.1e11, 0.3, rho)
     n_nodes = coords.shape[0]
     ids = np.arange(1, n_nodes + 1)
     dofs = DofTable(np.repeat(ids, 3), np.tile(np.arange(3), n_nodes))

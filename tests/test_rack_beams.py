@@ -149,5 +149,5 @@ def test_plate_mass_and_inertia_by_quadrature() -> None:
 
 def test_example_registry() -> None:
     assert "rack-beams" in EXAMPLES
-    with pytest.raises(UserError, match="unknown example 'rack-solid2'; available: rack-beams"):
+    with pytest.raises(UserError, match="'rack-solid2'; available: blade, rack-beams, rack-solid"):
         build_example("rack-solid2")

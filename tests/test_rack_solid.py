@@ -9,18 +9,20 @@ import scipy.sparse.linalg as sla
 from scipy.spatial import cKDTree
 
 from pymorembs.body import ElasticBody
+from pymorembs.elements.hex20 import (
+    GAUSS_WEIGHTS,
+    HEX20_NODES,
+    hex20_geometry,
+    hex20_matrices,
+    hex20_shape_functions,
+)
 from pymorembs.errors import UserError
 from pymorembs.examples import EXAMPLES
 from pymorembs.examples.rack_beams import STEEL_E, STEEL_NU, STEEL_RHO, RackDesign
 from pymorembs.examples.rack_solid import (
-    GAUSS_WEIGHTS,
-    HEX20_NODES,
     INTERFACES,
     PARTS,
     SolidMesh,
-    hex20_geometry,
-    hex20_matrices,
-    hex20_shape_functions,
     mesh_rack,
     plan_mesh,
     rack_solid,

@@ -307,6 +307,55 @@ class ModelPorts:
             )
 
 
+#: Element types an :class:`ElementMesh` can hold, with their number of nodes.
+ELEMENT_NODES = {"hex20": 20}
+
+
+@dataclass(frozen=True, eq=False)
+class ElementMesh:
+    """Solid elements of a body and their isotropic linear-elastic material.
+
+    What the geometric stiffening of the body needs (the stresses of a load case and the
+    initial-stress matrix of each element); the body's own matrices are not rebuilt from it.
+
+    Attributes
+    ----------
+    element : str
+        Element type, a key of :data:`ELEMENT_NODES` (``"hex20"``: 20-node hexahedra in the node
+        order of :data:`pymorembs.elements.hex20.HEX20_NODES`).
+    connectivity : ndarray of int, shape (n_el, nodes per element)
+        Node ids of each element.
+    young, poisson : float
+        Young's modulus (model stress unit, N/m² in SI) and Poisson's ratio.
+    """
+
+    element: str
+    connectivity: np.ndarray
+    young: float
+    poisson: float
+
+    def __post_init__(self) -> None:
+        if self.element not in ELEMENT_NODES:
+            raise UserError(
+                f"element mesh: unknown element type {self.element!r}; "
+                f"known: {', '.join(ELEMENT_NODES)}"
+            )
+        connectivity = np.asarray(self.connectivity, dtype=np.int64)
+        if connectivity.ndim != 2 or connectivity.shape[1] != ELEMENT_NODES[self.element]:
+            raise UserError(
+                f"element mesh: {self.element} connectivity must have "
+                f"{ELEMENT_NODES[self.element]} columns, got shape {connectivity.shape}"
+            )
+        if not (np.isfinite(self.young) and self.young > 0) or not (
+            np.isfinite(self.poisson) and -1.0 < self.poisson < 0.5
+        ):
+            raise UserError(
+                f"element mesh: material E = {self.young!r}, nu = {self.poisson!r} is not an "
+                "isotropic elastic material (E > 0, -1 < nu < 0.5)"
+            )
+        object.__setattr__(self, "connectivity", connectivity)
+
+
 @dataclass(frozen=True, eq=False)
 class ElasticBody:
     """FE model of one elastic body.
@@ -341,6 +390,8 @@ class ElasticBody:
         table); shown by ``pymorembs info``.
     ports : ModelPorts, optional
         Inputs and outputs that came with the model file.
+    mesh : ElementMesh, optional
+        The solid elements (built-in solid models), for geometric stiffening.
     precision : float, optional
         Relative rounding of the matrix entries as the file stores them, when the reader knows
         it (single-precision binary ``2^-24``, decimal text of ``d`` digits ``0.5 * 10^(1 - d)``;
@@ -362,6 +413,7 @@ class ElasticBody:
     notes: tuple[str, ...] = ()
     ports: ModelPorts | None = None
     precision: float | None = None
+    mesh: ElementMesh | None = None
 
     def __post_init__(self) -> None:
         node_ids = np.asarray(self.node_ids, dtype=np.int64).ravel()
@@ -389,6 +441,14 @@ class ElasticBody:
             )
         if self.ports is not None:
             self.ports.check(n)
+        if self.mesh is not None:
+            translational = self.dofs.nodes[self.dofs.directions < 3]
+            missing = missing_from(sorted_unique(self.mesh.connectivity.ravel()), translational)
+            if missing.size:
+                raise UserError(
+                    f"element mesh: node {missing[0]} of an element has no translational dofs "
+                    "in the dof table"
+                )
         if self.precision is not None and not (
             np.isfinite(self.precision) and 0 < self.precision < 1
         ):
@@ -447,6 +507,16 @@ class ElasticBody:
         except KeyError:
             raise UserError(f"node {node} does not exist in the model") from None
 
+    def dof_positions(self) -> np.ndarray:
+        """The position of the node of each equation, shape (n_dof, 3); scalar coordinates: 0."""
+        out = np.zeros((self.n_dof, 3))
+        geometric = ~self.dofs.scalar
+        if geometric.any():
+            order = np.argsort(self.node_ids)
+            rows = order[np.searchsorted(self.node_ids, self.dofs.nodes[geometric], sorter=order)]
+            out[geometric] = self.coordinates[rows]
+        return out
+
     def rigid_body_modes(self, origin: np.ndarray | None = None) -> np.ndarray:
         """The six rigid-body displacement fields over all equations, shape (n_dof, 6).
 
@@ -458,11 +528,8 @@ class ElasticBody:
         """
         origin = np.zeros(3) if origin is None else np.asarray(origin, dtype=float)
         geometric = ~self.dofs.scalar
-        r = np.zeros((self.n_dof, 3))
-        if geometric.any():
-            order = np.argsort(self.node_ids)
-            rows = order[np.searchsorted(self.node_ids, self.dofs.nodes[geometric], sorter=order)]
-            r[geometric] = self.coordinates[rows] - origin
+        r = self.dof_positions()
+        r[geometric] -= origin
         d = self.dofs.directions
         modes = np.zeros((self.n_dof, 6))
         for axis in range(3):

@@ -54,6 +54,8 @@ def build_parser() -> argparse.ArgumentParser:
     ex.add_argument("--out", required=True, type=Path, help="output folder")
     ex.add_argument("--dofs", type=int, help="rack-solid: about this many dofs (35000)")
     ex.add_argument("--interface", help="rack-solid: interface variant of node 2")
+    ex.add_argument("--hub-radius", type=float, help="blade: root distance from the axis (m)")
+    ex.add_argument("--elements", type=int, help="blade: elements along the length (40)")
 
     info = sub.add_parser("info", help="facts and eigenfrequencies of a model or a job")
     info.add_argument(
@@ -154,7 +156,9 @@ BUG_REPORT = (
 
 def _example(args: argparse.Namespace) -> int:
     options = {
-        key: getattr(args, key) for key in ("dofs", "interface") if getattr(args, key) is not None
+        key: getattr(args, key)
+        for key in ("dofs", "interface", "hub_radius", "elements")
+        if getattr(args, key) is not None
     }
     body = build_example(args.name, **options)
     out: Path = args.out
@@ -404,20 +408,26 @@ def _reduce_job(
 
 
 def _print_summary(summary: dict[str, Any], out: Path) -> None:
+    inertia = summary["model"].get("inertia_loads") is not None
     print()
     print(
         f"{'reduction':<20} {'method':<14} {'order':>5} {'max rel. error':>15} "
-        f"{'error at 0 Hz':>14} {'time [s]':>9}"
+        f"{'error at 0 Hz':>14}" + (f" {'inertia loads':>14}" if inertia else "") + " time [s]"
     )
     for r in summary["reductions"]:
         static = "-" if r["static_rel_error"] is None else f"{r['static_rel_error']:.2e}"
+        loads = f" {r['inertia_loads']['max_rel_error']:>14.3e}" if inertia else ""
         print(
             f"{r['name']:<20} {r['method']:<14} {r['order']:>5} "
-            f"{r['max_rel_error']:>15.3e} {static:>14} {r['time_s']:>9.2f}"
+            f"{r['max_rel_error']:>15.3e} {static:>14}{loads} {r['time_s']:>8.2f}"
         )
+    covers = "errors over the ports"
+    if inertia:
+        cases = " ".join(summary["model"]["inertia_loads"]["cases"])
+        covers += f"; 'inertia loads': over the inertia loads of the frame motion ({cases})"
     print(
         f"\nband {summary['band_hz'][0]:g}-{summary['band_hz'][1]:g} Hz, "
-        f"{summary['n_frequencies']} frequencies; results in {out}/summary.json"
+        f"{summary['n_frequencies']} frequencies, {covers}; results in {out}/summary.json"
     )
 
 

@@ -16,10 +16,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from pymorembs.analysis.large_motion import LARGE_MOTION_CASES, LargeMotionSettings
 from pymorembs.body import Damping
 from pymorembs.errors import UserError
 from pymorembs.io.formats import FORMATS
-from pymorembs.prepare import Frame, Port
+from pymorembs.prepare import INERTIA_LOAD_CASES, Frame, Port
 
 #: Options each method accepts besides ``name``, ``method`` and ``order``.
 METHOD_OPTIONS: dict[str, tuple[str, ...]] = {
@@ -38,6 +39,10 @@ METHOD_OPTIONS: dict[str, tuple[str, ...]] = {
     "pod": ("tolerance", "snapshots"),
 }
 
+#: Options every method accepts: ``max_frequency_hz`` removes the reduced model's directions
+#: above it (:func:`~pymorembs.reduce.projection.without_stiff_directions`).
+COMMON_OPTIONS: tuple[str, ...] = ("max_frequency_hz",)
+
 MODEL_FILE_KEYS = (
     "file", "stiffness", "mass", "damping", "dofs", "nodes", "constraints", "fixed", "mapping",
     "inp",
@@ -47,6 +52,8 @@ INTERFACE_KINDS = ("rigid", "distributing", "beams", "springs")
 #: Files a job can write per reduction (``[export] outputs``), and the job's HTML report.
 EXPORT_KINDS = ("npz", "mtx", "mat", "sid", "neweul", "exudyn", "report")
 DEFAULT_EXPORTS = ("npz", "mtx")
+#: Exports of a body for a multibody code: inertia loads are inputs by default for these.
+MULTIBODY_EXPORTS = ("sid", "neweul", "exudyn")
 #: ``[band] reference``: what the error of eq. 27 is measured against
 #: (:mod:`pymorembs.analysis.reference`).
 REFERENCE_KINDS = ("auto", "full", "surrogate")
@@ -129,6 +136,39 @@ class TimeDomainSpec:
 
 
 @dataclass(frozen=True)
+class InertiaLoadSpec:
+    """``[inertia_loads]``: the frame's d'Alembert loads as inputs of every reduction.
+
+    ``enabled`` None: on when the job exports a body for a multibody code
+    (:data:`MULTIBODY_EXPORTS`), off otherwise. ``cases``: the load cases
+    (:data:`~pymorembs.prepare.INERTIA_LOAD_CASES`).
+    """
+
+    enabled: bool | None = None
+    cases: tuple[str, ...] = INERTIA_LOAD_CASES
+
+    def active(self, exports: tuple[str, ...]) -> bool:
+        """Whether the loads are inputs for a job writing ``exports``."""
+        if self.enabled is None:
+            return any(kind in MULTIBODY_EXPORTS for kind in exports)
+        return self.enabled
+
+
+@dataclass(frozen=True)
+class StiffeningSpec:
+    """``[stiffening]``: geometric stiffening of the exported bodies (SID_NOTES §4.6).
+
+    ``source`` ``"mesh"`` (the model's solid elements), ``"matrices"`` (``matrices``: load case ->
+    Matrix Market file, ``kind`` ``"geometric"`` for ``K_G`` or ``"prestressed"`` for
+    ``K_pre``) or ``"none"``.
+    """
+
+    source: str = "none"
+    matrices: tuple[tuple[str, Path], ...] = ()
+    kind: str = "geometric"
+
+
+@dataclass(frozen=True)
 class Job:
     """A parsed reduction job."""
 
@@ -147,6 +187,9 @@ class Job:
     time_domain: TimeDomainSpec | None = None
     reference: str = "auto"
     check_points: int = DEFAULT_CHECKS
+    inertia_loads: InertiaLoadSpec = InertiaLoadSpec()
+    large_motion: LargeMotionSettings | None = None
+    stiffening: StiffeningSpec = StiffeningSpec()
 
 
 class _Table:
@@ -283,6 +326,9 @@ def parse_job(data: dict[str, Any], path: Path) -> Job:
     reductions = _reductions(top.get("reduction", required=True), path)
     export = _export(top.get("export"), path)
     time_domain = _time_domain(top.get("time_domain"), path)
+    inertia = _inertia_loads(top.get("inertia_loads"), path)
+    large_motion = _large_motion(top.get("large_motion"), path)
+    stiffening = _stiffening(top.get("stiffening"), path)
     top.done()
     return Job(
         path,
@@ -300,7 +346,33 @@ def parse_job(data: dict[str, Any], path: Path) -> Job:
         time_domain,
         reference,
         check_points,
+        inertia,
+        large_motion,
+        stiffening,
     )
+
+
+def _inertia_loads(data: Any, path: Path) -> InertiaLoadSpec:
+    if data is None:
+        return InertiaLoadSpec()
+    table = _Table(data, "[inertia_loads]", path)
+    enabled = table.get("enabled")
+    if enabled is not None and not isinstance(enabled, bool):
+        raise table.error("enabled", f"must be true or false, got {enabled!r}")
+    cases = table.get("cases", list(INERTIA_LOAD_CASES))
+    if not isinstance(cases, list) or not cases or not all(isinstance(c, str) for c in cases):
+        raise table.error("cases", f"must be a list of load cases like {list(INERTIA_LOAD_CASES)}")
+    for case in cases:
+        if case not in INERTIA_LOAD_CASES:
+            hint = difflib.get_close_matches(case, INERTIA_LOAD_CASES, n=1)
+            more = (
+                f"; did you mean '{hint[0]}'?"
+                if hint
+                else f" (one of {', '.join(INERTIA_LOAD_CASES)})"
+            )
+            raise table.error("cases", f"unknown load case {case!r}{more}")
+    table.done()
+    return InertiaLoadSpec(enabled, tuple(dict.fromkeys(cases)))
 
 
 def _model(table: _Table, base: Path) -> ModelSpec:
@@ -313,6 +385,12 @@ def _model(table: _Table, base: Path) -> ModelSpec:
         variant = table.string("interface")
         if variant is not None:
             options["interface"] = variant
+        hub = table.number("hub_radius", minimum=0.0)
+        if hub is not None:
+            options["hub_radius"] = hub
+        count = table.integer("elements", minimum=4)
+        if count is not None:
+            options["elements"] = count
         table.done()
         return ModelSpec(example=example, options=options)
     fmt = table.string("format")
@@ -498,6 +576,86 @@ def _time_domain(data: Any, path: Path) -> TimeDomainSpec | None:
     )
 
 
+def _stiffening(data: Any, path: Path) -> StiffeningSpec:
+    if data is None:
+        return StiffeningSpec()
+    table = _Table(data, "[stiffening]", path)
+    source = table.string("source", "none")
+    if source not in ("mesh", "matrices", "none"):
+        raise table.error("source", f"must be 'mesh', 'matrices' or 'none', got {source!r}")
+    kind = table.string("kind", "geometric")
+    if kind not in ("geometric", "prestressed"):
+        raise table.error("kind", f"must be 'geometric' or 'prestressed', got {kind!r}")
+    files = table.get("matrices", {})
+    if not isinstance(files, dict) or not all(isinstance(v, str) for v in files.values()):
+        raise table.error("matrices", 'must be a table of load case = "file.mtx"')
+    for case in files:
+        if case not in INERTIA_LOAD_CASES:
+            hint = difflib.get_close_matches(case, INERTIA_LOAD_CASES, n=1)
+            more = f"; did you mean '{hint[0]}'?" if hint else ""
+            raise table.error("matrices", f"unknown load case {case!r}{more}")
+    table.done()
+    if source == "matrices" and not files:
+        raise table.error("matrices", 'source = "matrices" needs at least one load case file')
+    if source != "matrices" and files:
+        raise table.error("matrices", f'given, but source is "{source}" (use "matrices")')
+    matrices = tuple((case, (path.parent / name).resolve()) for case, name in files.items())
+    for case, file in matrices:
+        if not file.is_file():
+            raise table.error("matrices", f"{case}: file {file} not found")
+    return StiffeningSpec(source, matrices, kind)
+
+
+def _large_motion(data: Any, path: Path) -> LargeMotionSettings | None:
+    if data is None:
+        return None
+    table = _Table(data, "[large_motion]", path)
+    joint = table.integer("joint_node", required=True, minimum=-(2**62))
+    cases = table.get("cases", list(LARGE_MOTION_CASES))
+    if (
+        not isinstance(cases, list)
+        or not cases
+        or not all(c in LARGE_MOTION_CASES for c in cases)
+        or len(set(cases)) != len(cases)
+    ):
+        raise table.error("cases", f"must be a list of 'pendulum' and/or 'spin-up', got {cases!r}")
+    duration = table.number("duration_s", 1.0)
+    step = table.number("step_s")
+    spin = table.number("spin_rad_s")
+    axis = _vector(table, "spin_axis")
+    spin_up = table.number("spin_up_s")
+    gravity = table.number("gravity_m_s2", 9.81, minimum=0.0)
+    order = table.integer("reference_order", 120, minimum=2)
+    rho_inf = table.number("rho_inf", 0.9, minimum=0.0)
+    table.done()
+    for key, value in (("duration_s", duration), ("step_s", step), ("spin_rad_s", spin),
+                       ("spin_up_s", spin_up)):  # fmt: skip
+        if value is not None and not value > 0:
+            raise table.error(key, f"must be > 0, got {value!r}")
+    if step is not None and duration / step > 1e6:
+        raise table.error("step_s", f"gives {duration / step:.3g} steps; use at most 1e6")
+    if spin_up is not None and spin_up > duration:
+        raise table.error("spin_up_s", f"({spin_up}) is longer than duration_s ({duration})")
+    if axis is not None and not any(axis):
+        raise table.error("spin_axis", "must not be the zero vector")
+    if rho_inf > 1:
+        raise table.error("rho_inf", f"must lie in [0, 1], got {rho_inf}")
+    if "pendulum" in cases and not gravity > 0:
+        raise table.error("gravity_m_s2", "must be > 0 for the pendulum")
+    return LargeMotionSettings(
+        joint_node=joint,
+        cases=tuple(cases),
+        duration_s=duration,
+        step_s=step,
+        spin_rad_s=spin,
+        spin_axis=axis if axis is not None else LargeMotionSettings.spin_axis,
+        spin_up_s=spin_up,
+        gravity_m_s2=gravity,
+        reference_order=order,
+        rho_inf=rho_inf,
+    )
+
+
 def _frame(table: _Table) -> Frame:
     kind = table.string("type", "tangent")
     if kind == "tangent":
@@ -552,9 +710,13 @@ def _reductions(data: Any, path: Path) -> tuple[ReductionSpec, ...]:
                 "name", f"{name!r} is the name of a file of the job's output folder; choose another"
             )
         order = table.integer("order")
-        options = {key: table.get(key) for key in METHOD_OPTIONS[method] if key in table.data}
-        table.done(METHOD_OPTIONS[method])
+        known = METHOD_OPTIONS[method] + COMMON_OPTIONS
+        options = {key: table.get(key) for key in known if key in table.data}
+        table.done(known)
         _check_options(table, method, order, options)
+        limit = table.number("max_frequency_hz")
+        if limit is not None and not limit > 0:
+            raise table.error("max_frequency_hz", f"must be a frequency > 0 (Hz), got {limit!r}")
         specs.append(ReductionSpec(name, method, order, options))
     return tuple(specs)
 

@@ -15,6 +15,7 @@ import shutil
 import tempfile
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -22,12 +23,13 @@ import numpy as np
 import scipy
 
 from pymorembs import __version__
-from pymorembs.analysis.error import frequency_grid
+from pymorembs.analysis.error import frequency_grid, relative_error
+from pymorembs.analysis.large_motion import large_motion_checks
 from pymorembs.analysis.reference import ReferenceResponse, choose_kind, reference_response
 from pymorembs.analysis.time_domain import clamped_full_system
 from pymorembs.analysis.time_domain_job import time_domain_checks
 from pymorembs.analysis.transfer import transfer_function
-from pymorembs.body import ElasticBody
+from pymorembs.body import DIRECTIONS, ElasticBody
 from pymorembs.config import Job, ModelSpec, ReductionSpec
 from pymorembs.errors import NumericalError, PymorembsError, UserError
 from pymorembs.examples import build_example
@@ -35,8 +37,14 @@ from pymorembs.export.outputs import BODY_OUTPUTS, write_outputs
 from pymorembs.io.atomic import atomic_path, write_text
 from pymorembs.io.formats import read_body
 from pymorembs.linalg.mass_split import mass_split
-from pymorembs.prepare import PreparedModel, prepare
+from pymorembs.prepare import PreparedModel, prepare, with_inertia_loads
+from pymorembs.prepare.inertia_loads import is_inertia_label
 from pymorembs.prepare.interface import InterfaceSpec, add_interface_node, select_nodes
+from pymorembs.prepare.stiffening import (
+    stiffening_from_matrices,
+    stiffening_from_mesh,
+    with_stiffening,
+)
 from pymorembs.prepare.validation import ValidationReport, validate_body, validate_prepared
 from pymorembs.progress import Progress as ProgressBar
 from pymorembs.reduce.gramian import gramian_reduction, pod_reduction
@@ -48,7 +56,13 @@ from pymorembs.reduce.modal_family import (
     craig_bampton,
     modes_with_frm,
 )
-from pymorembs.reduce.projection import Projection, ReducedModel, reduced_model
+from pymorembs.reduce.projection import (
+    Projection,
+    ReducedModel,
+    explicit_step_s,
+    reduced_model,
+    without_stiff_directions,
+)
 from pymorembs.reduce.rational_gramian import rational_gramian_reduction
 from pymorembs.reduce.soaga import soaga_reduction
 from pymorembs.report.html_report import write_report
@@ -167,11 +181,15 @@ def run_reduction(
             )
         return modal_reduction(system, spec.order, shift_hz=shift)
     if spec.method == "craig-bampton":
+        # the interface: the dofs of the port forces; inertia loads add static load modes
+        inertia = np.array([is_inertia_label(label) for label in system.input_labels], dtype=bool)
+        ports = replace(system, input_matrix=system.input_matrix[:, ~inertia])
         return craig_bampton(
             system,
-            boundary_dofs_of_inputs(system),
+            boundary_dofs_of_inputs(ports),
             options["fixed_modes"],
             shift_hz=options.get("shift_hz", 1.0),
+            static_loads=system.input_matrix[:, inertia] if inertia.any() else None,
         )
     if spec.method == "krylov":
         return krylov_reduction(
@@ -224,6 +242,12 @@ def run_reduction(
         )
     raise UserError(f"unknown method {spec.method!r}")  # config rejects it earlier
 
+
+#: A reduction whose error under the inertia loads exceeds this and ...
+INERTIA_WARNING = 1e-2
+#: ... this many times its error over the ports gets a warning: it misses a direction the frame
+#: motion excites.
+INERTIA_RATIO = 100.0
 
 #: Largest sparse model whose Gramians are computed directly (beyond: two-step).
 DIRECT_GRAMIAN_LIMIT = 2000
@@ -294,6 +318,8 @@ def check_requests(job: Job, body: ElasticBody) -> None:
             "own; give [[inputs]] (node and directions)"
         )
     wants_body = any(kind in job.export.outputs for kind in BODY_OUTPUTS)
+    if job.large_motion is not None:
+        _check_large_motion(job, body, dofs_of)
     spec = job.time_domain
     if (wants_body or spec is not None) and not body.has_coordinates:
         raise UserError(
@@ -342,6 +368,36 @@ def check_requests(job: Job, body: ElasticBody) -> None:
         )
 
 
+def _check_large_motion(job: Job, body: ElasticBody, dofs_of: Callable) -> None:
+    """``[large_motion]`` needs Exudyn, coordinates, one-sided reductions and a joint it can
+    act on (the frame's node, or a node with all six dofs)."""
+    spec = job.large_motion
+    try:
+        import exudyn  # noqa: F401
+    except ImportError:
+        raise UserError(
+            f"{job.path}: [large_motion] needs Exudyn (pip install exudyn), which is not installed"
+        ) from None
+    if not body.has_coordinates:
+        raise UserError(f"{job.path}: [large_motion] needs node coordinates; the model has none")
+    directions = dofs_of(spec.joint_node, "[large_motion] joint_node")
+    on_frame = (job.frame.kind == "tangent" and job.frame.node == spec.joint_node) or (
+        job.frame.kind == "none" and body.fixed.size > 0
+    )
+    if not on_frame and directions != set(range(6)):
+        raise UserError(
+            f"{job.path}: [large_motion] joint_node: node {spec.joint_node} needs all six dofs "
+            "for a hinge on a body whose frame is elsewhere (add an interface node there, or "
+            "use a tangent frame at it)"
+        )
+    for reduction in job.reductions:
+        if reduction.options.get("two_sided"):
+            raise UserError(
+                f"{job.path}: reduction '{reduction.name}': [large_motion] needs one-sided "
+                "(Galerkin) bodies; drop two_sided"
+            )
+
+
 def run_job(
     job: Job,
     out_dir: str | Path,
@@ -372,7 +428,9 @@ def run_job(
         ``"local"`` or a Dask scheduler address to run that frequency response on.
     """
     say = progress or (lambda _msg: None)
-    n_stages = 2 + len(job.reductions) + (job.time_domain is not None)
+    n_stages = (
+        2 + len(job.reductions) + (job.time_domain is not None) + (job.large_motion is not None)
+    )
     started = [False]
     with ProgressBar(f"job {Path(job.path).stem}", total=n_stages, unit="stage", every=1) as bar:
 
@@ -404,9 +462,26 @@ def _run_job(
         "loading the model",
     )
     body, prepared, validation = prepare_and_validate(job)  # before anything expensive
-    system = prepared.system
     timings["prepare_s"] = time.perf_counter() - clock
     timings["validation_s"] = validation.seconds
+    if job.inertia_loads.active(job.export.outputs):
+        tick = time.perf_counter()
+        say("inertia loads of the frame motion as further inputs (one static factorization)")
+        prepared = with_inertia_loads(prepared, job.inertia_loads.cases)
+        timings["inertia_loads_s"] = time.perf_counter() - tick
+    if job.stiffening.source != "none":
+        tick = time.perf_counter()
+        say(f"geometric stiffening from the {job.stiffening.source} (one static factorization)")
+        prepared = _with_stiffening(prepared, job)
+        timings["stiffening_s"] = time.perf_counter() - tick
+        missing = [k for k in ("neweul", "exudyn") if k in job.export.outputs]
+        if missing:
+            note = (
+                "geometric stiffening is written into the SID body only; the "
+                f"{' and '.join(missing)} bodies do not carry it yet"
+            )
+            prepared = replace(prepared, warnings=(*prepared.warnings, note))
+    system = prepared.reduction_system  # what every reduction and the reference see
     units = detect_units(body)
     warnings = [*prepared.warnings, *validation.warnings, *units.warnings]
     for warning in warnings:
@@ -451,12 +526,19 @@ def _run_job(
                 for spec, (_, response, _) in zip(job.reductions, reduced_runs, strict=True)
             ]
         timings["reference_s"] = reference.seconds
-        for spec, (model, _, elapsed), eps in zip(
+        ports, inertia = error_blocks(system)
+        for spec, (model, response, elapsed), eps in zip(
             job.reductions, reduced_runs, all_eps, strict=True
         ):
+            if inertia is not None:  # eq. 27 over the ports, and over the inertia loads
+                eps_inertia = relative_error(reference.response, response, inertia)
+                eps = relative_error(reference.response, response, ports)
+            else:
+                eps_inertia = None
             entry = _write_one(
-                prepared, spec, model, eps, elapsed, reference, staging, outputs, nodes
-            )
+                prepared, spec, model, (eps, eps_inertia), elapsed, reference, staging, outputs,
+                nodes,
+            )  # fmt: skip
             projection = model.projection
             models[spec.name] = model
             if projection.error_curve is not None:
@@ -471,8 +553,14 @@ def _run_job(
                     "the Krylov space is exhausted (the reduced model is exact for these ports)"
                 )
                 say(f"warning: {warnings[-1]}")
+            missing = inertia_warning(spec.name, eps, eps_inertia)
+            if missing:
+                warnings.append(missing)
+                say(f"warning: {missing}")
             entries.append(entry)
             errors[spec.name] = eps
+            if eps_inertia is not None:
+                errors[f"{spec.name} (inertia loads)"] = eps_inertia
         computed = [f for e in entries for f in e["eigenfrequencies_hz"]]
         for warning in frequency_warnings(units, job.band_hz, np.asarray(computed)):
             warnings.append(warning)
@@ -487,6 +575,10 @@ def _run_job(
         )
         overview = ["summary.json", "error.png"]
         caption = "Relative error ε(f) of eq. 27 of every reduction"
+        if prepared.inertia is not None:
+            caption += (
+                " over the ports, and '(inertia loads)' over the inertia loads of the frame motion"
+            )
         if reference.kind == "surrogate":
             caption += (
                 f" against a reference model of order {reference.parameters['order']}, "
@@ -518,6 +610,27 @@ def _run_job(
                     for row in case["reductions"]
                     if row["name"] == entry["name"]
                 }
+        large_motion = None
+        if job.large_motion is not None:
+            stage("large motion in Exudyn", "large motion", line=False)
+            tick = time.perf_counter()
+            large_motion = large_motion_checks(
+                job.large_motion, job.frame, prepared, one_sided(models), nodes,
+                staging / "large_motion.png", say,
+            )  # fmt: skip
+            timings["large_motion_s"] = time.perf_counter() - tick
+            overview.append("large_motion.png")
+            figures.append(
+                (staging / "large_motion.png", "Large motions in Exudyn: each body against "
+                 f"the modal reference of order {large_motion['reference']['order']}")
+            )  # fmt: skip
+            for entry in entries:
+                entry["large_motion"] = {
+                    case["name"]: row
+                    for case in large_motion["cases"]
+                    for row in case["reductions"]
+                    if row["name"] == entry["name"]
+                }
         if "report" in job.export.outputs:
             overview.append("report.html")
         timings["total_s"] = time.perf_counter() - clock
@@ -540,10 +653,21 @@ def _run_job(
                 "dof_table": body.dofs.describe(),
                 "has_coordinates": bool(body.has_coordinates),
                 "notes": list(body.notes),
-                "n_inputs": system.n_inputs,
-                "n_outputs": system.n_outputs,
-                "inputs": list(system.input_labels),
-                "outputs": list(system.output_labels),
+                "n_inputs": prepared.system.n_inputs,
+                "n_outputs": prepared.system.n_outputs,
+                "inputs": list(prepared.system.input_labels),
+                "outputs": list(prepared.system.output_labels),
+                "inertia_loads": _inertia_summary(prepared),
+                "stiffening": None
+                if prepared.stiffening is None
+                else {
+                    "source": prepared.stiffening.source,
+                    "cases": sorted(prepared.stiffening.cases),
+                    "node_loads": [
+                        f"{n}:{DIRECTIONS[d]}" for n, d in sorted(prepared.stiffening.nodes)
+                    ],
+                    "written_to": ["sid"],
+                },
                 "total_mass": body.total_mass(),
                 "damping": {
                     "kind": body.damping.kind,
@@ -566,6 +690,8 @@ def _run_job(
         summary["provenance"] = provenance(job, validation)
         if time_domain is not None:
             summary["time_domain"] = time_domain
+        if large_motion is not None:
+            summary["large_motion"] = large_motion
         if job.title:
             summary["title"] = job.title
         if "report" in job.export.outputs:
@@ -590,12 +716,90 @@ def _reduce_one(
     (:meth:`ReferenceResponse.settle`).
     """
     tick = time.perf_counter()
-    projection = run_reduction(prepared.system, spec, band_hz)
-    model = reduced_model(prepared.system, projection)  # checked before anything is written
+    system = prepared.reduction_system
+    projection = run_reduction(system, spec, band_hz)
+    model = reduced_model(system, projection)  # checked before writing
+    limit = spec.options.get("max_frequency_hz")
+    if limit is not None and model.eigenfrequencies_hz.max() > limit:
+        before = transfer_function(model.system, reference.frequencies_hz)
+        model = without_stiff_directions(system, model, limit)
+        # what the removal costs: the errors before it, to compare with the entry's own
+        ports, inertia = error_blocks(system)
+        frequencies = reference.frequencies_hz
+        for key, block in (("", ports), ("inertia_", inertia)):
+            if block is None:
+                continue
+            eps = relative_error(reference.response, before, block)
+            model.projection.parameters[f"{key}max_rel_error_before_removal"] = float(eps.max())
+            if frequencies[0] == 0.0:
+                model.projection.parameters[f"{key}static_rel_error_before_removal"] = float(eps[0])
     elapsed = time.perf_counter() - tick
     response = transfer_function(model.system, reference.frequencies_hz)
     _checked_errors(spec, reference, response)
     return model, response, elapsed
+
+
+def inertia_warning(name: str, eps: np.ndarray, eps_inertia: np.ndarray | None) -> str | None:
+    """A warning when a reduction is far less accurate under the inertia loads than at the ports.
+
+    Given when the largest error under the inertia loads exceeds :data:`INERTIA_WARNING` and
+    :data:`INERTIA_RATIO` times the largest error over the ports.
+    """
+    if eps_inertia is None:
+        return None
+    ports, loads = float(np.max(eps)), float(np.max(eps_inertia))
+    if loads <= max(INERTIA_WARNING, INERTIA_RATIO * ports):
+        return None
+    return (
+        f"reduction '{name}': max error {ports:.1e} over the ports but {loads:.1e} under the "
+        "inertia loads of the frame motion: the body misses directions the frame's motion "
+        "excites (raise the order, or add frm_hz / expansion points)"
+    )
+
+
+def one_sided(models: dict[str, ReducedModel]) -> dict[str, ReducedModel]:
+    """The reduced models with a Galerkin projection (those that give bodies)."""
+    return {name: model for name, model in models.items() if model.projection.one_sided}
+
+
+def _with_stiffening(prepared: PreparedModel, job: Job) -> PreparedModel:
+    """The prepared model with the geometric stiffening of ``[stiffening]``."""
+    spec = job.stiffening
+    try:
+        if spec.source == "mesh":
+            stiffening = stiffening_from_mesh(prepared, nodes=export_nodes(job))
+        else:
+            stiffening = stiffening_from_matrices(prepared, dict(spec.matrices), spec.kind)
+    except UserError as exc:
+        raise UserError(f"{job.path}: {exc}") from None
+    return with_stiffening(prepared, stiffening)
+
+
+def _inertia_summary(prepared: PreparedModel) -> dict[str, Any] | None:
+    """The inertia loads of a prepared model for the summary (None: not used)."""
+    loads = prepared.inertia
+    if loads is None:
+        return None
+    return {
+        "cases": list(loads.cases),
+        "dropped": list(loads.dropped),
+        "scales": loads.scales.tolist(),
+        "scaling": "each load's static compliance equals the median of the port forces'",
+    }
+
+
+def error_blocks(system: SecondOrderSystem) -> tuple[np.ndarray, np.ndarray | None]:
+    """Entries of ``H`` (n_outputs, n_inputs) of the ports and of the inertia loads.
+
+    Ports: port outputs to port inputs, the ``eps`` of eq. 27 as without inertia loads. Inertia
+    loads: every entry with an inertia load as input or its collocated output (how the frame
+    motion deforms the body at the ports and in the generalised coordinates the frame's
+    equations see). None when the system has no inertia loads.
+    """
+    cols = np.array([is_inertia_label(label) for label in system.input_labels], dtype=bool)
+    rows = np.array([is_inertia_label(label) for label in system.output_labels], dtype=bool)
+    ports = ~rows[:, None] & ~cols[None, :]
+    return ports, (None if ports.all() else ~ports)
 
 
 def _checked_errors(
@@ -616,14 +820,18 @@ def _write_one(
     prepared: PreparedModel,
     spec: ReductionSpec,
     model: ReducedModel,
-    eps: np.ndarray,
+    errors: tuple[np.ndarray, np.ndarray | None],
     elapsed: float,
     reference: ReferenceResponse,
     staging: Path,
     outputs: tuple[str, ...],
     nodes: list[int],
 ) -> dict[str, Any]:
-    """Write a reduction's files into ``staging/<name>``; its entry of the summary."""
+    """Write a reduction's files into ``staging/<name>``; its entry of the summary.
+
+    ``errors``: ``eps(f)`` over the ports and over the inertia loads (None without them).
+    """
+    eps, eps_inertia = errors
     projection = model.projection
     frequencies = reference.frequencies_hz
     static = float(eps[0]) if frequencies[0] == 0.0 else None
@@ -631,9 +839,12 @@ def _write_one(
     folder.mkdir()
     files = write_outputs(model, prepared, spec.name, outputs, nodes, folder)
     curve = {} if projection.error_curve is None else {spec.name: projection.error_curve}
+    curves = {spec.name: eps}
+    if eps_inertia is not None:
+        curves[f"{spec.name} (inertia loads)"] = eps_inertia
     plot_relative_errors(
         frequencies,
-        {spec.name: eps},
+        curves,
         folder / "error.png",
         title=f"Relative error of '{spec.name}' ({spec.method}, n = {projection.order})",
         estimates=curve,
@@ -641,6 +852,9 @@ def _write_one(
     )
     table = np.column_stack([frequencies, eps])
     header = "frequency_hz,relative_error"
+    if eps_inertia is not None:
+        table = np.column_stack([table, eps_inertia])
+        header += ",relative_error_inertia_loads"
     if reference.kind == "surrogate":  # 1: measured against the full model, 0: surrogate
         table = np.column_stack([table, reference.exact.astype(float)])
         header += ",checked_against_full_model"
@@ -666,11 +880,21 @@ def _write_one(
         "error_estimate": projection.error_estimate,
         "error_bound": projection.error_bound,
         "reference_resolved": reference.resolved(eps),
+        "error_covers": "ports: the port outputs to the port inputs",
         "time_s": elapsed,
         "parameters": _jsonable(projection.parameters),
         "eigenfrequencies_hz": model.eigenfrequencies_hz.tolist(),
+        "highest_frequency_hz": float(model.eigenfrequencies_hz.max(initial=0.0)),
+        "explicit_step_s": explicit_step_s(model.eigenfrequencies_hz),
         "files": [f"{spec.name}/{name}" for name in files],
     }
+    if eps_inertia is not None:
+        entry["inertia_loads"] = {
+            "max_rel_error": float(np.max(eps_inertia)),
+            "static_rel_error": float(eps_inertia[0]) if frequencies[0] == 0.0 else None,
+            "covers": "the inertia loads of the frame motion to the port outputs and their "
+            "collocated outputs, and the port inputs to those",
+        }
     return entry
 
 
@@ -817,6 +1041,11 @@ def job_settings(job: Job) -> dict[str, Any]:
         },
         "interfaces": len(job.interfaces),
         "time_domain": job.time_domain is not None,
+        "inertia_loads": {
+            "active": job.inertia_loads.active(job.export.outputs),
+            "enabled": job.inertia_loads.enabled,
+            "cases": list(job.inertia_loads.cases),
+        },
     }
 
 

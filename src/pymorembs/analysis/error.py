@@ -22,19 +22,28 @@ def frequency_grid(f_min_hz: float, f_max_hz: float, points: int = DEFAULT_POINT
     return np.concatenate([[0.0], grid]) if f_min_hz == 0 else grid
 
 
-def relative_error(full: np.ndarray, reduced: np.ndarray) -> np.ndarray:
+def relative_error(
+    full: np.ndarray, reduced: np.ndarray, entries: np.ndarray | None = None
+) -> np.ndarray:
     """``eps(omega) = ||H - H_bar||_F / ||H||_F`` (eq. 27) at each frequency.
 
     Parameters
     ----------
     full, reduced : ndarray, shape (n_f, n_outputs, n_inputs)
+    entries : ndarray of bool, shape (n_outputs, n_inputs), optional
+        Only these entries of ``H`` (a block, e.g. the ports' or the inertia loads'); default all.
 
     Returns
     -------
     ndarray, shape (n_f,)
     """
-    difference = np.linalg.norm(full - reduced, axis=(1, 2))
-    reference = np.linalg.norm(full, axis=(1, 2))
+    if entries is not None:
+        full, reduced = full[:, entries], reduced[:, entries]
+        difference = np.linalg.norm(full - reduced, axis=1)
+        reference = np.linalg.norm(full, axis=1)
+    else:
+        difference = np.linalg.norm(full - reduced, axis=(1, 2))
+        reference = np.linalg.norm(full, axis=(1, 2))
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(
             reference > 0, difference / reference, np.where(difference > 0, np.inf, 0.0)

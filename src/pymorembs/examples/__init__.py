@@ -1,4 +1,4 @@
-"""Built-in example models: generators of the rack of paper section 2.
+"""Built-in example models: the rack of paper section 2 (beams, solid) and a rotating blade.
 
 ``EXAMPLES`` maps an example name to the function that builds the
 :class:`~pymorembs.body.ElasticBody`, ``OPTIONS`` to the keyword options it takes from the
@@ -13,6 +13,7 @@ from typing import Any
 
 from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
+from pymorembs.examples.blade import blade
 from pymorembs.examples.rack_beams import rack_beams
 from pymorembs.examples.rack_solid import rack_solid
 
@@ -20,11 +21,13 @@ from pymorembs.examples.rack_solid import rack_solid
 EXAMPLES: dict[str, Callable[..., ElasticBody]] = {
     "rack-beams": rack_beams,
     "rack-solid": rack_solid,
+    "blade": blade,
 }
 #: Example name -> the options (``dofs``, ``interface``) it accepts.
 OPTIONS: dict[str, tuple[str, ...]] = {
     "rack-beams": (),
     "rack-solid": ("dofs", "interface"),
+    "blade": ("hub_radius", "elements"),
 }
 
 
@@ -48,4 +51,4 @@ def build_example(name: str, **options: Any) -> ElasticBody:
     return factory(**options)
 
 
-__all__ = ["EXAMPLES", "OPTIONS", "build_example", "rack_beams", "rack_solid"]
+__all__ = ["EXAMPLES", "OPTIONS", "blade", "build_example", "rack_beams", "rack_solid"]

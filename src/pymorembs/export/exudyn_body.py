@@ -78,6 +78,7 @@ from __future__ import annotations
 import contextlib
 import os
 import time
+import warnings
 import zipfile
 import zlib
 from collections.abc import Callable, Iterator, Mapping, Sequence
@@ -446,6 +447,9 @@ class ExudynModel:
         Node id -> ``MarkerSuperElementRigid`` on the node's satellites (nodes with rotations).
     sensors : dict of int to int
         Node id -> sensor of the node's displacement in ground coordinates (m).
+    frame_sensors : dict of str to int
+        ``"angular_velocity"`` (ground coordinates, rad/s) and ``"rotation"`` (the rotation
+        matrix, row-major) of the reference frame, ``"coordinates"``: the elastic coordinates.
     """
 
     system_container: Any
@@ -459,6 +463,7 @@ class ExudynModel:
     position_markers: dict[int, int] = field(default_factory=dict)
     rigid_markers: dict[int, int] = field(default_factory=dict)
     sensors: dict[int, int] = field(default_factory=dict)
+    frame_sensors: dict[str, int] = field(default_factory=dict)
 
 
 class ExudynResult(NamedTuple):
@@ -473,11 +478,21 @@ class ExudynResult(NamedTuple):
         elastic deformation.
     wall_time_s : float
         Wall-clock time of the time integration (s).
+    angular_velocity : ndarray, shape (n_t, 3)
+        Of the reference frame, ground coordinates (rad/s).
+    rotation : ndarray, shape (n_t, 3, 3)
+        Orientation of the reference frame (body-frame to ground coordinates).
+    coordinates : ndarray, shape (n_t, nq)
+        The elastic coordinates ``q``; the elastic deflection of a node in the body frame is
+        its rows of ``modeBasis`` times ``q``.
     """
 
     times: np.ndarray
     displacements: dict[int, np.ndarray]
     wall_time_s: float
+    angular_velocity: np.ndarray | None = None
+    rotation: np.ndarray | None = None
+    coordinates: np.ndarray | None = None
 
 
 @contextlib.contextmanager
@@ -538,6 +553,8 @@ def build_exudyn_model(
     loads: Sequence[tuple[int, Force]] = (),
     damping: str | tuple[float, float] = "exported",
     gravity: Sequence[float] | None = None,
+    hinge_axis: Sequence[float] | None = None,
+    torques: Sequence[Force] = (),
 ) -> ExudynModel:
     """Build a ready Exudyn system with the exported body.
 
@@ -565,6 +582,11 @@ def build_exudyn_model(
     gravity : (3,) float, optional
         Gravitational acceleration in ground coordinates (m/s²), applied through Exudyn's
         ``LoadMassProportional`` (which uses ``m``, the centre of mass and ``mPhitTPsi``).
+    hinge_axis : (3,) float, optional
+        Make the joint of ``clamp`` a revolute joint: rotation about this axis (ground
+        coordinates, through the joint point) stays free.
+    torques : sequence of torque
+        Torques (N m, ground coordinates; constant or functions of time) on the reference frame.
 
     Returns
     -------
@@ -589,6 +611,13 @@ def build_exudyn_model(
     _check_clamp(clamp, joint_node, node_ids, satellites_of)
     damping_matrix = _damping_matrix(arrays, damping)
     forces = [_checked_force(node, force, node_ids) for node, force in loads]
+    frame_torques = [_checked_vector(torque, "torque", "N m") for torque in torques]
+    hinge = None
+    if hinge_axis is not None:
+        hinge = np.asarray(_checked_vector(hinge_axis, "hinge axis", "-"), dtype=float)
+        if not np.linalg.norm(hinge) > 0:
+            raise UserError("exudyn model: the hinge axis must not be zero")
+        hinge = hinge / np.linalg.norm(hinge)
     g = None if gravity is None else np.asarray(gravity, dtype=float)
     if g is not None and (g.shape != (3,) or not np.all(np.isfinite(g))):
         raise UserError(f"exudyn model: gravity must be 3 finite numbers (m/s²), got {gravity!r}")
@@ -673,15 +702,39 @@ def build_exudyn_model(
                 bodyNumber=ground, localPosition=[float(x) for x in ground_position]
             )
         )
-        mbs.AddObject(
-            eii.GenericJoint(
-                markerNumbers=[ground_marker, body_marker],
-                constrainedAxes=[1, 1, 1, 1, 1, 1],
-                visualization=eii.VGenericJoint(show=False),
+        joint = {"constrainedAxes": [1, 1, 1, 1, 1, 1]}
+        if hinge is not None:  # joint frames with z along the hinge: rotation about z free
+            frame = _frame_with_z(hinge).tolist()
+            joint = {"constrainedAxes": [1, 1, 1, 1, 1, 0], "rotationMarker0": frame,
+                     "rotationMarker1": frame}  # fmt: skip
+        with warnings.catch_warnings():  # rotationMarker0/1: deprecated, supported until 2031
+            warnings.simplefilter("ignore", DeprecationWarning)
+            mbs.AddObject(
+                eii.GenericJoint(
+                    markerNumbers=[ground_marker, body_marker],
+                    visualization=eii.VGenericJoint(show=False),
+                    **joint,
+                )
             )
-        )
         for node, force in forces:
             mbs.AddLoad(_force_load(eii, model.position_markers[node], force))
+        if frame_torques:
+            frame_marker = mbs.AddMarker(eii.MarkerNodeRigid(nodeNumber=rigid))
+            for torque in frame_torques:
+                mbs.AddLoad(_force_load(eii, frame_marker, torque, kind="torque"))
+        for key, node, variable in (
+            ("angular_velocity", rigid, exudyn.OutputVariableType.AngularVelocity),
+            ("rotation", rigid, exudyn.OutputVariableType.RotationMatrix),
+            ("coordinates", modal, exudyn.OutputVariableType.Coordinates),
+        ):
+            model.frame_sensors[key] = mbs.AddSensor(
+                eii.SensorNode(
+                    nodeNumber=node,
+                    outputVariableType=variable,
+                    writeToFile=False,
+                    storeInternal=True,
+                )
+            )
         if g is not None:
             mass_marker = mbs.AddMarker(eii.MarkerBodyMass(bodyNumber=obj))
             mbs.AddLoad(eii.LoadMassProportional(markerNumber=mass_marker, loadVector=list(g)))
@@ -712,6 +765,36 @@ def _check_clamp(
         )
 
 
+def _frame_with_z(axis: np.ndarray) -> np.ndarray:
+    """A rotation matrix whose third column is the unit vector ``axis``."""
+    helper = np.eye(3)[int(np.argmin(np.abs(axis)))]
+    x = np.cross(helper, axis)
+    x /= np.linalg.norm(x)
+    return np.column_stack([x, np.cross(axis, x), axis])
+
+
+def _checked_vector(value: Force, what: str, unit: str) -> Any:
+    """A constant vector (3,) as ndarray, or a function of time returning one (checked at 0)."""
+    if callable(value):
+        try:
+            probe = np.asarray(value(0.0), dtype=float)
+        except Exception as exc:
+            raise UserError(f"exudyn model: the {what} (a function of time) fails: {exc}") from None
+        if probe.shape != (3,):
+            raise UserError(
+                f"exudyn model: the {what} (a function of time) returns shape {probe.shape}, "
+                "expected (3,)"
+            )
+        return value
+    try:
+        vector = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        vector = np.full(0, np.nan)
+    if vector.shape != (3,) or not np.all(np.isfinite(vector)):
+        raise UserError(f"exudyn model: the {what} must be 3 finite numbers ({unit})")
+    return vector
+
+
 def _checked_force(node: int, force: Force, node_ids: list[int]) -> tuple[int, Any]:
     """``(node id, force)`` with a constant force as ndarray (3,); checks node and shape."""
     if int(node) not in node_ids:
@@ -719,37 +802,20 @@ def _checked_force(node: int, force: Force, node_ids: list[int]) -> tuple[int, A
             f"exudyn model: load at node {node}, which is not a frame node of the body "
             f"(nodes: {node_ids})"
         )
-    if callable(force):
-        try:
-            probe = np.asarray(force(0.0), dtype=float)
-        except Exception as exc:
-            raise UserError(
-                f"exudyn model: the load function at node {node} fails: {exc}"
-            ) from None
-        if probe.shape != (3,):
-            raise UserError(
-                f"exudyn model: the load function at node {node} returns shape {probe.shape}, "
-                "expected (3,)"
-            )
-        return int(node), force
-    try:
-        vector = np.asarray(force, dtype=float)
-    except (TypeError, ValueError):
-        vector = np.full(0, np.nan)
-    if vector.shape != (3,) or not np.all(np.isfinite(vector)):
-        raise UserError(f"exudyn model: the load at node {node} must be 3 finite numbers (N)")
-    return int(node), vector
+    return int(node), _checked_vector(force, f"load at node {node}", "N")
 
 
-def _force_load(eii: Any, marker: int, force: Any) -> Any:
-    """A ``LoadForceVector`` in ground directions: constant, or a Python user function of t."""
+def _force_load(eii: Any, marker: int, force: Any, kind: str = "force") -> Any:
+    """A ``LoadForceVector`` (or ``LoadTorqueVector``) in ground directions: constant, or a
+    Python user function of t."""
+    load = eii.LoadForceVector if kind == "force" else eii.LoadTorqueVector
     if not callable(force):
-        return eii.LoadForceVector(markerNumber=marker, loadVector=[float(x) for x in force])
+        return load(markerNumber=marker, loadVector=[float(x) for x in force])
 
     def user_function(mbs: Any, t: float, load_vector: Any) -> list[float]:
         return [float(x) for x in np.asarray(force(t), dtype=float)]
 
-    return eii.LoadForceVector(
+    return load(
         markerNumber=marker, loadVector=[0.0, 0.0, 0.0], loadVectorUserFunction=user_function
     )
 
@@ -834,4 +900,16 @@ def simulate_exudyn(
     for n in wanted:
         data = np.asarray(model.mbs.GetSensorStoredData(model.sensors[n]))
         times, displacements[n] = data[:, 0], data[:, 1:4]
-    return ExudynResult(times, displacements, wall)
+    frame = {
+        key: np.asarray(model.mbs.GetSensorStoredData(sensor))[:, 1:]
+        for key, sensor in model.frame_sensors.items()
+    }
+    rotation = frame.get("rotation")
+    return ExudynResult(
+        times,
+        displacements,
+        wall,
+        frame.get("angular_velocity"),
+        None if rotation is None else rotation.reshape(-1, 3, 3),
+        frame.get("coordinates"),
+    )

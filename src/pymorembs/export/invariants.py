@@ -44,7 +44,14 @@ from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
 from pymorembs.linalg.products import extended
 
-__all__ = ["OMEGA_ORDER", "BodyInvariants", "NodeFrame", "compute_invariants", "skew"]
+__all__ = [
+    "OMEGA_ORDER",
+    "BodyInvariants",
+    "NodeFrame",
+    "StiffeningTerms",
+    "compute_invariants",
+    "skew",
+]
 
 #: Order of the six products of angular velocity components Ω used with ``Oe`` (SID_NOTES §0).
 OMEGA_ORDER = ("wx*wx", "wy*wy", "wz*wz", "wx*wy", "wy*wz", "wx*wz")
@@ -100,6 +107,25 @@ class NodeFrame:
 
 
 @dataclass(frozen=True, eq=False)
+class StiffeningTerms:
+    """Geometric stiffening of a reduced body (SID_NOTES §4.6), each matrix (nq, nq).
+
+    Attributes
+    ----------
+    cases : dict of str -> ndarray
+        ``K0_L = Φᵀ K_G(σ_L) Φ`` of the unit d'Alembert load cases (``ax .. wxz``).
+    nodes : dict of (node id, direction code) -> ndarray
+        The same for a unit force (0-2) or moment (3-5) at a frame node.
+    source : str
+        Where ``K_G`` came from (``"mesh"``, ``"matrices"``).
+    """
+
+    cases: dict[str, np.ndarray]
+    nodes: dict[tuple[int, int], np.ndarray]
+    source: str
+
+
+@dataclass(frozen=True, eq=False)
 class BodyInvariants:
     """Invariants of a reduced elastic body (SID_NOTES §4.1-§4.3); ``q`` has ``nq`` entries.
 
@@ -131,6 +157,8 @@ class BodyInvariants:
         approximation (rotary inertia and Hermitian coupling neglected), see the module notes.
     name : str
         Body name (e.g. the SID ``new modal`` name).
+    stiffening : StiffeningTerms or None
+        Geometric stiffening, if the body carries it.
     """
 
     mass: float
@@ -147,6 +175,7 @@ class BodyInvariants:
     nodes: tuple[NodeFrame, ...]
     second_order_mass: str
     name: str = ""
+    stiffening: StiffeningTerms | None = None
 
     # ------------------------------------------------------------------ derived (SID_NOTES §4.3)
     @property
@@ -220,6 +249,7 @@ def compute_invariants(
     nodes: list[int] | tuple[int, ...] | np.ndarray,
     frequencies_hz: np.ndarray | None = None,
     name: str = "",
+    stiffening: StiffeningTerms | None = None,
 ) -> BodyInvariants:
     """Invariants of the reduced body ``u = Φ q`` (SID_NOTES §4).
 
@@ -240,6 +270,8 @@ def compute_invariants(
         Frequency of each coordinate; default ``sqrt(Ke_kk / Me_kk) / 2π``.
     name : str
         Body name.
+    stiffening : StiffeningTerms, optional
+        Projected geometric stiffness of the frame's load cases and the nodal loads.
 
     Returns
     -------
@@ -299,6 +331,7 @@ def compute_invariants(
         nodes=frames,
         second_order_mass="exact" if exact else "translational",
         name=str(name),
+        stiffening=stiffening,
     )
 
 

@@ -24,7 +24,7 @@ import numpy as np
 import scipy.io
 
 from pymorembs.errors import NumericalError, UserError
-from pymorembs.export.invariants import BodyInvariants, compute_invariants
+from pymorembs.export.invariants import BodyInvariants, StiffeningTerms, compute_invariants
 from pymorembs.io.atomic import atomic_path
 from pymorembs.prepare import PreparedModel
 from pymorembs.reduce.projection import ReducedModel
@@ -46,6 +46,10 @@ def body_invariants(
             "projection; drop two_sided or write only matrices"
         )
     basis = prepared.expand(model.projection.V)  # eq. 18: all dofs
+    stiffening = None
+    if prepared.stiffening is not None:
+        cases, loads = prepared.stiffening.projected(model.projection.V)
+        stiffening = StiffeningTerms(cases, loads, prepared.stiffening.source)
     return compute_invariants(
         prepared.body,
         basis,
@@ -55,6 +59,7 @@ def body_invariants(
         nodes,
         frequencies_hz=model.eigenfrequencies_hz,
         name=name,
+        stiffening=stiffening,
     )
 
 

@@ -20,6 +20,9 @@ Layout (format version 2)::
     /ports/inputs          CSR group of B (n_dof, p), only if the model has its own ports;
                            attribute labels (list of str)
     /ports/outputs         CSR group of C (r, n_dof), optional; attribute labels
+    /mesh/connectivity     int64 (n_el, nodes per element) node ids, only if the body has its
+                           solid elements (built-in solid models); attributes element, young,
+                           poisson (what geometric stiffening needs)
 
 Version 1 files (no coordinates flag, notes or ports) are read as well.
 
@@ -37,7 +40,14 @@ import h5py
 import numpy as np
 import scipy.sparse as sp
 
-from pymorembs.body import ConstraintEquations, Damping, DofTable, ElasticBody, ModelPorts
+from pymorembs.body import (
+    ConstraintEquations,
+    Damping,
+    DofTable,
+    ElasticBody,
+    ElementMesh,
+    ModelPorts,
+)
 from pymorembs.errors import UserError
 from pymorembs.io.atomic import atomic_path
 
@@ -93,6 +103,10 @@ def write_body_h5(body: ElasticBody, path: str | os.PathLike[str]) -> Path:
         damping.attrs["kind"] = body.damping.kind
         for key in ("alpha", "beta", "ratio"):
             damping.attrs[key] = np.float64(getattr(body.damping, key))
+        if body.mesh is not None:
+            _put(f, "mesh/connectivity", body.mesh.connectivity, np.int64)
+            for key in ("element", "young", "poisson"):
+                f["mesh"].attrs[key] = getattr(body.mesh, key)
         if body.ports is not None:
             for key, labels in (
                 ("inputs", body.ports.input_labels),
@@ -170,6 +184,15 @@ def _read_body(f: h5py.File) -> ElasticBody:
         ports = ModelPorts(**parts)
     notes = f.attrs.get("notes", [])
     precision = float(f.attrs.get("precision", np.nan))
+    mesh = None
+    if "mesh" in f:
+        attrs = f["mesh"].attrs
+        mesh = ElementMesh(
+            _text(attrs.get("element", "")),
+            _get(f, "mesh/connectivity", _INT, ndim=2),
+            float(attrs.get("young", np.nan)),
+            float(attrs.get("poisson", np.nan)),
+        )
     return ElasticBody(
         node_ids=_get(f, "nodes/ids", _INT),
         coordinates=_get(f, "nodes/coordinates", _FLOAT, ndim=2),
@@ -194,6 +217,7 @@ def _read_body(f: h5py.File) -> ElasticBody:
         notes=tuple(_text(note) for note in np.atleast_1d(notes)),
         ports=ports,
         precision=None if np.isnan(precision) else precision,
+        mesh=mesh,
     )
 
 

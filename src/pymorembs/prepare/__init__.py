@@ -8,6 +8,8 @@ back to all dofs (eq. 18).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -16,13 +18,19 @@ from pymorembs.errors import NumericalError, UserError
 from pymorembs.linalg.mass_split import mass_split
 from pymorembs.prepare.buckens_frame import buckens_frame, centre_of_gravity
 from pymorembs.prepare.elimination import Elimination, eliminate
+from pymorembs.prepare.inertia_loads import INERTIA_LOAD_CASES, InertiaLoads, inertia_loads
 from pymorembs.prepare.ports import Port, selection_matrix
 from pymorembs.prepare.rigid_modes import free_rigid_body_modes
 from pymorembs.prepare.tangent_frame import tangent_frame
 from pymorembs.system import SecondOrderSystem
 
+if TYPE_CHECKING:
+    from pymorembs.prepare.stiffening import Stiffening
+
 __all__ = [
+    "INERTIA_LOAD_CASES",
     "Frame",
+    "InertiaLoads",
     "Port",
     "PreparedModel",
     "buckens_frame",
@@ -30,6 +38,7 @@ __all__ = [
     "eliminate",
     "prepare",
     "tangent_frame",
+    "with_inertia_loads",
     "with_rigid_modes",
 ]
 
@@ -70,15 +79,28 @@ class PreparedModel:
     elimination : Elimination
         ``q = T q_i + t``.
     system : SecondOrderSystem
-        The sparse system of the independent dofs.
+        The sparse system of the independent dofs with the ports.
     warnings : tuple of str
         Facts the user should know (e.g. a port on fixed dofs).
+    inertia : InertiaLoads or None
+        The inertia loads of the frame motion, when they are inputs too
+        (:func:`with_inertia_loads`).
+    stiffening : Stiffening or None
+        Geometric stiffness of the unit loads of the frame motion
+        (:mod:`pymorembs.prepare.stiffening`), when the exported bodies carry it.
     """
 
     body: ElasticBody
     elimination: Elimination
     system: SecondOrderSystem
     warnings: tuple[str, ...] = ()
+    inertia: InertiaLoads | None = None
+    stiffening: Stiffening | None = None
+
+    @cached_property
+    def reduction_system(self) -> SecondOrderSystem:
+        """The system the reduction methods see: the ports, then the inertia loads (if any)."""
+        return self.system if self.inertia is None else self.inertia.augment(self.system)
 
     def expand(self, basis: np.ndarray) -> np.ndarray:
         """A basis of the independent dofs expanded to all dofs (eq. 18), shape (n_dof, n)."""
@@ -175,6 +197,22 @@ def prepare(
                 "dofs or more nodes"
             )
     return PreparedModel(framed, elimination, system, tuple(warnings))
+
+
+def with_inertia_loads(
+    prepared: PreparedModel, cases: tuple[str, ...] = INERTIA_LOAD_CASES
+) -> PreparedModel:
+    """The prepared model with the inertia loads of the frame motion as further inputs.
+
+    See :mod:`pymorembs.prepare.inertia_loads` (load cases, scaling). Costs one factorization of
+    the stiffness (the compliances that scale the loads). Load cases without elastic effect are
+    dropped and named in the warnings.
+    """
+    loads = inertia_loads(prepared.body, prepared.system, prepared.elimination.inputs, cases)
+    warnings = list(prepared.warnings)
+    if not loads.cases:
+        warnings.append("inertia loads: none of the load cases deforms the body in this frame")
+    return replace(prepared, inertia=loads if loads.cases else None, warnings=tuple(warnings))
 
 
 def _elastic_system(

@@ -445,6 +445,7 @@ def craig_bampton(
     n_fixed_modes: int,
     shift_hz: float = DEFAULT_SHIFT_HZ,
     tol: float = 1e-10,
+    static_loads: np.ndarray | None = None,
 ) -> Projection:
     """Craig-Bampton reduction: constraint modes plus fixed-interface normal modes.
 
@@ -481,18 +482,25 @@ def craig_bampton(
     shift_hz : float
         Shift of the interior eigensolver.
     tol : float
-        Deflation tolerance for free bodies (below).
+        Deflation tolerance for free bodies and of the static load modes (below).
+    static_loads : ndarray, shape (n, k), optional
+        Loads on the interior (e.g. the inertia loads of the frame motion) whose static
+        responses with the boundary held, ``K_ii^{-1} f_i``, are added after the interior modes,
+        made mass-orthogonal to them and normalised; a response already spanned (below ``tol``
+        relative) is left out. The static response to such a load is then reproduced exactly.
 
     Returns
     -------
     Projection
-        ``V = [Psi, Phi_i]`` (columns in the order of ``boundary_dofs``, then the interior modes
-        ascending), unnormalised: the first ``len(boundary_dofs)`` reduced coordinates are the
-        boundary displacements. For a free body (``system.rigid_modes`` set) the rigid-body
-        part is removed (``V - R R^T M V``) and the ``r`` directions that were rigid motions
-        are deflated: ``V`` is then an orthonormal basis of the elastic part, of size
-        ``n_b + n_fixed_modes - r``. ``parameters``: ``boundary_dofs``,
-        ``constraint_modes``, ``fixed_modes``, ``fixed_interface_frequencies_hz``.
+        ``V = [Psi, Phi_i, X]`` (columns in the order of ``boundary_dofs``, then the interior
+        modes ascending, then the static load modes), unnormalised: the first
+        ``len(boundary_dofs)`` reduced coordinates are the boundary displacements. For a free
+        body (``system.rigid_modes`` set) the rigid-body part is removed (``V - R R^T M V``)
+        and the ``r`` directions that were rigid motions are deflated: ``V`` is then an
+        orthonormal basis of the elastic part, of size ``n_b + n_fixed_modes + n_load - r``.
+        ``parameters``: ``boundary_dofs``,
+        ``constraint_modes``, ``fixed_modes``, ``static_load_modes``,
+        ``fixed_interface_frequencies_hz``.
     """
     n = system.order
     boundary = np.asarray(boundary_dofs).ravel()
@@ -540,6 +548,11 @@ def craig_bampton(
             values, phi = _interior_modes(k_ii, m_ii, k, shift_hz)
             v[interior, boundary.size :] = phi
             frequencies = np.sqrt(np.clip(values, 0.0, None)) / (2.0 * np.pi)
+        if static_loads is not None and static_loads.shape[1]:
+            phi = v[interior, boundary.size :]
+            extra = _static_load_modes(factorization, m_ii, phi, interior, n, static_loads, tol)
+            v = np.hstack([v, extra])
+    load_modes = v.shape[1] - boundary.size - k
 
     removed = 0
     if rigid is not None:
@@ -558,11 +571,37 @@ def craig_bampton(
             "boundary_dofs": boundary.tolist(),
             "constraint_modes": int(boundary.size),
             "fixed_modes": k,
+            "static_load_modes": int(load_modes),
             "fixed_interface_frequencies_hz": frequencies.tolist(),
             "shift_hz": float(shift_hz),
             "rigid_directions_removed": int(removed),
         },
     )
+
+
+def _static_load_modes(
+    factorization: Factorization,
+    m_ii: sp.spmatrix,
+    phi: np.ndarray,
+    interior: np.ndarray,
+    n: int,
+    loads: np.ndarray,
+    tol: float,
+) -> np.ndarray:
+    """Static responses ``K_ii^{-1} f_i`` (boundary held) as columns of all ``n`` dofs.
+
+    Made mass-orthogonal to the mass-normalised interior modes ``phi`` (n_i, k) and orthonormal
+    to each other; the ones already spanned (below ``tol`` relative) are left out. Their boundary
+    rows are zero, so the boundary coordinates of the Craig-Bampton basis keep their meaning.
+    """
+    x = factorization.solve(np.asarray(loads, dtype=float)[interior])
+    for _ in range(2):
+        x = x - phi @ (phi.T @ (m_ii @ x))
+    basis = OrthonormalBasis(interior.size, tol)
+    basis.add(x)
+    modes = np.zeros((n, basis.size))
+    modes[interior] = basis.matrix
+    return modes
 
 
 def _interior_modes(

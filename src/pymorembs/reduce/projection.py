@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 import scipy.linalg as sla
 
-from pymorembs.errors import NumericalError
+from pymorembs.errors import NumericalError, UserError
 from pymorembs.linalg.products import extended_product
 from pymorembs.system import SecondOrderSystem
 
@@ -90,6 +90,50 @@ class ReducedModel:
         damping = np.zeros_like(system.mass) if system.damping is None else system.damping
         omega = 2.0 * np.pi * self.eigenfrequencies_hz
         return damping + np.diag(2.0 * system.modal_damping_ratio * omega)
+
+
+def explicit_step_s(eigenfrequencies_hz: np.ndarray) -> float | None:
+    """Largest stable step of an explicit integrator for a reduced model, in s.
+
+    The central-difference limit ``2 / omega_max`` (``omega_max = 2 pi f_max``, rad/s) of the
+    undamped model; damping lowers it slightly (by the factor ``sqrt(1 + xi^2) - xi``). None for
+    a model without a positive eigenfrequency.
+    """
+    top = float(np.max(eigenfrequencies_hz, initial=0.0))
+    return 2.0 / (2.0 * np.pi * top) if top > 0 else None
+
+
+def without_stiff_directions(
+    system: SecondOrderSystem, model: ReducedModel, max_frequency_hz: float
+) -> ReducedModel:
+    """The reduced model without its eigen-directions above ``max_frequency_hz`` (Hz).
+
+    The reduced model is in its eigenbasis (:func:`reduced_model`), so the directions are its
+    columns: those with an undamped eigenfrequency above the limit are removed from ``V`` (and
+    ``W``) and the model is formed again from the system (a Galerkin projection on the kept
+    directions; for an oblique model a complex pair is kept or removed as a whole). The
+    projection's ``parameters`` record ``max_frequency_hz``, ``removed_directions`` and
+    ``removed_frequencies_hz``. A limit that removes every direction is a :class:`UserError`.
+    """
+    frequencies = model.eigenfrequencies_hz
+    keep = frequencies <= max_frequency_hz
+    if keep.all():
+        return model
+    if not keep.any():
+        raise UserError(
+            f"{model.projection.method}: max_frequency_hz = {max_frequency_hz:g} removes every "
+            f"direction (lowest eigenfrequency {frequencies.min():.4g} Hz)"
+        )
+    projection = model.projection
+    v = projection.V[:, keep]
+    w = v if projection.one_sided else projection.W[:, keep]
+    parameters = {
+        **projection.parameters,
+        "max_frequency_hz": float(max_frequency_hz),
+        "removed_directions": int(np.count_nonzero(~keep)),
+        "removed_frequencies_hz": frequencies[~keep].tolist(),
+    }
+    return reduced_model(system, replace(projection, V=v, W=w, parameters=parameters))
 
 
 def reduced_model(system: SecondOrderSystem, projection: Projection) -> ReducedModel:

@@ -103,3 +103,46 @@ def plot_time_responses(
 
 
 __all__ = ["plot_time_responses"]
+
+
+def plot_large_motion(runs: dict[str, tuple[dict, dict[str, dict]]], node: int, path: Path) -> Path:
+    """The large-motion checks: one column per motion (``[large_motion]`` of a job).
+
+    Top: the magnitude of the frame's angular velocity (rad/s) of the reference body (solid
+    black) and of every reduced body (dashed). Bottom: the magnitude of the elastic deflection
+    (mm, body frame) of ``node`` (the node off every symmetry axis).
+
+    Parameters
+    ----------
+    runs : dict of motion name -> (reference run, {body name: run})
+        Runs with ``times`` (s), ``angular_velocity`` (n_t, 3) and ``deflections`` (node ->
+        (n_t, 3) in m).
+    node : int
+    path : Path
+        PNG file to write (atomically).
+    """
+    if not runs:
+        raise UserError("large-motion plot: no runs")
+    fig, axes = plt.subplots(2, len(runs), figsize=(5.5 * len(runs), 6.0), squeeze=False)
+    for column, (motion, (reference, others)) in enumerate(runs.items()):
+        top, bottom = axes[0, column], axes[1, column]
+        for label, run, style in [
+            ("reference", reference, {"color": "black", "linewidth": 1.6}),
+            *((name, r, {"linestyle": "--", "linewidth": 1.1}) for name, r in others.items()),
+        ]:
+            t = run["times"]
+            top.plot(t, np.linalg.norm(run["angular_velocity"], axis=1), label=label, **style)
+            bottom.plot(t, 1e3 * np.linalg.norm(run["deflections"][node], axis=1), **style)
+        top.set_title(f"{motion}: frame angular velocity")
+        top.set_ylabel("|ω| [rad/s]")
+        bottom.set_title(f"elastic deflection of node {node}")
+        bottom.set_ylabel("|u| [mm]")
+        bottom.set_xlabel("time [s]")
+        for ax in (top, bottom):
+            ax.grid(True, alpha=0.3)
+        top.legend(fontsize=8)
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=110)
+    plt.close(fig)
+    return path

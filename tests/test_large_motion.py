@@ -1,0 +1,150 @@
+"""The large-motion check (issue #15 item 5): exported bodies in Exudyn against a reference."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from pymorembs.analysis.large_motion import off_axis_node
+from pymorembs.cli import main
+from pymorembs.config import parse_job
+from pymorembs.errors import UserError
+from pymorembs.examples.blade import blade
+
+pytest.importorskip("exudyn")
+
+JOB = """
+[model]
+example = "blade"
+elements = 8
+
+[damping]
+kind = "rayleigh"
+beta = 1e-5
+
+[frame]
+type = "none"
+
+[[inputs]]
+node = 1
+directions = "ux uy uz"
+
+[band]
+f_max_hz = 200
+points = 200
+reference = "surrogate"
+
+[[reduction]]
+name = "krylov"
+method = "krylov"
+expansion_points_hz = [0]
+order = 24
+
+[[reduction]]
+name = "modal-6"
+method = "modal"
+order = 6
+
+[export]
+outputs = ["exudyn", "report"]
+
+[large_motion]
+joint_node = 2
+duration_s = 0.6
+spin_rad_s = 12.0
+reference_order = 24
+"""
+
+
+@pytest.fixture(scope="module")
+def summary(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("large")
+    (folder / "job.toml").write_text(JOB)
+    assert main(["reduce", str(folder / "job.toml"), "--out", str(folder / "out"), "--quiet"]) == 0
+    return json.loads((folder / "out" / "summary.json").read_text()), folder / "out"
+
+
+def test_the_motions_are_the_ones_asked_for(summary):
+    data, _ = summary
+    motion = data["large_motion"]
+    assert motion["clamp"] == "frame" and motion["joint_node"] == 2
+    cases = {c["name"]: c for c in motion["cases"]}
+    body = blade(elements=8)
+    # pendulum from level: through 90 degrees and beyond; at the bottom the rigid pendulum's
+    # energy balance, omega² = 2 m g d / J_hinge (the blade: d = L/2, J = m L²/3 about the root)
+    pendulum = cases["pendulum"]
+    assert pendulum["swing_deg"] > 90.0
+    length, g = 1.0, 9.81
+    rigid = np.sqrt(2 * g * (length / 2) / (length**2 / 3))  # about 5.42 rad/s
+    assert pendulum["reference_peak_angular_velocity_rad_s"] == pytest.approx(rigid, rel=1e-2)
+    np.testing.assert_allclose(np.linalg.norm(pendulum["gravity_m_s2"]), g)
+    assert abs(np.dot(pendulum["gravity_m_s2"], pendulum["hinge_axis"])) < 1e-12
+    # spin-up: the torque integral over J reaches the asked spin (rigid body; elastic part small)
+    spin = cases["spin-up"]
+    assert spin["reference_peak_angular_velocity_rad_s"] == pytest.approx(12.0, rel=1e-2)
+    assert body.total_mass() > 0
+
+
+def test_bodies_and_reference_deviations(summary):
+    data, out = summary
+    motion = data["large_motion"]
+    node = motion["off_axis_node"]
+    assert node in motion["nodes"] and node not in (1, 2)
+    for case in motion["cases"]:
+        assert case["reference_convergence"]["frame_max_rel_deviation"] < 1e-3
+        rows = {r["name"]: r for r in case["reductions"]}
+        assert set(rows) == {"krylov", "modal-6"}
+        for row in rows.values():
+            assert 0 <= row["frame_max_rel_deviation"] < 0.05
+            assert 0 <= row["deflection_max_rel_deviation"] < 0.5
+            assert str(node) in row["nodes"]
+    assert data["reductions"][0]["large_motion"]["spin-up"]["frame_max_rel_deviation"] < 1e-3
+    assert (out / "large_motion.png").read_bytes()[:4] == b"\x89PNG"
+    assert "Large motions in Exudyn" in (out / "report.html").read_text()
+
+
+def test_off_axis_node_is_a_moving_corner():
+    body = blade(elements=4)
+    node = off_axis_node(body, np.zeros(3))
+    x, y, z = body.node_position(node)
+    assert (
+        x == pytest.approx(1.0) and abs(y) == pytest.approx(0.02) and abs(z) == pytest.approx(0.005)
+    )
+
+
+@pytest.mark.parametrize(
+    ("table", "message"),
+    [
+        (
+            {"joint_node": 2, "cases": ["swing"]},
+            r"\[large_motion\]\.cases: must be",
+        ),
+        ({"joint_node": 2, "spin_axis": [0, 0, 0]}, r"spin_axis: must not be the zero vector"),
+        ({"joint_node": 2, "step_s": -1.0}, r"step_s: must be > 0"),
+        ({"joint_node": 2, "duration_s": 0.5, "spin_up_s": 1.0}, r"spin_up_s: \(1.0\) is longer"),
+        ({"joint_node": 2, "rho_inf": 2.0}, r"rho_inf: must lie in \[0, 1\]"),
+    ],
+)
+def test_bad_settings(tmp_path, table, message):
+    base = {
+        "model": {"example": "blade"},
+        "frame": {"type": "none"},
+        "inputs": [{"node": 1, "directions": "ux"}],
+        "band": {"f_max_hz": 100.0},
+        "reduction": [{"name": "m", "method": "modal", "order": 4}],
+        "large_motion": table,
+    }
+    with pytest.raises(UserError, match=message):
+        parse_job(base, tmp_path / "job.toml")
+
+
+def test_joint_requests_checked_before_any_work(tmp_path, capsys):
+    job = JOB.replace('type = "none"', 'type = "tangent"\nnode = 1')
+    (tmp_path / "job.toml").write_text(job)
+    code = main(["reduce", str(tmp_path / "job.toml"), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "[large_motion] joint_node: node 2 needs all six dofs" in err
+    assert not (tmp_path / "out").exists()

@@ -1,0 +1,196 @@
+"""Geometric stiffening written into SID (issue #15 item 2): the rotating blade from the file.
+
+The reference is a direct eigen-solution of the full blade in its rotating frame,
+``(K + Omega² (K_G - M_xy)) u = omega² M u`` (K_G of the centrifugal prestress of a unit angular
+velocity about z, spin softening ``M_xy``, Coriolis left out on both sides), solved with scipy;
+the reduced body's frequencies come from the SID file as written and read back:
+``(Ke + Omega² Oe.M1[:, :, wzz]) q = omega² Me q``.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.linalg as sla
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from pymorembs.cli import main
+from pymorembs.config import parse_job
+from pymorembs.elements.hex20 import assemble_hex20_geometric
+from pymorembs.errors import UserError
+from pymorembs.examples.blade import blade, blade_mesh
+from pymorembs.export.sid import check_sid, read_sid
+from pymorembs.io.matrix_market import write_matrix_market
+
+ELEMENTS = 12
+JOB = f"""
+[model]
+example = "blade"
+elements = {ELEMENTS}
+
+[frame]
+type = "none"
+
+[[inputs]]
+node = 1
+directions = "ux uy uz"
+
+[band]
+f_max_hz = 100
+points = 200
+reference = "surrogate"
+
+[[reduction]]
+name = "krylov"
+method = "krylov"
+expansion_points_hz = [0, 50]
+order = 30
+
+[export]
+outputs = ["sid", "exudyn"]
+nodes = [1]
+"""
+
+
+def full_rotating_hz(omega: float, k_g: sp.spmatrix) -> np.ndarray:
+    body = blade(elements=ELEMENTS)
+    free = np.setdiff1d(np.arange(body.n_dof), body.fixed)
+    k, m = body.stiffness.tocsr(), body.mass.tocsr()
+    in_plane = sp.diags(np.tile([1.0, 1.0, 0.0], body.n_nodes))
+    a = (k + omega**2 * (k_g - in_plane @ m @ in_plane))[free][:, free]
+    values = spla.eigsh(a.tocsc(), k=3, M=m[free][:, free].tocsc(), sigma=0.0)[0]
+    return np.sqrt(np.sort(values)) / (2 * np.pi)
+
+
+def centrifugal_k_g() -> sp.csr_matrix:
+    """K_G of the d'Alembert load -M W_zz c of a unit angular velocity about z (scipy solve)."""
+    body, mesh = blade(elements=ELEMENTS), blade_mesh(elements=ELEMENTS)
+    free = np.setdiff1d(np.arange(body.n_dof), body.fixed)
+    k, m = body.stiffness.tocsr(), body.mass.tocsr()
+    x, y, _ = mesh.coordinates.T
+    load = m @ np.column_stack([x, y, 0 * x]).ravel()
+    u = np.zeros(body.n_dof)
+    u[free] = spla.spsolve(k[free][:, free].tocsc(), load[free])
+    return assemble_hex20_geometric(mesh.coordinates, mesh.elements, u, 2.1e11, 0.3).tocsr()
+
+
+def sid_rotating_hz(path: Path, omega: float) -> np.ndarray:
+    sid = read_sid(path)
+    me, ke, oe1 = sid.objects["Me"].m0, sid.objects["Ke"].m0, sid.objects["Oe"].first
+    values = sla.eigh(ke + omega**2 * oe1[:, :, 2], me, eigvals_only=True)
+    return np.sqrt(np.sort(values)[:3]) / (2 * np.pi)
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("stiff")
+    k_g = centrifugal_k_g()
+    write_matrix_market(folder / "KG_wzz.mtx", k_g)
+    out = {}
+    for name, table in (
+        ("mesh", '[stiffening]\nsource = "mesh"\n'),
+        ("matrices", '[stiffening]\nsource = "matrices"\nmatrices = { wzz = "KG_wzz.mtx" }\n'),
+        ("none", ""),
+    ):
+        (folder / f"{name}.toml").write_text(JOB + table)
+        assert main(["reduce", str(folder / f"{name}.toml"), "--out", str(folder / name),
+                     "--quiet"]) == 0  # fmt: skip
+        out[name] = folder / name
+    return out, k_g
+
+
+def test_stiffened_frequencies_from_the_sid_match_the_full_model(runs):
+    folders, k_g = runs
+    path = folders["mesh"] / "krylov" / "krylov.SID_FEM"
+    sid = read_sid(path)
+    assert sid.geometric_stiffening and check_sid(sid) == []
+    w1 = 2 * np.pi * full_rotating_hz(0.0, k_g)[0]
+    for ratio in (0.5, 1.0, 2.0):
+        full = full_rotating_hz(ratio * w1, k_g)
+        np.testing.assert_allclose(sid_rotating_hz(path, ratio * w1), full, rtol=1e-4)
+    # and the stiffening is real: +48 % flapwise at Omega = omega_1 (rotating beam: 1.4765)
+    assert full_rotating_hz(w1, k_g)[0] / full_rotating_hz(0.0, k_g)[0] == pytest.approx(
+        1.476, rel=5e-3
+    )
+
+
+def test_user_matrices_give_the_same_body(runs):
+    folders, k_g = runs
+    w1 = 2 * np.pi * full_rotating_hz(0.0, k_g)[0]
+    for ratio in (1.0, 2.0):
+        mesh = sid_rotating_hz(folders["mesh"] / "krylov" / "krylov.SID_FEM", ratio * w1)
+        given = sid_rotating_hz(folders["matrices"] / "krylov" / "krylov.SID_FEM", ratio * w1)
+        np.testing.assert_allclose(given, mesh, rtol=1e-6)
+
+
+def test_without_stiffening_the_blade_softens_and_the_summary_says_what_carries_it(runs):
+    folders, k_g = runs
+    plain = read_sid(folders["none"] / "krylov" / "krylov.SID_FEM")
+    assert not plain.geometric_stiffening
+    w1 = 2 * np.pi * full_rotating_hz(0.0, k_g)[0]
+    f = sid_rotating_hz(folders["none"] / "krylov" / "krylov.SID_FEM", w1)
+    assert f[0] == pytest.approx(w1 / (2 * np.pi), rel=1e-4)  # flapwise: no stiffening at all
+    summary = json.loads((folders["mesh"] / "summary.json").read_text())
+    assert summary["model"]["stiffening"]["source"] == "mesh"
+    assert summary["model"]["stiffening"]["node_loads"] == ["1:ux", "1:uy", "1:uz"]
+    assert any("SID body only" in w and "exudyn" in w for w in summary["warnings"])
+
+
+def test_a_tip_tension_stiffens_through_the_node_force_jacobian(runs):
+    """phi.M1 = -K0 of a unit tip force: the SID equation ``Ke q + ... = phi(q)^T F`` gives
+    ``(Ke - F phi.M1[x]) q`` under a tip tension F, checked against the full K + F K_G."""
+    folders, _ = runs
+    sid = read_sid(folders["mesh"] / "krylov" / "krylov.SID_FEM")
+    phi1 = sid.nodes[1]["phi"].first  # (3, nq, nq), [a, l, k]
+    me, ke = sid.objects["Me"].m0, sid.objects["Ke"].m0
+    force = 5000.0  # N along +x at the tip
+    reduced = np.sqrt(sla.eigh(ke - force * phi1[0].T, me, eigvals_only=True)[:2]) / (2 * np.pi)
+    body, mesh = blade(elements=ELEMENTS), blade_mesh(elements=ELEMENTS)
+    free = np.setdiff1d(np.arange(body.n_dof), body.fixed)
+    k, m = body.stiffness.tocsr(), body.mass.tocsr()
+    tip = np.zeros(body.n_dof)
+    tip[body.dofs.index(1, 0)] = 1.0
+    u = np.zeros(body.n_dof)
+    u[free] = spla.spsolve(k[free][:, free].tocsc(), tip[free])
+    k_g = assemble_hex20_geometric(mesh.coordinates, mesh.elements, u, 2.1e11, 0.3).tocsr()
+    a = (k + force * k_g)[free][:, free]
+    full = np.sqrt(np.sort(spla.eigsh(a.tocsc(), k=2, M=m[free][:, free].tocsc(), sigma=0)[0]))
+    np.testing.assert_allclose(reduced, full / (2 * np.pi), rtol=1e-5)
+    plain = np.sqrt(sla.eigh(ke, me, eigvals_only=True)[0]) / (2 * np.pi)
+    assert reduced[0] > 1.01 * plain  # the tension stiffens the first flapwise mode
+
+
+@pytest.mark.parametrize(
+    ("table", "message"),
+    [
+        ({"source": "grid"}, r"\[stiffening\]\.source: must be 'mesh', 'matrices' or 'none'"),
+        ({"source": "matrices"}, r"needs at least one load case file"),
+        ({"source": "matrices", "matrices": {"wz": "a.mtx"}}, r"unknown load case 'wz'"),
+        ({"source": "matrices", "matrices": {"wzz": "none.mtx"}}, r"wzz: file .* not found"),
+        ({"source": "mesh", "kind": "pre"}, r"kind: must be 'geometric' or 'prestressed'"),
+    ],
+)
+def test_bad_stiffening_tables(tmp_path, table, message):
+    base = {
+        "model": {"example": "blade"},
+        "frame": {"type": "none"},
+        "inputs": [{"node": 1, "directions": "ux"}],
+        "band": {"f_max_hz": 100.0},
+        "reduction": [{"name": "m", "method": "modal", "order": 4}],
+        "stiffening": table,
+    }
+    with pytest.raises(UserError, match=message):
+        parse_job(base, tmp_path / "job.toml")
+
+
+def test_mesh_source_needs_elements(tmp_path, capsys):
+    job = JOB.replace('example = "blade"\nelements = 12', 'example = "rack-beams"').replace(
+        'type = "none"', 'type = "tangent"\nnode = 2'
+    )
+    (tmp_path / "job.toml").write_text(job + '[stiffening]\nsource = "mesh"\n')
+    assert main(["reduce", str(tmp_path / "job.toml"), "--out", str(tmp_path / "out")]) == 2
+    assert 'source = "mesh" needs the solid elements' in capsys.readouterr().err
