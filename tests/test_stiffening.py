@@ -53,7 +53,7 @@ expansion_points_hz = [0, 50]
 order = 30
 
 [export]
-outputs = ["sid", "exudyn"]
+outputs = ["sid", "exudyn", "neweul"]
 nodes = [1]
 """
 
@@ -141,6 +141,7 @@ def test_without_stiffening_the_blade_softens_and_the_summary_says_what_carries_
     assert summary["model"]["stiffening"]["node_loads"] == ["1:ux", "1:uy", "1:uz"]
     assert any("Exudyn body carries the stiffening of the centrifugal" in w for w in
                summary["warnings"])  # fmt: skip
+    assert "neweul" in summary["model"]["stiffening"]["written_to"]
 
 
 def test_a_tip_tension_stiffens_through_the_node_force_jacobian(runs):
@@ -264,3 +265,23 @@ def test_exudyn_spin_up_above_the_edgewise_frequency_is_stable_only_when_stiffen
             assert np.linalg.norm(result.angular_velocity[-1]) == pytest.approx(target, rel=2e-2)
     assert tip["stiffened"] < 0.02  # m: bent by the angular acceleration only
     assert tip["plain"] > 10 * tip["stiffened"]  # the softened edgewise mode runs away
+
+
+def test_neweul_file_holds_the_same_stiffening_as_the_sid(runs):
+    import scipy.io
+
+    folders, _ = runs
+    sid = read_sid(folders["mesh"] / "krylov" / "krylov.SID_FEM")
+    mat = scipy.io.loadmat(folders["mesh"] / "krylov" / "krylov_neweul.mat", squeeze_me=False)
+    assert mat["geometric_stiffening"].item() == 1.0
+    scale = np.abs(sid.objects["Oe"].first).max()
+    np.testing.assert_allclose(
+        mat["Oe1"] + mat["K0w"], sid.objects["Oe"].first, rtol=0, atol=1e-10 * scale
+    )
+    node = mat["nodes"][0, 0]
+    phi1 = sid.nodes[1]["phi"].first  # [a, l, k] = -K0f[k, l, a]
+    np.testing.assert_allclose(
+        -node["K0f"].transpose(2, 1, 0), phi1, rtol=0, atol=1e-10 * np.abs(phi1).max()
+    )
+    plain = scipy.io.loadmat(folders["none"] / "krylov" / "krylov_neweul.mat")
+    assert plain["geometric_stiffening"].item() == 0.0 and not np.any(plain["K0w"])

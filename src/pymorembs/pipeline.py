@@ -475,8 +475,6 @@ def _run_job(
         prepared = _with_stiffening(prepared, job)
         timings["stiffening_s"] = time.perf_counter() - tick
         notes = []
-        if "neweul" in job.export.outputs:
-            notes.append("the Neweul-M² body does not carry the geometric stiffening yet")
         if "exudyn" in job.export.outputs:
             notes.append(
                 "the Exudyn body carries the stiffening of the centrifugal load cases only "
@@ -669,7 +667,7 @@ def _run_job(
                     "node_loads": [
                         f"{n}:{DIRECTIONS[d]}" for n, d in sorted(prepared.stiffening.nodes)
                     ],
-                    "written_to": ["sid", "exudyn (centrifugal cases)"],
+                    "written_to": ["sid", "neweul", "exudyn (centrifugal cases)"],
                 },
                 "total_mass": body.total_mass(),
                 "damping": {
