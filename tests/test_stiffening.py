@@ -23,10 +23,12 @@ from pymorembs.config import parse_job
 from pymorembs.elements.hex20 import assemble_hex20_geometric
 from pymorembs.errors import UserError
 from pymorembs.examples.blade import blade, blade_mesh
+from pymorembs.export.exudyn_body import build_exudyn_model, exudyn_arrays, simulate_exudyn
 from pymorembs.export.sid import check_sid, read_sid
 from pymorembs.io.matrix_market import write_matrix_market
 
 ELEMENTS = 12
+RHO_A = 7850.0 * 0.04 * 0.01  # kg/m
 JOB = f"""
 [model]
 example = "blade"
@@ -51,7 +53,7 @@ expansion_points_hz = [0, 50]
 order = 30
 
 [export]
-outputs = ["sid", "exudyn"]
+outputs = ["sid", "exudyn", "neweul"]
 nodes = [1]
 """
 
@@ -137,7 +139,9 @@ def test_without_stiffening_the_blade_softens_and_the_summary_says_what_carries_
     summary = json.loads((folders["mesh"] / "summary.json").read_text())
     assert summary["model"]["stiffening"]["source"] == "mesh"
     assert summary["model"]["stiffening"]["node_loads"] == ["1:ux", "1:uy", "1:uz"]
-    assert any("SID body only" in w and "exudyn" in w for w in summary["warnings"])
+    assert any("Exudyn body carries the stiffening of the centrifugal" in w for w in
+               summary["warnings"])  # fmt: skip
+    assert "neweul" in summary["model"]["stiffening"]["written_to"]
 
 
 def test_a_tip_tension_stiffens_through_the_node_force_jacobian(runs):
@@ -194,3 +198,90 @@ def test_mesh_source_needs_elements(tmp_path, capsys):
     (tmp_path / "job.toml").write_text(job + '[stiffening]\nsource = "mesh"\n')
     assert main(["reduce", str(tmp_path / "job.toml"), "--out", str(tmp_path / "out")]) == 2
     assert 'source = "mesh" needs the solid elements' in capsys.readouterr().err
+
+
+def exudyn_models(elements: int = 12, order: int = 8):
+    from pymorembs.export.outputs import body_invariants
+    from pymorembs.prepare import Frame, Port, prepare
+    from pymorembs.prepare.stiffening import stiffening_from_mesh, with_stiffening
+    from pymorembs.reduce.modal import modal_reduction
+    from pymorembs.reduce.projection import reduced_model
+
+    body = blade(elements=elements)
+    ports = [Port.parse(1, "ux uy uz")]
+    plain = prepare(body, Frame("none"), ports, ports)
+    stiffened = with_stiffening(plain, stiffening_from_mesh(plain))
+    model = reduced_model(plain.system, modal_reduction(plain.system, order))
+    return model, {
+        "plain": exudyn_arrays(body_invariants(model, plain, [1, 2], "plain")),
+        "stiffened": exudyn_arrays(body_invariants(model, stiffened, [1, 2], "stiffened")),
+    }
+
+
+def test_exudyn_body_spinning_at_its_flap_frequency_vibrates_stiffened():
+    """Steady spin about z at Omega = omega_1 with a small flap deflection: the flap vibration in
+    Exudyn at the reduced body's stiffened frequency (linear (Ke + Omega² Oe.M1) prediction)."""
+    pytest.importorskip("exudyn")
+    model, arrays = exudyn_models()
+    omega = 2 * np.pi * model.eigenfrequencies_hz[0]
+    start = np.zeros(model.projection.order)
+    start[0] = 1e-3
+    found = {}
+    for name, body in arrays.items():
+        exudyn = build_exudyn_model(body, clamp="frame", hinge_axis=[0, 0, 1],
+                                    initial_angular_velocity=[0, 0, omega],
+                                    initial_coordinates=start, damping="none")  # fmt: skip
+        result = simulate_exudyn(exudyn, 2.0, 5e-4, spectral_radius=0.95)
+        x = result.coordinates[:, 0] - result.coordinates[:, 0].mean()
+        spectrum = np.abs(np.fft.rfft(x * np.hanning(x.size), n=32 * x.size))
+        found[name] = np.fft.rfftfreq(32 * x.size, 5e-4)[np.argmax(spectrum)]
+        assert np.linalg.norm(result.angular_velocity[-1]) == pytest.approx(omega, rel=1e-6)
+    me, ke = np.eye(model.projection.order), np.diag(model.system.stiffness)
+    k0 = arrays["stiffened"]["stiffeningOmega"][2]  # wzz
+    # flapwise motion has no spin softening (omega x (omega x u) has no z part): K0 alone
+    linear = np.sqrt(sla.eigh(np.diag(ke) + omega**2 * k0, me, eigvals_only=True))
+    assert found["plain"] == pytest.approx(model.eigenfrequencies_hz[0], rel=5e-3)
+    assert found["stiffened"] == pytest.approx(linear[0] / (2 * np.pi), rel=5e-3)
+    assert found["stiffened"] > 1.45 * found["plain"]
+
+
+def test_exudyn_spin_up_above_the_edgewise_frequency_is_stable_only_when_stiffened():
+    pytest.importorskip("exudyn")
+    model, arrays = exudyn_models()
+    target = 1.2 * 2 * np.pi * model.eigenfrequencies_hz[1]  # above the in-plane frequency
+    inertia = RHO_A * 1.0**3 / 3  # rigid blade about its root, kg m²
+    peak = 2 * inertia * target / 1.0  # sin² torque over 1 s reaches the target
+
+    def torque(t):
+        return np.array([0.0, 0.0, peak * np.sin(np.pi * t) ** 2 if t <= 1.0 else 0.0])
+
+    tip = {}
+    for name, body in arrays.items():
+        exudyn = build_exudyn_model(body, clamp="frame", hinge_axis=[0, 0, 1], torques=[torque])
+        result = simulate_exudyn(exudyn, 1.5, 5e-4)
+        rows = body["modeBasis"][3 * int(body["nodeMeshIndices"][0]) :][:3]
+        tip[name] = float(np.abs(result.coordinates @ rows.T).max())
+        if name == "stiffened":
+            assert np.linalg.norm(result.angular_velocity[-1]) == pytest.approx(target, rel=2e-2)
+    assert tip["stiffened"] < 0.02  # m: bent by the angular acceleration only
+    assert tip["plain"] > 10 * tip["stiffened"]  # the softened edgewise mode runs away
+
+
+def test_neweul_file_holds_the_same_stiffening_as_the_sid(runs):
+    import scipy.io
+
+    folders, _ = runs
+    sid = read_sid(folders["mesh"] / "krylov" / "krylov.SID_FEM")
+    mat = scipy.io.loadmat(folders["mesh"] / "krylov" / "krylov_neweul.mat", squeeze_me=False)
+    assert mat["geometric_stiffening"].item() == 1.0
+    scale = np.abs(sid.objects["Oe"].first).max()
+    np.testing.assert_allclose(
+        mat["Oe1"] + mat["K0w"], sid.objects["Oe"].first, rtol=0, atol=1e-10 * scale
+    )
+    node = mat["nodes"][0, 0]
+    phi1 = sid.nodes[1]["phi"].first  # [a, l, k] = -K0f[k, l, a]
+    np.testing.assert_allclose(
+        -node["K0f"].transpose(2, 1, 0), phi1, rtol=0, atol=1e-10 * np.abs(phi1).max()
+    )
+    plain = scipy.io.loadmat(folders["none"] / "krylov" / "krylov_neweul.mat")
+    assert plain["geometric_stiffening"].item() == 0.0 and not np.any(plain["K0w"])

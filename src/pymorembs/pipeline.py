@@ -474,13 +474,14 @@ def _run_job(
         say(f"geometric stiffening from the {job.stiffening.source} (one static factorization)")
         prepared = _with_stiffening(prepared, job)
         timings["stiffening_s"] = time.perf_counter() - tick
-        missing = [k for k in ("neweul", "exudyn") if k in job.export.outputs]
-        if missing:
-            note = (
-                "geometric stiffening is written into the SID body only; the "
-                f"{' and '.join(missing)} bodies do not carry it yet"
+        notes = []
+        if "exudyn" in job.export.outputs:
+            notes.append(
+                "the Exudyn body carries the stiffening of the centrifugal load cases only "
+                "(through its force user function), not that of the frame's accelerations and "
+                "of nodal forces (in the SID body)"
             )
-            prepared = replace(prepared, warnings=(*prepared.warnings, note))
+        prepared = replace(prepared, warnings=(*prepared.warnings, *notes))
     system = prepared.reduction_system  # what every reduction and the reference see
     units = detect_units(body)
     warnings = [*prepared.warnings, *validation.warnings, *units.warnings]
@@ -666,7 +667,7 @@ def _run_job(
                     "node_loads": [
                         f"{n}:{DIRECTIONS[d]}" for n, d in sorted(prepared.stiffening.nodes)
                     ],
-                    "written_to": ["sid"],
+                    "written_to": ["sid", "neweul", "exudyn (centrifugal cases)"],
                 },
                 "total_mass": body.total_mass(),
                 "damping": {

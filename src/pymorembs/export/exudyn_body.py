@@ -146,6 +146,10 @@ _KEYS_NDIM: dict[str, int] = {
     "satelliteDirections": 2,
 }
 _TEXT_KEYS = ("format", "bodyName")
+#: Optional keys: the geometric stiffening of the centrifugal load cases, shape (6, nq, nq).
+_OPTIONAL_KEYS_NDIM: dict[str, int] = {"stiffeningOmega": 3}
+#: The centrifugal load cases of ``stiffeningOmega``, in the order of the six products of Ω.
+CENTRIFUGAL_CASES = ("wxx", "wyy", "wzz", "wxy", "wyz", "wxz")
 _INTEGER_KEYS = (
     "formatVersion",
     "nodeIds",
@@ -290,6 +294,11 @@ def exudyn_arrays(
         "satelliteLength": np.array(length),
         "satelliteDirections": SATELLITE_DIRECTIONS.copy(),
     }
+    if inv.stiffening is not None:  # K0 of the six centrifugal cases, Ω order of OMEGA_ORDER
+        zero = np.zeros((nq, nq))
+        arrays["stiffeningOmega"] = np.stack(
+            [inv.stiffening.cases.get(case, zero) for case in CENTRIFUGAL_CASES]
+        )
     _check_arrays(arrays, "exudyn export")
     return arrays
 
@@ -308,7 +317,9 @@ def _check_arrays(arrays: Mapping[str, np.ndarray], where: str) -> None:
     missing = [key for key in _KEYS_NDIM if key not in arrays]
     if missing:
         raise UserError(f"{where}: missing entr{'ies' if len(missing) > 1 else 'y'} {missing}")
-    for key, ndim in _KEYS_NDIM.items():
+    for key, ndim in {**_KEYS_NDIM, **_OPTIONAL_KEYS_NDIM}.items():
+        if key not in arrays:
+            continue
         value = np.asarray(arrays[key])
         if value.ndim != ndim:
             raise UserError(f"{where}: entry {key} has {value.ndim} dimensions, not {ndim}")
@@ -339,6 +350,8 @@ def _check_arrays(arrays: Mapping[str, np.ndarray], where: str) -> None:
         "satelliteMeshIndices": (p, 6),
         "satelliteDirections": (6, 3),
     }
+    if "stiffeningOmega" in arrays:
+        shapes["stiffeningOmega"] = (6, nq, nq)
     for key, shape in shapes.items():
         if arrays[key].shape != shape:
             raise UserError(f"{where}: entry {key} has shape {arrays[key].shape}, expected {shape}")
@@ -555,6 +568,8 @@ def build_exudyn_model(
     gravity: Sequence[float] | None = None,
     hinge_axis: Sequence[float] | None = None,
     torques: Sequence[Force] = (),
+    initial_angular_velocity: Sequence[float] | None = None,
+    initial_coordinates: Sequence[float] | None = None,
 ) -> ExudynModel:
     """Build a ready Exudyn system with the exported body.
 
@@ -587,6 +602,16 @@ def build_exudyn_model(
         coordinates, through the joint point) stays free.
     torques : sequence of torque
         Torques (N m, ground coordinates; constant or functions of time) on the reference frame.
+    initial_angular_velocity : (3,) float, optional
+        Angular velocity of the reference frame at t = 0 (rad/s; must agree with the joint).
+    initial_coordinates : (nq,) float, optional
+        Elastic coordinates at t = 0.
+
+    A body with ``stiffeningOmega`` (geometric stiffening of the centrifugal load cases) gets
+    the generalised force ``-sum_m Omega_m K0_m q`` on its elastic coordinates through the
+    object's ``forceUserFunction`` (``Omega_m`` the six products of the frame's angular velocity
+    in body coordinates, from its Euler parameters); the stiffening of the acceleration load
+    cases and of nodal forces is in the SID body only.
 
     Returns
     -------
@@ -626,20 +651,30 @@ def build_exudyn_model(
     with _quiet_exudyn():
         sc = exudyn.SystemContainer()
         mbs = sc.AddSystem()
+        spin = np.zeros(3) if initial_angular_velocity is None else initial_angular_velocity
+        spin = np.asarray(_checked_vector(spin, "initial angular velocity", "rad/s"))
+        start = np.zeros(nq) if initial_coordinates is None else initial_coordinates
+        start = np.asarray(start, dtype=float).ravel()
+        if start.shape != (nq,) or not np.all(np.isfinite(start)):
+            raise UserError(f"exudyn model: initial_coordinates must be {nq} finite numbers")
         rigid = mbs.AddNode(
             eii.NodeRigidBodyEP(
                 referenceCoordinates=[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0],
-                initialVelocities=[0.0] * 7,
+                # Euler parameters at p = (1, 0, 0, 0): dp/dt = (0, omega / 2)
+                initialVelocities=[0.0, 0.0, 0.0, 0.0, *(0.5 * spin).tolist()],
             )
         )
         modal = mbs.AddNode(
             eii.NodeGenericODE2(
                 numberOfODE2Coordinates=nq,
                 referenceCoordinates=[0.0] * nq,
-                initialCoordinates=[0.0] * nq,
+                initialCoordinates=start.tolist(),
                 initialCoordinates_t=[0.0] * nq,
             )
         )
+        extra = {}
+        if "stiffeningOmega" in arrays:
+            extra["forceUserFunction"] = _stiffening_force(arrays["stiffeningOmega"])
         obj = mbs.AddObject(
             eii.ObjectFFRFreducedOrder(
                 name=str(arrays["bodyName"]),
@@ -664,6 +699,7 @@ def build_exudyn_model(
                 mXRefTildePsiTilde=arrays["mXRefTildePsiTilde"],
                 computeFFRFterms=True,
                 visualization=eii.VObjectFFRFreducedOrder(show=False),
+                **extra,
             )
         )
         model = ExudynModel(sc, mbs, arrays, clamp, joint_node, obj, rigid, modal)
@@ -763,6 +799,30 @@ def _check_clamp(
             f"exudyn model: joint node {joint_node} has no rotational dofs, so a rigid joint "
             "cannot act on it; export a node with rotations (e.g. an RBE2 interface node)"
         )
+
+
+def _stiffening_force(k0: np.ndarray) -> Callable[..., list[float]]:
+    """``forceUserFunction`` of the centrifugal geometric stiffening, ``-sum_m Omega_m K0_m q``.
+
+    ``k0`` (6, nq, nq): ``K0`` of the load cases wxx, wyy, wzz, wxy, wyz, wxz. The object's
+    coordinates are the reference node's (3 positions, 4 Euler parameters as displacements from
+    (1, 0, 0, 0)) followed by the elastic coordinates; the angular velocity in body coordinates
+    is ``2 G(p) dp/dt``.
+    """
+    nq = k0.shape[1]
+    stacked = np.asarray(k0, dtype=float).reshape(6, nq * nq)
+
+    def force(mbs: Any, t: float, index: int, q: Any, q_t: Any) -> list[float]:
+        q, q_t = np.asarray(q), np.asarray(q_t)
+        p0, p1, p2, p3 = np.array([1.0, 0.0, 0.0, 0.0]) + q[3:7]
+        g = np.array([[-p1, p0, p3, -p2], [-p2, -p3, p0, p1], [-p3, p2, -p1, p0]])
+        wx, wy, wz = 2.0 * g @ q_t[3:7]
+        products = np.array([wx * wx, wy * wy, wz * wz, wx * wy, wy * wz, wx * wz])
+        out = np.zeros(q.size)
+        out[7:] = -((products @ stacked).reshape(nq, nq) @ q[7:])
+        return out.tolist()
+
+    return force
 
 
 def _frame_with_z(axis: np.ndarray) -> np.ndarray:

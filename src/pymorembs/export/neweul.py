@@ -36,6 +36,11 @@ Ke                nq × nq      reduced stiffness matrix
 De                nq × nq      reduced viscous damping matrix
 frequencies_hz    nq × 1       frequency of each coordinate (Hz)
 second_order_mass string       ``"exact"`` or ``"translational"`` (see :mod:`.invariants`)
+geometric_stiffening 1 × 1     1 if the body carries geometric stiffening (then the fields
+                               ``K0t``, ``K0r``, ``K0w`` and the nodes' ``K0f``, ``K0m``), else 0
+K0t               nq × nq × 3  ``Φᵀ K_G Φ`` of the unit translational accelerations ax ay az
+K0r               nq × nq × 3  ... of the unit angular accelerations alx aly alz
+K0w               nq × nq × 6  ... of the centrifugal cases (order of ``Omega_order``)
 nodes             1 × n struct node frames, fields below
 ================  ===========  ==================================================================
 
@@ -48,7 +53,15 @@ phi               3 × nq       translational mode rows ``φ_p`` (``origin`` M1 
 psi               3 × nq       rotational mode rows ``ψ_p`` (zero if the node has no rotations)
 has_rotations     1 × 1        1 if the node has rotational dofs, else 0
 AP1               3 × 3 × nq   ``AP1(:, :, k) = skew(ψ_p(:, k))``; orientation ``I + Σ_k AP1 q_k``
+K0f, K0m          nq × nq × 3  with geometric stiffening: ``Φᵀ K_G Φ`` of a unit force (moment)
+                               at the node along x, y, z (zero where not computed)
 ================  ===========  ==================================================================
+
+With geometric stiffening the elastic equations of SID_NOTES §3 gain, on the left-hand side,
+``(Σ_a a_a K0t(:,:,a) + Σ_a α_a K0r(:,:,a) + Σ_m Ω_m K0w(:,:,m)) q`` for the frame's
+translational acceleration ``a``, angular acceleration ``α`` (body frame) and ``Ω``, and
+``-Σ_a F_a K0f(:,:,a) q`` (``M_a``, ``K0m``) for the forces (moments) at a node: the same terms
+the SID body holds in ``Ct.M1``, ``Cr.M1``, ``Oe.M1`` and ``phi``/``psi.M1`` (SID_NOTES §4.6).
 """
 
 from __future__ import annotations
@@ -83,7 +96,20 @@ def neweul_fields(inv: BodyInvariants) -> dict[str, object]:
         ("psi", object),
         ("has_rotations", object),
         ("AP1", object),
+        ("K0f", object),
+        ("K0m", object),
     ]
+    stiff = inv.stiffening
+    zero = np.zeros((nq, nq))
+
+    def stacked(cases: tuple[str, ...]) -> np.ndarray:
+        found = {} if stiff is None else stiff.cases
+        return np.stack([found.get(case, zero) for case in cases], axis=-1)
+
+    def nodal(node: int, first: int) -> np.ndarray:
+        found = {} if stiff is None else stiff.nodes
+        return np.stack([found.get((node, first + a), zero) for a in range(3)], axis=-1)
+
     nodes = np.empty((1, len(inv.nodes)), dtype=node_type)
     for p, frame in enumerate(inv.nodes):
         psi = np.zeros((3, nq)) if frame.psi is None else np.asarray(frame.psi, dtype=float)
@@ -94,6 +120,8 @@ def neweul_fields(inv: BodyInvariants) -> dict[str, object]:
             psi,
             float(frame.psi is not None),
             skew(psi.T).transpose(1, 2, 0),  # (3, 3, nq)
+            nodal(int(frame.node_id), 0),
+            nodal(int(frame.node_id), 3),
         )
     return {
         "format": FORMAT,
@@ -121,6 +149,10 @@ def neweul_fields(inv: BodyInvariants) -> dict[str, object]:
         "De": inv.De,
         "frequencies_hz": inv.frequencies_hz.reshape(nq, 1),
         "second_order_mass": inv.second_order_mass,
+        "geometric_stiffening": float(stiff is not None),
+        "K0t": stacked(("ax", "ay", "az")),
+        "K0r": stacked(("alx", "aly", "alz")),
+        "K0w": stacked(("wxx", "wyy", "wzz", "wxy", "wyz", "wxz")),
         "nodes": nodes,
     }
 
