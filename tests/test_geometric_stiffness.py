@@ -81,3 +81,33 @@ def test_rotating_blade_stiffens_like_the_rotating_beam(hub):
     assert solid[1] > 1.4 * solid[0]  # about 1.476 at hub 0: Southwell's 1.193 gives 1.481
     if hub == 0.0:
         assert beam[1] / beam[0] == pytest.approx(np.sqrt(1 + 1.193), rel=5e-3)
+
+
+@pytest.mark.parametrize("hub", [0.0, 0.5])
+def test_rotating_beam_elements_stiffen_like_the_ritz_beam(hub):
+    """The mesh route on two-node beams: a body of 30 beams, K_G of the centrifugal load case."""
+    from pymorembs.body import DofTable, ElasticBody, ElementMesh
+    from pymorembs.elements.beam import BeamSection, assemble_beams
+    from pymorembs.prepare import Frame, prepare
+    from pymorembs.prepare.stiffening import stiffening_from_mesh
+
+    section = BeamSection.rectangular(B, H, E=E, nu=NU, rho=RHO)
+    ids = np.arange(1, 32)
+    xyz = np.column_stack([hub + np.linspace(0.0, L, ids.size), 0 * ids, 0 * ids])
+    elements = np.column_stack([ids[:-1], ids[1:]])
+    up = np.array([0.0, 0.0, 1.0])
+    k, m = assemble_beams(ids, xyz, elements, section, 6 * np.arange(ids.size)[:, None]
+                          + np.arange(6), up=up)  # fmt: skip
+    mesh = ElementMesh("beam2", elements, E, NU, section=section, up=(0.0, 0.0, 1.0))
+    dofs = DofTable(np.repeat(ids, 6), np.tile(np.arange(6), ids.size))
+    body = ElasticBody(ids, xyz, dofs, m, k, fixed=np.arange(6), mesh=mesh)
+    system = prepare(body, Frame("none")).system
+    k_g = stiffening_from_mesh(prepare(body, Frame("none")), cases=("wzz",)).cases["wzz"]
+    f0 = rotating_beam_hz(0.0, hub)
+    for ratio in (1.0, 2.0):
+        omega = ratio * 2 * np.pi * f0
+        a = (system.stiffness + omega**2 * k_g).tocsc()
+        values = spla.eigsh(a, k=1, M=system.mass.tocsc(), sigma=0.0)[0]
+        assert np.sqrt(values[0]) / (2 * np.pi) == pytest.approx(
+            rotating_beam_hz(omega, hub), rel=1e-3
+        )

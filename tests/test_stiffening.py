@@ -192,12 +192,17 @@ def test_bad_stiffening_tables(tmp_path, table, message):
 
 
 def test_mesh_source_needs_elements(tmp_path, capsys):
-    job = JOB.replace('example = "blade"\nelements = 12', 'example = "rack-beams"').replace(
-        'type = "none"', 'type = "tangent"\nnode = 2'
-    )
+    """Matrix files carry no elements: the mesh route says so (and what to do) before any work."""
+    from pymorembs.io.matrix_market import write_matrix_files
+
+    write_matrix_files(blade(elements=4), tmp_path / "model")
+    job = JOB.replace('example = "blade"\nelements = 12', 'stiffness = "model/K.mtx"\n'
+                      'mass = "model/M.mtx"\ndofs = "model/dofs.csv"\nnodes = "model/nodes.csv"\n'
+                      'fixed = "model/fixed.csv"')  # fmt: skip
     (tmp_path / "job.toml").write_text(job + '[stiffening]\nsource = "mesh"\n')
     assert main(["reduce", str(tmp_path / "job.toml"), "--out", str(tmp_path / "out")]) == 2
-    assert 'source = "mesh" needs the solid elements' in capsys.readouterr().err
+    assert 'source = "mesh" needs the elements' in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
 
 
 def exudyn_models(elements: int = 12, order: int = 8):
@@ -285,3 +290,16 @@ def test_neweul_file_holds_the_same_stiffening_as_the_sid(runs):
     )
     plain = scipy.io.loadmat(folders["none"] / "krylov" / "krylov_neweul.mat")
     assert plain["geometric_stiffening"].item() == 0.0 and not np.any(plain["K0w"])
+
+
+@pytest.mark.parametrize("name", ["blade", "rack-beams"])
+def test_the_elements_travel_in_the_native_file(tmp_path, name):
+    from pymorembs.examples import build_example
+    from pymorembs.io.native import read_body_h5, write_body_h5
+
+    body = build_example(name)
+    back = read_body_h5(write_body_h5(body, tmp_path / "model.h5"))
+    assert back.mesh.element == body.mesh.element
+    np.testing.assert_array_equal(back.mesh.connectivity, body.mesh.connectivity)
+    assert (back.mesh.young, back.mesh.poisson) == (body.mesh.young, body.mesh.poisson)
+    assert back.mesh.section == body.mesh.section and back.mesh.up == body.mesh.up

@@ -27,6 +27,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from pymorembs.arrays import first_duplicate, missing_from, sorted_unique
+from pymorembs.elements.beam import BeamSection
 from pymorembs.errors import UserError
 
 #: The six nodal directions and the scalar coordinate ``q``, in the order of the codes 0..6.
@@ -308,7 +309,7 @@ class ModelPorts:
 
 
 #: Element types an :class:`ElementMesh` can hold, with their number of nodes.
-ELEMENT_NODES = {"hex20": 20}
+ELEMENT_NODES = {"hex20": 20, "beam2": 2}
 
 
 @dataclass(frozen=True, eq=False)
@@ -322,17 +323,24 @@ class ElementMesh:
     ----------
     element : str
         Element type, a key of :data:`ELEMENT_NODES` (``"hex20"``: 20-node hexahedra in the node
-        order of :data:`pymorembs.elements.hex20.HEX20_NODES`).
+        order of :data:`pymorembs.elements.hex20.HEX20_NODES`; ``"beam2"``: the two-node beams of
+        :mod:`pymorembs.elements.beam`, nodes with all six dofs).
     connectivity : ndarray of int, shape (n_el, nodes per element)
         Node ids of each element.
     young, poisson : float
         Young's modulus (model stress unit, N/m² in SI) and Poisson's ratio.
+    section : BeamSection, optional
+        The cross-section of ``"beam2"`` elements (required for them).
+    up : (3,) float, optional
+        The beams' orientation vector (default that of :mod:`pymorembs.elements.beam`).
     """
 
     element: str
     connectivity: np.ndarray
     young: float
     poisson: float
+    section: BeamSection | None = None
+    up: tuple[float, float, float] | None = None
 
     def __post_init__(self) -> None:
         if self.element not in ELEMENT_NODES:
@@ -353,6 +361,8 @@ class ElementMesh:
                 f"element mesh: material E = {self.young!r}, nu = {self.poisson!r} is not an "
                 "isotropic elastic material (E > 0, -1 < nu < 0.5)"
             )
+        if self.element == "beam2" and self.section is None:
+            raise UserError("element mesh: beam2 elements need their cross-section")
         object.__setattr__(self, "connectivity", connectivity)
 
 

@@ -328,3 +328,62 @@ def assemble_beams(
     stiffness = sp.coo_matrix((k.ravel(), (i, j)), shape=(size, size)).tocsr()
     mass = sp.coo_matrix((m.ravel(), (i, j)), shape=(size, size)).tocsr()
     return stiffness, mass
+
+
+# Geometric stiffness of the cubic Hermite bending in the x-y plane, dofs (v1, rz1, v2, rz2),
+# lengths factored out like _K_HAT: K_G = N / (30 L) * D G_HAT D.
+_G_HAT = np.array(
+    [
+        [36.0, 3.0, -36.0, 3.0],
+        [3.0, 4.0, -3.0, -1.0],
+        [-36.0, -3.0, 36.0, -3.0],
+        [3.0, -1.0, -3.0, 4.0],
+    ]
+)
+
+
+def batch_geometric_matrices(
+    p1: np.ndarray,
+    p2: np.ndarray,
+    section: BeamSection,
+    displacements: np.ndarray,
+    up: np.ndarray | None = None,
+) -> np.ndarray:
+    """Geometric stiffness of beam elements under the axial force of a displacement field.
+
+    The axial force ``N = E A (u2 - u1) . e_x / L`` (tension positive) of each element's nodal
+    displacements gives the consistent initial-stress matrix of the element's shape functions:
+    ``N / L`` on the axial bar, ``N Ip / (A L)`` on the torsion (Wagner term, linear twist) and
+    ``N / (30 L) [36, 3L, -36, 3L; ...]`` on each bending plane. A tensile force stiffens.
+
+    Parameters
+    ----------
+    p1, p2 : ndarray, shape (n_el, 3)
+        Node positions (m).
+    section : BeamSection
+    displacements : ndarray, shape (n_el, 12)
+        Nodal displacements and rotations of each element in global directions (m, rad).
+    up : ndarray, shape (3,) or (n_el, 3), optional
+        Orientation vector(s), as for :func:`batch_element_matrices`.
+
+    Returns
+    -------
+    ndarray, shape (n_el, 12, 12)
+        ``K_G`` in global directions (N/m, N, N m).
+    """
+    length, rotation = element_frames(p1, p2, up)
+    n = length.size
+    local = np.einsum("nij,nbj->nbi", rotation, np.asarray(displacements).reshape(n, 4, 3))
+    force = section.E * section.area * (local[:, 2, 0] - local[:, 0, 0]) / length
+    scaled = (force / length)[:, None, None]
+    k_g = np.zeros((n, 12, 12))
+    for dofs, factor in (((0, 6), 1.0), ((3, 9), section.Ip / section.area)):
+        idx = np.array(dofs)
+        k_g[:, idx[:, None], idx] = factor * scaled * _BAR_K
+    scale = np.stack([np.ones(n), length, np.ones(n), length], axis=1)
+    scale = scale[:, :, None] * scale[:, None, :]
+    for dofs, sign in (((1, 5, 7, 11), np.ones(4)), ((2, 4, 8, 10), _PLANE_XZ_SIGN)):
+        idx = np.array(dofs)
+        signs = np.outer(sign, sign)
+        k_g[:, idx[:, None], idx] = scaled / 30.0 * scale * (signs * _G_HAT)
+    return _to_global(k_g, rotation)

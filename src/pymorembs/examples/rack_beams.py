@@ -65,7 +65,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from pymorembs.body import Damping, DofTable, ElasticBody
+from pymorembs.body import Damping, DofTable, ElasticBody, ElementMesh
 from pymorembs.elements.beam import BeamSection, assemble_beams
 from pymorembs.elements.rigid import rigid_body_mass_matrix
 from pymorembs.prepare.interface import rigid_links
@@ -245,6 +245,7 @@ def rack_beams(design: RackDesign | None = None) -> ElasticBody:
         stiffness=stiffness,
         damping=Damping(),
         name="rack-beams",
+        mesh=ElementMesh("beam2", elements, STEEL_E, STEEL_NU, section=d.rod_section),
     )
     # Rod end nodes (first and last node of each rod) follow the plates rigidly (eq. 9).
     body = rigid_links(body, 1, rod_ids[:, 0].tolist())

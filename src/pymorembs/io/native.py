@@ -33,6 +33,7 @@ arrays of more than :data:`COMPRESS_FROM` elements are gzip-compressed, which is
 from __future__ import annotations
 
 import os
+from dataclasses import asdict, fields
 from pathlib import Path
 from typing import Any
 
@@ -48,6 +49,7 @@ from pymorembs.body import (
     ElementMesh,
     ModelPorts,
 )
+from pymorembs.elements.beam import BeamSection
 from pymorembs.errors import UserError
 from pymorembs.io.atomic import atomic_path
 
@@ -107,6 +109,11 @@ def write_body_h5(body: ElasticBody, path: str | os.PathLike[str]) -> Path:
             _put(f, "mesh/connectivity", body.mesh.connectivity, np.int64)
             for key in ("element", "young", "poisson"):
                 f["mesh"].attrs[key] = getattr(body.mesh, key)
+            if body.mesh.section is not None:
+                for key, value in asdict(body.mesh.section).items():
+                    f["mesh"].attrs[f"section_{key}"] = float(value)
+            if body.mesh.up is not None:
+                f["mesh"].attrs["up"] = np.asarray(body.mesh.up, dtype=float)
         if body.ports is not None:
             for key, labels in (
                 ("inputs", body.ports.input_labels),
@@ -187,11 +194,18 @@ def _read_body(f: h5py.File) -> ElasticBody:
     mesh = None
     if "mesh" in f:
         attrs = f["mesh"].attrs
+        names = [field.name for field in fields(BeamSection)]
+        section = None
+        if all(f"section_{name}" in attrs for name in names):
+            section = BeamSection(**{name: float(attrs[f"section_{name}"]) for name in names})
+        up = attrs.get("up")
         mesh = ElementMesh(
             _text(attrs.get("element", "")),
             _get(f, "mesh/connectivity", _INT, ndim=2),
             float(attrs.get("young", np.nan)),
             float(attrs.get("poisson", np.nan)),
+            section,
+            None if up is None else tuple(float(x) for x in np.ravel(up)),
         )
     return ElasticBody(
         node_ids=_get(f, "nodes/ids", _INT),

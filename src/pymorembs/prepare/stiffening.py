@@ -33,6 +33,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from pymorembs.body import ElasticBody
+from pymorembs.elements.beam import batch_geometric_matrices
 from pymorembs.elements.hex20 import hex20_geometric_matrices, hex20_stresses
 from pymorembs.errors import UserError
 from pymorembs.io.matrix_market import read_matrix_market
@@ -88,31 +89,42 @@ class Stiffening:
 
 
 def geometric_stiffness(body: ElasticBody, displacement: np.ndarray) -> sp.csr_matrix:
-    """``K_G`` (n_dof, n_dof) of the body's solid elements prestressed by ``displacement``.
+    """``K_G`` (n_dof, n_dof) of the body's elements prestressed by ``displacement``.
 
     Parameters
     ----------
     body : ElasticBody
-        With ``mesh`` (its elements and material).
+        With ``mesh`` (its elements and material): 20-node hexahedra (the stresses at the Gauss
+        points, :mod:`pymorembs.elements.hex20`) or two-node beams (their axial forces,
+        :func:`pymorembs.elements.beam.batch_geometric_matrices`).
     displacement : ndarray, shape (n_dof,)
         A displacement field over all equations of the body (model length unit).
     """
     mesh = body.mesh
     if mesh is None:
-        raise UserError('stiffening: the model has no solid elements (source = "mesh")')
+        raise UserError('stiffening: the model has no elements (source = "mesh")')
     connectivity = mesh.connectivity
     n = body.n_dof
-    directions = np.arange(3)
-    # equation of (node, direction) for every element node, and its position
-    equations = np.stack([_equations(body, connectivity, d) for d in directions], axis=-1)
     order = np.argsort(body.node_ids)
     rows = order[np.searchsorted(body.node_ids, connectivity, sorter=order)]
-    nodes = body.coordinates[rows]  # (n_el, 20, 3)
-    u = np.asarray(displacement, dtype=float)[equations]  # (n_el, 20, 3)
-    g = hex20_geometric_matrices(nodes, hex20_stresses(nodes, u, mesh.young, mesh.poisson))
-    r = np.broadcast_to(equations[:, :, None, :], (*g.shape, 3))
-    c = np.broadcast_to(equations[:, None, :, :], (*g.shape, 3))
-    values = np.broadcast_to(g[..., None], (*g.shape, 3))
+    nodes = body.coordinates[rows]  # (n_el, nodes per element, 3)
+    u_all = np.asarray(displacement, dtype=float)
+    if mesh.element == "hex20":
+        equations = np.stack([_equations(body, connectivity, d) for d in range(3)], axis=-1)
+        g = hex20_geometric_matrices(
+            nodes, hex20_stresses(nodes, u_all[equations], mesh.young, mesh.poisson)
+        )
+        r = np.broadcast_to(equations[:, :, None, :], (*g.shape, 3))
+        c = np.broadcast_to(equations[:, None, :, :], (*g.shape, 3))
+        values = np.broadcast_to(g[..., None], (*g.shape, 3))
+    else:  # beam2: ux uy uz rx ry rz of node 1, then node 2
+        equations = np.stack([_equations(body, connectivity, d) for d in range(6)], axis=-1)
+        equations = equations.reshape(-1, 12)
+        up = None if mesh.up is None else np.asarray(mesh.up, dtype=float)
+        k_g = batch_geometric_matrices(nodes[:, 0], nodes[:, 1], mesh.section, u_all[equations], up)
+        r = np.broadcast_to(equations[:, :, None], k_g.shape)
+        c = np.broadcast_to(equations[:, None, :], k_g.shape)
+        values = k_g
     return sp.csr_matrix((values.ravel(), (r.ravel(), c.ravel())), shape=(n, n))
 
 
@@ -166,8 +178,8 @@ def stiffening_from_mesh(
     body, elimination, system = prepared.body, prepared.elimination, prepared.system
     if body.mesh is None:
         raise UserError(
-            '[stiffening]: source = "mesh" needs the solid elements of the model (the built-in '
-            'solid models have them); give matrices instead (source = "matrices")'
+            '[stiffening]: source = "mesh" needs the elements of the model (the built-in models '
+            'have them); give matrices instead (source = "matrices")'
         )
     loads = {**_load_cases(prepared, cases), **_node_loads(prepared, nodes)}
     keys = list(loads)
