@@ -47,6 +47,7 @@ __all__ = [
     "build_body",
     "choose_matrices",
     "describe_set",
+    "digits_histogram_note",
     "digits_note",
     "explain_file",
     "modal_block_notes",
@@ -249,12 +250,21 @@ def digits_note(counts: np.ndarray, names: str) -> str | None:
     """``"KAAX, MAAX: values with 10 significant digits"`` from per-value digit counts."""
     counts = np.asarray(counts)
     counts = counts[counts > 0]
-    if counts.size == 0:
+    return digits_histogram_note(np.bincount(counts) if counts.size else np.zeros(1), names)
+
+
+def digits_histogram_note(histogram: np.ndarray, names: str) -> str | None:
+    """The note of :func:`digits_note` from ``histogram[d]``, the number of values with ``d``
+    significant digits (``histogram[0]``, the zeros, is ignored)."""
+    histogram = np.asarray(histogram).copy()
+    histogram[:1] = 0
+    present = np.flatnonzero(histogram)
+    if present.size == 0:
         return None
-    low, high = int(counts.min()), int(counts.max())
+    low, high = int(present[0]), int(present[-1])
     if low == high:
         return f"{names}: values with {high} significant digit{'s' if high != 1 else ''}"
-    common = int(np.bincount(counts).argmax())
+    common = int(histogram.argmax())
     return f"{names}: values with {low} to {high} significant digits (most with {common})"
 
 
