@@ -39,6 +39,7 @@ from pymorembs.io.checks import make_body
 from pymorembs.io.formats import is_nodes_csv
 from pymorembs.io.matrix_market import _fail, _read_nodes, check_symmetric
 from pymorembs.io.nastran_bulk import AnalysisSet, BulkData, read_bulk
+from pymorembs.sparse_rows import abs_row_sums
 
 __all__ = [
     "Choice",
@@ -511,7 +512,7 @@ def _empty_rows(
     touched = np.zeros(len(table), dtype=bool)
     for role in ("stiffness", "mass"):
         a = matrices[role]
-        touched |= np.asarray(abs(a).sum(axis=1)).ravel() != 0
+        touched |= abs_row_sums(a) != 0
     empty = np.flatnonzero(~touched)
     if empty.size:
         shown = ", ".join(table.label(int(i)) for i in empty[:6])
