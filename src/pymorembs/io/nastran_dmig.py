@@ -67,6 +67,7 @@ from typing import Literal
 import numpy as np
 import scipy.sparse as sp
 
+from pymorembs.arrays import sorted_unique
 from pymorembs.body import SCALAR, DofTable, ElasticBody
 from pymorembs.errors import UserError
 from pymorembs.io.fast_text import csr_from_sorted_coo
@@ -687,13 +688,16 @@ def _read_streamed(
         if np.any(want[owner[owner >= 0]]):
             raise _SlowPath
     pieces, digit_counts = _scan_entries(path, card_line, want, mini.card_matrix, codes)
+    ifo = {matrix: mini.headers[matrix][0] for matrix in names}
+    has_grid = mini.has_grid
+    del mini, cards, card_line
     col_key_of_card = gj * 8 + _direction(cj)
     stored = []
     for piece in pieces:
         row_key, card, value = (_join(part, kind) for part, kind in zip(piece, _KINDS, strict=True))
         stored.append((row_key, col_key_of_card[card], value))
         del card
-    all_keys = np.unique(np.concatenate([np.unique(k) for entries in stored for k in entries[:2]]))
+    all_keys = _unique_keys([k for entries in stored for k in entries[:2]])
     if all_keys.size == 0:
         raise _SlowPath
     table = DofTable(all_keys // 8, all_keys % 8)
@@ -714,7 +718,7 @@ def _read_streamed(
         uses[names.index(matrix)] -= 1
         if uses[names.index(matrix)] == 0:
             del by_name[matrix]  # the only reference left is ``entries``
-        matrices[role] = _assemble_one_triangle(entries, n, mini.headers[matrix][0])
+        matrices[role] = _assemble_one_triangle(entries, n, ifo[matrix])
         if matrices[role] is None:
             matrices[role] = assemble_symmetric(
                 *entries,
@@ -722,7 +726,7 @@ def _read_streamed(
                 path=path,
                 line_of=_no_line,
                 label=table.label,
-                storage=_storage(mini.headers[matrix][0]),
+                storage=_storage(ifo[matrix]),
             )
     del by_name
     return _finish(
@@ -732,13 +736,27 @@ def _read_streamed(
         table,
         matrices,
         digit_counts,
-        nodes if nodes is not None or not mini.has_grid else path,
+        nodes if nodes is not None or not has_grid else path,
         name,
         _no_line,
     )
 
 
 _KINDS = (np.int64, np.int32, np.float64)
+
+
+def _unique_keys(keys: list[np.ndarray]) -> np.ndarray:
+    """The distinct values of non-negative integer arrays, ascending (marks in a boolean
+    array where the largest key is small enough, else by sorting)."""
+    top = max((int(k.max()) for k in keys if k.size), default=-1)
+    if top < 0:
+        return np.zeros(0, dtype=np.int64)
+    if top < 1 << 28:
+        seen = np.zeros(top + 1, dtype=bool)
+        for k in keys:
+            seen[k] = True
+        return np.flatnonzero(seen)
+    return sorted_unique(np.concatenate(keys))
 
 
 def _join(parts: list[np.ndarray], kind) -> np.ndarray:
