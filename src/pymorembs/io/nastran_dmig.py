@@ -72,6 +72,7 @@ from pymorembs.body import SCALAR, DofTable, ElasticBody
 from pymorembs.errors import UserError
 from pymorembs.io.fast_text import csr_from_sorted_coo
 from pymorembs.io.formats import assemble_symmetric
+from pymorembs.io.line_blocks import IrregularText, iter_line_blocks, line_starts
 from pymorembs.io.matrix_market import _fail
 from pymorembs.io.nastran_bulk import (
     MAX_ID,
@@ -639,8 +640,6 @@ class _SlowPath(Exception):
     """The streamed reader meets something only the strict pass reads (or rejects) exactly."""
 
 
-#: Bytes read at a time by the streamed reader (the punch is never held whole in memory).
-_BLOCK = 1 << 23
 #: Lines padded to 72 columns at a time where a block's lines differ in length.
 _PAD_LINES = 1 << 16
 #: Bytes that may occur only in comment lines for the streamed reader: NUL, tab, comma (free
@@ -773,51 +772,20 @@ def _no_line(_: int) -> int:
 
 
 def _blocks(path: Path):
-    """(lines as uint8 array ending in a line feed, index of its first line) of ``path``, in
-    blocks of about :data:`_BLOCK` bytes; the byte order mark is dropped, ``\\r\\n`` becomes
-    ``\\n`` (a lone ``\\r``, a line break for the strict pass too, raises :class:`_SlowPath`)."""
+    """:func:`~pymorembs.io.line_blocks.iter_line_blocks` of the punch; :class:`_SlowPath`
+    for an irregular file or special bytes (tab, comma, NUL, non-ASCII) outside comments."""
     try:
-        f = open(path, "rb")  # closed by the with block below
-    except OSError:
-        raise _SlowPath from None
-    with f:
-        carry, line0, first = b"", 0, True
-        while True:
-            try:
-                data = f.read(_BLOCK)
-            except OSError:
-                raise _SlowPath from None
-            if first and data.startswith(b"\xef\xbb\xbf"):
-                data = data[3:]
-            first = False
-            if not data:
-                if not carry:
-                    return
-                data, carry = carry + b"\n", b""
-            elif carry:
-                data = carry + data
-            cut = data.rfind(b"\n") + 1
-            if cut == 0:
-                carry = data
-                continue
-            block, carry = data[:cut], data[cut:]
-            del data
-            if b"\r" in block:
-                if block.count(b"\r") != block.count(b"\r\n"):
-                    raise _SlowPath
-                block = block.replace(b"\r\n", b"\n")
-            arr = np.frombuffer(block, dtype=np.uint8)
-            ends = np.flatnonzero(arr == 10)
-            if block.translate(None, _PLAIN):  # special bytes: only in comment lines
-                if b"\x00" in block:
-                    raise _SlowPath
+        for arr, ends, line0 in iter_line_blocks(path):
+            if arr.tobytes().translate(None, _PLAIN):  # special bytes: only in comment lines
                 special = np.flatnonzero(np.isin(arr, np.frombuffer(_SPECIAL, np.uint8)))
+                if np.any(arr[special] == 0):
+                    raise _SlowPath
                 line = np.searchsorted(ends, special)
-                starts = np.concatenate([[0], ends[:-1] + 1])
-                if np.any(arr[starts[line]] != _DOLLAR):
+                if np.any(arr[line_starts(ends)[line]] != _DOLLAR):
                     raise _SlowPath
             yield arr, ends, line0
-            line0 += ends.size
+    except IrregularText:
+        raise _SlowPath from None
 
 
 def _line_matrix(arr: np.ndarray, ends: np.ndarray) -> np.ndarray:
@@ -825,9 +793,7 @@ def _line_matrix(arr: np.ndarray, ends: np.ndarray) -> np.ndarray:
     when every line has the same length of 56 or more, else a copy of 72 columns (runs of lines
     of the common length copied as blocks, the other lines padded one by one)."""
     m = ends.size
-    starts = np.empty(m, dtype=np.int64)
-    starts[:1] = 0
-    starts[1:] = ends[:-1] + 1
+    starts = line_starts(ends)
     lengths = ends - starts
     common = int(np.median(lengths)) if m else 0
     odd = np.flatnonzero(lengths != common)
