@@ -68,6 +68,7 @@ from pymorembs.io.nastran_matrices import (
     node_source,
     symmetric_matrix,
 )
+from pymorembs.io.op4_ascii import read_ascii_op4
 
 __all__ = ["read_op4"]
 
@@ -255,6 +256,35 @@ class _Op4Matrix:
 def _read_op4_file(path: Path) -> dict[str, _Op4Matrix]:
     """All matrices of an OP4 file, keyed by upper-case name."""
     require_file(path, "a Nastran OP4 file")
+    raw = _read_ascii(path)
+    if raw is None:
+        raw = _read_with_pynastran(path)
+    matrices: dict[str, _Op4Matrix] = {}
+    for key, entry in raw.items():
+        upper = str(key).strip().upper()
+        if upper in matrices:
+            raise _fail(
+                path, None, f"matrix names {matrices[upper].name} and {key} differ only in case"
+            )
+        tin = int(getattr(entry, "tin", 0) or 0)
+        matrices[upper] = _Op4Matrix(str(key), entry.form, entry.data, int(tin))
+    return matrices
+
+
+def _read_ascii(path: Path) -> dict | None:
+    """The matrices of an ASCII OP4 file by the vectorised reader, or None (a binary file, or
+    one that reader leaves to pyNastran)."""
+    try:
+        with open(path, "rb") as f:
+            if b"\x00" in f.read(4096):
+                return None
+    except OSError:
+        return None
+    return read_ascii_op4(path)
+
+
+def _read_with_pynastran(path: Path) -> dict:
+    """pyNastran's matrices of an OP4 file; its errors become one line."""
     _check_dense_sizes(path)
     try:
         from pyNastran.op4.op4 import OP4
@@ -268,16 +298,7 @@ def _read_op4_file(path: Path) -> dict[str, _Op4Matrix]:
     except Exception as err:  # pyNastran's own errors (and MemoryError) become one line
         problem = "cannot read the OP4 file (truncated, damaged or not an OP4 file)"
         raise _fail(path, None, f"{problem}: {reason(err)}") from None
-    matrices: dict[str, _Op4Matrix] = {}
-    for key, entry in raw.items():
-        upper = str(key).strip().upper()
-        if upper in matrices:
-            raise _fail(
-                path, None, f"matrix names {matrices[upper].name} and {key} differ only in case"
-            )
-        tin = int(getattr(entry, "tin", 0) or 0)
-        matrices[upper] = _Op4Matrix(str(key), entry.form, entry.data, int(tin))
-    return matrices
+    return raw
 
 
 def _check_dense_sizes(path: Path) -> None:
