@@ -208,13 +208,28 @@ def symmetric_matrix(data: object, form: object, where: str) -> sp.csr_matrix:
     if not np.all(np.isfinite(a.data)):
         raise UserError(f"{where} has NaN or infinite entries")
     a.eliminate_zeros()
-    below, above = sp.tril(a, -1), sp.triu(a, 1)
-    if form == 6 and (below.nnz == 0) != (above.nnz == 0):  # symmetric, one triangle stored
-        strict = below if below.nnz else above
+    below, above = _triangle_counts(a)
+    if form == 6 and (below == 0) != (above == 0):  # symmetric, one triangle stored
+        strict = sp.tril(a, -1) if below else sp.triu(a, 1)
         a = sp.csr_matrix(sp.diags(a.diagonal()) + strict + strict.T)
     check_symmetric(a, where)
     a.sort_indices()
     return a
+
+
+def _triangle_counts(a: sp.csr_matrix) -> tuple[int, int]:
+    """Stored entries strictly below and strictly above the diagonal of a CSR matrix (by blocks
+    of rows, without copies of the matrix)."""
+    below = above = 0
+    step = max(1, (1 << 20) * a.shape[0] // max(a.nnz, 1))
+    for first in range(0, a.shape[0], step):
+        last = min(first + step, a.shape[0])
+        lo, hi = a.indptr[first], a.indptr[last]
+        rows = np.repeat(np.arange(first, last), np.diff(a.indptr[first : last + 1]))
+        columns = a.indices[lo:hi]
+        below += int(np.count_nonzero(columns < rows))
+        above += int(np.count_nonzero(columns > rows))
+    return below, above
 
 
 # ============================================================================ other files

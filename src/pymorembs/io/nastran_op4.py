@@ -401,12 +401,36 @@ def _record_at(data: bytes | mmap.mmap, at: int, endian: str) -> tuple[int, int]
 
 
 def _pick(matrices: dict[str, _Op4Matrix], wanted: str, path: Path) -> sp.csr_matrix:
-    """The named matrix as a finite, square, symmetric sparse matrix."""
-    entry = matrices.get(str(wanted).strip().upper())
+    """The named matrix as a finite, square, symmetric sparse matrix.
+
+    The file's copy of a sparse matrix is dropped from ``matrices`` once converted (the result
+    is kept there instead), so that a large matrix is not held twice.
+    """
+    key = str(wanted).strip().upper()
+    entry = matrices.get(key)
     if entry is None:
         held = ", ".join(sorted(m.name for m in matrices.values())) or "no matrices"
         raise _fail(path, None, f"no matrix named {wanted!r}; the file holds {held}")
     where = f"{path}: matrix {entry.name}"
     if isinstance(entry.form, list):
         raise UserError(f"{where} appears {len(entry.form)} times")
-    return symmetric_matrix(entry.data, entry.form, where)
+    if isinstance(entry.data, _Picked):
+        return entry.data.matrix
+    data, form = entry.data, entry.form
+    if sp.issparse(data) and not np.iscomplexobj(data.data):  # type: ignore[union-attr]
+        matrices[key] = replace(entry, data=None)
+        del entry
+        data = data.tocsr()  # the file's copy is freed here
+        data = sp.csr_matrix(  # float64 values, the index arrays shared
+            (data.data.astype(np.float64), data.indices, data.indptr), shape=data.shape
+        )
+    matrix = symmetric_matrix(data, form, where)
+    matrices[key] = replace(matrices[key], data=_Picked(matrix))
+    return matrix
+
+
+@dataclass(frozen=True)
+class _Picked:
+    """A matrix already converted by :func:`_pick`."""
+
+    matrix: sp.csr_matrix
