@@ -97,7 +97,7 @@ __all__ = ["read_dmig"]
 PathLike = str | os.PathLike[str]
 
 _WIDTH = 72  # columns 1-72 hold field 1 and the eight data fields; 73-80 are ignored
-_SPACE, _STAR, _PLUS, _COMMA, _DOLLAR = (ord(c) for c in " *+,$")
+_SPACE, _STAR, _PLUS, _COMMA, _DOLLAR, _E = (ord(c) for c in " *+,$E")
 
 
 def read_dmig(
@@ -902,38 +902,36 @@ def _convert_entries(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Grid, component, value and the digit histogram of ``*`` entry lines (rows of 56 to 72
     columns: G 9-24, C 25-40, A 41-56, B 57-72); :class:`_SlowPath` for anything the strict
-    pass reads otherwise (blank lines among them are skipped like there)."""
-    g, c, a = lines[:, 8:24], lines[:, 24:40], lines[:, 40:56]
-    blank_g, blank_c, blank_a = (_blank(f) for f in (g, c, a))
-    used = ~(blank_g & blank_c & blank_a)
-    if lines.shape[1] > 56:
-        used |= ~_blank(lines[:, 56:])
-    if not used.all():
-        lines = lines[used]
-        g, c, a = lines[:, 8:24], lines[:, 24:40], lines[:, 40:56]
-        blank_g, blank_c, blank_a = blank_g[used], blank_c[used], blank_a[used]
-    if blank_g.any() or blank_a.any():
-        raise _SlowPath
-    c = np.ascontiguousarray(c)
-    c[blank_c, 15] = ord("0")  # blank component: scalar point
-    a = _TO_E[a]
+    pass reads otherwise. (A blank grid or value, e.g. a blank entry line, which the strict pass
+    skips or names, fails the conversion; field B is not read there either.)"""
+    g, a = lines[:, 8:24], _TO_E[lines[:, 40:56]]
+    component = _components(lines[:, 24:40])
     try:
         grid = np.ascontiguousarray(g).view("S16").ravel().astype(np.int64)
-        component = c.view("S16").ravel().astype(np.int64)
         value = a.view("S16").ravel().astype(np.float64)
     except (ValueError, OverflowError):
         raise _SlowPath from None
-    if (
-        np.any((grid <= 0) | (grid > MAX_ID))
-        or np.any((component < 0) | (component > 6))
-        or not np.isfinite(value).all()
-    ):
+    if np.any((grid <= 0) | (grid > MAX_ID)) or not np.isfinite(value).all():
         raise _SlowPath
     return grid, component, value, _digit_histogram(a)
 
 
-def _blank(field: np.ndarray) -> np.ndarray:
-    return (field == _SPACE).all(axis=1)
+def _components(c: np.ndarray) -> np.ndarray:
+    """Components 0-6 of 16-byte fields; blank is 0 (a scalar point). Right-aligned single
+    digits are read directly, anything else by ``astype`` like the strict pass."""
+    last = c[:, 15].astype(np.int64) - ord("0")
+    blank = last == _SPACE - ord("0")
+    if (c[:, :15] == _SPACE).all() and np.all(blank | ((last >= 0) & (last <= 6))):
+        return np.where(blank, 0, last)
+    c = np.ascontiguousarray(c)
+    c[(c == _SPACE).all(axis=1), 15] = ord("0")
+    try:
+        component = c.view("S16").ravel().astype(np.int64)
+    except (ValueError, OverflowError):
+        raise _SlowPath from None
+    if np.any((component < 0) | (component > 6)):
+        raise _SlowPath
+    return component
 
 
 _DIGIT_BINS = 17
@@ -958,8 +956,33 @@ _TABLES: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
 
 def _digit_histogram(a: np.ndarray) -> np.ndarray:
     """Histogram of :func:`~pymorembs.io.nastran_bulk.significant_digits` of 16-byte number
-    fields whose exponents use ``E`` (the digits of the mantissa from the first non-zero one),
-    by column bit masks and lookup tables instead of per-column passes."""
+    fields whose exponents use ``E``: the digits of the mantissa from the first non-zero one.
+
+    Nastran punches every value as ``-d.dddddddddE+dd``: with the point and the ``E`` in the
+    same columns of every field and one digit before the point, a field has ``E - point``
+    digits unless that digit is 0; only the other fields are counted digit by digit (by column
+    bit masks and lookup tables).
+    """
+    counts = np.zeros(_DIGIT_BINS, dtype=np.int64)
+    if a.shape[0] == 0:
+        return counts
+    point, exponent = int(np.argmax(a[0] == ord("."))), int(np.argmax(a[0] == _E))
+    if 2 <= point < exponent and (
+        np.all(a[:, point] == ord("."))
+        and np.all(a[:, exponent] == _E)
+        and not np.any((a[:, point - 2] - np.uint8(48)) < 10)  # one digit before the point
+    ):
+        lead = a[:, point - 1] != ord("0")  # a digit (the conversion succeeded)
+        counts[exponent - point] = np.count_nonzero(lead)
+        rest = a[~lead]
+        if rest.shape[0] == 0:
+            return counts
+        return counts + _digit_histogram_by_masks(rest)
+    return _digit_histogram_by_masks(a)
+
+
+def _digit_histogram_by_masks(a: np.ndarray) -> np.ndarray:
+    """:func:`_digit_histogram` for any layout, by column bit masks and lookup tables."""
     if not _TABLES:
         _TABLES.append(_digit_tables())
     before, from_first, popcount = _TABLES[0]
