@@ -69,8 +69,6 @@ import scipy.sparse as sp
 
 from pymorembs.arrays import sorted_unique
 from pymorembs.body import SCALAR, DofTable, ElasticBody
-from pymorembs.errors import UserError
-from pymorembs.io.fast_text import csr_from_sorted_coo
 from pymorembs.io.formats import assemble_symmetric
 from pymorembs.io.line_blocks import IrregularText, iter_line_blocks, line_starts
 from pymorembs.io.matrix_market import _fail
@@ -145,7 +143,7 @@ def read_dmig(
     path = Path(path)
     try:
         body = _read_streamed(path, stiffness, mass, damping, nodes, name)
-    except (UserError, _SlowPath):  # the strict pass below names the problem and its line
+    except Exception:  # a UserError, _SlowPath or anything else: the strict pass below decides
         body = None
     if body is not None:
         return body
@@ -999,34 +997,87 @@ def _digit_histogram_by_masks(a: np.ndarray) -> np.ndarray:
 
 def _assemble_one_triangle(entries: list[np.ndarray], n: int, ifo: int) -> sp.csr_matrix | None:
     """The full symmetric matrix of a form-6 DMIG whose entries ``[rows, cols, values]`` give
-    every position of one triangle once (Nastran punches the upper triangle column by column),
-    built in C by SciPy; None for anything else (the general
+    every position of one triangle once; None for anything else (the general
     :func:`~pymorembs.io.formats.assemble_symmetric` then, with ``entries`` untouched).
-    ``entries`` is emptied when the matrix is built, to free its memory early."""
+    ``entries`` is emptied when the matrix is built, to free its memory early.
+
+    Nastran punches the upper triangle column by column: that is built directly. Entries of
+    either triangle in another order are sorted into the lower triangle by SciPy's counting
+    sort (COO to CSR) first.
+    """
     rows, cols, values = entries
-    if ifo != 6 or rows.size == 0 or np.max(np.abs(values)) > 1e307:  # 2 x diagonal finite
+    if ifo != 6 or rows.size == 0:
         return None
-    lower = None
-    if not np.any(rows > cols):  # the upper triangle: the file's column is the row of lower
-        lower = csr_from_sorted_coo(cols, rows, values, n)
-    if lower is None:
-        high, low = np.maximum(rows, cols), np.minimum(rows, cols)
-        lower = sp.coo_matrix((values, (high, low)), shape=(n, n)).tocsr()
-        del high, low
-        if lower.nnz != rows.size:  # a position given twice (or in both triangles)
-            return None
+    if not np.any(rows > cols) and _column_major(rows, cols):  # Nastran's layout
+        entries.clear()
+        return _full_from_upper(rows, cols, values, n)
+    high, low = np.maximum(rows, cols), np.minimum(rows, cols)
+    lower = sp.coo_matrix((values, (high, low)), shape=(n, n)).tocsr()  # sums repeats
+    del high, low
+    if lower.nnz != rows.size:  # a position given twice (or in both triangles)
+        return None
     entries.clear()
     del rows, cols, values
-    if not lower.data.all():
-        lower.eliminate_zeros()
-    count = np.diff(lower.indptr)
-    last = np.maximum(lower.indptr[1:] - 1, 0)
-    diagonal = (count > 0) & (lower.indices[last] == np.arange(n))
-    full = (lower + lower.T).tocsr()  # the diagonal is doubled
+    high = np.repeat(np.arange(n, dtype=lower.indices.dtype), np.diff(lower.indptr))
+    low, data = lower.indices, lower.data
     del lower
-    at = (full.indptr[:-1] + count - 1)[diagonal]
-    if np.any(full.indices[at] != np.flatnonzero(diagonal)):  # cannot happen; never wrong
-        raise _SlowPath
-    full.data[at] *= 0.5  # exact: (x + x) / 2 == x
-    full.sort_indices()
+    return _full_from_upper(low, high, data, n)
+
+
+#: Entries handled at a time when the full matrix is built from its upper triangle.
+_ENTRY_CHUNK = 1 << 20
+
+
+def _column_major(rows: np.ndarray, cols: np.ndarray) -> bool:
+    """Whether the entries are in strictly increasing (column, row) order."""
+    for a in range(0, rows.size - 1, _ENTRY_CHUNK):
+        r, c = rows[a : a + _ENTRY_CHUNK + 1], cols[a : a + _ENTRY_CHUNK + 1]
+        if not np.all((c[1:] > c[:-1]) | ((c[1:] == c[:-1]) & (r[1:] > r[:-1]))):
+            return False
+    return True
+
+
+def _full_from_upper(
+    rows: np.ndarray, cols: np.ndarray, values: np.ndarray, n: int
+) -> sp.csr_matrix:
+    """The full symmetric CSR matrix of upper-triangle entries given column by column with
+    increasing rows, written straight into its arrays (no triangle matrices, no sums): column
+    ``j`` of the file is the part of row ``j`` up to the diagonal, and the entries above the
+    diagonal go, in file order, to the rows they name (a counting sort, chunk by chunk)."""
+    if not values.all():  # explicit zeros are dropped, as assemble_symmetric drops them
+        keep = values != 0
+        rows, cols, values = rows[keep], cols[keep], values[keep]
+        del keep
+    strict = rows != cols
+    lower_count = np.bincount(cols, minlength=n)
+    upper_count = np.bincount(rows[strict], minlength=n)
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(lower_count + upper_count, out=indptr[1:])
+    index = np.int32 if indptr[-1] < 2**31 - 1 else np.int64
+    indices = np.empty(int(indptr[-1]), dtype=index)
+    data = np.empty(int(indptr[-1]))
+    first_of_column = np.zeros(n, dtype=np.int64)
+    np.cumsum(lower_count[:-1], out=first_of_column[1:])
+    fill = indptr[:-1] + lower_count  # next free place of the part above the diagonal
+    for a in range(0, rows.size, _ENTRY_CHUNK):
+        part = slice(a, a + _ENTRY_CHUNK)
+        r, c, v = rows[part], cols[part], values[part]
+        at = indptr[c] + (np.arange(a, a + r.size) - first_of_column[c])
+        indices[at] = r
+        data[at] = v
+        above = strict[part]
+        r, c, v = r[above], c[above], v[above]
+        if r.size == 0:
+            continue
+        order = np.argsort(r, kind="stable")
+        r = r[order]
+        start = np.flatnonzero(np.concatenate([[True], r[1:] != r[:-1]]))
+        size = np.diff(np.append(start, r.size))
+        rank = np.arange(r.size) - np.repeat(start, size)
+        at = fill[r] + rank
+        indices[at] = c[order]
+        data[at] = v[order]
+        fill[r[start]] += size
+    full = sp.csr_matrix((data, indices, indptr.astype(index)), shape=(n, n), copy=False)
+    full.has_sorted_indices = True
     return full
