@@ -70,8 +70,10 @@ class _Matrix:
     width: int
     line: int
     sparse: bool | None = None
-    rows: list[np.ndarray] = field(default_factory=list)
-    values: list[np.ndarray] = field(default_factory=list)
+    capacity: int = 0
+    rows: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int32))
+    values: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    stored: int = 0
     counts: np.ndarray | None = None
 
     @property
@@ -82,7 +84,11 @@ class _Matrix:
 def read_ascii_op4(path: str | os.PathLike[str]) -> dict[str, Op4Matrix] | None:
     """The matrices of an ASCII OP4 file by name (in file order), or None if this reader does
     not read the file exactly as pyNastran does (then use pyNastran)."""
-    reader = _Reader()
+    try:
+        size = os.path.getsize(path)
+    except OSError:
+        return None
+    reader = _Reader(size)
     try:
         for text, ends, first in iter_line_blocks(path):
             reader.block(text, ends, first)
@@ -94,7 +100,8 @@ def read_ascii_op4(path: str | os.PathLike[str]) -> dict[str, Op4Matrix] | None:
 class _Reader:
     """The state carried from block to block."""
 
-    def __init__(self) -> None:
+    def __init__(self, size: int) -> None:
+        self.remaining = size  # bytes not yet read: a bound on a matrix's number of values
         self.matrices: list[_Matrix] = []
         self.state = "start"  # "start", "first" (column line next), "body", "skip", "done"
         self.col = 0  # current column (from 1), 0 before the first
@@ -128,6 +135,7 @@ class _Reader:
                 a += 1
             if a < b:
                 self._segment(text, starts[a:b], lengths[a:b], kind[a:b], e_count[a:b])
+        self.remaining = max(self.remaining - text.size, 0)
 
     def _header(self, line: str, number: int) -> None:
         """A matrix header line, parsed as pyNastran parses it."""
@@ -144,6 +152,11 @@ class _Reader:
         if width <= 0 or any(m.name == name for m in self.matrices):
             raise _NotHandled
         matrix = _Matrix(name, ncols, abs(nrows), form, tin, big, width, number)
+        # room for as many values as the rest of the file can hold: pages never written are
+        # never in memory, and the values need no list of pieces and no concatenation
+        matrix.capacity = self.remaining // width + 1
+        matrix.rows = np.empty(matrix.capacity, dtype=np.int32)
+        matrix.values = np.empty(matrix.capacity, dtype=matrix.dtype)
         matrix.counts = np.zeros(ncols + 1, dtype=np.int64)
         self.matrices.append(matrix)
         self.state = "first"
@@ -312,8 +325,12 @@ class _Reader:
         # values
         if total:
             values = self._parse(m, text, starts, lengths, value_lines)
-            m.rows.append((rows - 1).astype(np.int32))
-            m.values.append(values)
+            end = m.stored + total
+            if end > m.capacity:
+                raise _NotHandled
+            m.rows[m.stored : end] = rows - 1
+            m.values[m.stored : end] = values
+            m.stored = end
             m.counts += np.bincount(cols, minlength=m.ncols + 1)[: m.ncols + 1]
         # state for the next block
         if column_lines.size:
@@ -357,10 +374,7 @@ class _Reader:
             raise _NotHandled
         out: dict[str, Op4Matrix] = {}
         for m in self.matrices:
-            rows = np.concatenate(m.rows) if m.rows else np.zeros(0, dtype=np.int32)
-            m.rows.clear()
-            values = np.concatenate(m.values) if m.values else np.zeros(0, dtype=m.dtype)
-            m.values.clear()
+            rows, values = m.rows[: m.stored], m.values[: m.stored]
             counts = m.counts[1:]
             if m.sparse:
                 indptr = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
