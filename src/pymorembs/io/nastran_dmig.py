@@ -51,9 +51,16 @@ Matrix names are compared without regard to case. Stiffness, mass and damping ma
 matrix is zero where it has no entry (a dof without mass is massless). Identical repeated entries
 are read once; the same position with two values is an error naming both lines.
 
-Large files are parsed with numpy: the lines are classified by their first byte, the fixed-width
-fields of all entry lines are cut out as one array and converted at once; only free-field lines,
-and lines whose numbers need Nastran's short exponent form, go through the line-by-line parser.
+Large files are parsed with numpy. The layout Nastran punches (large-field ``DMIG*`` column
+cards, one ``*`` line per entry, fixed columns) is streamed in blocks of a few megabytes, never
+held whole: a first pass keeps the card lines (and checks them as a file of their own), a second
+converts the entry lines of the chosen matrices block by block and writes the full symmetric
+matrix straight from the stored triangle; reading takes about as long as parsing the numbers
+and at most twice the memory of the matrices. Every other file (small or free field, tabs, a bad
+field, a repeated entry, any error) is read by the strict pass: the lines are classified by their
+first byte, the fixed-width fields of all entry lines are cut out as one array and converted at
+once; only free-field lines, and lines whose numbers need Nastran's short exponent form, go
+through the line-by-line parser, and every message names its line.
 """
 
 from __future__ import annotations
@@ -189,8 +196,7 @@ def read_dmig(
         table,
         matrices,
         np.bincount(digits) if digits.size else np.zeros(1, dtype=np.int64),
-        nodes if nodes is not None or not punch.has_grid else path,
-        name,
+        (nodes, punch.has_grid, name),
         where_grid,
     )
 
@@ -214,14 +220,17 @@ def _finish(
     table: DofTable,
     matrices: dict[str, sp.csr_matrix],
     digit_counts: np.ndarray,
-    source: PathLike | None,
-    name: str | None,
+    given: tuple[PathLike | None, bool, str | None],
     where_grid,
 ) -> ElasticBody:
     """The body from the assembled matrices: notes, coordinates, precision.
 
-    ``digit_counts[d]`` is the number of values with ``d`` significant digits (``d`` >= 1).
+    ``digit_counts[d]`` is the number of values with ``d`` significant digits (``d`` >= 1);
+    ``given`` is (``nodes`` of :func:`read_dmig`, whether the punch has GRID cards, ``name``):
+    without ``nodes`` the punch's own GRID cards give the coordinates.
     """
+    nodes, has_grid, name = given
+    source = nodes if nodes is not None or not has_grid else path
     notes = list(choice_notes)
     notes.append(f"dof table from the DMIG labels: {table.describe()}")
     digits = digits_histogram_note(digit_counts, ", ".join(names))
@@ -733,8 +742,7 @@ def _read_streamed(
         table,
         matrices,
         digit_counts,
-        nodes if nodes is not None or not has_grid else path,
-        name,
+        (nodes, has_grid, name),
         _no_line,
     )
 

@@ -32,6 +32,11 @@ the ``dofs`` bulk data; grids with a displacement coordinate system ``CD`` are r
 (:mod:`pymorembs.io.nastran_matrices`), e.g. grid 11 of the pyyeti NX example, whose CORD2R
 permutes the axes.
 
+An ASCII file with real matrices is read by the vectorised reader of
+:mod:`pymorembs.io.op4_ascii` (streamed, one conversion per block, as fast as parsing its numbers);
+binary files, complex matrices and any layout that reader does not read exactly as pyNastran does
+are read by pyNastran.
+
 Matrix names are found automatically (:func:`pymorembs.io.nastran_matrices.choose_matrices`):
 one pair ``K<s>``/``M<s>`` among the file's matrices, the 1 x 1 placeholders of EXTSEOUT aside;
 ``B<s>`` is the viscous damping. Every mistake raises :class:`~pymorembs.errors.UserError` with
