@@ -29,6 +29,7 @@ import scipy.sparse as sp
 from pymorembs.arrays import first_duplicate, missing_from, sorted_unique
 from pymorembs.elements.beam import BeamSection
 from pymorembs.errors import UserError
+from pymorembs.sparse_rows import abs_row_sums
 
 #: The six nodal directions and the scalar coordinate ``q``, in the order of the codes 0..6.
 DIRECTIONS: tuple[str, ...] = ("ux", "uy", "uz", "rx", "ry", "rz", "q")
@@ -568,8 +569,8 @@ class ElasticBody:
         modes = self.rigid_body_modes(centre)
         rows = np.ones(self.n_dof, dtype=bool)
         rows[self.fixed] = False
-        stiffness = self.stiffness[rows]
-        scale = float(abs(stiffness).sum(axis=1).max()) if stiffness.nnz else 0.0
+        stiffness = self.stiffness if rows.all() else self.stiffness[rows]  # no copy if all
+        scale = float(abs_row_sums(stiffness).max()) if stiffness.nnz else 0.0
         norms = np.linalg.norm(modes, axis=0)
         out = np.full(6, np.nan)
         if scale == 0.0:

@@ -51,21 +51,33 @@ Matrix names are compared without regard to case. Stiffness, mass and damping ma
 matrix is zero where it has no entry (a dof without mass is massless). Identical repeated entries
 are read once; the same position with two values is an error naming both lines.
 
-Large files are parsed with numpy: the lines are classified by their first byte, the fixed-width
-fields of all entry lines are cut out as one array and converted at once; only free-field lines,
-and lines whose numbers need Nastran's short exponent form, go through the line-by-line parser.
+Large files are parsed with numpy. The layout Nastran punches (large-field ``DMIG*`` column
+cards, one ``*`` line per entry, fixed columns) is streamed in blocks of a few megabytes, never
+held whole: a first pass keeps the card lines (and checks them as a file of their own), a second
+converts the entry lines of the chosen matrices block by block and writes the full symmetric
+matrix straight from the stored triangle; reading takes about as long as parsing the numbers
+and at most twice the memory of the matrices. Every other file (small or free field, tabs, a bad
+field, a repeated entry, any error) is read by the strict pass: the lines are classified by their
+first byte, the fixed-width fields of all entry lines are cut out as one array and converted at
+once; only free-field lines, and lines whose numbers need Nastran's short exponent form, go
+through the line-by-line parser, and every message names its line.
 """
 
 from __future__ import annotations
 
+import itertools
 import os
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
+import scipy.sparse as sp
 
+from pymorembs.arrays import sorted_unique
 from pymorembs.body import SCALAR, DofTable, ElasticBody
 from pymorembs.io.formats import assemble_symmetric
+from pymorembs.io.line_blocks import IrregularText, iter_line_blocks, line_starts
 from pymorembs.io.matrix_market import _fail
 from pymorembs.io.nastran_bulk import (
     MAX_ID,
@@ -79,7 +91,7 @@ from pymorembs.io.nastran_matrices import (
     MatrixInfo,
     build_body,
     choose_matrices,
-    digits_note,
+    digits_histogram_note,
     explain_file,
     modal_block_notes,
     node_source,
@@ -90,7 +102,7 @@ __all__ = ["read_dmig"]
 PathLike = str | os.PathLike[str]
 
 _WIDTH = 72  # columns 1-72 hold field 1 and the eight data fields; 73-80 are ignored
-_SPACE, _STAR, _PLUS, _COMMA, _DOLLAR = (ord(c) for c in " *+,$")
+_SPACE, _STAR, _PLUS, _COMMA, _DOLLAR, _E = (ord(c) for c in " *+,$E")
 
 
 def read_dmig(
@@ -136,13 +148,17 @@ def read_dmig(
         ``nodes``; one line ``file:line: ...``.
     """
     path = Path(path)
+    try:
+        body = _read_streamed(path, stiffness, mass, damping, nodes, name)
+    except Exception:  # a UserError, _SlowPath or anything else: the strict pass below decides
+        body = None
+    if body is not None:
+        return body
     punch = _Punch(path)
     choice = choose_matrices(
         punch.infos(), path, "DMIG matrix", stiffness=stiffness, mass=mass, damping=damping
     )
-    wanted = {"stiffness": choice.stiffness, "mass": choice.mass}
-    if choice.damping is not None:
-        wanted["damping"] = choice.damping
+    wanted = _wanted(choice)
     punch.check_present(wanted)
     names = list(dict.fromkeys(wanted.values()))
     entries = punch.entries(names)
@@ -155,7 +171,6 @@ def read_dmig(
     for role, matrix in wanted.items():
         mine = np.flatnonzero(entries.matrix == names.index(matrix))
         lines = entries.line[mine]
-        ifo = punch.headers[matrix][0]
         matrices[role] = assemble_symmetric(
             np.searchsorted(all_keys, entries.row_key[mine]),
             np.searchsorted(all_keys, entries.col_key[mine]),
@@ -164,18 +179,8 @@ def read_dmig(
             path=path,
             line_of=lambda k, lines=lines: int(lines[k]) + 1,
             label=table.label,
-            storage="symmetric" if ifo == 6 else "square",
+            storage=_storage(punch.headers[matrix][0]),
         )
-    notes = list(choice.notes)
-    notes.append(f"dof table from the DMIG labels: {table.describe()}")
-    digits = digits_note(entries.digits, ", ".join(names))
-    if digits is not None:
-        notes.append(digits)
-    notes += modal_block_notes(table, matrices["stiffness"], matrices["mass"])
-    source = nodes
-    if source is None and punch.has_grid:
-        source = path
-    grids = node_source(source)
 
     def where_grid(grid: int) -> int:
         candidates = [int(entries.line[k]) for k in np.flatnonzero(entries.grid == grid)[:1]]
@@ -183,19 +188,69 @@ def read_dmig(
         candidates += [] if column is None else [column]
         return min(candidates) + 1
 
+    digits = entries.digits[entries.digits > 0]
+    return _finish(
+        path,
+        choice.notes,
+        names,
+        table,
+        matrices,
+        np.bincount(digits) if digits.size else np.zeros(1, dtype=np.int64),
+        (nodes, punch.has_grid, name),
+        where_grid,
+    )
+
+
+def _wanted(choice) -> dict[str, str]:
+    """Role -> matrix name of the chosen matrices (damping only when there is one)."""
+    wanted = {"stiffness": choice.stiffness, "mass": choice.mass}
+    if choice.damping is not None:
+        wanted["damping"] = choice.damping
+    return wanted
+
+
+def _storage(ifo: int) -> Literal["symmetric", "square"]:
+    return "symmetric" if ifo == 6 else "square"
+
+
+def _finish(
+    path: Path,
+    choice_notes,
+    names: list[str],
+    table: DofTable,
+    matrices: dict[str, sp.csr_matrix],
+    digit_counts: np.ndarray,
+    given: tuple[PathLike | None, bool, str | None],
+    where_grid,
+) -> ElasticBody:
+    """The body from the assembled matrices: notes, coordinates, precision.
+
+    ``digit_counts[d]`` is the number of values with ``d`` significant digits (``d`` >= 1);
+    ``given`` is (``nodes`` of :func:`read_dmig`, whether the punch has GRID cards, ``name``):
+    without ``nodes`` the punch's own GRID cards give the coordinates.
+    """
+    nodes, has_grid, name = given
+    source = nodes if nodes is not None or not has_grid else path
+    notes = list(choice_notes)
+    notes.append(f"dof table from the DMIG labels: {table.describe()}")
+    digits = digits_histogram_note(digit_counts, ", ".join(names))
+    if digits is not None:
+        notes.append(digits)
+    notes += modal_block_notes(table, matrices["stiffness"], matrices["mass"])
     body = build_body(
         path,
         table,
         matrices,
-        grids,
+        node_source(source),
         notes,
         path.stem if name is None else name,
         where_grid=where_grid,
     )
-    counts = entries.digits[entries.digits > 0]
-    if counts.size == 0:
+    counts = np.asarray(digit_counts).copy()
+    counts[:1] = 0
+    if not counts.any():
         return body
-    common = int(np.bincount(counts).argmax())  # the digits the punch writes
+    common = int(counts.argmax())  # the digits the punch writes
     return replace(body, precision=0.5 * 10.0 ** (1 - common))
 
 
@@ -224,9 +279,10 @@ class _Punch:
     Card ``k`` spans lines ``card_first[k]`` to ``card_end[k]`` (exclusive).
     """
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, raw: bytes | None = None) -> None:
         self.path = path
-        raw = read_card_file(path, "a Nastran punch file with DMIG cards")
+        if raw is None:
+            raw = read_card_file(path, "a Nastran punch file with DMIG cards")
         lines = raw.splitlines()
         if b"\t" in raw:
             lines = [line.expandtabs(8) if b"\t" in line else line for line in lines]
@@ -584,3 +640,452 @@ def _direction(component: np.ndarray) -> np.ndarray:
     """Direction codes of DMIG components: 1..6 -> 0..5, 0 (scalar point) -> ``SCALAR``."""
     component = np.asarray(component, dtype=np.int64)
     return np.where(component == 0, SCALAR, component - 1)
+
+
+# ============================================================================ streamed fast path
+class _SlowPath(Exception):
+    """The streamed reader meets something only the strict pass reads (or rejects) exactly."""
+
+
+#: Lines padded to 72 columns at a time where a block's lines differ in length.
+_PAD_LINES = 1 << 16
+#: Bytes that may occur only in comment lines for the streamed reader: NUL, tab, comma (free
+#: field) and every non-ASCII byte; a file with them elsewhere goes to the strict pass.
+_SPECIAL = bytes([0, 9, ord(",")]) + bytes(range(128, 256))
+_PLAIN = bytes(b for b in range(256) if b not in _SPECIAL)
+_TO_E = np.arange(256, dtype=np.uint8)
+_TO_E[[ord("D"), ord("d")]] = ord("E")
+_COLUMNS = np.arange(_WIDTH)
+
+
+def _read_streamed(
+    path: Path,
+    stiffness: str | None,
+    mass: str | None,
+    damping: str | None,
+    nodes: PathLike | None,
+    name: str | None,
+) -> ElasticBody | None:
+    """:func:`read_dmig` in two streamed passes over the file, for the large-field layout
+    Nastran punches (``DMIG*`` column cards, one ``*`` line per entry).
+
+    The first pass keeps only the card lines (headers, column cards, GRID ...), which are
+    checked by :class:`_Punch` like a whole file; the second converts the entry lines of the
+    chosen matrices block by block. Anything else -- small-field or free-field entries, tabs,
+    lone carriage returns, a bad field, duplicate entries, a matrix not stored as one triangle
+    column by column -- raises :class:`_SlowPath` (or a :class:`UserError`), and the caller
+    runs the strict pass, which reads it or names the bad line.
+    """
+    cards, card_line, others = _scan_cards(path)
+    mini = _Punch(path, cards)
+    choice = choose_matrices(
+        mini.infos(), path, "DMIG matrix", stiffness=stiffness, mass=mass, damping=damping
+    )
+    wanted = _wanted(choice)
+    mini.check_present(wanted)
+    names = list(dict.fromkeys(wanted.values()))
+    codes = [mini.names.index(m) for m in names]
+    want = (mini.card_kind == _COLUMN) & np.isin(mini.card_matrix, codes)
+    gj, cj = mini.card_gj, mini.card_cj
+    if np.any(want & ((gj <= 0) | (cj < 0) | (cj > 6) | ~mini.card_large)):
+        raise _SlowPath  # a bad column, or small-field cards (entries on their first line)
+    if others.size:  # small-field continuation lines of a chosen matrix
+        owner = np.searchsorted(card_line, others, side="right") - 1
+        if np.any(want[owner[owner >= 0]]):
+            raise _SlowPath
+    pieces, digit_counts = _scan_entries(path, card_line, want, mini.card_matrix, codes)
+    ifo = {matrix: mini.headers[matrix][0] for matrix in names}
+    has_grid = mini.has_grid
+    del mini, cards, card_line
+    col_key_of_card = gj * 8 + _direction(cj)
+    stored = []
+    for piece in pieces:
+        row_key, card, value = (_join(part, kind) for part, kind in zip(piece, _KINDS, strict=True))
+        stored.append((row_key, col_key_of_card[card], value))
+        del card
+    all_keys = _unique_keys([k for entries in stored for k in entries[:2]])
+    if all_keys.size == 0:
+        raise _SlowPath
+    table = DofTable(all_keys // 8, all_keys % 8)
+    n = len(table)
+    index = np.int32 if n < 2**31 - 1 else np.int64
+    by_name: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+    for matrix, (row_key, col_key, value) in zip(names, stored, strict=True):
+        rows = np.searchsorted(all_keys, row_key).astype(index)
+        del row_key
+        cols = np.searchsorted(all_keys, col_key).astype(index)
+        del col_key
+        by_name[matrix] = (rows, cols, value)
+    del stored
+    matrices = {}
+    uses = [list(wanted.values()).count(m) for m in names]
+    for role, matrix in wanted.items():
+        entries = list(by_name[matrix])
+        uses[names.index(matrix)] -= 1
+        if uses[names.index(matrix)] == 0:
+            del by_name[matrix]  # the only reference left is ``entries``
+        matrices[role] = _assemble_one_triangle(entries, n, ifo[matrix])
+        if matrices[role] is None:
+            matrices[role] = assemble_symmetric(
+                *entries,
+                n,
+                path=path,
+                line_of=_no_line,
+                label=table.label,
+                storage=_storage(ifo[matrix]),
+            )
+    del by_name
+    return _finish(
+        path,
+        choice.notes,
+        names,
+        table,
+        matrices,
+        digit_counts,
+        (nodes, has_grid, name),
+        _no_line,
+    )
+
+
+_KINDS = (np.int64, np.int32, np.float64)
+
+
+def _unique_keys(keys: list[np.ndarray]) -> np.ndarray:
+    """The distinct values of non-negative integer arrays, ascending (marks in a boolean
+    array where the largest key is small enough, else by sorting)."""
+    top = max((int(k.max()) for k in keys if k.size), default=-1)
+    if top < 0:
+        return np.zeros(0, dtype=np.int64)
+    if top < 1 << 28:
+        seen = np.zeros(top + 1, dtype=bool)
+        for k in keys:
+            seen[k] = True
+        return np.flatnonzero(seen)
+    return sorted_unique(np.concatenate(keys))
+
+
+def _join(parts: list[np.ndarray], kind) -> np.ndarray:
+    """The concatenation of ``parts``, which is emptied (so that each part is freed)."""
+    out = np.concatenate(parts) if parts else np.zeros(0, dtype=kind)
+    parts.clear()
+    return out
+
+
+def _no_line(_: int) -> int:
+    """The streamed reader keeps no line numbers: a message needing one comes from the strict
+    pass."""
+    raise _SlowPath
+
+
+def _blocks(path: Path):
+    """:func:`~pymorembs.io.line_blocks.iter_line_blocks` of the punch; :class:`_SlowPath`
+    for an irregular file or special bytes (tab, comma, NUL, non-ASCII) outside comments."""
+    try:
+        for arr, ends, line0 in iter_line_blocks(path):
+            if arr.tobytes().translate(None, _PLAIN):  # special bytes: only in comment lines
+                special = np.flatnonzero(np.isin(arr, np.frombuffer(_SPECIAL, np.uint8)))
+                if np.any(arr[special] == 0):
+                    raise _SlowPath
+                line = np.searchsorted(ends, special)
+                if np.any(arr[line_starts(ends)[line]] != _DOLLAR):
+                    raise _SlowPath
+            yield arr, ends, line0
+    except IrregularText:
+        raise _SlowPath from None
+
+
+def _line_matrix(arr: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """The lines of a block as rows of at least 56 (at most 72) columns, blank-padded: a view
+    when every line has the same length of 56 or more, else a copy of 72 columns (runs of lines
+    of the common length copied as blocks, the other lines padded one by one)."""
+    m = ends.size
+    starts = line_starts(ends)
+    lengths = ends - starts
+    common = int(np.median(lengths)) if m else 0
+    odd = np.flatnonzero(lengths != common)
+    if common >= 56 and odd.size == 0:
+        return arr[: m * (common + 1)].reshape(m, common + 1)[:, : min(common, _WIDTH)]
+    out = np.full((m, _WIDTH), _SPACE, dtype=np.uint8)
+    if common >= 56 and odd.size <= m // 100:
+        width = min(common, _WIDTH)
+        edges = [-1, *odd.tolist(), m]
+        for before, after in itertools.pairwise(edges):
+            first, count = before + 1, after - before - 1
+            if count:
+                at = int(starts[first])
+                run = arr[at : at + count * (common + 1)].reshape(count, common + 1)
+                out[first:after, :width] = run[:, :width]
+        rows = odd
+    else:
+        rows = np.arange(m)
+    last = arr.size - 1
+    for a in range(0, rows.size, _PAD_LINES):
+        chosen = rows[a : a + _PAD_LINES]
+        inside = _COLUMNS[None, :] < lengths[chosen, None]
+        taken = arr[np.minimum(starts[chosen, None] + _COLUMNS[None, :], last)]
+        out[chosen] = np.where(inside, taken, _SPACE)
+    return out
+
+
+def _widen(rows: np.ndarray) -> np.ndarray:
+    """Rows of a line matrix padded to 72 columns."""
+    if rows.shape[1] == _WIDTH:
+        return np.ascontiguousarray(rows)
+    out = np.full((rows.shape[0], _WIDTH), _SPACE, dtype=np.uint8)
+    out[:, : rows.shape[1]] = rows
+    return out
+
+
+def _classify(u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(entry lines ``*``, other continuation lines ``+``/blank-led, card lines) of a block,
+    as in :class:`_Punch` (comments ``$`` and blank lines are none of them)."""
+    first = u[:, 0]
+    led = np.flatnonzero(first == _SPACE)
+    blank_led = np.zeros(first.size, dtype=bool)
+    if led.size:
+        blank_led[led[~(u[led] == _SPACE).all(axis=1)]] = True
+    entry = first == _STAR
+    other = (first == _PLUS) | blank_led
+    card = ~entry & ~other & (first != _DOLLAR) & (first != _SPACE)
+    return entry, other, card
+
+
+def _scan_cards(path: Path) -> tuple[bytes, np.ndarray, np.ndarray]:
+    """First pass: the card lines (72 columns each, as the text of a file), their line indices,
+    and the indices of ``+``/blank-led continuation lines."""
+    cards, card_lines, others = [], [], []
+    for arr, ends, line0 in _blocks(path):
+        u = _line_matrix(arr, ends)
+        _, other, card = _classify(u)
+        rows = np.flatnonzero(card)
+        cards.append(_widen(u[rows]))
+        card_lines.append(line0 + rows)
+        others.append(line0 + np.flatnonzero(other))
+    if not cards:
+        raise _SlowPath
+    text = np.concatenate(cards)
+    text = np.hstack([text, np.full((text.shape[0], 1), 10, dtype=np.uint8)]).tobytes()
+    return text, np.concatenate(card_lines), np.concatenate(others)
+
+
+def _scan_entries(
+    path: Path, card_line: np.ndarray, want: np.ndarray, card_matrix: np.ndarray, codes: list
+) -> tuple[list, np.ndarray]:
+    """Second pass: per chosen matrix, lists of (row keys, card indices, values) in file order,
+    and the histogram of the values' significant digits."""
+    pieces: list[list[list[np.ndarray]]] = [[[], [], []] for _ in codes]
+    counts = np.zeros(_DIGIT_BINS, dtype=np.int64)
+    slot = np.full(max(int(card_matrix.max(initial=-1)) + 1, 1), -1, dtype=np.int64)
+    slot[codes] = np.arange(len(codes))
+    for arr, ends, line0 in _blocks(path):
+        u = _line_matrix(arr, ends)
+        entry = np.flatnonzero(u[:, 0] == _STAR)
+        card = np.searchsorted(card_line, line0 + entry, side="right") - 1
+        mine = card >= 0
+        mine[mine] = want[card[mine]]
+        entry, card = entry[mine], card[mine]
+        if entry.size == 0:
+            continue
+        fields = u[entry]
+        del u
+        grid, component, value, digits = _convert_entries(fields)
+        counts += digits
+        row_key = grid * 8 + _direction(component)
+        which = slot[card_matrix[card]]
+        for k in range(len(codes)):
+            take = which == k
+            if not take.any():
+                continue
+            all_taken = bool(take.all())
+            pieces[k][0].append(row_key if all_taken else row_key[take])
+            pieces[k][1].append((card if all_taken else card[take]).astype(np.int32))
+            pieces[k][2].append(value if all_taken else value[take])
+    return pieces, counts
+
+
+def _convert_entries(
+    lines: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Grid, component, value and the digit histogram of ``*`` entry lines (rows of 56 to 72
+    columns: G 9-24, C 25-40, A 41-56, B 57-72); :class:`_SlowPath` for anything the strict
+    pass reads otherwise. (A blank grid or value, e.g. a blank entry line, which the strict pass
+    skips or names, fails the conversion; field B is not read there either.)"""
+    g, a = lines[:, 8:24], _TO_E[lines[:, 40:56]]
+    component = _components(lines[:, 24:40])
+    try:
+        grid = np.ascontiguousarray(g).view("S16").ravel().astype(np.int64)
+        value = a.view("S16").ravel().astype(np.float64)
+    except (ValueError, OverflowError):
+        raise _SlowPath from None
+    if np.any((grid <= 0) | (grid > MAX_ID)) or not np.isfinite(value).all():
+        raise _SlowPath
+    return grid, component, value, _digit_histogram(a)
+
+
+def _components(c: np.ndarray) -> np.ndarray:
+    """Components 0-6 of 16-byte fields; blank is 0 (a scalar point). Right-aligned single
+    digits are read directly, anything else by ``astype`` like the strict pass."""
+    last = c[:, 15].astype(np.int64) - ord("0")
+    blank = last == _SPACE - ord("0")
+    if (c[:, :15] == _SPACE).all() and np.all(blank | ((last >= 0) & (last <= 6))):
+        return np.where(blank, 0, last)
+    c = np.ascontiguousarray(c)
+    c[(c == _SPACE).all(axis=1), 15] = ord("0")
+    try:
+        component = c.view("S16").ravel().astype(np.int64)
+    except (ValueError, OverflowError):
+        raise _SlowPath from None
+    if np.any((component < 0) | (component > 6)):
+        raise _SlowPath
+    return component
+
+
+_DIGIT_BINS = 17
+
+
+def _digit_tables() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Lookup tables over 16-bit column masks (bit 15 = first column): the columns before the
+    first set bit, the columns from the first set bit on, and the number of set bits."""
+    masks = np.arange(1 << 16, dtype=np.int64)
+    top = np.where(masks > 0, np.floor(np.log2(np.maximum(masks, 1))).astype(np.int64), -1)
+    # bit b set at top: columns before it are the bits above b
+    before = np.where(masks > 0, (0xFFFF << (top + 1)) & 0xFFFF, 0xFFFF)
+    from_first = np.where(masks > 0, (1 << (top + 1)) - 1, 0)
+    popcount = np.zeros(1 << 16, dtype=np.int64)
+    for b in range(16):
+        popcount += (masks >> b) & 1
+    return before.astype(np.uint16), from_first.astype(np.uint16), popcount.astype(np.uint8)
+
+
+_TABLES: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+
+
+def _digit_histogram(a: np.ndarray) -> np.ndarray:
+    """Histogram of :func:`~pymorembs.io.nastran_bulk.significant_digits` of 16-byte number
+    fields whose exponents use ``E``: the digits of the mantissa from the first non-zero one.
+
+    Nastran punches every value as ``-d.dddddddddE+dd``: with the point and the ``E`` in the
+    same columns of every field and one digit before the point, a field has ``E - point``
+    digits unless that digit is 0; only the other fields are counted digit by digit (by column
+    bit masks and lookup tables).
+    """
+    counts = np.zeros(_DIGIT_BINS, dtype=np.int64)
+    if a.shape[0] == 0:
+        return counts
+    point, exponent = int(np.argmax(a[0] == ord("."))), int(np.argmax(a[0] == _E))
+    if 2 <= point < exponent and (
+        np.all(a[:, point] == ord("."))
+        and np.all(a[:, exponent] == _E)
+        and not np.any((a[:, point - 2] - np.uint8(48)) < 10)  # one digit before the point
+    ):
+        lead = a[:, point - 1] != ord("0")  # a digit (the conversion succeeded)
+        counts[exponent - point] = np.count_nonzero(lead)
+        rest = a[~lead]
+        if rest.shape[0] == 0:
+            return counts
+        return counts + _digit_histogram_by_masks(rest)
+    return _digit_histogram_by_masks(a)
+
+
+def _digit_histogram_by_masks(a: np.ndarray) -> np.ndarray:
+    """:func:`_digit_histogram` for any layout, by column bit masks and lookup tables."""
+    if not _TABLES:
+        _TABLES.append(_digit_tables())
+    before, from_first, popcount = _TABLES[0]
+    digit = (a - np.uint8(48)) < 10
+    nonzero = digit & (a != ord("0"))
+
+    def mask(bits: np.ndarray) -> np.ndarray:
+        return np.packbits(bits, axis=1).view(">u2").ravel()
+
+    mantissa = before[mask((a | 0x20) == ord("e"))]
+    counted = mask(digit) & mantissa & from_first[mask(nonzero) & mantissa]
+    return np.bincount(popcount[counted], minlength=_DIGIT_BINS)
+
+
+def _assemble_one_triangle(entries: list[np.ndarray], n: int, ifo: int) -> sp.csr_matrix | None:
+    """The full symmetric matrix of a form-6 DMIG whose entries ``[rows, cols, values]`` give
+    every position of one triangle once; None for anything else (the general
+    :func:`~pymorembs.io.formats.assemble_symmetric` then, with ``entries`` untouched).
+    ``entries`` is emptied when the matrix is built, to free its memory early.
+
+    Nastran punches the upper triangle column by column: that is built directly. Entries of
+    either triangle in another order are sorted into the lower triangle by SciPy's counting
+    sort (COO to CSR) first.
+    """
+    rows, cols, values = entries
+    if ifo != 6 or rows.size == 0:
+        return None
+    if not np.any(rows > cols) and _column_major(rows, cols):  # Nastran's layout
+        entries.clear()
+        return _full_from_upper(rows, cols, values, n)
+    high, low = np.maximum(rows, cols), np.minimum(rows, cols)
+    lower = sp.coo_matrix((values, (high, low)), shape=(n, n)).tocsr()  # sums repeats
+    del high, low
+    if lower.nnz != rows.size:  # a position given twice (or in both triangles)
+        return None
+    entries.clear()
+    del rows, cols, values
+    high = np.repeat(np.arange(n, dtype=lower.indices.dtype), np.diff(lower.indptr))
+    low, data = lower.indices, lower.data
+    del lower
+    return _full_from_upper(low, high, data, n)
+
+
+#: Entries handled at a time when the full matrix is built from its upper triangle.
+_ENTRY_CHUNK = 1 << 20
+
+
+def _column_major(rows: np.ndarray, cols: np.ndarray) -> bool:
+    """Whether the entries are in strictly increasing (column, row) order."""
+    for a in range(0, rows.size - 1, _ENTRY_CHUNK):
+        r, c = rows[a : a + _ENTRY_CHUNK + 1], cols[a : a + _ENTRY_CHUNK + 1]
+        if not np.all((c[1:] > c[:-1]) | ((c[1:] == c[:-1]) & (r[1:] > r[:-1]))):
+            return False
+    return True
+
+
+def _full_from_upper(
+    rows: np.ndarray, cols: np.ndarray, values: np.ndarray, n: int
+) -> sp.csr_matrix:
+    """The full symmetric CSR matrix of upper-triangle entries given column by column with
+    increasing rows, written straight into its arrays (no triangle matrices, no sums): column
+    ``j`` of the file is the part of row ``j`` up to the diagonal, and the entries above the
+    diagonal go, in file order, to the rows they name (a counting sort, chunk by chunk)."""
+    if not values.all():  # explicit zeros are dropped, as assemble_symmetric drops them
+        keep = values != 0
+        rows, cols, values = rows[keep], cols[keep], values[keep]
+        del keep
+    strict = rows != cols
+    lower_count = np.bincount(cols, minlength=n)
+    upper_count = np.bincount(rows[strict], minlength=n)
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(lower_count + upper_count, out=indptr[1:])
+    index = np.int32 if indptr[-1] < 2**31 - 1 else np.int64
+    indices = np.empty(int(indptr[-1]), dtype=index)
+    data = np.empty(int(indptr[-1]))
+    first_of_column = np.zeros(n, dtype=np.int64)
+    np.cumsum(lower_count[:-1], out=first_of_column[1:])
+    fill = indptr[:-1] + lower_count  # next free place of the part above the diagonal
+    for a in range(0, rows.size, _ENTRY_CHUNK):
+        part = slice(a, a + _ENTRY_CHUNK)
+        r, c, v = rows[part], cols[part], values[part]
+        at = indptr[c] + (np.arange(a, a + r.size) - first_of_column[c])
+        indices[at] = r
+        data[at] = v
+        above = strict[part]
+        r, c, v = r[above], c[above], v[above]
+        if r.size == 0:
+            continue
+        order = np.argsort(r, kind="stable")
+        r = r[order]
+        start = np.flatnonzero(np.concatenate([[True], r[1:] != r[:-1]]))
+        size = np.diff(np.append(start, r.size))
+        rank = np.arange(r.size) - np.repeat(start, size)
+        at = fill[r] + rank
+        indices[at] = c[order]
+        data[at] = v[order]
+        fill[r[start]] += size
+    full = sp.csr_matrix((data, indices, indptr.astype(index)), shape=(n, n), copy=False)
+    full.has_sorted_indices = True
+    return full

@@ -39,6 +39,7 @@ from pymorembs.io.checks import make_body
 from pymorembs.io.formats import is_nodes_csv
 from pymorembs.io.matrix_market import _fail, _read_nodes, check_symmetric
 from pymorembs.io.nastran_bulk import AnalysisSet, BulkData, read_bulk
+from pymorembs.sparse_rows import abs_row_sums
 
 __all__ = [
     "Choice",
@@ -47,6 +48,7 @@ __all__ = [
     "build_body",
     "choose_matrices",
     "describe_set",
+    "digits_histogram_note",
     "digits_note",
     "explain_file",
     "modal_block_notes",
@@ -206,13 +208,28 @@ def symmetric_matrix(data: object, form: object, where: str) -> sp.csr_matrix:
     if not np.all(np.isfinite(a.data)):
         raise UserError(f"{where} has NaN or infinite entries")
     a.eliminate_zeros()
-    below, above = sp.tril(a, -1), sp.triu(a, 1)
-    if form == 6 and (below.nnz == 0) != (above.nnz == 0):  # symmetric, one triangle stored
-        strict = below if below.nnz else above
+    below, above = _triangle_counts(a)
+    if form == 6 and (below == 0) != (above == 0):  # symmetric, one triangle stored
+        strict = sp.tril(a, -1) if below else sp.triu(a, 1)
         a = sp.csr_matrix(sp.diags(a.diagonal()) + strict + strict.T)
     check_symmetric(a, where)
     a.sort_indices()
     return a
+
+
+def _triangle_counts(a: sp.csr_matrix) -> tuple[int, int]:
+    """Stored entries strictly below and strictly above the diagonal of a CSR matrix (by blocks
+    of rows, without copies of the matrix)."""
+    below = above = 0
+    step = max(1, (1 << 20) * a.shape[0] // max(a.nnz, 1))
+    for first in range(0, a.shape[0], step):
+        last = min(first + step, a.shape[0])
+        lo, hi = a.indptr[first], a.indptr[last]
+        rows = np.repeat(np.arange(first, last), np.diff(a.indptr[first : last + 1]))
+        columns = a.indices[lo:hi]
+        below += int(np.count_nonzero(columns < rows))
+        above += int(np.count_nonzero(columns > rows))
+    return below, above
 
 
 # ============================================================================ other files
@@ -249,12 +266,21 @@ def digits_note(counts: np.ndarray, names: str) -> str | None:
     """``"KAAX, MAAX: values with 10 significant digits"`` from per-value digit counts."""
     counts = np.asarray(counts)
     counts = counts[counts > 0]
-    if counts.size == 0:
+    return digits_histogram_note(np.bincount(counts) if counts.size else np.zeros(1), names)
+
+
+def digits_histogram_note(histogram: np.ndarray, names: str) -> str | None:
+    """The note of :func:`digits_note` from ``histogram[d]``, the number of values with ``d``
+    significant digits (``histogram[0]``, the zeros, is ignored)."""
+    histogram = np.asarray(histogram).copy()
+    histogram[:1] = 0
+    present = np.flatnonzero(histogram)
+    if present.size == 0:
         return None
-    low, high = int(counts.min()), int(counts.max())
+    low, high = int(present[0]), int(present[-1])
     if low == high:
         return f"{names}: values with {high} significant digit{'s' if high != 1 else ''}"
-    common = int(np.bincount(counts).argmax())
+    common = int(histogram.argmax())
     return f"{names}: values with {low} to {high} significant digits (most with {common})"
 
 
@@ -501,7 +527,7 @@ def _empty_rows(
     touched = np.zeros(len(table), dtype=bool)
     for role in ("stiffness", "mass"):
         a = matrices[role]
-        touched |= np.asarray(abs(a).sum(axis=1)).ravel() != 0
+        touched |= abs_row_sums(a) != 0
     empty = np.flatnonzero(~touched)
     if empty.size:
         shown = ", ".join(table.label(int(i)) for i in empty[:6])

@@ -32,6 +32,11 @@ the ``dofs`` bulk data; grids with a displacement coordinate system ``CD`` are r
 (:mod:`pymorembs.io.nastran_matrices`), e.g. grid 11 of the pyyeti NX example, whose CORD2R
 permutes the axes.
 
+An ASCII file with real matrices is read by the vectorised reader of
+:mod:`pymorembs.io.op4_ascii` (streamed, one conversion per block, as fast as parsing its numbers);
+binary files, complex matrices and any layout that reader does not read exactly as pyNastran does
+are read by pyNastran.
+
 Matrix names are found automatically (:func:`pymorembs.io.nastran_matrices.choose_matrices`):
 one pair ``K<s>``/``M<s>`` among the file's matrices, the 1 x 1 placeholders of EXTSEOUT aside;
 ``B<s>`` is the viscous damping. Every mistake raises :class:`~pymorembs.errors.UserError` with
@@ -68,6 +73,7 @@ from pymorembs.io.nastran_matrices import (
     node_source,
     symmetric_matrix,
 )
+from pymorembs.io.op4_ascii import read_ascii_op4
 
 __all__ = ["read_op4"]
 
@@ -255,6 +261,35 @@ class _Op4Matrix:
 def _read_op4_file(path: Path) -> dict[str, _Op4Matrix]:
     """All matrices of an OP4 file, keyed by upper-case name."""
     require_file(path, "a Nastran OP4 file")
+    raw = _read_ascii(path)
+    if raw is None:
+        raw = _read_with_pynastran(path)
+    matrices: dict[str, _Op4Matrix] = {}
+    for key, entry in raw.items():
+        upper = str(key).strip().upper()
+        if upper in matrices:
+            raise _fail(
+                path, None, f"matrix names {matrices[upper].name} and {key} differ only in case"
+            )
+        tin = int(getattr(entry, "tin", 0) or 0)
+        matrices[upper] = _Op4Matrix(str(key), entry.form, entry.data, int(tin))
+    return matrices
+
+
+def _read_ascii(path: Path) -> dict | None:
+    """The matrices of an ASCII OP4 file by the vectorised reader, or None (a binary file, or
+    one that reader leaves to pyNastran)."""
+    try:
+        with open(path, "rb") as f:
+            if b"\x00" in f.read(4096):
+                return None
+    except OSError:
+        return None
+    return read_ascii_op4(path)
+
+
+def _read_with_pynastran(path: Path) -> dict:
+    """pyNastran's matrices of an OP4 file; its errors become one line."""
     _check_dense_sizes(path)
     try:
         from pyNastran.op4.op4 import OP4
@@ -268,16 +303,7 @@ def _read_op4_file(path: Path) -> dict[str, _Op4Matrix]:
     except Exception as err:  # pyNastran's own errors (and MemoryError) become one line
         problem = "cannot read the OP4 file (truncated, damaged or not an OP4 file)"
         raise _fail(path, None, f"{problem}: {reason(err)}") from None
-    matrices: dict[str, _Op4Matrix] = {}
-    for key, entry in raw.items():
-        upper = str(key).strip().upper()
-        if upper in matrices:
-            raise _fail(
-                path, None, f"matrix names {matrices[upper].name} and {key} differ only in case"
-            )
-        tin = int(getattr(entry, "tin", 0) or 0)
-        matrices[upper] = _Op4Matrix(str(key), entry.form, entry.data, int(tin))
-    return matrices
+    return raw
 
 
 def _check_dense_sizes(path: Path) -> None:
@@ -380,12 +406,36 @@ def _record_at(data: bytes | mmap.mmap, at: int, endian: str) -> tuple[int, int]
 
 
 def _pick(matrices: dict[str, _Op4Matrix], wanted: str, path: Path) -> sp.csr_matrix:
-    """The named matrix as a finite, square, symmetric sparse matrix."""
-    entry = matrices.get(str(wanted).strip().upper())
+    """The named matrix as a finite, square, symmetric sparse matrix.
+
+    The file's copy of a sparse matrix is dropped from ``matrices`` once converted (the result
+    is kept there instead), so that a large matrix is not held twice.
+    """
+    key = str(wanted).strip().upper()
+    entry = matrices.get(key)
     if entry is None:
         held = ", ".join(sorted(m.name for m in matrices.values())) or "no matrices"
         raise _fail(path, None, f"no matrix named {wanted!r}; the file holds {held}")
     where = f"{path}: matrix {entry.name}"
     if isinstance(entry.form, list):
         raise UserError(f"{where} appears {len(entry.form)} times")
-    return symmetric_matrix(entry.data, entry.form, where)
+    if isinstance(entry.data, _Picked):
+        return entry.data.matrix
+    data, form = entry.data, entry.form
+    if sp.issparse(data) and not np.iscomplexobj(data.data):  # type: ignore[union-attr]
+        matrices[key] = replace(entry, data=None)
+        del entry
+        data = data.tocsr()  # the file's copy is freed here
+        data = sp.csr_matrix(  # float64 values, the index arrays shared
+            (data.data.astype(np.float64), data.indices, data.indptr), shape=data.shape
+        )
+    matrix = symmetric_matrix(data, form, where)
+    matrices[key] = replace(matrices[key], data=_Picked(matrix))
+    return matrix
+
+
+@dataclass(frozen=True)
+class _Picked:
+    """A matrix already converted by :func:`_pick`."""
+
+    matrix: sp.csr_matrix
