@@ -406,9 +406,12 @@ class CheckedReader(io.RawIOBase):
     """A binary file whose bytes from ``offset`` on pass through a :class:`PlainNumberScan`.
 
     Hand it (in an ``io.BufferedReader``) to a parser such as ``scipy.io.mmread``: the file is
-    read once, and checked while the parser reads. A failed check makes the next read raise
-    ``ValueError`` (so the parser stops); afterwards :attr:`fields` is None. :attr:`fields` is
-    the field count once the parser has read to the end of the file (else None).
+    read once, and checked while the parser reads, by a worker thread (NumPy releases the GIL
+    in its loops, so the checks overlap the parser's own threads); at most
+    :data:`_PENDING_CHUNKS` chunks wait for their check. A failed check makes a later read
+    raise ``ValueError`` (so the parser stops); afterwards :attr:`fields` is None.
+    :attr:`fields` is the field count once the parser has read to the end of the file and
+    every chunk is checked (else None).
 
     Parameters
     ----------
@@ -437,11 +440,14 @@ class CheckedReader(io.RawIOBase):
         self._scan = scan
         self._patch = patch
         self._eof = False
+        self._pending: deque[Future[int | None]] = deque()
+        self._worker = ThreadPoolExecutor(1)  # shut down in close()
 
     def readable(self) -> bool:
         return True
 
     def readinto(self, buffer) -> int:
+        self._collect(_PENDING_CHUNKS)
         if self._scan.fields is None:
             raise ValueError("the bytes fail the plain-number checks")
         size = self._file.readinto(buffer)
@@ -456,10 +462,18 @@ class CheckedReader(io.RawIOBase):
         skip = min(max(self._offset - self._position, 0), size)
         self._position += size
         if size == 0:
+            self._collect(0)
             self._eof = True
             self._scan.finish()
         elif skip < size:
-            self._scan.feed(view[skip:size])
+            chunk = self._scan.split(view[skip:size])
+            if chunk is not None:
+                scan = self._scan
+                self._pending.append(
+                    self._worker.submit(
+                        check_chunk, chunk, scan.fields_per_line, scan.integer_fields
+                    )
+                )
         if self._scan.fields is None:
             raise ValueError("the bytes fail the plain-number checks")
         return size
@@ -469,9 +483,21 @@ class CheckedReader(io.RawIOBase):
         """Fields of the region once it was read to its end and passed every check, else None."""
         return self._scan.fields if self._eof else None
 
+    def _collect(self, left: int) -> None:
+        """Count the checked chunks; wait until at most ``left`` chunks are unchecked."""
+        pending = self._pending
+        while pending and (len(pending) > left or pending[0].done()):
+            self._scan.add(pending.popleft().result())
+
     def close(self) -> None:
+        self._worker.shutdown(wait=True, cancel_futures=True)
+        self._pending.clear()
         self._file.close()
         super().close()
+
+
+#: Chunks of a :class:`CheckedReader` that may wait for their check (a few MiB of memory).
+_PENDING_CHUNKS = 4
 
 
 def csr_from_sorted_coo(
