@@ -421,3 +421,34 @@ def test_fast_path_from_64_kib_of_entries(tmp_path, monkeypatch) -> None:
         patch.setattr(mm, "_read_lines", lambda *args: pytest.fail("strict pass used"))
         read = mm.read_matrix_market(large)
     assert (read != a + a.T).nnz == 0
+
+
+def test_lone_carriage_return_after_the_head_goes_to_the_strict_pass(tmp_path) -> None:
+    """A carriage return inside a line ends the line for the strict pass but not for
+    fast_matrix_market, which read ``15001 15001\\r15001.5`` as one entry: the header check
+    catches it in the first 64 KiB only, the byte checks everywhere."""
+    n = 20000
+    lines = [f"{i} {i} {i}.5" for i in range(1, n + 1)]
+    lines[15000] = "15001 15001\r15001.5"
+    path = tmp_path / "cr.mtx"
+    path.write_bytes((GENERAL + f"{n} {n} {n}\n" + "\n".join(lines) + "\n").encode())
+    assert path.read_bytes().index(b"\r") > mm._HEAD_BYTES
+    assert mm._read_coordinate_fast(path) is None
+    with pytest.raises(UserError, match=r"cr\.mtx:15003: 2 values, expected 3 \(row column"):
+        mm.read_matrix_market(path)
+
+
+@pytest.mark.parametrize(
+    ("text", "fields"),
+    [
+        (b"\n1 2 3\r\n4 5 6.0\r\n", 6),
+        (b"\n1 2 3\r  \n\n 4 5 6.0 \r\r\n", 6),
+        (b"\n" + b" " * 40 + b"1 2 3\n" + b"\r\n" * 30 + b"4\t5\t6\n", 6),
+        (b"\n1 2 3\r4 5 6.0\n", None),  # a carriage return that ends no line
+        (b"\n1 2\r 3\n", None),
+        (b"\n1 2 3" + b" " * 30 + b"\r" + b" " * 30 + b"4 5 6\n", None),
+    ],
+)
+def test_carriage_returns_end_lines_or_fail_the_check(text, fields) -> None:
+    assert fast_text.check_chunk(text, 3, 2) == fields
+    assert fast_text.check_chunk(text) == (None if fields is None else fields)

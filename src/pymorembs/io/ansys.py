@@ -975,8 +975,8 @@ def _read_mapping_fast(path: Path) -> DofTable | None:
     n = rows.size
     if n == 0 or np.max(np.strings.str_len(rows["label"])) >= _LABEL_WIDTH:
         return None
-    labels, inverse = np.unique(np.strings.upper(rows["label"]), return_inverse=True)
-    codes = [ANSYS_DOF_LABELS.get(str(label)) for label in labels]
+    labels, inverse = np.unique(rows["label"], return_inverse=True)  # upper case: per label
+    codes = [ANSYS_DOF_LABELS.get(str(label).upper()) for label in labels]
     if None in codes:
         return None
     code = np.asarray(codes, dtype=np.int64)[inverse.reshape(-1)]

@@ -141,55 +141,185 @@ def check_chunk(
 
     ``chunk`` must start and end with a line feed (the frame is not part of the region). The
     checks run on the bytes that are not digits (white space, signs, points, exponent letters:
-    a sixth of a typical file), in file order: a field starts after a white byte that is
-    followed by digits or by another such byte, and two such bytes are neighbours in the file
-    unless digits lie between them.
+    a sixth of a typical file), the *entries*, in file order, each with one flag: whether digits
+    follow it. A run of white entries without digits between them is one separator (a line end
+    if it holds a line feed; a carriage return must be part of a line end, as strict parsers
+    read a lone one as a line break). Then every rule of :class:`PlainNumberScan` on the
+    characters of a number concerns an entry and its two neighbours, and is looked up in a
+    table of entry triples (:data:`_BAD_TRIPLE`); the fields of a line are the separators
+    between two line ends.
     """
     u = np.frombuffer(chunk, dtype=np.uint8)
     scratch, non_digit = _scratch(u.size)
     np.greater(np.subtract(u, 48, out=scratch), 9, out=non_digit)
-    kind = np.compress(non_digit, u)  # the entries: every byte but the digits, in order
-    if kind.tobytes().translate(None, _NOT_DIGITS):
-        return None  # a byte that is not part of a plain number or white space
-    # digits between entry j and entry j + 1 (the last byte, a line feed, is an entry)
-    digit_next = np.logical_not(non_digit[1:], out=scratch.view(bool)[1:])
-    digits_after = np.compress(non_digit[:-1], digit_next)
-    white = kind <= 32
-    starts = white[:-1] & (digits_after | ~white[1:])  # a field starts after entry j
-    point = kind == _POINT
-    letter = (kind | 32) == 101  # e, E
-    special = ~white
-    sign = special & ~point & ~letter  # + and -
-    # neighbours: a digit when digits lie between two entries, else the neighbouring entry
-    adjacent = ~digits_after
-    digit_before = np.concatenate(([False], digits_after))
-    digit_after = np.concatenate((digits_after, [False]))
-    point_before = np.concatenate(([False], point[:-1] & adjacent))
-    point_after = np.concatenate((point[1:] & adjacent, [False]))
-    sign_after = np.concatenate((sign[1:] & adjacent, [False]))
-    bad = sign & (digit_before | point_before | ~(digit_after | point_after))
-    bad |= letter & ~((digit_after | sign_after) & (digit_before | point_before))
-    bad |= point & ~(digit_before | digit_after)
-    # within a field (no white entry between): no point or letter after a letter, no point
-    # after a point; a sign between them lies directly after the letter (checked above)
-    bad[:-1] |= (point[:-1] & point[1:]) | (letter[:-1] & (point[1:] | letter[1:]))
-    bad[:-2] |= letter[:-2] & sign[1:-1] & (point[2:] | letter[2:])
-    if bad.any():
+    where = np.flatnonzero(non_digit)  # the entries; the first and the last are line feeds
+    kind = np.frombuffer(u[where].tobytes().translate(_CLASS_OF_BYTE), dtype=np.uint8)
+    digits_after = np.empty(where.size, dtype=bool)
+    np.greater(np.diff(where), 1, out=digits_after[:-1])
+    digits_after[-1] = False
+    white = kind <= _NL
+    merged = white[:-1] & white[1:] & ~digits_after[:-1]  # followed directly by white
+    if merged.any():
+        kind, digits_after = _one_entry_per_run(kind, digits_after, merged)
+        white = kind <= _NL
+    code = kind << 1
+    code |= digits_after
+    pairs = code[:-1] << 4
+    pairs |= code[1:]
+    triples = pairs[:-1].astype(np.uint16) << 4
+    triples |= code[2:]
+    lines = (fields_per_line, integer_fields) == _MATRIX_MARKET_LINE
+    if (_BAD_IN_LINE if lines else _BAD_TRIPLE).take(triples).any():
         return None
-    fields = int(np.count_nonzero(starts))
-    if fields_per_line:
-        # fields started up to each entry (the chunk holds less than 2**31 bytes)
-        before = np.concatenate(([0], np.cumsum(starts, dtype=np.int32)))
-        per_line = np.diff(before[np.flatnonzero(kind == _NEWLINE)])
-        if np.any((per_line != 0) & (per_line != fields_per_line)):
+    if lines:
+        # the table proved every line "digits blank digits blank number" (module docstring of
+        # _bad_in_line); the first line is checked here (entry 0 is the frame's line end)
+        if kind.size > 1 and kind[1] != _SP:
             return None
-        # every line holds the same number of fields: field q (from 1) of the chunk is field
-        # (q - 1) % fields_per_line + 1 of its line
+        return 3 * (int(np.count_nonzero(kind == _NL)) - 1)
+    separators = np.flatnonzero(white)
+    fields = separators.size - 1
+    if fields_per_line:
+        k = fields_per_line
+        if fields % k:
+            return None
+        # separator t (from 0, a line end) precedes field t % k of its line: the separators are
+        # one line end, then per line k - 1 blanks and a line end
+        ends = (kind[separators[1:]] == _NL).reshape(-1, k)
+        if not ends[:, -1].all() or ends[:, :-1].any():
+            return None
         if integer_fields:
-            index = (before[np.flatnonzero(special)] - 1) % fields_per_line
-            if np.any(index < integer_fields):
-                return None  # a point, letter or sign in an integer field
+            # no sign, point or letter in fields 0 .. integer_fields - 1: the separator before
+            # the first such entry of a field is followed directly by it
+            after = separators + 1
+            after[-1] = separators[-1]  # the last entry, a line end
+            special = ~white[after]
+            columns = _integer_columns(k, integer_fields)
+            if special[0] or special[1:].reshape(-1, k)[:, columns].any():
+                return None
     return fields
+
+
+#: Runs of white entries longer than this are merged by cumulative sums.
+_SHORT_RUN = 16
+
+
+def _one_entry_per_run(
+    kind: np.ndarray, digits_after: np.ndarray, merged: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Entry classes and flags with each run of white entries replaced by its last entry, of
+    the highest class in the run (a line feed if the run holds one; else a carriage return,
+    which ends no line and is refused; else a blank). ``merged[j]``: entry ``j`` is white and
+    followed directly by a white entry."""
+    kind = kind.copy()
+    lifted = np.flatnonzero(merged & (kind[:-1] > _SP))  # a merged line feed or return
+    if lifted.size:
+        end = lifted + 1  # the last entry of the run of each
+        for _ in range(_SHORT_RUN):
+            longer = merged[np.minimum(end, merged.size - 1)] & (end < merged.size)
+            if not longer.any():
+                break
+            end[longer] += 1
+        else:  # long runs: the highest class from cumulative counts per run
+            keep = np.ones(kind.size, dtype=bool)
+            np.logical_not(merged, out=keep[:-1])
+            kept = np.flatnonzero(keep)
+            holds = [
+                np.diff(np.cumsum(kind == cls, dtype=np.int64)[kept], prepend=0) > 0
+                for cls in (_CR, _NL)
+            ]
+            kind = kind[kept]
+            for cls, held in zip((_CR, _NL), holds, strict=True):
+                kind[held] = cls
+            return kind, digits_after[kept]
+        np.maximum.at(kind, end, kind[lifted])
+    keep = np.ones(kind.size, dtype=bool)
+    np.logical_not(merged, out=keep[:-1])
+    return kind[keep], digits_after[keep]
+
+
+def _integer_columns(k: int, integer_fields: int) -> list[int]:
+    """Columns c (separator 1 + c of a line, modulo k) that precede an integer field."""
+    return [c for c in range(k) if (c + 1) % k < integer_fields]
+
+
+# entry classes (after :data:`_CLASS_OF_BYTE`); white first, in the order in which a run of
+# white entries takes the class of its highest
+_SP, _CR, _NL, _POINT_CLASS, _LETTER, _SIGN, _BAD = range(7)
+#: Class of every byte (digits never reach the table: they are not entries).
+_CLASS_OF_BYTE = bytes(
+    {
+        **dict.fromkeys(b"\n", _NL),
+        **dict.fromkeys(b" \t", _SP),
+        **dict.fromkeys(b"\r", _CR),
+        **dict.fromkeys(b".", _POINT_CLASS),
+        **dict.fromkeys(b"eE", _LETTER),
+        **dict.fromkeys(b"+-", _SIGN),
+    }.get(b, _BAD)
+    for b in range(256)
+)
+
+
+def _bad_triple(a: int, b: int, c: int) -> bool:
+    """Whether entry ``b`` (code: class * 2 + digits follow) between ``a`` and ``c`` breaks a
+    rule of :class:`PlainNumberScan`."""
+    (ka, da), (kb, db), kc = divmod(a, 2), divmod(b, 2), c >> 1
+    if kb in (_BAD, _CR):
+        return True  # a byte of no plain number, or a carriage return that ends no line
+    if kb in (_SP, _NL):
+        return False  # white: the rules concern the characters of numbers
+    digit_before, digit_after = bool(da), bool(db)
+    point_before = ka == _POINT_CLASS and not da
+    point_after = kc == _POINT_CLASS and not db
+    sign_after = kc == _SIGN and not db
+    if kb == _SIGN and (digit_before or point_before or not (digit_after or point_after)):
+        return True
+    if kb == _LETTER and not ((digit_after or sign_after) and (digit_before or point_before)):
+        return True
+    if kb == _POINT_CLASS and not (digit_before or digit_after):
+        return True
+    # within a number: no point or letter after a letter, no point after a point, and after
+    # a letter and its sign neither
+    if kb == _POINT_CLASS and kc == _POINT_CLASS:
+        return True
+    if kb == _LETTER and kc in (_POINT_CLASS, _LETTER):
+        return True
+    return ka == _LETTER and kb == _SIGN and kc in (_POINT_CLASS, _LETTER)
+
+
+#: :func:`_bad_triple` of every triple of entry codes ``(a << 8) | (b << 4) | c``.
+_BAD_TRIPLE = np.array(
+    [_bad_triple(t >> 8, (t >> 4) & 15, t & 15) for t in range(1 << 12)], dtype=bool
+)
+
+
+#: (fields per line, integer fields) of a Matrix Market coordinate file, checked by table.
+_MATRIX_MARKET_LINE = (3, 2)
+
+
+def _bad_in_line(a: int, b: int, c: int) -> bool:
+    """:func:`_bad_triple`, and whether entry ``b`` breaks the layout of a coordinate line.
+
+    After the merging of white runs a line is ``NL d SP d SP x NL`` with ``d`` digits and ``x``
+    a number: every blank follows a line end and precedes a blank (the first) or follows a
+    blank and precedes no blank (the second); a line end follows no line end (a line of one
+    field) and precedes a blank; a sign, point or letter follows the second blank or another
+    such entry (so it lies in the third field) and precedes no blank.
+    """
+    if _bad_triple(a, b, c):
+        return True
+    ka, kb, kc = a >> 1, b >> 1, c >> 1
+    if kb == _SP:
+        return not ((ka == _NL and kc == _SP) or (ka == _SP and kc != _SP))
+    if kb == _NL:
+        return ka == _NL or kc != _SP
+    return ka == _NL or kc == _SP
+
+
+#: :func:`_bad_in_line` of every triple of entry codes.
+_BAD_IN_LINE = np.array(
+    [_bad_in_line(t >> 8, (t >> 4) & 15, t & 15) for t in range(1 << 12)], dtype=bool
+)
 
 
 _SCRATCH = threading.local()
@@ -276,9 +406,12 @@ class CheckedReader(io.RawIOBase):
     """A binary file whose bytes from ``offset`` on pass through a :class:`PlainNumberScan`.
 
     Hand it (in an ``io.BufferedReader``) to a parser such as ``scipy.io.mmread``: the file is
-    read once, and checked while the parser reads. A failed check makes the next read raise
-    ``ValueError`` (so the parser stops); afterwards :attr:`fields` is None. :attr:`fields` is
-    the field count once the parser has read to the end of the file (else None).
+    read once, and checked while the parser reads, by a worker thread (NumPy releases the GIL
+    in its loops, so the checks overlap the parser's own threads); at most
+    :data:`_PENDING_CHUNKS` chunks wait for their check. A failed check makes a later read
+    raise ``ValueError`` (so the parser stops); afterwards :attr:`fields` is None.
+    :attr:`fields` is the field count once the parser has read to the end of the file and
+    every chunk is checked (else None).
 
     Parameters
     ----------
@@ -307,11 +440,14 @@ class CheckedReader(io.RawIOBase):
         self._scan = scan
         self._patch = patch
         self._eof = False
+        self._pending: deque[Future[int | None]] = deque()
+        self._worker = ThreadPoolExecutor(1)  # shut down in close()
 
     def readable(self) -> bool:
         return True
 
     def readinto(self, buffer) -> int:
+        self._collect(_PENDING_CHUNKS)
         if self._scan.fields is None:
             raise ValueError("the bytes fail the plain-number checks")
         size = self._file.readinto(buffer)
@@ -326,10 +462,18 @@ class CheckedReader(io.RawIOBase):
         skip = min(max(self._offset - self._position, 0), size)
         self._position += size
         if size == 0:
+            self._collect(0)
             self._eof = True
             self._scan.finish()
         elif skip < size:
-            self._scan.feed(view[skip:size])
+            chunk = self._scan.split(view[skip:size])
+            if chunk is not None:
+                scan = self._scan
+                self._pending.append(
+                    self._worker.submit(
+                        check_chunk, chunk, scan.fields_per_line, scan.integer_fields
+                    )
+                )
         if self._scan.fields is None:
             raise ValueError("the bytes fail the plain-number checks")
         return size
@@ -339,9 +483,21 @@ class CheckedReader(io.RawIOBase):
         """Fields of the region once it was read to its end and passed every check, else None."""
         return self._scan.fields if self._eof else None
 
+    def _collect(self, left: int) -> None:
+        """Count the checked chunks; wait until at most ``left`` chunks are unchecked."""
+        pending = self._pending
+        while pending and (len(pending) > left or pending[0].done()):
+            self._scan.add(pending.popleft().result())
+
     def close(self) -> None:
+        self._worker.shutdown(wait=True, cancel_futures=True)
+        self._pending.clear()
         self._file.close()
         super().close()
+
+
+#: Chunks of a :class:`CheckedReader` that may wait for their check (a few MiB of memory).
+_PENDING_CHUNKS = 4
 
 
 def csr_from_sorted_coo(
