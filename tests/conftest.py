@@ -125,3 +125,15 @@ def _one_blas_thread():
 
     with threadpool_limits(limits=1, user_api="blas"):
         yield
+
+
+def blade_job(**tables) -> dict:
+    """A small job on the built-in blade (frame "none", one modal reduction) plus ``tables``."""
+    return {
+        "model": {"example": "blade"},
+        "frame": {"type": "none"},
+        "inputs": [{"node": 1, "directions": "ux"}],
+        "band": {"f_max_hz": 100.0},
+        "reduction": [{"name": "m", "method": "modal", "order": 4}],
+        **tables,
+    }

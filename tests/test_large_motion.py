@@ -7,6 +7,7 @@ import json
 import numpy as np
 import pytest
 
+from conftest import blade_job
 from pymorembs.analysis.large_motion import off_axis_node
 from pymorembs.cli import main
 from pymorembs.config import parse_job
@@ -128,16 +129,8 @@ def test_off_axis_node_is_a_moving_corner():
     ],
 )
 def test_bad_settings(tmp_path, table, message):
-    base = {
-        "model": {"example": "blade"},
-        "frame": {"type": "none"},
-        "inputs": [{"node": 1, "directions": "ux"}],
-        "band": {"f_max_hz": 100.0},
-        "reduction": [{"name": "m", "method": "modal", "order": 4}],
-        "large_motion": table,
-    }
     with pytest.raises(UserError, match=message):
-        parse_job(base, tmp_path / "job.toml")
+        parse_job(blade_job(large_motion=table), tmp_path / "job.toml")
 
 
 def test_joint_requests_checked_before_any_work(tmp_path, capsys):

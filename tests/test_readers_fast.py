@@ -171,7 +171,7 @@ def test_written_files_take_the_fast_path(tmp_path, monkeypatch) -> None:
     for matrix in (a + a.T, a + 1e-9 * sp.eye(60)):  # symmetric and general storage
         path = mm.write_matrix_market(tmp_path / "w.mtx", matrix)
         with monkeypatch.context() as patch:
-            patch.setattr(mm, "_read_lines", lambda *args: pytest.fail("strict pass used"))
+            patch.setattr(mm, "read_text_lines", lambda *args: pytest.fail("strict pass used"))
             read = mm.read_matrix_market(path)
         assert (read != sp.csr_matrix(matrix)).nnz == 0
         assert read.has_canonical_format
@@ -366,12 +366,12 @@ CSV_CASES = [
 
 def _read_table(name: str, path: Path):
     if name == "dofs.csv":
-        return mm._read_dofs(path)
+        return mm.read_dofs_csv(path)
     if name == "nodes.csv":
-        return mm._read_nodes(path)
+        return mm.read_nodes_csv(path)
     if name == "fixed.csv":
-        return mm._read_fixed(path, DOF_TABLE)
-    return mm._read_constraints(path, DOF_TABLE)
+        return mm.read_fixed_csv(path, DOF_TABLE)
+    return mm.read_constraints_csv(path, DOF_TABLE)
 
 
 @pytest.mark.parametrize(("name", "text", "fast"), CSV_CASES)
@@ -396,7 +396,7 @@ def test_csv_errors_name_the_line(tmp_path) -> None:
     path = tmp_path / "dofs.csv"
     path.write_text("node,direction\n1,ux\n2,uy\n1,UX\n")
     with pytest.raises(UserError, match=re.escape("dofs.csv:4: dof 1:ux is listed twice")):
-        mm._read_dofs(path)
+        mm.read_dofs_csv(path)
 
 
 def test_index_at_the_int64_limit_is_named_without_a_warning(tmp_path) -> None:
@@ -418,7 +418,7 @@ def test_fast_path_from_64_kib_of_entries(tmp_path, monkeypatch) -> None:
     large = mm.write_matrix_market(tmp_path / "large.mtx", a + a.T)
     assert large.stat().st_size > 1 << 16
     with monkeypatch.context() as patch:
-        patch.setattr(mm, "_read_lines", lambda *args: pytest.fail("strict pass used"))
+        patch.setattr(mm, "read_text_lines", lambda *args: pytest.fail("strict pass used"))
         read = mm.read_matrix_market(large)
     assert (read != a + a.T).nnz == 0
 

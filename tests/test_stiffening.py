@@ -18,6 +18,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from conftest import blade_job
 from pymorembs.cli import main
 from pymorembs.config import parse_job
 from pymorembs.elements.hex20 import assemble_hex20_geometric
@@ -179,16 +180,8 @@ def test_a_tip_tension_stiffens_through_the_node_force_jacobian(runs):
     ],
 )
 def test_bad_stiffening_tables(tmp_path, table, message):
-    base = {
-        "model": {"example": "blade"},
-        "frame": {"type": "none"},
-        "inputs": [{"node": 1, "directions": "ux"}],
-        "band": {"f_max_hz": 100.0},
-        "reduction": [{"name": "m", "method": "modal", "order": 4}],
-        "stiffening": table,
-    }
     with pytest.raises(UserError, match=message):
-        parse_job(base, tmp_path / "job.toml")
+        parse_job(blade_job(stiffening=table), tmp_path / "job.toml")
 
 
 def test_mesh_source_needs_elements(tmp_path, capsys):

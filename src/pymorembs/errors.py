@@ -25,3 +25,12 @@ class NumericalError(PymorembsError):
     """A numerical failure on valid input (singular factorization, no convergence...)."""
 
     exit_code = 3
+
+
+def located_error(path: object, line: int | None, message: str) -> UserError:
+    """A one-line :class:`UserError` ``path:line: message`` (``path: message`` without a line).
+
+    Line breaks in ``message`` become spaces, so the error stays one line.
+    """
+    where = str(path) if line is None else f"{path}:{line}"
+    return UserError(f"{where}: {' '.join(message.splitlines())}")

@@ -335,12 +335,7 @@ def check_requests(job: Job, body: ElasticBody) -> None:
                     f"{job.path}: [export] nodes: node {node} lacks translational dofs "
                     "(a frame node of the body needs ux uy uz)"
                 )
-        for reduction in job.reductions:
-            if reduction.options.get("two_sided"):
-                raise UserError(
-                    f"{job.path}: reduction '{reduction.name}': SID, Neweul-M² and Exudyn bodies "
-                    "need a one-sided (Galerkin) projection; drop two_sided or write only matrices"
-                )
+        _require_one_sided(job, "SID, Neweul-M² and Exudyn bodies need", "or write only matrices")
     if spec is None:
         return
     if not {0, 1, 2} <= dofs_of(spec.load_node, "[time_domain] load_node"):
@@ -368,6 +363,16 @@ def check_requests(job: Job, body: ElasticBody) -> None:
         )
 
 
+def _require_one_sided(job: Job, what: str, alternative: str = "") -> None:
+    """Refuse two-sided reductions where bodies are needed (``what``: who needs them)."""
+    for reduction in job.reductions:
+        if reduction.options.get("two_sided"):
+            raise UserError(
+                f"{job.path}: reduction '{reduction.name}': {what} a one-sided (Galerkin) "
+                f"projection; drop two_sided {alternative}".rstrip()
+            )
+
+
 def _check_large_motion(job: Job, body: ElasticBody, dofs_of: Callable) -> None:
     """``[large_motion]`` needs Exudyn, coordinates, one-sided reductions and a joint it can
     act on (the frame's node, or a node with all six dofs)."""
@@ -390,12 +395,7 @@ def _check_large_motion(job: Job, body: ElasticBody, dofs_of: Callable) -> None:
             "for a hinge on a body whose frame is elsewhere (add an interface node there, or "
             "use a tangent frame at it)"
         )
-    for reduction in job.reductions:
-        if reduction.options.get("two_sided"):
-            raise UserError(
-                f"{job.path}: reduction '{reduction.name}': [large_motion] needs one-sided "
-                "(Galerkin) bodies; drop two_sided"
-            )
+    _require_one_sided(job, "[large_motion] needs")
 
 
 def run_job(

@@ -84,8 +84,9 @@ from typing import Literal
 import numpy as np
 import scipy.sparse as sp
 
+from pymorembs.arrays import sorted_unique
 from pymorembs.body import DIRECTIONS, DofTable, ElasticBody
-from pymorembs.errors import UserError
+from pymorembs.errors import UserError, located_error
 from pymorembs.io.abaqus_inp import (
     ABAQUS_DOF_NAMES,
     MAX_LABEL,
@@ -94,10 +95,9 @@ from pymorembs.io.abaqus_inp import (
     derive_dof_table,
     integer_field,
     read_inp,
-    unique_values,
 )
 from pymorembs.io.formats import assemble_symmetric, is_nodes_csv, read_text
-from pymorembs.io.matrix_market import SYMMETRY_TOLERANCE, _fail, _read_dofs, _read_nodes
+from pymorembs.io.matrix_market import SYMMETRY_TOLERANCE, read_dofs_csv, read_nodes_csv
 from pymorembs.io.symmetric_assembly import half_of_entries, symmetric_from_half
 
 __all__ = [
@@ -250,7 +250,7 @@ def read_abaqus(
         coordinates that cannot be derived or proved; one line ``file:line: ...``.
     """
     if mass is None:
-        raise _fail(
+        raise located_error(
             Path(stiffness),
             None,
             "no mass file given: this file holds only the stiffness; give jobname_MASSn.mtx "
@@ -306,7 +306,7 @@ def read_node_file(path: PathLike) -> tuple[np.ndarray, np.ndarray, str]:
 
 def _read_node_source(path: Path) -> _Nodes:
     if is_nodes_csv(path):
-        ids, xyz = _read_nodes(path)
+        ids, xyz = read_nodes_csv(path)
         return _Nodes(path, ids, xyz, None)
     model = read_inp(path)
     return _Nodes(path, model.node_ids, model.coordinates, model)
@@ -327,7 +327,7 @@ def _read(
     if damping is not None:
         paths["damping"] = Path(damping)
         if re.search(r"_DMPS\d*\.mtx$", paths["damping"].name, re.IGNORECASE):
-            raise _fail(
+            raise located_error(
                 paths["damping"],
                 None,
                 "a structural damping matrix (DMPS); pymorembs needs the viscous damping matrix "
@@ -337,7 +337,7 @@ def _read(
     k_file = files["stiffness"]
     for role, f in files.items():
         if f.layout != k_file.layout:
-            raise _fail(
+            raise located_error(
                 f.path,
                 None,
                 f"{_layout_name(f.layout)} layout, but {k_file.path} has the "
@@ -349,7 +349,7 @@ def _read(
         name = re.sub(r"_STIF\d*$", "", k_file.path.stem, flags=re.IGNORECASE) or "body"
     if k_file.layout == "input":
         if dofs is not None:
-            raise _fail(
+            raise located_error(
                 Path(dofs),
                 None,
                 "a dofs table is only used with FORMAT=COORDINATE files; the matrix-input files "
@@ -437,7 +437,7 @@ def _equation_indices(
     entries = sum(f.values.size for f in files.values())
     span = (high - low + 1) * 8
     if span > 4 * entries + (1 << 20):  # sparse labels: a sort
-        keys = unique_values(
+        keys = sorted_unique(
             np.concatenate([_keys(n, d) for f in files.values() for n, d in pairs(f)])
         )
 
@@ -529,12 +529,12 @@ def _matrix_input_body(
         "(FORMAT=MATRIX INPUT)"
     ]
     model = nodes.model if nodes is not None else None
-    holding = unique_values(model.node_scope) if model is not None else np.zeros(0, dtype=np.int64)
+    holding = sorted_unique(model.node_scope) if model is not None else np.zeros(0, dtype=np.int64)
     if model is None or not model.uses_parts or not holding.size:
         return release_penalties(_make_body(files, matrices, table, nodes, name, notes))
     if holding.size != 1 or model.scopes[int(holding[0])].kind != "instance":
         names = ", ".join(model.scopes[int(k)].describe() for k in holding)
-        raise _fail(
+        raise located_error(
             model.path,
             None,
             f"nodes in {holding.size} places ({names}): which labels Abaqus writes into "
@@ -546,7 +546,7 @@ def _matrix_input_body(
     body = _make_body(files, matrices, table, nodes, name, notes)
     worst = _worst_residual(body)
     if not worst <= RIGID_BODY_TOLERANCE:
-        raise _fail(
+        raise located_error(
             k_file.path,
             None,
             f"the node labels of {scope.describe()} in {model.path.name} "
@@ -565,7 +565,7 @@ def _coordinate_body(
 ) -> ElasticBody:
     k_file = files["stiffness"]
     if dofs is not None:
-        table, dof_lines = _read_dofs(dofs)
+        table, dof_lines = read_dofs_csv(dofs)
         where = f"the {len(table)} equations of {dofs}"
         checked = {role: _check_equations(f, len(table), where) for role, f in files.items()}
         indices = checked.get
@@ -578,11 +578,11 @@ def _coordinate_body(
         try:
             body = _make_body(files, matrices, table, nodes, name, notes)
         except _MissingNode as missing:
-            raise _fail(dofs, dof_lines[missing.equation], missing.problem) from None
+            raise located_error(dofs, dof_lines[missing.equation], missing.problem) from None
         return release_penalties(body)
     if nodes is None or nodes.model is None:
         given = "" if nodes is None else f" ({nodes.path.name} gives no elements)"
-        raise _fail(
+        raise located_error(
             k_file.path,
             None,
             "FORMAT=COORDINATE files number the equations without node labels; give the Abaqus "
@@ -595,7 +595,7 @@ def _coordinate_body(
     for order in ("file", "label"):
         table, types = derive_dof_table(model, order)
         if len(table) != n:  # (checked before any n-sized allocation)
-            raise _fail(
+            raise located_error(
                 k_file.path,
                 None,
                 f"the equation order derived from {model.path.name} gives {len(table)} "
@@ -622,7 +622,7 @@ def _coordinate_body(
             else "is ambiguous: the nodes in file order and in label order both pass the "
             "rigid-body check"
         )
-        raise _fail(
+        raise located_error(
             k_file.path,
             None,
             f"the equation order derived from {model.path.name} {problem}; {_GIVE_DOFS}",
@@ -828,7 +828,7 @@ def _parse_strictly(path: Path) -> tuple[tuple[np.ndarray, ...], np.ndarray]:
     if keyword is not None:
         number = text.count("\n", 0, keyword.start()) + 1
         word = text[keyword.start() :].split("\n", 1)[0].strip().split(",")[0]
-        raise _fail(
+        raise located_error(
             path,
             number,
             f"keyword line {word!r}: not a matrix file of *MATRIX OUTPUT (a *SUBSTRUCTURE or "
@@ -838,7 +838,9 @@ def _parse_strictly(path: Path) -> tuple[tuple[np.ndarray, ...], np.ndarray]:
     text = ascii_data(path, text, 1, comment="*")
     first = _first_data_line(text)
     if first is None:
-        raise _fail(path, None, "no matrix entries (the file is empty or holds only comments)")
+        raise located_error(
+            path, None, "no matrix entries (the file is empty or holds only comments)"
+        )
     data, number = first
     delimiter = "," if "," in data else None
     count = len(_split(data, delimiter))
@@ -847,7 +849,7 @@ def _parse_strictly(path: Path) -> tuple[tuple[np.ndarray, ...], np.ndarray]:
     elif count == 3:
         names = _COORDINATE
     else:
-        raise _fail(
+        raise located_error(
             path,
             number,
             f"{count} fields; expected 5 (node, dof, node, dof, value: FORMAT=MATRIX INPUT) or 3 "
@@ -864,7 +866,7 @@ def _parse_strictly(path: Path) -> tuple[tuple[np.ndarray, ...], np.ndarray]:
             )
     except ValueError as err:
         _locate_bad_line(path, delimiter, names)
-        raise _fail(path, None, f"cannot read the entries: {err}") from None
+        raise located_error(path, None, f"cannot read the entries: {err}") from None
     del text
     columns = tuple(np.ascontiguousarray(table[f"c{i}"]) for i in range(count - 1))
     return columns, np.ascontiguousarray(table["value"])
@@ -876,7 +878,7 @@ def _locate_bad_line(path: Path, delimiter: str | None, names: tuple[str, ...]) 
     for number, data in _content_lines(read_text(path, _KIND)):
         fields = _split(data, delimiter)
         if len(fields) != len(names):
-            raise _fail(
+            raise located_error(
                 path,
                 number,
                 f"{len(fields)} {separator} fields, expected {len(names)} ({', '.join(names)}); "
@@ -887,7 +889,7 @@ def _locate_bad_line(path: Path, delimiter: str | None, names: tuple[str, ...]) 
         try:
             float(fields[-1].replace("D", "E").replace("d", "e"))
         except ValueError:
-            raise _fail(path, number, f"value {fields[-1]!r} is not a number") from None
+            raise located_error(path, number, f"value {fields[-1]!r} is not a number") from None
 
 
 def _check_labels(f: _MatrixFile) -> None:
@@ -897,7 +899,7 @@ def _check_labels(f: _MatrixFile) -> None:
     if huge.size:
         k = int(huge[0])
         node = int(max(node_i[k], node_j[k]))
-        raise _fail(
+        raise located_error(
             f.path,
             f.line_of(k),
             f"node label {node} is out of range (Abaqus labels are below 2**31); damaged file?",
@@ -909,7 +911,7 @@ def _check_labels(f: _MatrixFile) -> None:
     if k_node is not None and (k_dof is None or k_node <= k_dof):
         node = int(node_i[k_node]) if node_i[k_node] <= 0 else int(node_j[k_node])
         if node < 0:
-            raise _fail(
+            raise located_error(
                 f.path,
                 f.line_of(k_node),
                 f"node {node} is an internal node (Abaqus labels internal nodes negative, e.g. "
@@ -917,14 +919,14 @@ def _check_labels(f: _MatrixFile) -> None:
                 "dofs are not nodal displacements, so pymorembs cannot use this matrix: model "
                 "without Lagrange multipliers or reduce the body in Abaqus",
             )
-        raise _fail(f.path, f.line_of(k_node), "node label 0 is not a valid Abaqus node")
+        raise located_error(f.path, f.line_of(k_node), "node label 0 is not a valid Abaqus node")
     if k_dof is not None:
         if 1 <= dof_i[k_dof] <= 6:
             node, dof = int(node_j[k_dof]), int(dof_j[k_dof])
         else:
             node, dof = int(node_i[k_dof]), int(dof_i[k_dof])
         what = ABAQUS_DOF_NAMES.get(dof, "not a displacement or rotation")
-        raise _fail(
+        raise located_error(
             f.path,
             f.line_of(k_dof),
             f"dof {dof} of node {node} is {what}; pymorembs reads structural dofs only (Abaqus "
@@ -942,7 +944,7 @@ def _check_equations(f: _MatrixFile, n: int, where: str) -> tuple[np.ndarray, np
     bad = np.flatnonzero((rows < 1) | (rows > n) | (cols < 1) | (cols > n))
     if bad.size:
         k = int(bad[0])
-        raise _fail(
+        raise located_error(
             f.path,
             f.line_of(k),
             f"entry ({rows[k]}, {cols[k]}) lies outside {where} (equations count from 1)",
@@ -979,6 +981,6 @@ def _coordinates(
                 node_i, _, node_j, _ = f.columns
                 hit = np.flatnonzero((node_i == node) | (node_j == node))
                 if hit.size:
-                    raise _fail(f.path, f.line_of(int(hit[0])), problem)
+                    raise located_error(f.path, f.line_of(int(hit[0])), problem)
         raise _MissingNode(int(np.flatnonzero(table.nodes == node)[0]), problem)
     return nodes.xyz[order[pos]]

@@ -63,14 +63,13 @@ import numpy as np
 import scipy.sparse as sp
 
 from pymorembs.body import DofTable, ElasticBody
-from pymorembs.errors import UserError
+from pymorembs.errors import UserError, located_error
 from pymorembs.io.abaqus import read_node_file
 from pymorembs.io.abaqus_inp import (
     ABAQUS_DOF_NAMES,
     ascii_data,
     integer_field,
     keyword_blocks,
-    located_error,
     parse_keyword,
 )
 from pymorembs.io.formats import read_text

@@ -48,18 +48,17 @@ import numpy as np
 import scipy.sparse as sp
 
 from pymorembs.body import DIRECTIONS, DofTable, ElasticBody
-from pymorembs.errors import UserError
+from pymorembs.errors import UserError, located_error
 from pymorembs.io.ansys_cdb import AnsysArchive, looks_like_cdb, read_cdb
+from pymorembs.io.checks import make_body, reason
 from pymorembs.io.formats import is_nodes_csv
 from pymorembs.io.matrix_market import (
-    _fail,
-    _read_lines,
-    _read_nodes,
-    _to_int,
     check_symmetric,
+    parse_int,
     read_matrix_market_with_storage,
+    read_nodes_csv,
+    read_text_lines,
 )
-from pymorembs.io.third_party import reason as _reason  # also used by nastran_op4
 
 __all__ = ["ANSYS_DOF_LABELS", "RIGID_BODY_TOLERANCE", "read_ansys_full", "read_ansys_mmf"]
 
@@ -216,7 +215,9 @@ def read_ansys_full(
     try:
         from ansys.mapdl.reader import _binary_reader, read_binary
     except ImportError as err:  # pragma: no cover - a declared dependency
-        raise _fail(path, None, f"reading .full files needs ansys-mapdl-reader ({err})") from None
+        raise located_error(
+            path, None, f"reading .full files needs ansys-mapdl-reader ({err})"
+        ) from None
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -235,15 +236,15 @@ def read_ansys_full(
     except UserError:
         raise
     except Exception as err:  # the reader's own errors (and MemoryError) become one line
-        raise _fail(path, None, f"cannot read the .full file: {_reason(err)}") from None
+        raise located_error(path, None, f"cannot read the .full file: {reason(err)}") from None
 
     dof_ref = np.asarray(dof_ref)
     if dof_ref.shape != (info.neqn, 2) or k_upper is None or m_upper is None:
-        raise _fail(path, None, "ansys-mapdl-reader returned an incomplete model")
+        raise located_error(path, None, "ansys-mapdl-reader returned an incomplete model")
     try:
         table = DofTable(dof_ref[:, 0], info.directions)
     except UserError as err:
-        raise _fail(path, None, str(err)) from None
+        raise located_error(path, None, str(err)) from None
     stiffness = _mirror(k_upper, path, "stiffness")
     mass = _mirror(m_upper, path, "mass")
     damping = None if d_upper is None else _mirror(d_upper, path, "damping")
@@ -251,7 +252,7 @@ def read_ansys_full(
     _check_no_empty_dofs(stiffness, mass, table, fixed, path)
     geometry = _coordinates(table, nodes, path)
     notes = [_full_note(path, info, table, fixed.size)]
-    body = _make_body(
+    body = make_body(
         path,
         node_ids=geometry.node_ids,
         coordinates=geometry.coordinates,
@@ -307,26 +308,30 @@ def _scan_full_file(path: Path) -> _FullInfo:
         from ansys.mapdl.reader.common import ANSYS_BINARY_FILE_TYPES
         from ansys.mapdl.reader.full import SYMBOLIC_FULL_HEADER_KEYS
     except ImportError as err:  # pragma: no cover - a declared dependency
-        raise _fail(path, None, f"reading .full files needs ansys-mapdl-reader ({err})") from None
+        raise located_error(
+            path, None, f"reading .full files needs ansys-mapdl-reader ({err})"
+        ) from None
     words = _map_words(path)
     records = _Records(path, words)
 
     first = int(words[0]) if words.size else None
     if first != _HEADER_WORDS:
         if words.size and int(words[:1].byteswap()[0]) == _HEADER_WORDS:
-            raise _fail(path, None, "big-endian Ansys files are not supported")
-        raise _fail(path, None, "not an Ansys binary file (expected a Jobname.full file)")
+            raise located_error(path, None, "big-endian Ansys files are not supported")
+        raise located_error(path, None, "not an Ansys binary file (expected a Jobname.full file)")
     header, after = records.read(0, "standard header", expect=_HEADER_WORDS)
     file_type = int(header[0])
     if file_type != _FULL_FILE_TYPE:
         kind = ANSYS_BINARY_FILE_TYPES.get(file_type, f"file of type {file_type}")
-        raise _fail(path, None, f"this is an Ansys {kind}, not a .full file")
+        raise located_error(path, None, f"this is an Ansys {kind}, not a .full file")
     release = header[_VERSION_WORD : _VERSION_WORD + 1].astype("<i4").tobytes()[::-1]
     release_text = release.decode("latin-1").strip() if release.isascii() else ""
 
     values, after = records.read(after, ".full header", limit=4 * _HEADER_WORDS)
     if values.size < 40:
-        raise _fail(path, None, f".full header has {values.size} words; the file is damaged")
+        raise located_error(
+            path, None, f".full header has {values.size} words; the file is damaged"
+        )
     # the first occurrence of every key; the library's parse_header fails on a low word of a
     # 64-bit pointer that is negative as int32 (struct.error), so the items are read here
     h = {}
@@ -342,33 +347,39 @@ def _scan_full_file(path: Path) -> _FullInfo:
     neqn, n_nodes, numdof = item("neqn"), item("nNodes"), item("numdof")
     analysis = item("kan")
     if item("fun04") >= 0:
-        raise _fail(path, None, "frontal-assembly .full files are not supported")
+        raise located_error(path, None, "frontal-assembly .full files are not supported")
     if item("extopt") in (3, 4):
-        raise _fail(path, None, f"extraction option {item('extopt')} has another file layout")
+        raise located_error(
+            path, None, f"extraction option {item('extopt')} has another file layout"
+        )
     if item("keyuns"):
-        raise _fail(path, None, "the matrices are unsymmetric; pymorembs needs symmetric K and M")
+        raise located_error(
+            path, None, "the matrices are unsymmetric; pymorembs needs symmetric K and M"
+        )
     if item("lumpm"):
-        raise _fail(
+        raise located_error(
             path,
             None,
             "lumped mass matrix (LUMPM,ON) cannot be read; write the file with LUMPM,OFF or "
             "export the matrices with *SMAT/*EXPORT,...,MMF (read_ansys_mmf)",
         )
     if item("ncefull") or item("nceGprime"):
-        raise _fail(
+        raise located_error(
             path,
             None,
             "the model has constraint equations (CE, CP or MPC contact) that a .full file does "
             "not apply; export the matrices with *SMAT/*EXPORT,...,MMF (read_ansys_mmf)",
         )
     if neqn <= 0 or n_nodes <= 0 or not 0 < numdof <= 32:
-        raise _fail(path, None, f"implausible .full header (neqn={neqn}, nodes={n_nodes})")
+        raise located_error(path, None, f"implausible .full header (neqn={neqn}, nodes={n_nodes})")
     end = long_item("ptrEND")
     if end > words.size:
-        raise _fail(path, None, f"file is truncated: {4 * words.size} bytes, need {4 * end}")
+        raise located_error(
+            path, None, f"file is truncated: {4 * words.size} bytes, need {4 * end}"
+        )
     for key in SYMBOLIC_FULL_HEADER_KEYS:
         if key.startswith("ptr") and key.endswith("h") and not 0 <= long_item(key[:-1]) <= end:
-            raise _fail(
+            raise located_error(
                 path,
                 None,
                 f".full header: pointer {key[:-1]} = {long_item(key[:-1])} lies outside the file "
@@ -377,26 +388,30 @@ def _scan_full_file(path: Path) -> _FullInfo:
 
     curdof, after = records.read(after, "dof record", expect=numdof)
     if np.any((curdof < 1) | (curdof > 32)):
-        raise _fail(path, None, "dof record holds unknown dof numbers; the file is damaged")
+        raise located_error(path, None, "dof record holds unknown dof numbers; the file is damaged")
     back, _ = records.read(after, "nodal equivalence table", limit=n_nodes + words.size)
     if back.size < n_nodes or np.any(back[:n_nodes] <= 0):
-        raise _fail(path, None, "nodal equivalence table is damaged")
+        raise located_error(path, None, "nodal equivalence table is damaged")
     if long_item("ptrDOF") <= 0:
-        raise _fail(path, None, "the .full header has no dof information; the file is damaged")
+        raise located_error(
+            path, None, "the .full header has no dof information; the file is damaged"
+        )
     ndof, after = records.read(long_item("ptrDOF"), "dofs per node", expect=n_nodes)
     const, _ = records.read(after, "dof information", expect=neqn)
     if np.any((ndof < 1) | (ndof > numdof)) or int(ndof.sum()) != neqn:
-        raise _fail(path, None, "dofs per node do not add up to the number of equations")
+        raise located_error(path, None, "dofs per node do not add up to the number of equations")
     if np.unique(back[:n_nodes]).size != n_nodes:
-        raise _fail(path, None, "nodal equivalence table lists a node twice; the file is damaged")
+        raise located_error(
+            path, None, "nodal equivalence table lists a node twice; the file is damaged"
+        )
     const = np.array(const, dtype=np.int32)
 
     n_stiffness, n_mass = long_item("ntermK"), long_item("ntermM")
     n_damping, damping_pointer = long_item("ntermD"), long_item("ptrDMP")
     if n_stiffness <= 0 or n_mass <= 0:
-        raise _fail(path, None, _what_it_holds(neqn, n_stiffness, n_damping, analysis, h))
+        raise located_error(path, None, _what_it_holds(neqn, n_stiffness, n_damping, analysis, h))
     if analysis == _BUCKLING:
-        raise _fail(
+        raise located_error(
             path,
             None,
             f"the file was written by {_ANALYSES[_BUCKLING]}: its second matrix is the "
@@ -453,20 +468,24 @@ def _full_directions(
     """
     number = np.abs(const.astype(np.int64))
     if np.any(number == 0):
-        raise _fail(path, None, "dof information has a zero entry; the file is damaged")
+        raise located_error(path, None, "dof information has a zero entry; the file is damaged")
     as_position = curdof[number - 1] if number.max() <= curdof.size else None
     as_number = number if np.all(np.isin(number, curdof)) else None
     if as_position is not None and as_number is not None:
         if not np.array_equal(as_position, as_number):
-            raise _fail(path, None, "cannot tell the dof label of the equations unambiguously")
+            raise located_error(
+                path, None, "cannot tell the dof label of the equations unambiguously"
+            )
     labels = as_position if as_position is not None else as_number
     if labels is None:
-        raise _fail(path, None, "dof information does not match the dof record; file damaged")
+        raise located_error(
+            path, None, "dof information does not match the dof record; file damaged"
+        )
     other = np.flatnonzero(labels > 6)
     if other.size:
         names = sorted({_ANSYS_DOF_NUMBERS.get(int(n), f"#{n}") for n in labels[other]})
         first = int(other[0])
-        raise _fail(
+        raise located_error(
             path,
             None,
             f"the model has non-structural dofs ({' '.join(names)}; first: node "
@@ -504,16 +523,16 @@ class _Records:
             raise self._truncated(what)
         flags = (int(words[pointer + 1]) >> 24) & 0xFF
         if int(words[end]) != stored or not flags & _INTEGER:
-            raise _fail(self.path, None, f"{what}: unexpected record layout (damaged file)")
+            raise located_error(self.path, None, f"{what}: unexpected record layout (damaged file)")
         if flags & _ZLIB:
-            raise _fail(
+            raise located_error(
                 self.path,
                 None,
                 f"{what}: the record is zlib-compressed, which ansys-mapdl-reader cannot read; "
                 "write the file without zlib compression (/FCOMP)",
             )
         if flags & _SHORT:
-            raise _fail(
+            raise located_error(
                 self.path,
                 None,
                 f"{what}: the record holds 16-bit integers, which ansys-mapdl-reader cannot use",
@@ -531,7 +550,7 @@ class _Records:
             if bound is not None and values.size > bound and expect is None:
                 raise self._bad_record(what, f"{values.size} items, at most {bound} expected")
         if expect is not None and values.size != expect:
-            raise _fail(
+            raise located_error(
                 self.path, None, f"{what}: {values.size} entries, expected {expect}; file damaged"
             )
         return values, end + 1
@@ -560,7 +579,7 @@ class _Records:
             starts[i], counts[i] = p + 2, n
             p = q + 2 * n + 3
         if p != extent:
-            raise _fail(self.path, None, f"{what}: term count does not match the header")
+            raise located_error(self.path, None, f"{what}: term count does not match the header")
         array = np.asarray(block)
         index_flags = (array[starts - 1] >> 24) & _FLAG_MASK
         value_flags = (array[starts + counts + 2] >> 24) & _FLAG_MASK
@@ -572,17 +591,21 @@ class _Records:
         offsets = np.repeat(starts - (np.cumsum(counts) - counts), counts)
         rows = array[offsets + np.arange(total)]
         if total and (rows.min() < 1 or rows.max() > neqn):
-            raise _fail(self.path, None, f"{what}: row index out of range; the file is damaged")
+            raise located_error(
+                self.path, None, f"{what}: row index out of range; the file is damaged"
+            )
 
     def _truncated(self, what: str) -> UserError:
-        return _fail(self.path, None, f"file is truncated or damaged (cannot read the {what})")
+        return located_error(
+            self.path, None, f"file is truncated or damaged (cannot read the {what})"
+        )
 
     def _bad(self, what: str, equation: int, block: memoryview, p: int) -> UserError:
         """A damaged matrix record; compressed flags (if they are the cause) are named."""
         flags = (block[p + 1] >> 24) & _FLAG_MASK if p + 1 < len(block) else _INTEGER
         if flags != _INTEGER:
             return self._odd_flags(what, equation, flags)
-        return _fail(
+        return located_error(
             self.path,
             None,
             f"{what}: damaged record at equation {equation + 1} (truncated or corrupt file)",
@@ -591,7 +614,7 @@ class _Records:
     def _odd_flags(self, what: str, equation: int, flags: int) -> UserError:
         """Matrix records that are not plain int32 index / float64 value records."""
         kind = "compressed" if flags & (_BIT_SPARSE | _WINDOWED | _ZLIB) else "unexpected"
-        return _fail(
+        return located_error(
             self.path,
             None,
             f"{what}: {kind} records (first at equation {equation + 1}), which "
@@ -600,7 +623,7 @@ class _Records:
         )
 
     def _bad_record(self, what: str, why: str) -> UserError:
-        return _fail(self.path, None, f"{what}: damaged compressed record ({why})")
+        return located_error(self.path, None, f"{what}: damaged compressed record ({why})")
 
 
 def _decode_bit_sparse(raw: np.ndarray, bound: int | None, fail) -> np.ndarray:
@@ -675,17 +698,19 @@ def _map_words(path: Path) -> np.ndarray:
             raise IsADirectoryError
         if size < 4:
             if size == 0:
-                raise _fail(path, None, "empty file (expected a Jobname.full file)")
-            raise _fail(path, None, "not an Ansys binary file (expected a Jobname.full file)")
+                raise located_error(path, None, "empty file (expected a Jobname.full file)")
+            raise located_error(
+                path, None, "not an Ansys binary file (expected a Jobname.full file)"
+            )
         return np.memmap(path, dtype="<i4", mode="r", shape=(size // 4,))
     except UserError:
         raise
     except FileNotFoundError:
-        raise _fail(path, None, "file not found (expected a Jobname.full file)") from None
+        raise located_error(path, None, "file not found (expected a Jobname.full file)") from None
     except IsADirectoryError:
-        raise _fail(path, None, "is a directory, expected a Jobname.full file") from None
+        raise located_error(path, None, "is a directory, expected a Jobname.full file") from None
     except (OSError, ValueError) as err:
-        raise _fail(path, None, f"cannot read: {_reason(err)}") from None
+        raise located_error(path, None, f"cannot read: {reason(err)}") from None
 
 
 def _mirror(upper: sp.spmatrix, path: Path, what: str) -> sp.csr_matrix:
@@ -693,10 +718,10 @@ def _mirror(upper: sp.spmatrix, path: Path, what: str) -> sp.csr_matrix:
     a = sp.csr_matrix(upper, dtype=float)
     a.sum_duplicates()
     if not np.all(np.isfinite(a.data)):
-        raise _fail(path, None, f"{what} matrix has NaN or infinite entries")
+        raise located_error(path, None, f"{what} matrix has NaN or infinite entries")
     below, above = sp.tril(a, -1), sp.triu(a, 1)
     if below.nnz and above.nnz:
-        raise _fail(path, None, f"{what} matrix: both triangles are stored")
+        raise located_error(path, None, f"{what} matrix: both triangles are stored")
     strict = below if below.nnz else above
     full = sp.csr_matrix(sp.diags(a.diagonal()) + strict + strict.T)
     full.eliminate_zeros()
@@ -800,7 +825,7 @@ def read_ansys_mmf(
             f"{fixed.size} equations with only a diagonal stiffness entry and no mass (Ansys' "
             "form of a constrained dof) are fixed dofs"
         )
-    body = _make_body(
+    body = make_body(
         k_path,
         node_ids=geometry.node_ids,
         coordinates=geometry.coordinates,
@@ -836,7 +861,7 @@ def _prove_mapping_order(body: ElasticBody, mapping: Path, geometry: _Geometry) 
     checked = range(6) if body.has_coordinates else range(3)
     present = [j for j in checked if np.isfinite(residuals[j])]
     if not present:
-        raise _fail(
+        raise located_error(
             mapping,
             None,
             "the equation order cannot be proved: the model has no translational dofs"
@@ -856,7 +881,7 @@ def _prove_mapping_order(body: ElasticBody, mapping: Path, geometry: _Geometry) 
                 f"the node order of the mapping or the coordinates of {geometry.source} do not "
                 "belong to these matrices"
             )
-        raise _fail(
+        raise located_error(
             mapping,
             None,
             f"the equation order is not proved: K maps the rigid-body {names[worst]} to a "
@@ -880,7 +905,9 @@ def _read_mmf_matrix(path: Path, n: int, mapping: Path) -> sp.csr_matrix:
     matrix, mirrored = read_matrix_market_with_storage(path)
     if matrix.shape[0] != n:
         size = matrix.shape[0]
-        raise _fail(path, None, f"matrix is {size} x {size} but {mapping} maps {n} equations")
+        raise located_error(
+            path, None, f"matrix is {size} x {size} but {mapping} maps {n} equations"
+        )
     if not mirrored:
         check_symmetric(matrix, str(path))
     return matrix
@@ -891,7 +918,7 @@ def _read_mapping(path: Path) -> DofTable:
     fast = _read_mapping_fast(path)
     if fast is not None:
         return fast
-    lines = _read_lines(path, "an Ansys dof mapping file")
+    lines = read_text_lines(path, "an Ansys dof mapping file")
     equations: dict[int, tuple[int, int, int]] = {}  # equation -> (node, code, line)
     dofs: dict[tuple[int, int], int] = {}  # (node, code) -> line
     started = False
@@ -902,32 +929,34 @@ def _read_mapping(path: Path) -> DofTable:
         words = stripped.replace(",", " ").split()
         if not words or not words[0].lstrip("+-").isdigit():
             if started:
-                raise _fail(path, number, f"expected 'equation node dof', got {stripped!r}")
+                raise located_error(path, number, f"expected 'equation node dof', got {stripped!r}")
             continue  # a header line before the first equation
         started = True
         if len(words) != 3:
-            raise _fail(path, number, f"{len(words)} fields, expected 3 (equation node dof)")
-        equation = _to_int(words[0], path, number, "equation number", minimum=1)
-        node = _to_int(words[1], path, number, "node number")
+            raise located_error(
+                path, number, f"{len(words)} fields, expected 3 (equation node dof)"
+            )
+        equation = parse_int(words[0], path, number, "equation number", minimum=1)
+        node = parse_int(words[1], path, number, "node number")
         code = _ansys_label(words[2], path, number)
         if equation in equations:
             first = equations[equation][2]
-            raise _fail(
+            raise located_error(
                 path, number, f"equation {equation} is listed twice (first on line {first})"
             )
         if (node, code) in dofs:
             label = f"{node}:{words[2].upper()}"
-            raise _fail(
+            raise located_error(
                 path, number, f"dof {label} is listed twice (first on line {dofs[node, code]})"
             )
         equations[equation] = (node, code, number)
         dofs[node, code] = number
     if not equations:
-        raise _fail(path, None, "no equation rows (expected lines 'equation node dof')")
+        raise located_error(path, None, "no equation rows (expected lines 'equation node dof')")
     n = len(equations)
     if max(equations) != n:
         missing = min(set(range(1, n + 1)).difference(equations))
-        raise _fail(
+        raise located_error(
             path, None, f"equation {missing} is missing (the rows must number equations 1..{n})"
         )
     ordered = [equations[k] for k in range(1, n + 1)]
@@ -1000,8 +1029,10 @@ def _ansys_label(text: str, path: Path, line: int) -> int:
     if code is not None:
         return code
     if label in _OTHER_ANSYS_LABELS:
-        raise _fail(path, line, f"dof {label} is not structural; pymorembs reads {_STRUCTURAL}")
-    raise _fail(path, line, f"unknown dof label {text!r}, expected one of {_STRUCTURAL}")
+        raise located_error(
+            path, line, f"dof {label} is not structural; pymorembs reads {_STRUCTURAL}"
+        )
+    raise located_error(path, line, f"unknown dof label {text!r}, expected one of {_STRUCTURAL}")
 
 
 # ============================================================================ coordinates
@@ -1035,7 +1066,7 @@ def _coordinates(table: DofTable, nodes: PathLike | None, source: Path) -> _Geom
         node_ids, coordinates = _node_table(table, path, source)
         return _Geometry(node_ids, coordinates, path)
     if not looks_like_cdb(path):
-        raise _fail(
+        raise located_error(
             path,
             None,
             "neither a nodes.csv (first line id,x,y,z) nor an Ansys archive (.cdb with an "
@@ -1045,11 +1076,13 @@ def _coordinates(table: DofTable, nodes: PathLike | None, source: Path) -> _Geom
     missing = np.unique(table.nodes[~np.isin(table.nodes, archive.node_ids)])
     if missing.size:
         more = f" and {missing.size - 1} more" if missing.size > 1 else ""
-        raise _fail(path, None, f"node {int(missing[0])}{more} of {source} is not in the NBLOCK")
+        raise located_error(
+            path, None, f"node {int(missing[0])}{more} of {source} is not in the NBLOCK"
+        )
     rotated = np.isin(archive.node_ids, table.nodes) & np.any(archive.angles != 0.0, axis=1)
     if rotated.any():
         k = int(np.flatnonzero(rotated)[0])
-        raise _fail(
+        raise located_error(
             path,
             None,
             f"node {int(archive.node_ids[k])} has a rotated nodal coordinate system (angles "
@@ -1099,7 +1132,7 @@ def _check_coordinates(body: ElasticBody, geometry: _Geometry) -> str:
     if rotations:
         worst = max(rotations, key=lambda j: residuals[j])
         if residuals[worst] > RIGID_BODY_TOLERANCE:
-            raise _fail(
+            raise located_error(
                 geometry.source,
                 None,
                 f"the coordinates do not belong to the matrices: K maps the rigid-body "
@@ -1129,11 +1162,13 @@ def _node_table(
         node_ids = table.nodes[np.sort(first)]
         return node_ids, np.zeros((node_ids.size, 3))
     nodes_path = Path(nodes)
-    node_ids, coordinates = _read_nodes(nodes_path)
+    node_ids, coordinates = read_nodes_csv(nodes_path)
     missing = np.unique(table.nodes[~np.isin(table.nodes, node_ids)])
     if missing.size:
         more = f" and {missing.size - 1} more" if missing.size > 1 else ""
-        raise _fail(nodes_path, None, f"node {int(missing[0])}{more} of {source} is not listed")
+        raise located_error(
+            nodes_path, None, f"node {int(missing[0])}{more} of {source} is not listed"
+        )
     return node_ids, coordinates
 
 
@@ -1151,7 +1186,7 @@ def _check_no_empty_dofs(
     if bad.size:
         more = f" (and {bad.size - 1} more)" if bad.size > 1 else ""
         first = int(bad[0])
-        raise _fail(
+        raise located_error(
             where,
             None,
             f"equation {first + 1} ({table.nodes[first]}:{DIRECTIONS[table.directions[first]]})"
@@ -1167,11 +1202,3 @@ def _rows_with_entries(matrix: sp.csr_matrix) -> np.ndarray:
     if rows.size:
         out[rows] = np.logical_or.reduceat(a.data != 0, a.indptr[rows])
     return out
-
-
-def _make_body(source: Path, **fields: object) -> ElasticBody:
-    """Build the body; its own consistency errors get the file name in front."""
-    try:
-        return ElasticBody(**fields)  # type: ignore[arg-type]
-    except UserError as err:
-        raise _fail(source, None, str(err)) from None

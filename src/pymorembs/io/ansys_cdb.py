@@ -40,7 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
-from pymorembs.io.matrix_market import _fail, _read_lines
+from pymorembs.errors import located_error
+from pymorembs.io.matrix_market import read_text_lines
 
 __all__ = ["AnsysArchive", "looks_like_cdb", "read_cdb"]
 
@@ -139,10 +140,10 @@ def read_cdb(path: PathLike) -> AnsysArchive:
         does not define; one line ``file:line: problem``.
     """
     path = Path(path)
-    lines = _read_lines(path, "an Ansys archive (.cdb)")
+    lines = read_text_lines(path, "an Ansys archive (.cdb)")
     heads = _block_starts(lines)
     if "NBLOCK" not in heads:
-        raise _fail(
+        raise located_error(
             path, None, "no NBLOCK (node block) in the file; write the archive with CDWRITE,DB"
         )
     node_ids, coordinates, angles = _read_nblock(path, lines, heads["NBLOCK"])
@@ -156,7 +157,7 @@ def read_cdb(path: PathLike) -> AnsysArchive:
             unknown = ~np.isin(element_nodes, node_ids)
             if unknown.any():
                 k = int(np.searchsorted(offsets, np.flatnonzero(unknown)[0], side="right")) - 1
-                raise _fail(
+                raise located_error(
                     path,
                     heads["EBLOCK"] + 1,
                     f"EBLOCK: element {int(element_ids[k])} names node "
@@ -180,7 +181,7 @@ def _block_starts(lines: list[str]) -> dict[str, int]:
 def _header_fields(path: Path, lines: list[str], index: int) -> list[str]:
     fields = [field.strip() for field in lines[index].split("!", 1)[0].split(",")]
     if len(fields) < 2:
-        raise _fail(path, index + 1, f"{fields[0]} header has no field count")
+        raise located_error(path, index + 1, f"{fields[0]} header has no field count")
     return fields
 
 
@@ -189,11 +190,13 @@ def _format_line(
 ) -> re.Match[str]:
     """The Fortran format line after the block header at ``index``, matched by ``form``."""
     if index + 1 >= len(lines):
-        raise _fail(path, index + 1, f"{block}: the format line is missing")
+        raise located_error(path, index + 1, f"{block}: the format line is missing")
     text = lines[index + 1].strip()
     match = form.match(text)
     if match is None:
-        raise _fail(path, index + 2, f"{block}: format {text!r} is not of the form {example}")
+        raise located_error(
+            path, index + 2, f"{block}: format {text!r} is not of the form {example}"
+        )
     return match
 
 
@@ -204,9 +207,9 @@ def _header_int(path: Path, line: int, text: str, what: str) -> int | None:
     try:
         value = int(text)
     except ValueError:
-        raise _fail(path, line, f"{what} {text!r} is not an integer") from None
+        raise located_error(path, line, f"{what} {text!r} is not an integer") from None
     if not 0 <= value < _NODE_LIMIT:
-        raise _fail(path, line, f"{what} {value} is out of range")
+        raise located_error(path, line, f"{what} {value} is out of range")
     return value
 
 
@@ -242,7 +245,7 @@ def _fixed_width(
         raw = "".join(row[:total].ljust(total) for row in rows).encode("ascii")
     except UnicodeEncodeError:
         bad = next(k for k, row in enumerate(rows) if not row.isascii())
-        raise _fail(path, first_line + bad, f"{what}: non-ASCII character") from None
+        raise located_error(path, first_line + bad, f"{what}: non-ASCII character") from None
     chars = np.frombuffer(raw, dtype="S1").reshape(len(rows), total)
     out = np.empty((len(rows), len(widths)), dtype=kind)
     start = 0
@@ -255,13 +258,13 @@ def _fixed_width(
             bad = _first_bad(field, kind)
             text = field[bad].decode("ascii").strip()
             label = names[j] if j < len(names) else f"field {j + 1}"
-            raise _fail(
+            raise located_error(
                 path, first_line + bad, f"{what}: {label} {text!r} is not a number"
             ) from None
         start += width
     if kind is float and not np.all(np.isfinite(out)):
         bad = int(np.flatnonzero(~np.all(np.isfinite(out), axis=1))[0])
-        raise _fail(path, first_line + bad, f"{what}: a value is not a finite number")
+        raise located_error(path, first_line + bad, f"{what}: a value is not a finite number")
     return out
 
 
@@ -269,7 +272,7 @@ def _check_width(path: Path, rows: list[str], first_line: int, total: int, what:
     """Refuse a line longer than the format (another layout than the format line says)."""
     long = next((k for k, row in enumerate(rows) if len(row.rstrip()) > total), None)
     if long is not None:
-        raise _fail(
+        raise located_error(
             path, first_line + long, f"{what}: line is longer than its format ({total} characters)"
         )
 
@@ -296,7 +299,9 @@ def _read_nblock(
     match = _format_line(path, lines, index, "NBLOCK", _NBLOCK_FORMAT, "(3i9,6e21.13e3)")
     n_int, int_width, n_float, float_width = (int(g) for g in match.groups())
     if not (1 <= n_int <= 3 and 1 <= int_width <= 20 and 3 <= n_float <= 6 and float_width <= 40):
-        raise _fail(path, index + 2, f"NBLOCK: unexpected format {lines[index + 1].strip()!r}")
+        raise located_error(
+            path, index + 2, f"NBLOCK: unexpected format {lines[index + 1].strip()!r}"
+        )
     if n_real is not None and n_real < n_float:
         n_float = max(3, n_real)
     rows = _block_lines(lines, index + 2, _NBLOCK_END)
@@ -316,21 +321,21 @@ def _read_nblock(
     )
     ids = numbers[:, 0].astype(np.int64)
     if ids.size == 0:
-        raise _fail(path, line, "NBLOCK holds no nodes")
+        raise located_error(path, line, "NBLOCK holds no nodes")
     bad = np.flatnonzero(ids <= 0)
     if bad.size:
-        raise _fail(
+        raise located_error(
             path, first + int(bad[0]), f"NBLOCK: node number {ids[bad[0]]} must be positive"
         )
     order = np.argsort(ids, kind="stable")
     repeat = np.flatnonzero(ids[order][1:] == ids[order][:-1])
     if repeat.size:
         a, b = sorted((int(order[repeat[0]]), int(order[repeat[0] + 1])))
-        raise _fail(
+        raise located_error(
             path, first + b, f"NBLOCK: node {ids[a]} is listed twice (first on line {first + a})"
         )
     if announced is not None and announced != ids.size:
-        raise _fail(path, line, f"NBLOCK announces {announced} nodes but holds {ids.size}")
+        raise located_error(path, line, f"NBLOCK announces {announced} nodes but holds {ids.size}")
     angles = np.zeros((ids.size, 3))
     angles[:, : max(0, n_float - 3)] = reals[:, 3:6]
     return ids, reals[:, :3].copy(), angles
@@ -345,7 +350,9 @@ def _read_eblock(
     match = _format_line(path, lines, index, "EBLOCK", _EBLOCK_FORMAT, "(19i10)")
     per_line, width = int(match.group(1)), int(match.group(2))
     if not (_ELEMENT_FIELDS + 1 <= per_line <= 40 and 1 <= width <= 20):
-        raise _fail(path, index + 2, f"EBLOCK: unexpected format {lines[index + 1].strip()!r}")
+        raise located_error(
+            path, index + 2, f"EBLOCK: unexpected format {lines[index + 1].strip()!r}"
+        )
     rows = _block_lines(lines, index + 2, _EBLOCK_END)
     first = index + 3
     _check_width(path, rows, first, per_line * width, "EBLOCK")
@@ -357,14 +364,14 @@ def _read_eblock(
     while row < len(rows):
         n_nodes = int(table[row, 8])
         if not 1 <= n_nodes <= 64:
-            raise _fail(
+            raise located_error(
                 path, first + row, f"EBLOCK: {n_nodes} nodes per element (field 9) is not plausible"
             )
         starts.append(row * per_line + _ELEMENT_FIELDS)
         counts.append(n_nodes)
         row += -(-(_ELEMENT_FIELDS + n_nodes) // per_line)
     if row > len(rows):
-        raise _fail(path, first + len(rows) - 1, "EBLOCK: the last element is cut short")
+        raise located_error(path, first + len(rows) - 1, "EBLOCK: the last element is cut short")
     start = np.array(starts, dtype=np.int64)
     count = np.array(counts, dtype=np.int64)
     element_ids = flat[start - 1]

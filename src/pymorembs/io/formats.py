@@ -78,8 +78,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from pymorembs.body import ElasticBody
-from pymorembs.errors import UserError
-from pymorembs.io.matrix_market import SYMMETRY_TOLERANCE, _fail, encoding_note
+from pymorembs.errors import UserError, located_error
+from pymorembs.io.matrix_market import SYMMETRY_TOLERANCE, encoding_note
 
 __all__ = [
     "FORMATS",
@@ -645,7 +645,7 @@ def _matrix_names(given: dict[str, Any]) -> dict[str, str]:
 
 def _finish(body: ElasticBody, given: dict[str, Any], applied: set[str]) -> ElasticBody:
     """Apply ``constraints``, ``fixed`` and ``name`` where the reader did not."""
-    from pymorembs.io.matrix_market import _read_constraints, _read_fixed
+    from pymorembs.io.matrix_market import read_constraints_csv, read_fixed_csv
 
     if "constraints" in given and "constraints" not in applied:
         path = Path(given["constraints"])
@@ -654,9 +654,9 @@ def _finish(body: ElasticBody, given: dict[str, Any], applied: set[str]) -> Elas
                 f"{path}: the model already holds {len(body.constraints)} constraint equations; "
                 "give them in one place"
             )
-        body = replace(body, constraints=_read_constraints(path, body.dofs))
+        body = replace(body, constraints=read_constraints_csv(path, body.dofs))
     if "fixed" in given and "fixed" not in applied:
-        body = body.with_fixed(_read_fixed(Path(given["fixed"]), body.dofs))
+        body = body.with_fixed(read_fixed_csv(Path(given["fixed"]), body.dofs))
     if "name" in given and "name" not in applied:
         body = replace(body, name=str(given["name"]))
     return body
@@ -721,7 +721,7 @@ def assemble_symmetric(
     bad = np.flatnonzero(~np.isfinite(values))
     if bad.size:
         k = int(bad[0])
-        raise _fail(path, line_of(k), f"value {value(k)!r} is not a finite number")
+        raise located_error(path, line_of(k), f"value {value(k)!r} is not a finite number")
     if values.size == 0:
         return sp.csr_matrix((n, n))
     lo, hi = np.minimum(rows, cols), np.maximum(rows, cols)
@@ -738,7 +738,7 @@ def assemble_symmetric(
         if clash.size:
             c = int(clash[np.argmin(order[clash + 1])])
             first, second = int(order[c]), int(order[c + 1])
-            raise _fail(
+            raise located_error(
                 path,
                 line_of(second),
                 f"entry {where(second)} = {value(second)!r} is given again with another value "
@@ -757,7 +757,7 @@ def assemble_symmetric(
             later = np.maximum(order[bad], order[bad + 1])
             i = int(bad[np.argmin(later)])
             first, second = sorted((int(order[i]), int(order[i + 1])))
-            raise _fail(
+            raise located_error(
                 path,
                 line_of(second),
                 f"matrix is not symmetric: entry {where(second)} = {value(second)!r} but the "
@@ -778,7 +778,7 @@ def assemble_symmetric(
                 why += f"{line_of(b)}), so the file stores the square matrix and the mirror is 0"
             else:
                 why = "the matrix is stored square (both triangles), so the mirror is 0"
-            raise _fail(
+            raise located_error(
                 path,
                 line_of(k),
                 f"matrix is not symmetric: entry {where(k)} = {value(k)!r} has no mirror entry "
@@ -812,20 +812,20 @@ def read_text(path: Path, kind: str) -> str:
         with open(path, encoding="utf-8-sig", errors="strict") as f:
             text = f.read()
     except FileNotFoundError:
-        raise _fail(path, None, f"file not found (expected {kind})") from None
+        raise located_error(path, None, f"file not found (expected {kind})") from None
     except IsADirectoryError:
-        raise _fail(path, None, f"is a directory, expected {kind}") from None
+        raise located_error(path, None, f"is a directory, expected {kind}") from None
     except UnicodeDecodeError:
         pass
     except OSError as err:
-        raise _fail(path, None, f"cannot read: {err.strerror or err}") from None
+        raise located_error(path, None, f"cannot read: {err.strerror or err}") from None
     if text is None:  # not UTF-8: read as Latin-1, which decodes any byte
         with open(path, "rb") as f:
             text = f.read().decode("latin-1").replace("\r\n", "\n").replace("\r", "\n")
     if "\x00" in text:
         with open(path, "rb") as f:
             note = encoding_note(f.read(512))
-        raise _fail(path, None, f"a binary file, expected {kind}{note}")
+        raise located_error(path, None, f"a binary file, expected {kind}{note}")
     return text
 
 

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
-from pymorembs.io.matrix_market import _fail
+from pymorembs.errors import located_error
 
 __all__ = ["Mat5Entry", "is_v5", "load_v5", "scan_v5"]
 
@@ -92,7 +92,7 @@ class _Reader:
         self.e = endian
 
     def fail(self, message: str):
-        return _fail(self.path, None, f"damaged MAT-file: {message}")
+        return located_error(self.path, None, f"damaged MAT-file: {message}")
 
     def tag(self, buf, pos: int, end: int) -> tuple[int, int, int, int]:
         """(type, byte count, data start, next element) of the element at ``pos``."""

@@ -50,10 +50,10 @@ import numpy as np
 import scipy.sparse as sp
 
 from pymorembs.body import SCALAR, DofTable, ElasticBody, ModelPorts
-from pymorembs.errors import UserError
+from pymorembs.errors import UserError, located_error
+from pymorembs.io.checks import reason
 from pymorembs.io.mat5 import Mat5Entry, is_v5, load_v5, scan_v5
-from pymorembs.io.matrix_market import _fail, _read_dofs, _read_nodes, check_symmetric
-from pymorembs.io.third_party import reason
+from pymorembs.io.matrix_market import check_symmetric, read_dofs_csv, read_nodes_csv
 
 __all__ = ["MatVariable", "mat_variables", "read_mat_variables", "read_matlab"]
 
@@ -104,28 +104,28 @@ def _version(path: Path) -> str:
     try:
         if not path.is_file():
             if path.is_dir():
-                raise _fail(path, None, "is a directory, expected a MATLAB .mat file")
-            raise _fail(path, None, "file not found (expected a MATLAB .mat file)")
+                raise located_error(path, None, "is a directory, expected a MATLAB .mat file")
+            raise located_error(path, None, "file not found (expected a MATLAB .mat file)")
         with open(path, "rb") as f:
             head = f.read(_HDF5_OFFSET + 8)
     except OSError as err:
-        raise _fail(path, None, f"cannot read: {err.strerror or err}") from None
+        raise located_error(path, None, f"cannot read: {err.strerror or err}") from None
     if not head:
-        raise _fail(path, None, "empty file (expected a MATLAB .mat file)")
+        raise located_error(path, None, "empty file (expected a MATLAB .mat file)")
     if head[_HDF5_OFFSET:] == _HDF5_SIGNATURE or head.startswith(_HDF5_SIGNATURE):
         return "hdf5"
     if is_v5(head):
         return "v5"
     if 0 in head[:4]:  # the type code of a v4 matrix header (scipy's rule)
         return "v4"
-    raise _fail(path, None, "not a MATLAB .mat file (no v5 or v7.3 header, not a v4 file)")
+    raise located_error(path, None, "not a MATLAB .mat file (no v5 or v7.3 header, not a v4 file)")
 
 
 def _v5_entries(path: Path) -> dict[str, Mat5Entry]:
     try:
         data = path.read_bytes()
     except OSError as err:
-        raise _fail(path, None, f"cannot read: {err.strerror or err}") from None
+        raise located_error(path, None, f"cannot read: {err.strerror or err}") from None
     return {entry.name: entry for entry in scan_v5(path, data)}
 
 
@@ -150,7 +150,9 @@ def mat_variables(path: PathLike) -> list[MatVariable]:
             warnings.simplefilter("ignore")
             listed = whosmat(str(path))
     except Exception as err:  # scipy raises many kinds for a file that is not a MAT-file
-        raise _fail(path, None, f"not a readable MATLAB .mat file ({reason(err)})") from None
+        raise located_error(
+            path, None, f"not a readable MATLAB .mat file ({reason(err)})"
+        ) from None
     return [
         MatVariable(str(n), tuple(int(s) for s in shape), str(kind)) for n, shape, kind in listed
     ]
@@ -185,7 +187,7 @@ def read_mat_variables(
         names = [n for n, v in inventory.items() if v.kind in _NUMERIC or v.kind == "sparse"]
     for name in names:
         if name not in inventory:
-            raise _fail(path, None, f"no variable named {name!r}")
+            raise located_error(path, None, f"no variable named {name!r}")
         _check_loadable(path, inventory[name])
     if not names:
         return {}
@@ -211,7 +213,7 @@ def _v4_load(path: Path, names: list[str]) -> dict[str, np.ndarray | sp.csc_matr
             warnings.simplefilter("ignore")
             loaded = loadmat(str(path), variable_names=list(names), squeeze_me=False)
     except Exception as err:
-        raise _fail(path, None, f"cannot read the .mat file ({reason(err)})") from None
+        raise located_error(path, None, f"cannot read the .mat file ({reason(err)})") from None
     out: dict[str, np.ndarray | sp.csc_matrix] = {}
     for name in names:
         value = loaded.get(name)
@@ -220,19 +222,19 @@ def _v4_load(path: Path, names: list[str]) -> dict[str, np.ndarray | sp.csc_matr
         elif isinstance(value, np.ndarray) and value.dtype.kind in "biufc":
             out[name] = np.atleast_2d(value)
         else:
-            raise _fail(path, None, f"variable {name!r} is not a numeric matrix")
+            raise located_error(path, None, f"variable {name!r} is not a numeric matrix")
     return out
 
 
 def _check_loadable(path: Path, variable: MatVariable) -> None:
     if variable.kind not in _NUMERIC and variable.kind != "sparse":
-        raise _fail(
+        raise located_error(
             path, None, f"variable {variable.describe()} is a {variable.kind}, not a matrix"
         )
     if variable.kind != "sparse":
         size = int(np.prod(variable.shape, dtype=np.float64)) * 16
         if size > _DENSE_LIMIT:
-            raise _fail(
+            raise located_error(
                 path,
                 None,
                 f"variable {variable.describe()} is dense and needs {size / 2**30:.1f} GiB; "
@@ -244,11 +246,11 @@ def _hdf5(path: Path):
     try:
         import h5py
     except ImportError as err:  # pragma: no cover - a declared dependency
-        raise _fail(path, None, f"reading v7.3 .mat files needs h5py ({err})") from None
+        raise located_error(path, None, f"reading v7.3 .mat files needs h5py ({err})") from None
     try:
         return h5py.File(path, "r")
     except Exception as err:
-        raise _fail(path, None, f"not a readable HDF5 file ({reason(err)})") from None
+        raise located_error(path, None, f"not a readable HDF5 file ({reason(err)})") from None
 
 
 def _text(value: object) -> str:
@@ -283,9 +285,9 @@ def _hdf5_inventory(path: Path) -> list[MatVariable]:
                 else:
                     variables.append(MatVariable(key, (1, 1), kind))
         except Exception as err:
-            raise _fail(path, None, f"cannot read the HDF5 file ({reason(err)})") from None
+            raise located_error(path, None, f"cannot read the HDF5 file ({reason(err)})") from None
     if not variables:
-        raise _fail(
+        raise located_error(
             path,
             None,
             "an HDF5 file without MATLAB variables (no MATLAB_class attributes): not a MATLAB "
@@ -310,7 +312,9 @@ def _hdf5_load(path: Path, names: list[str]) -> dict[str, np.ndarray | sp.csc_ma
             except UserError:
                 raise
             except Exception as err:
-                raise _fail(path, None, f"cannot read variable {name!r} ({reason(err)})") from None
+                raise located_error(
+                    path, None, f"cannot read variable {name!r} ({reason(err)})"
+                ) from None
     return out
 
 
@@ -342,7 +346,7 @@ def _hdf5_sparse(path: Path, name: str, group) -> sp.csc_matrix:
         or (nnz and (ir.min() < 0 or ir.max() >= rows))
     )
     if bad:
-        raise _fail(path, None, f"variable {name!r}: damaged sparse matrix (jc, ir, data)")
+        raise located_error(path, None, f"variable {name!r}: damaged sparse matrix (jc, ir, data)")
     return sp.csc_matrix((values, ir.astype(np.int64), jc), shape=(rows, jc.size - 1))
 
 
@@ -399,19 +403,21 @@ def read_matlab(
     k_matrix, m_matrix = matrix("stiffness"), matrix("mass")
     n = k_matrix.shape[0]
     if k_matrix.shape[1] != n:
-        raise _fail(
+        raise located_error(
             path,
             None,
             f"variable {roles['stiffness']} (stiffness) is {n} x {k_matrix.shape[1]}, not square",
         )
     if n == 0:
-        raise _fail(path, None, f"variable {roles['stiffness']} (stiffness) is empty: no dofs")
+        raise located_error(
+            path, None, f"variable {roles['stiffness']} (stiffness) is empty: no dofs"
+        )
     for role in ("stiffness", "mass", "damping"):
         a = k_matrix if role == "stiffness" else m_matrix if role == "mass" else matrix(role)
         if a is None:
             continue
         if a.shape != (n, n):
-            raise _fail(
+            raise located_error(
                 path,
                 None,
                 f"variable {roles[role]} ({role}) is {a.shape[0]} x {a.shape[1]}; K is {n} x {n}",
@@ -435,7 +441,7 @@ def read_matlab(
             ports=ports,
         )
     except UserError as err:
-        raise _fail(path, None, str(err)) from None
+        raise located_error(path, None, str(err)) from None
 
 
 def _find(variables: list[MatVariable], names: tuple[str, ...], what: str, path: Path):
@@ -444,7 +450,7 @@ def _find(variables: list[MatVariable], names: tuple[str, ...], what: str, path:
     hits = [v for v in variables if v.name.lower() in wanted]
     if len(hits) > 1:
         listed = " and ".join(v.name for v in hits)
-        raise _fail(
+        raise located_error(
             path,
             None,
             f"variables {listed} could both be the {what}; name it (--{what}-name)",
@@ -459,7 +465,7 @@ def _named(variables: list[MatVariable], given: str, what: str, path: Path) -> M
         return exact[0]
     found = _find(variables, (given,), what, path)
     if found is None:
-        raise _fail(
+        raise located_error(
             path,
             None,
             f"no variable named {given!r} for the {what}; the file holds {_listing(variables)}",
@@ -497,7 +503,7 @@ def _assign(
                 if first_order is not None
                 else ""
             )
-            raise _fail(
+            raise located_error(
                 path,
                 None,
                 f"no {role} matrix: the file holds {_listing(variables)}{hint}; name it with "
@@ -523,7 +529,7 @@ def _assign(
         roles["damping"] = pick(_DAMPING_NAMES, square, "damping")
         if roles["damping"] is None and c_var is not None and c_var.shape == (n, n):
             if b is not None and f is None:
-                raise _fail(
+                raise located_error(
                     path,
                     None,
                     f"variable C is {n} x {n} next to B: it may be the damping matrix (M, C, K) "
@@ -544,11 +550,13 @@ def _real_matrix(path: Path, variable: str, value: np.ndarray | sp.spmatrix) -> 
     else:
         array = np.asarray(value)
         if array.ndim != 2:
-            raise _fail(path, None, f"variable {variable} has {array.ndim} dimensions, not 2")
+            raise located_error(
+                path, None, f"variable {variable} has {array.ndim} dimensions, not 2"
+            )
         a = sp.csr_matrix(array)
     if np.iscomplexobj(a.data):
         if np.any(a.data.imag != 0):
-            raise _fail(
+            raise located_error(
                 path,
                 None,
                 f"variable {variable} is complex; mass, stiffness, damping, B and C must be "
@@ -557,7 +565,7 @@ def _real_matrix(path: Path, variable: str, value: np.ndarray | sp.spmatrix) -> 
         a = sp.csr_matrix(a.real)
     a = sp.csr_matrix(a, dtype=np.float64)
     if not np.all(np.isfinite(a.data)):
-        raise _fail(path, None, f"variable {variable} has NaN or infinite entries")
+        raise located_error(path, None, f"variable {variable} has NaN or infinite entries")
     a.eliminate_zeros()
     a.sort_indices()
     return a
@@ -572,7 +580,7 @@ def _ports(path: Path, roles: dict[str, str | None], values: dict, n: int) -> Mo
             flipped = (
                 " (stored transposed? B needs one row per equation)" if inputs.shape[1] == n else ""
             )
-            raise _fail(
+            raise located_error(
                 path,
                 None,
                 f"input matrix {roles['inputs']} is {inputs.shape[0]} x {inputs.shape[1]}, "
@@ -586,14 +594,14 @@ def _ports(path: Path, roles: dict[str, str | None], values: dict, n: int) -> Mo
                 if outputs.shape[0] == n
                 else ""
             )
-            raise _fail(
+            raise located_error(
                 path,
                 None,
                 f"output matrix {roles['outputs']} is {outputs.shape[0]} x {outputs.shape[1]}, "
                 f"expected {n} columns{flipped}",
             )
         if inputs is None:
-            raise _fail(
+            raise located_error(
                 path,
                 None,
                 f"output matrix {roles['outputs']} without an input matrix B; give B too",
@@ -603,7 +611,7 @@ def _ports(path: Path, roles: dict[str, str | None], values: dict, n: int) -> Mo
     try:
         return ModelPorts(inputs=inputs, outputs=outputs)
     except UserError as err:
-        raise _fail(path, None, str(err)) from None
+        raise located_error(path, None, str(err)) from None
 
 
 def _dof_table(
@@ -612,7 +620,9 @@ def _dof_table(
     """The dof table: scalar coordinates 1..n, or dofs.csv (with nodes.csv for coordinates)."""
     if dofs is None:
         if nodes is not None:
-            raise _fail(Path(nodes), None, "node coordinates need the dof table (dofs.csv) too")
+            raise located_error(
+                Path(nodes), None, "node coordinates need the dof table (dofs.csv) too"
+            )
         table = DofTable(np.arange(1, n + 1), np.full(n, SCALAR))
         note = (
             f"dof table: {n} scalar coordinates (q) numbered 1..{n}; {path.name} has no dof "
@@ -620,9 +630,11 @@ def _dof_table(
         )
         return table, np.zeros(0, dtype=np.int64), np.zeros((0, 3)), False, note
     dofs_path = Path(dofs)
-    table, _ = _read_dofs(dofs_path)
+    table, _ = read_dofs_csv(dofs_path)
     if len(table) != n:
-        raise _fail(dofs_path, None, f"{len(table)} dofs but the matrices of {path} are {n} x {n}")
+        raise located_error(
+            dofs_path, None, f"{len(table)} dofs but the matrices of {path} are {n} x {n}"
+        )
     geometric = ~table.scalar
     if nodes is None:
         _, first = np.unique(table.nodes[geometric], return_index=True)
@@ -630,10 +642,12 @@ def _dof_table(
         note = f"dof table: {table.describe()} from {dofs_path.name}; no coordinates"
         return table, node_ids, np.zeros((node_ids.size, 3)), False, note
     nodes_path = Path(nodes)
-    node_ids, coordinates = _read_nodes(nodes_path)
+    node_ids, coordinates = read_nodes_csv(nodes_path)
     missing = np.setdiff1d(table.nodes[geometric], node_ids)
     if missing.size:
-        raise _fail(nodes_path, None, f"node {int(missing[0])} of {dofs_path} is not listed")
+        raise located_error(
+            nodes_path, None, f"node {int(missing[0])} of {dofs_path} is not listed"
+        )
     note = (
         f"dof table: {table.describe()} from {dofs_path.name}, coordinates from {nodes_path.name}"
     )

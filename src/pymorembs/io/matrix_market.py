@@ -67,7 +67,7 @@ import scipy.io
 import scipy.sparse as sp
 
 from pymorembs.body import DIRECTIONS, ConstraintEquations, DofTable, ElasticBody, direction_code
-from pymorembs.errors import UserError
+from pymorembs.errors import UserError, located_error
 from pymorembs.io.atomic import atomic_open, write_text
 from pymorembs.io.fast_text import CheckedReader, PlainNumberScan, csr_from_sorted_coo
 
@@ -232,7 +232,7 @@ def read_matrix_files(
     k_matrix = _read_symmetric(k_path)
     n = k_matrix.shape[0]
     if n == 0:
-        raise _fail(k_path, None, "a 0 x 0 matrix: the model has no dofs")
+        raise located_error(k_path, None, "a 0 x 0 matrix: the model has no dofs")
     m_matrix = _read_symmetric(m_path, like=(k_path, n))
     d_matrix = None if damping is None else _read_symmetric(Path(damping), like=(k_path, n))
 
@@ -241,9 +241,11 @@ def read_matrix_files(
         table = DofTable(np.arange(1, n + 1), np.zeros(n, dtype=np.int64))
     else:
         dofs_path = Path(dofs)
-        table, dof_lines = _read_dofs(dofs_path)
+        table, dof_lines = read_dofs_csv(dofs_path)
         if len(table) != n:
-            raise _fail(dofs_path, None, f"{len(table)} dofs but {k_path} is a {n} x {n} matrix")
+            raise located_error(
+                dofs_path, None, f"{len(table)} dofs but {k_path} is a {n} x {n} matrix"
+            )
 
     if nodes is None:
         _, first = np.unique(table.nodes, return_index=True)
@@ -251,24 +253,26 @@ def read_matrix_files(
         coordinates = np.zeros((node_ids.size, 3))
     else:
         nodes_path = Path(nodes)
-        node_ids, coordinates = _read_nodes(nodes_path)
+        node_ids, coordinates = read_nodes_csv(nodes_path)
         missing = np.flatnonzero(~np.isin(table.nodes, node_ids))
         if missing.size:
             first_missing = int(missing[0])
             node = int(table.nodes[first_missing])
             if dof_lines is None:
-                raise _fail(
+                raise located_error(
                     nodes_path,
                     None,
                     f"node {node} (equation {first_missing + 1} of the generic dof table) "
                     "is not listed",
                 )
-            raise _fail(
+            raise located_error(
                 Path(dofs), dof_lines[first_missing], f"node {node} is not listed in {nodes_path}"
             )
 
-    equations = None if constraints is None else _read_constraints(Path(constraints), table)
-    fixed_dofs = np.zeros(0, dtype=np.int64) if fixed is None else _read_fixed(Path(fixed), table)
+    equations = None if constraints is None else read_constraints_csv(Path(constraints), table)
+    fixed_dofs = (
+        np.zeros(0, dtype=np.int64) if fixed is None else read_fixed_csv(Path(fixed), table)
+    )
     if name is None:
         name = k_path.resolve().parent.name or "body"
     try:
@@ -417,20 +421,20 @@ def _read_matrix_market(path: Path) -> tuple[sp.csr_matrix, bool]:
     fast = _read_coordinate_fast(path)
     if fast is not None:
         return fast
-    lines = _read_lines(path, "a Matrix Market file")
+    lines = read_text_lines(path, "a Matrix Market file")
     header = _parse_header(path, lines)
     n, size_line = header.n, header.size_line
     data = _DataLines(path, lines, header.data_index)
     if header.layout == "coordinate":
         table = data.parse((("row", int), ("column", int), ("value", float)))
         if table.size != header.entries:
-            raise _fail(
+            raise located_error(
                 path,
                 size_line,
                 f"size line announces {header.entries} entries but the file holds {table.size}",
             )
         if n > _MOSTLY_EMPTY_FROM and n > 2 * table.size:
-            raise _fail(
+            raise located_error(
                 path,
                 size_line,
                 f"size line announces a {n} x {n} matrix but the file holds only {table.size} "
@@ -444,7 +448,7 @@ def _read_matrix_market(path: Path) -> tuple[sp.csr_matrix, bool]:
     values = data.parse((("value", float),))["value"]
     expected = n * (n + 1) // 2 if header.symmetric else n * n
     if values.size != expected:
-        raise _fail(
+        raise located_error(
             path, size_line, f"{n} x {n} array needs {expected} values, found {values.size}"
         )
     data.require_finite(values)
@@ -476,26 +480,32 @@ def _parse_header(path: Path, lines: list[str]) -> _Header:
     """Check the banner and the size line; :class:`UserError` names the line."""
     banner = lines[0].split()
     if not banner or banner[0].lower() != "%%matrixmarket":
-        raise _fail(path, 1, "not a Matrix Market file (the first line must be %%MatrixMarket ...)")
+        raise located_error(
+            path, 1, "not a Matrix Market file (the first line must be %%MatrixMarket ...)"
+        )
     if len(banner) != 5:
-        raise _fail(
+        raise located_error(
             path,
             1,
             "header must read %%MatrixMarket matrix coordinate|array real general|symmetric",
         )
     obj, layout, field, storage = (word.lower() for word in banner[1:])
     if obj != "matrix":
-        raise _fail(path, 1, f"object {banner[1]!r} is not supported, expected 'matrix'")
+        raise located_error(path, 1, f"object {banner[1]!r} is not supported, expected 'matrix'")
     if layout not in ("coordinate", "array"):
-        raise _fail(path, 1, f"format {banner[2]!r} is unknown, expected coordinate or array")
+        raise located_error(
+            path, 1, f"format {banner[2]!r} is unknown, expected coordinate or array"
+        )
     if field == "complex":
-        raise _fail(path, 1, "complex matrix; mass, stiffness and damping must be real")
+        raise located_error(path, 1, "complex matrix; mass, stiffness and damping must be real")
     if field == "pattern":
-        raise _fail(path, 1, "pattern-only matrix: the file holds positions but no values")
+        raise located_error(path, 1, "pattern-only matrix: the file holds positions but no values")
     if field not in ("real", "double", "integer"):
-        raise _fail(path, 1, f"value type {banner[3]!r} is unknown, expected real or integer")
+        raise located_error(
+            path, 1, f"value type {banner[3]!r} is unknown, expected real or integer"
+        )
     if storage not in ("general", "symmetric"):
-        raise _fail(
+        raise located_error(
             path, 1, f"{banner[4]!r} storage is not supported, expected general or symmetric"
         )
 
@@ -504,19 +514,21 @@ def _parse_header(path: Path, lines: list[str]) -> _Header:
         None,
     )
     if size_index is None:
-        raise _fail(path, None, "no size line after the header")
+        raise located_error(path, None, "no size line after the header")
     size_line = size_index + 1
     size_words = lines[size_index].split()
     expected_words = 3 if layout == "coordinate" else 2
     if len(size_words) != expected_words:
         what = "rows columns entries" if layout == "coordinate" else "rows columns"
-        raise _fail(path, size_line, f"size line must hold {expected_words} integers ({what})")
-    sizes = [_to_int(w, path, size_line, "size", minimum=0) for w in size_words]
+        raise located_error(
+            path, size_line, f"size line must hold {expected_words} integers ({what})"
+        )
+    sizes = [parse_int(w, path, size_line, "size", minimum=0) for w in size_words]
     n_rows, n_cols = sizes[0], sizes[1]
     if n_rows != n_cols:
-        raise _fail(path, size_line, f"matrix is {n_rows} x {n_cols}, not square")
+        raise located_error(path, size_line, f"matrix is {n_rows} x {n_cols}, not square")
     if n_rows > MAX_EQUATIONS:
-        raise _fail(
+        raise located_error(
             path,
             size_line,
             f"matrix size {n_rows} exceeds the {MAX_EQUATIONS} equations pymorembs reads; is the "
@@ -782,7 +794,9 @@ def _read_symmetric(path: Path, like: tuple[Path, int] | None = None) -> sp.csr_
     matrix, mirrored = _read_matrix_market(path)
     if like is not None and matrix.shape[0] != like[1]:
         n = matrix.shape[0]
-        raise _fail(path, None, f"matrix is {n} x {n} but {like[0]} is {like[1]} x {like[1]}")
+        raise located_error(
+            path, None, f"matrix is {n} x {n} but {like[0]} is {like[1]} x {like[1]}"
+        )
     if not mirrored:  # a symmetric file is mirrored exactly
         check_symmetric(matrix, str(path))
     return matrix
@@ -861,19 +875,19 @@ class _DataLines:
                 return np.loadtxt(self.lines[self.start :], dtype=dtype, comments="%", ndmin=1)
         except ValueError as err:
             self._locate_bad_line(columns)
-            raise _fail(self.path, None, f"cannot read the entries: {err}") from None
+            raise located_error(self.path, None, f"cannot read the entries: {err}") from None
 
     def _locate_bad_line(self, columns: tuple[tuple[str, type], ...]) -> None:
         names = " ".join(name for name, _ in columns)
         for number, text in self._content():
             words = text.split()
             if len(words) != len(columns):
-                raise _fail(
+                raise located_error(
                     self.path, number, f"{len(words)} values, expected {len(columns)} ({names})"
                 )
             for word, (name, kind) in zip(words, columns, strict=True):
                 if kind is int:
-                    _to_int(word, self.path, number, name)
+                    parse_int(word, self.path, number, name)
                 else:
                     _to_float(word, self.path, number, name, finite=False)
 
@@ -894,7 +908,7 @@ class _DataLines:
 
     def fail(self, entry: int, message: str) -> None:
         """Raise :class:`UserError` about entry ``entry``."""
-        raise _fail(self.path, self.line_of(entry), message)
+        raise located_error(self.path, self.line_of(entry), message)
 
     def require_finite(self, values: np.ndarray) -> None:
         """Raise :class:`UserError` at the first NaN or infinite value."""
@@ -944,7 +958,7 @@ def _constraint_rows(equations: ConstraintEquations, table: DofTable) -> list[st
 
 def _read_csv(path: Path, header: tuple[str, ...]) -> list[tuple[int, list[str]]]:
     """Rows (line number, stripped fields) of a CSV file after its required header."""
-    lines = _read_lines(path, "a CSV file")
+    lines = read_text_lines(path, "a CSV file")
     content = [
         (number, text)
         for number, text in enumerate(lines, start=1)
@@ -952,24 +966,30 @@ def _read_csv(path: Path, header: tuple[str, ...]) -> list[tuple[int, list[str]]
     ]
     expected = ",".join(header)
     if not content:
-        raise _fail(path, None, f"empty file; expected the header line {expected!r}")
+        raise located_error(path, None, f"empty file; expected the header line {expected!r}")
     reader = csv.reader(text for _, text in content)
     rows: list[tuple[int, list[str]]] = []
     try:
         for fields in reader:
             rows.append((content[reader.line_num - 1][0], [field.strip() for field in fields]))
     except csv.Error as err:
-        raise _fail(path, content[reader.line_num - 1][0], f"malformed CSV: {err}") from None
+        raise located_error(
+            path, content[reader.line_num - 1][0], f"malformed CSV: {err}"
+        ) from None
     (header_line, header_fields), *body = rows
     if [field.lower() for field in header_fields] != list(header):
-        raise _fail(path, header_line, f"header {','.join(header_fields)!r}, expected {expected!r}")
+        raise located_error(
+            path, header_line, f"header {','.join(header_fields)!r}, expected {expected!r}"
+        )
     for number, fields in body:
         if len(fields) != len(header):
-            raise _fail(path, number, f"{len(fields)} fields, expected {len(header)} ({expected})")
+            raise located_error(
+                path, number, f"{len(fields)} fields, expected {len(header)} ({expected})"
+            )
     return body
 
 
-def _read_dofs(path: Path) -> tuple[DofTable, list[int]]:
+def read_dofs_csv(path: Path) -> tuple[DofTable, list[int]]:
     """Dof table from ``dofs.csv`` and the line number of each equation."""
     fast = _csv_fast(path, _DOF_HEADER, (np.int64, _TEXT))
     if fast is not None:
@@ -984,7 +1004,7 @@ def _read_dofs(path: Path) -> tuple[DofTable, list[int]]:
             _to_direction(direction_text, path, number),
         )
         if dof in seen:
-            raise _fail(
+            raise located_error(
                 path,
                 number,
                 f"dof {dof[0]}:{DIRECTIONS[dof[1]]} is listed twice (first on line {seen[dof]})",
@@ -995,7 +1015,7 @@ def _read_dofs(path: Path) -> tuple[DofTable, list[int]]:
     return DofTable(nodes, directions), list(seen.values())
 
 
-def _read_nodes(path: Path) -> tuple[np.ndarray, np.ndarray]:
+def read_nodes_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Node ids and coordinates from ``nodes.csv``."""
     fast = _csv_fast(path, _NODE_HEADER, (np.int64, float, float, float))
     if fast is not None:
@@ -1008,7 +1028,9 @@ def _read_nodes(path: Path) -> tuple[np.ndarray, np.ndarray]:
     for number, (id_text, *xyz) in _read_csv(path, _NODE_HEADER):
         node = _to_node(id_text, path, number)
         if node in seen:
-            raise _fail(path, number, f"node {node} is listed twice (first on line {seen[node]})")
+            raise located_error(
+                path, number, f"node {node} is listed twice (first on line {seen[node]})"
+            )
         seen[node] = number
         coordinates.append(
             [_to_float(text, path, number, axis) for text, axis in zip(xyz, "xyz", strict=True)]
@@ -1016,7 +1038,7 @@ def _read_nodes(path: Path) -> tuple[np.ndarray, np.ndarray]:
     return np.array(list(seen), dtype=np.int64), np.array(coordinates, dtype=float).reshape(-1, 3)
 
 
-def _read_fixed(path: Path, table: DofTable) -> np.ndarray:
+def read_fixed_csv(path: Path, table: DofTable) -> np.ndarray:
     """Equation indices of the dofs in ``fixed.csv``."""
     fast = _csv_fast(path, _DOF_HEADER, (np.int64, _TEXT))
     if fast is not None:
@@ -1033,7 +1055,7 @@ def _read_fixed(path: Path, table: DofTable) -> np.ndarray:
     )
 
 
-def _read_constraints(path: Path, table: DofTable) -> ConstraintEquations:
+def read_constraints_csv(path: Path, table: DofTable) -> ConstraintEquations:
     """Constraint equations from ``constraints.csv`` (layout in the module docstring)."""
     fast = _constraints_fast(path, table)
     if fast is not None:
@@ -1047,7 +1069,7 @@ def _read_constraints(path: Path, table: DofTable) -> ConstraintEquations:
             equations[dependent] = (offset, number)
         elif equations[dependent][0] != offset:
             first_offset, first_line = equations[dependent]
-            raise _fail(
+            raise located_error(
                 path,
                 number,
                 f"offset {offset!r} of {table.label(dependent)} differs from {first_offset!r} "
@@ -1057,14 +1079,14 @@ def _read_constraints(path: Path, table: DofTable) -> ConstraintEquations:
         if not any(term):
             continue
         if not all(term):
-            raise _fail(
+            raise located_error(
                 path,
                 number,
                 "node, direction and coefficient must be all given or all empty (q_d = offset)",
             )
         column = _to_dof(term[0], term[1], table, path, number)
         if (dependent, column) in terms:
-            raise _fail(
+            raise located_error(
                 path,
                 number,
                 f"term {table.label(column)} of {table.label(dependent)} is given twice "
@@ -1194,22 +1216,22 @@ def _constraints_fast(path: Path, table: DofTable) -> ConstraintEquations | None
 
 
 # ============================================================================ small helpers
-def _read_lines(path: Path, kind: str) -> list[str]:
+def read_text_lines(path: Path, kind: str) -> list[str]:
     """The lines of a text file (at least one); :class:`UserError` if it cannot be read."""
     try:
         text = path.read_text(encoding="utf-8-sig")
     except FileNotFoundError:
-        raise _fail(path, None, f"file not found (expected {kind})") from None
+        raise located_error(path, None, f"file not found (expected {kind})") from None
     except IsADirectoryError:
-        raise _fail(path, None, f"is a directory, expected {kind}") from None
+        raise located_error(path, None, f"is a directory, expected {kind}") from None
     except UnicodeDecodeError:
         note = encoding_note(_head(path))
-        raise _fail(path, None, f"not a text file (expected {kind}){note}") from None
+        raise located_error(path, None, f"not a text file (expected {kind}){note}") from None
     except OSError as err:
-        raise _fail(path, None, f"cannot read: {err.strerror or err}") from None
+        raise located_error(path, None, f"cannot read: {err.strerror or err}") from None
     if "\x00" in text:
         note = encoding_note(_head(path))
-        raise _fail(path, None, f"a binary file, expected {kind}{note}")
+        raise located_error(path, None, f"a binary file, expected {kind}{note}")
     return text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
 
 
@@ -1239,32 +1261,26 @@ def encoding_note(head: bytes) -> str:
     return ""
 
 
-def _fail(path: Path, line: int | None, message: str) -> UserError:
-    """A one-line :class:`UserError` ``path:line: message``."""
-    where = str(path) if line is None else f"{path}:{line}"
-    return UserError(f"{where}: {' '.join(message.splitlines())}")
-
-
-def _to_int(text: str, path: Path, line: int, what: str, minimum: int | None = None) -> int:
+def parse_int(text: str, path: Path, line: int, what: str, minimum: int | None = None) -> int:
     """An integer field (within int64)."""
     try:
         if "_" in text:
             raise ValueError
         value = int(text)
     except ValueError:
-        raise _fail(path, line, f"{what} {text!r} is not an integer") from None
+        raise located_error(path, line, f"{what} {text!r} is not an integer") from None
     if not -_INT64_MAX <= value <= _INT64_MAX:
-        raise _fail(path, line, f"{what} {text!r} is out of range")
+        raise located_error(path, line, f"{what} {text!r} is out of range")
     if minimum is not None and value < minimum:
-        raise _fail(path, line, f"{what} {text!r} must be at least {minimum}")
+        raise located_error(path, line, f"{what} {text!r} must be at least {minimum}")
     return value
 
 
 def _to_node(text: str, path: Path, line: int) -> int:
     """A node id field (within +-2**60, so that node * 8 + direction stays exact in int64)."""
-    node = _to_int(text, path, line, "node id")
+    node = parse_int(text, path, line, "node id")
     if abs(node) >= _NODE_LIMIT:
-        raise _fail(path, line, f"node id {text!r} is out of range (at most 2**60 - 1)")
+        raise located_error(path, line, f"node id {text!r} is out of range (at most 2**60 - 1)")
     return node
 
 
@@ -1275,9 +1291,9 @@ def _to_float(text: str, path: Path, line: int, what: str, finite: bool = True) 
             raise ValueError
         value = float(text)
     except ValueError:
-        raise _fail(path, line, f"{what} {text!r} is not a number") from None
+        raise located_error(path, line, f"{what} {text!r} is not a number") from None
     if finite and not math.isfinite(value):
-        raise _fail(path, line, f"{what} {text!r} is not a finite number")
+        raise located_error(path, line, f"{what} {text!r} is not a finite number")
     return value
 
 
@@ -1286,7 +1302,7 @@ def _to_direction(text: str, path: Path, line: int) -> int:
     try:
         return direction_code(text)
     except UserError:
-        raise _fail(
+        raise located_error(
             path, line, f"unknown direction {text!r}, expected one of {' '.join(DIRECTIONS)}"
         ) from None
 
@@ -1298,4 +1314,4 @@ def _to_dof(node_text: str, direction_text: str, table: DofTable, path: Path, li
     try:
         return table.index(node, code)
     except UserError as err:
-        raise _fail(path, line, str(err)) from None
+        raise located_error(path, line, str(err)) from None

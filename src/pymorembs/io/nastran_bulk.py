@@ -62,7 +62,8 @@ from pathlib import Path
 
 import numpy as np
 
-from pymorembs.io.matrix_market import _fail, encoding_note
+from pymorembs.errors import located_error
+from pymorembs.io.matrix_market import encoding_note
 
 __all__ = [
     "AnalysisSet",
@@ -144,9 +145,11 @@ def parse_int(text: str, path: Path, line: int | None, what: str) -> int:
         value = int(text)
     except ValueError:
         problem = "is missing" if not text else f"{text!r} is not an integer"
-        raise _fail(path, line, f"{what} {problem}") from None
+        raise located_error(path, line, f"{what} {problem}") from None
     if abs(value) > MAX_ID:
-        raise _fail(path, line, f"{what} {text!r} is out of range (Nastran ids are below 2**31)")
+        raise located_error(
+            path, line, f"{what} {text!r} is out of range (Nastran ids are below 2**31)"
+        )
     return value
 
 
@@ -169,9 +172,9 @@ def parse_real(text: str, path: Path, line: int | None, what: str, blank: float 
                 value = float(f"{match.group(1)}E{match.group(2)}")
     if value is None:
         problem = "is missing" if not text else f"{shown!r} is not a number"
-        raise _fail(path, line, f"{what} {problem}")
+        raise located_error(path, line, f"{what} {problem}")
     if not np.isfinite(value):
-        raise _fail(path, line, f"{what} {shown!r} is not a finite number")
+        raise located_error(path, line, f"{what} {shown!r} is not a finite number")
     return value
 
 
@@ -187,7 +190,7 @@ def line_fields(text: str, large: bool, free: bool, path: Path, line: int) -> li
         fields = parts[:count]
         extra = parts[count:]
         if len(extra) > 1 or (extra and extra[0] and extra[0][0] not in "+*"):
-            raise _fail(
+            raise located_error(
                 path,
                 line,
                 f"free-field line with more than {count} data fields; continue the card on the "
@@ -208,15 +211,15 @@ def read_card_file(path: Path, kind: str) -> bytes:
     try:
         raw = path.read_bytes()
     except FileNotFoundError:
-        raise _fail(path, None, f"file not found (expected {kind})") from None
+        raise located_error(path, None, f"file not found (expected {kind})") from None
     except IsADirectoryError:
-        raise _fail(path, None, f"is a directory, expected {kind}") from None
+        raise located_error(path, None, f"is a directory, expected {kind}") from None
     except OSError as err:
-        raise _fail(path, None, f"cannot read: {err.strerror or err}") from None
+        raise located_error(path, None, f"cannot read: {err.strerror or err}") from None
     if raw.startswith(b"\xef\xbb\xbf"):
         raw = raw[3:]
     if b"\x00" in raw:
-        raise _fail(path, None, f"a binary file, expected {kind}{encoding_note(raw[:512])}")
+        raise located_error(path, None, f"a binary file, expected {kind}{encoding_note(raw[:512])}")
     return raw
 
 
@@ -263,7 +266,7 @@ def reals_of_fields(
     if empty.any():
         if blank is None:
             k = int(np.flatnonzero(empty)[0])
-            raise _fail(path, int(lines[k]), f"{what} is missing")
+            raise located_error(path, int(lines[k]), f"{what} is missing")
         work[empty, w - 1] = ord("0")
     values = None
     try:
@@ -341,7 +344,7 @@ def _components(text: str, path: Path, line: int, card: str) -> int:
     if text in ("", "0"):
         return 0
     if not text.isdigit() or not set(text) <= set("123456") or len(set(text)) != len(text):
-        raise _fail(
+        raise located_error(
             path, line, f"{card}: component {text!r} is not 0 or digits 1-6 without repeats"
         )
     mask = 0
@@ -574,7 +577,7 @@ class BulkData:
             if not equal.all():
                 k = int(np.flatnonzero(~equal)[0])
                 first, second = sorted((int(a[k]), int(b[k])))
-                raise _fail(
+                raise located_error(
                     self.paths[grids["path"][second]],
                     int(grids["line"][second]),
                     f"GRID {int(grids['ids'][second])} is defined twice with different data "
@@ -635,7 +638,9 @@ class BulkData:
             if k + 2 < len(words) and words[k + 1].upper() == "THRU":
                 last = self._id(words[k + 2], card, "point id")
                 if last < first:
-                    raise _fail(card.path, card.line, f"{card.name}: {first} THRU {last} is empty")
+                    raise located_error(
+                        card.path, card.line, f"{card.name}: {first} THRU {last} is empty"
+                    )
                 out.append(thru(first, last))
                 k += 3
             else:
@@ -647,15 +652,17 @@ class BulkData:
     def _id(text: str, card: Card, what: str) -> int:
         value = parse_int(text, card.path, card.line, f"{card.name} {what}")
         if value <= 0:
-            raise _fail(card.path, card.line, f"{card.name} {what} {value} must be positive")
+            raise located_error(
+                card.path, card.line, f"{card.name} {what} {value} must be positive"
+            )
         return value
 
     @staticmethod
     def _range(first: int, last: int, card: Card) -> np.ndarray:
         if last < first:
-            raise _fail(card.path, card.line, f"{card.name}: {first} THRU {last} is empty")
+            raise located_error(card.path, card.line, f"{card.name}: {first} THRU {last} is empty")
         if last - first >= MAX_RANGE:
-            raise _fail(
+            raise located_error(
                 card.path, card.line, f"{card.name}: {first} THRU {last} spans too many ids"
             )
         return np.arange(first, last + 1, dtype=np.int64)
@@ -702,7 +709,7 @@ class BulkData:
             first = int(rows[np.flatnonzero(mine)[0]])
             gid = int(self.grid["ids"][first])
             if cd < 0:
-                raise _fail(
+                raise located_error(
                     *self._grid_where(first),
                     f"GRID {gid} has CD={cd}: a fluid grid point, not a structural one",
                 )
@@ -732,7 +739,7 @@ class BulkData:
                     if cid in systems:
                         old = systems[cid]
                         if (old[0], old[1], old[3]) != (entry[0], entry[1], entry[3]):
-                            raise _fail(
+                            raise located_error(
                                 card.path,
                                 card.line,
                                 f"coordinate system {cid} is defined twice with different data "
@@ -748,11 +755,15 @@ class BulkData:
             return self._frames[cid]
         entry = self._systems.get(cid)
         if entry is None:
-            raise _fail(*where, f"{what}: coordinate system {cid} is not defined in the file")
+            raise located_error(
+                *where, f"{what}: coordinate system {cid} is not defined in the file"
+            )
         kind, form, card, fields = entry
         if cid in self._resolving:
             chain = " -> ".join(str(c) for c in [*self._resolving, cid])
-            raise _fail(card.path, card.line, f"coordinate systems refer to each other: {chain}")
+            raise located_error(
+                card.path, card.line, f"coordinate systems refer to each other: {chain}"
+            )
         self._resolving.append(cid)
         try:
             if form == 2:
@@ -768,7 +779,7 @@ class BulkData:
                 rows = self.grid_rows(np.array(gids))
                 if (rows < 0).any():
                     gid = gids[int(np.flatnonzero(rows < 0)[0])]
-                    raise _fail(
+                    raise located_error(
                         card.path, card.line, f"CORD1{kind} {cid}: grid {gid} has no GRID card"
                     )
                 points = self.basic_coordinates(rows)
@@ -811,7 +822,7 @@ class BulkData:
             letter != "o" for _, _, letter, _ in members
         ):
             card = next(c for _, _, letter, c in members if letter == "o")
-            raise _fail(
+            raise located_error(
                 card.path,
                 card.line,
                 f"{card.name} defines the a-set as the dofs not omitted, which needs the whole "
@@ -833,7 +844,7 @@ class BulkData:
             is_grid = self.grid_rows(ids) >= 0
             bad = np.flatnonzero((masks == 0) & is_grid)
             if bad.size:
-                raise _fail(
+                raise located_error(
                     card.path,
                     card.line,
                     f"{card.name}: {int(ids[bad[0]])} is a GRID; component 0 (or blank) is for "
@@ -841,7 +852,7 @@ class BulkData:
                 )
             bad = np.flatnonzero((masks != 0) & np.isin(ids, spoints))
             if bad.size:
-                raise _fail(
+                raise located_error(
                     card.path,
                     card.line,
                     f"{card.name}: {int(ids[bad[0]])} is a scalar point (SPOINT); give it with "
@@ -892,7 +903,7 @@ class BulkData:
                 return known[(known >= first) & (known <= last)]
             count = (last - first + 1) * max(bin(mask).count("1"), 1)
             if limit is not None and count > max(limit, _EAGER_RANGE):
-                raise _fail(
+                raise located_error(
                     card.path,
                     card.line,
                     f"{first} THRU {last} puts {count} dofs in the a-set, more than the {limit} "
@@ -917,7 +928,7 @@ class BulkData:
             while k < len(words):
                 if k + 1 < len(words) and words[k + 1].upper() == "THRU":
                     if k + 5 >= len(words) or words[k + 4].upper() != "THRU":
-                        raise _fail(
+                        raise located_error(
                             card.path,
                             card.line,
                             "SECONCT: a range is 'GIDA1 THRU GIDA2 GIDB1 THRU GIDB2'",
@@ -936,7 +947,7 @@ class BulkData:
 
     def _check_sequence(self) -> None:
         for card in self.cards.get("SEQGP", []):
-            raise _fail(
+            raise located_error(
                 card.path,
                 card.line,
                 "SEQGP resequences the points, so the row order of the matrices is not the "
@@ -944,7 +955,7 @@ class BulkData:
             )
         for card in self.cards.get("PARAM", []):
             if card.field(0).upper() == "OLDSEQ" and card.field(1) not in ("", "-1"):
-                raise _fail(
+                raise located_error(
                     card.path,
                     card.line,
                     f"PARAM,OLDSEQ,{card.field(1)} resequences the points, so the row order of "
@@ -958,11 +969,13 @@ def _frame_from_points(cid: int, kind: str, points: np.ndarray, card: Card) -> F
     z = b - a
     scale = max(np.linalg.norm(z), np.linalg.norm(c - a), 1e-300)
     if np.linalg.norm(z) <= 1e-12 * scale:
-        raise _fail(card.path, card.line, f"coordinate system {cid}: points A and B coincide")
+        raise located_error(
+            card.path, card.line, f"coordinate system {cid}: points A and B coincide"
+        )
     z = z / np.linalg.norm(z)
     y = np.cross(z, c - a)
     if np.linalg.norm(y) <= 1e-10 * scale:
-        raise _fail(
+        raise located_error(
             card.path, card.line, f"coordinate system {cid}: points A, B and C are collinear"
         )
     y = y / np.linalg.norm(y)
@@ -1113,7 +1126,7 @@ class _Parser:
         bad_first = cont & ~np.isin(first, [_STAR, _PLUS, _SPACE, _COMMA])
         if bad_first.any():
             i = int(np.flatnonzero(bad_first)[0])
-            raise _fail(
+            raise located_error(
                 self.path,
                 int(self.numbers[i]),
                 "line is neither a card nor a continuation (cards start with a letter, "
@@ -1127,7 +1140,7 @@ class _Parser:
         orphan[inside] = control[breakers[owner[inside]]]
         if orphan.any():
             i = int(np.flatnonzero(orphan)[0])
-            raise _fail(self.path, int(self.numbers[i]), "continuation line without a card")
+            raise located_error(self.path, int(self.numbers[i]), "continuation line without a card")
         starts = np.flatnonzero(start)
         if starts.size == 0:
             return
@@ -1204,7 +1217,7 @@ class _Parser:
                 (self.path.parent / name).resolve() if not Path(name).is_absolute() else Path(name)
             )
             if target.resolve() in self.stack:
-                raise _fail(
+                raise located_error(
                     self.path, int(self.numbers[i]), "INCLUDE loop: the file includes itself"
                 )
             self.bulk._read_file(target, self.stack, section)
@@ -1214,20 +1227,22 @@ class _Parser:
         text = self.lines[i].decode("latin-1")
         quote = text.find("'")
         if quote < 0:
-            raise _fail(self.path, int(self.numbers[i]), "INCLUDE without a quoted file name")
+            raise located_error(
+                self.path, int(self.numbers[i]), "INCLUDE without a quoted file name"
+            )
         parts = [text[quote + 1 :]]
         last = i
         while "'" not in parts[-1]:
             last += 1
             if last >= len(self.lines):
-                raise _fail(
+                raise located_error(
                     self.path, int(self.numbers[i]), "INCLUDE: the quoted file name is not closed"
                 )
             parts.append(self.lines[last].decode("latin-1").strip())
         name = "".join(p.strip() for p in parts)
         name = name[: name.index("'")].strip()
         if not name:
-            raise _fail(self.path, int(self.numbers[i]), "INCLUDE with an empty file name")
+            raise located_error(self.path, int(self.numbers[i]), "INCLUDE with an empty file name")
         return name, last
 
     # ---------------------------------------------------------------- cards
@@ -1335,7 +1350,7 @@ class _Parser:
         if bad.size:
             k = int(bad[0])
             problem = "is missing" if id_blank[k] else f"{int(ids[k])} must be positive"
-            raise _fail(path, int(numbers[k]), f"GRID ID {problem}")
+            raise located_error(path, int(numbers[k]), f"GRID ID {problem}")
         cp, cp_blank = _ints_of_fields(block[:, 1], numbers, path, "GRID CP")
         cd, cd_blank = _ints_of_fields(block[:, 5], numbers, path, "GRID CD")
         xyz = np.column_stack(

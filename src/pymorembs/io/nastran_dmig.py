@@ -76,9 +76,9 @@ import scipy.sparse as sp
 
 from pymorembs.arrays import sorted_unique
 from pymorembs.body import SCALAR, DofTable, ElasticBody
+from pymorembs.errors import located_error
 from pymorembs.io.formats import assemble_symmetric
 from pymorembs.io.line_blocks import IrregularText, iter_line_blocks, line_starts
-from pymorembs.io.matrix_market import _fail
 from pymorembs.io.nastran_bulk import (
     MAX_ID,
     line_fields,
@@ -164,7 +164,7 @@ def read_dmig(
     entries = punch.entries(names)
     all_keys = np.unique(np.concatenate([entries.row_key, entries.col_key]))
     if all_keys.size == 0:
-        raise _fail(path, None, f"DMIG {', '.join(names)}: header cards but no entries")
+        raise located_error(path, None, f"DMIG {', '.join(names)}: header cards but no entries")
     table = DofTable(all_keys // 8, all_keys % 8)
     n = len(table)
     matrices = {}
@@ -363,13 +363,15 @@ class _Punch:
         for k in dmig.tolist():
             name_k = names[k]
             if not name_k:
-                raise _fail(self.path, int(starts[k]) + 1, "DMIG card without a matrix name")
+                raise located_error(
+                    self.path, int(starts[k]) + 1, "DMIG card without a matrix name"
+                )
             self.card_matrix[k] = codes.setdefault(name_k, len(codes))
         self.names = list(codes)
         # a line that is neither a card nor a continuation must not end a DMIG card silently
         foreign = np.flatnonzero(~letter[1:] & (self.card_kind[:-1] != _OTHER)) + 1
         if foreign.size:
-            raise _fail(
+            raise located_error(
                 self.path,
                 int(starts[foreign[0]]) + 1,
                 "line is neither a card nor a continuation (continuation lines start with '+', "
@@ -383,7 +385,7 @@ class _Punch:
         cards = self.header_cards[matrix]
         first = int(self.card_first[cards[0]])
         if len(cards) > 1:
-            raise _fail(
+            raise located_error(
                 self.path,
                 int(self.card_first[cards[1]]) + 1,
                 f"second header card of DMIG matrix {matrix} (the first is on line {first + 1})",
@@ -393,16 +395,16 @@ class _Punch:
         ifo = parse_int(fields[2], self.path, number, f"form IFO (field 4) of DMIG {matrix}")
         tin = parse_int(fields[3], self.path, number, f"type TIN (field 5) of DMIG {matrix}")
         if tin in (3, 4):
-            raise _fail(
+            raise located_error(
                 self.path, number, f"DMIG {matrix} is complex (TIN={tin}); a real matrix is needed"
             )
         if tin not in (1, 2):
-            raise _fail(
+            raise located_error(
                 self.path, number, f"DMIG {matrix} has type TIN={tin}; expected 1 or 2 (real)"
             )
         if ifo not in (1, 6):
             kind = "rectangular" if ifo in (2, 9) else "of unknown form"
-            raise _fail(
+            raise located_error(
                 self.path,
                 number,
                 f"DMIG {matrix} is {kind} (IFO={ifo}); a square symmetric matrix (IFO=6 or 1) "
@@ -428,7 +430,9 @@ class _Punch:
         A file without DMIG cards raises :class:`UserError` saying what it holds instead.
         """
         if not self.names:
-            raise _fail(self.path, None, f"holds no DMIG matrices: {explain_file(self.path)}")
+            raise located_error(
+                self.path, None, f"holds no DMIG matrices: {explain_file(self.path)}"
+            )
         out = {}
         for name in self.names:
             square = True
@@ -444,7 +448,7 @@ class _Punch:
         for role, matrix in wanted.items():
             if matrix not in self.names:
                 present = ", ".join(self.names) if self.names else "no DMIG cards at all"
-                raise _fail(
+                raise located_error(
                     self.path,
                     None,
                     f"no DMIG matrix named {matrix} ({role}); the file holds: {present}",
@@ -452,7 +456,7 @@ class _Punch:
             if matrix not in self.header_cards:
                 code = self.names.index(matrix)
                 k = int(np.flatnonzero(self.card_matrix == code)[0])
-                raise _fail(
+                raise located_error(
                     self.path,
                     int(self.card_first[k]) + 1,
                     f"DMIG {matrix} has column cards but no header card "
@@ -545,7 +549,7 @@ class _Punch:
             if missing.size:
                 k = int(missing[0])
                 shown = " ".join(repr(_text(fields[k, j])) for j in range(3))
-                raise _fail(
+                raise located_error(
                     self.path,
                     int(lines[k]) + 1,
                     f"entry without a {what} (fields: {shown}); is the line cut?",
@@ -603,7 +607,9 @@ class _Punch:
                     continue
                 if not g or not a:
                     what = "row grid" if not g else "value"
-                    raise _fail(self.path, number, f"entry without a {what}; is the line cut?")
+                    raise located_error(
+                        self.path, number, f"entry without a {what}; is the line cut?"
+                    )
                 out[0].append(i)
                 out[1].append(slot + (1 if self.start[i] else 0))
                 out[2].append(parse_int(g, self.path, number, "row grid"))
@@ -631,9 +637,9 @@ def _text(field: np.ndarray) -> str:
 
 def _check_dof(path: Path, line: int, what: str, grid: int, component: int) -> None:
     if grid <= 0:
-        raise _fail(path, line, f"{what} grid {grid} is not a valid grid id")
+        raise located_error(path, line, f"{what} grid {grid} is not a valid grid id")
     if not 0 <= component <= 6:
-        raise _fail(path, line, f"{what} component {component} of grid {grid} is not 0-6")
+        raise located_error(path, line, f"{what} component {component} of grid {grid} is not 0-6")
 
 
 def _direction(component: np.ndarray) -> np.ndarray:

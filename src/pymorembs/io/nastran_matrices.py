@@ -34,10 +34,10 @@ import numpy as np
 import scipy.sparse as sp
 
 from pymorembs.body import SCALAR, DofTable, ElasticBody
-from pymorembs.errors import UserError
+from pymorembs.errors import UserError, located_error
 from pymorembs.io.checks import make_body
 from pymorembs.io.formats import is_nodes_csv
-from pymorembs.io.matrix_market import _fail, _read_nodes, check_symmetric
+from pymorembs.io.matrix_market import check_symmetric, read_nodes_csv
 from pymorembs.io.nastran_bulk import AnalysisSet, BulkData, read_bulk
 from pymorembs.sparse_rows import abs_row_sums
 
@@ -126,7 +126,9 @@ def choose_matrices(
     def present(name: str, role: str) -> str:
         key = name.strip().upper()
         if key not in infos:
-            raise _fail(path, None, f"no {what} named {key} ({role}); the file holds: {held}")
+            raise located_error(
+                path, None, f"no {what} named {key} ({role}); the file holds: {held}"
+            )
         return key
 
     usable = {k: v for k, v in infos.items() if not v.placeholder and (v.shape is None or v.square)}
@@ -145,10 +147,10 @@ def choose_matrices(
             m_name = present("M" + k_name[1:], "mass")
     else:
         if not pairs:
-            raise _fail(path, None, _no_pair(infos, usable, what))
+            raise located_error(path, None, _no_pair(infos, usable, what))
         if len(pairs) > 1:
             listed = ", ".join(f"{k}/{m}" + _shape_text(usable[k]) for k, m in pairs)
-            raise _fail(
+            raise located_error(
                 path,
                 None,
                 f"holds several stiffness/mass pairs: {listed}; choose one with --stiffness-name "
@@ -377,7 +379,7 @@ def node_source(path: PathLike | None, bulk: BulkData | None = None) -> NodeSour
     if bulk is not None and bulk.path == path:
         return NodeSource(path, bulk, None)
     if is_nodes_csv(path):
-        return NodeSource(path, None, _read_nodes(path))
+        return NodeSource(path, None, read_nodes_csv(path))
     return NodeSource(path, read_bulk(path), None)
 
 
@@ -416,7 +418,7 @@ def build_body(
     scalar_ids = np.unique(table.nodes[table.scalar])
     clash = np.intersect1d(scalar_ids, node_ids)
     if clash.size:
-        raise _fail(
+        raise located_error(
             source,
             None,
             f"point {int(clash[0])} appears as a scalar point (component 0) and as a grid "
@@ -558,7 +560,7 @@ def _grids(count: int) -> str:
 
 def _grid_missing(source: Path, grid: int, nodes: Path, what: str, where_grid) -> UserError:
     line = where_grid(grid) if where_grid is not None else None
-    return _fail(source, line, f"grid {grid} has no {what} in {nodes}")
+    return located_error(source, line, f"grid {grid} has no {what} in {nodes}")
 
 
 def _body(
@@ -623,7 +625,7 @@ def _to_basic(
                 if used.size != block.size:
                     kind = "translations" if base == 0 else "rotations"
                     present = " ".join(str(c + base + 1) for c in local.tolist())
-                    raise _fail(
+                    raise located_error(
                         source,
                         None,
                         f"grid {grid} has CD={int(cd[k])} and only components {present} of its "

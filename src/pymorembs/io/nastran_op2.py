@@ -42,9 +42,8 @@ from typing import Any
 import numpy as np
 
 from pymorembs.body import SCALAR, DofTable, ElasticBody
-from pymorembs.errors import UserError
+from pymorembs.errors import UserError, located_error
 from pymorembs.io.checks import reason, require_file
-from pymorembs.io.matrix_market import _fail
 from pymorembs.io.nastran_matrices import (
     MatrixInfo,
     NodeSource,
@@ -103,7 +102,7 @@ def read_op2(
     found = {str(key).strip().upper(): matrix for key, matrix in op2.matrices.items()}
     if not found:
         tables = ", ".join(t.decode("latin-1") for t in getattr(op2, "table_names", []))
-        raise _fail(
+        raise located_error(
             path,
             None,
             f"holds no matrices (tables: {tables or 'none'}); write KGG and MGG with the DMAP "
@@ -127,7 +126,7 @@ def read_op2(
     n = matrices["stiffness"].shape[0]
     for key, matrix in zip(used, matrices.values(), strict=True):
         if matrix.shape[0] != n:
-            raise _fail(
+            raise located_error(
                 path,
                 None,
                 f"matrix {key} is {matrix.shape[0]} x {matrix.shape[0]} but {choice.stiffness} "
@@ -147,7 +146,7 @@ def _read(path: Path) -> Any:
         op2_type = op2_class()
         log = quiet_logger()
     except ImportError as err:
-        raise _fail(path, None, f"reading OP2 files needs pyNastran ({err})") from None
+        raise located_error(path, None, f"reading OP2 files needs pyNastran ({err})") from None
     chatter = io.StringIO()  # pyNastran prints diagnostics of damaged files
     try:
         with warnings.catch_warnings(), redirect_stdout(chatter), redirect_stderr(chatter):
@@ -156,7 +155,7 @@ def _read(path: Path) -> Any:
             op2.read_op2(str(path), build_dataframe=False, skip_undefined_matrices=False)
     except Exception as err:  # pyNastran's own errors (and MemoryError) become one line
         problem = "cannot read the OP2 file (truncated, damaged or not an OP2 file)"
-        raise _fail(path, None, f"{problem}: {reason(err)}") from None
+        raise located_error(path, None, f"{problem}: {reason(err)}") from None
     return op2
 
 
@@ -187,8 +186,8 @@ def _check_records(path: Path) -> None:
                 if endian == "<":
                     first_failure = at
     except (OSError, ValueError) as err:
-        raise _fail(path, None, f"cannot read: {reason(err)}") from None
-    raise _fail(
+        raise located_error(path, None, f"cannot read: {reason(err)}") from None
+    raise located_error(
         path,
         None,
         "cannot read the OP2 file (truncated, damaged or not an OP2 file): the Fortran block "
@@ -206,7 +205,7 @@ def _gset(op2: Any, path: Path, n: int, stiffness: str) -> tuple[DofTable, np.nd
     """The g-set dof table from EQEXIN, and the internal-sequence row of each grid."""
     eqexin = getattr(getattr(op2, "op2_results", None), "eqexin", None)
     if eqexin is None:
-        raise _fail(
+        raise located_error(
             path,
             None,
             f"has no EQEXIN table, so the rows of {stiffness} cannot be labelled; write the "
@@ -220,15 +219,17 @@ def _gset(op2: Any, path: Path, n: int, stiffness: str) -> tuple[DofTable, np.nd
     unknown = ~np.isin(kind, [_GRID, _SCALAR_POINT, _EXTRA_POINT])
     if unknown.any():
         k = int(np.flatnonzero(unknown)[0])
-        raise _fail(path, None, f"EQEXIN: point {nid[k]} has an unknown type code {kind[k]}")
+        raise located_error(
+            path, None, f"EQEXIN: point {nid[k]} has an unknown type code {kind[k]}"
+        )
     in_g = kind != _EXTRA_POINT
     size = np.where(kind == _GRID, 6, 1)
     expected = np.concatenate([[1], 1 + np.cumsum(size[in_g])[:-1]]) if in_g.any() else sil[:0]
     if not np.array_equal(sil[in_g], expected):
-        raise _fail(path, None, "EQEXIN: the internal sequence numbers are not contiguous")
+        raise located_error(path, None, "EQEXIN: the internal sequence numbers are not contiguous")
     total = int(size[in_g].sum())
     if total != n:
-        raise _fail(
+        raise located_error(
             path,
             None,
             f"matrix {stiffness} is {n} x {n} but the g-set of EQEXIN has {total} dofs; the rows "
@@ -274,10 +275,10 @@ def _coordinates(
     if xyz.shape[0] == points or xyz.shape[0] == grid_rows.size:
         rows = grid_rows if xyz.shape[0] == points else np.arange(grid_rows.size)
     else:
-        raise _fail(path, None, f"BGPDT has {xyz.shape[0]} points but EQEXIN {points}")
+        raise located_error(path, None, f"BGPDT has {xyz.shape[0]} points but EQEXIN {points}")
     if cd is not None and cd.size == xyz.shape[0] and np.any(cd[rows] > 0):
         systems = ", ".join(str(c) for c in np.unique(cd[rows][cd[rows] > 0]).tolist())
-        raise _fail(
+        raise located_error(
             path,
             None,
             f"grids have displacement coordinate systems (CD = {systems}), so the rows of the "

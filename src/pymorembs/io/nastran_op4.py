@@ -60,9 +60,9 @@ import numpy as np
 import scipy.sparse as sp
 
 from pymorembs.body import SCALAR, DofTable, ElasticBody
-from pymorembs.errors import UserError
+from pymorembs.errors import UserError, located_error
 from pymorembs.io.checks import reason, require_file
-from pymorembs.io.matrix_market import _fail, _read_dofs, _read_lines
+from pymorembs.io.matrix_market import read_dofs_csv, read_text_lines
 from pymorembs.io.nastran_bulk import BulkData, read_bulk
 from pymorembs.io.nastran_matrices import (
     MatrixInfo,
@@ -159,10 +159,12 @@ def read_op4(
     d_matrix = _pick(matrices, choice.damping, path) if choice.damping is not None else None
     n = k_matrix.shape[0]
     if n == 0:
-        raise _fail(path, None, f"matrix {choice.stiffness} is 0 x 0: the model has no dofs")
+        raise located_error(
+            path, None, f"matrix {choice.stiffness} is 0 x 0: the model has no dofs"
+        )
     for label, matrix in ((choice.mass, m_matrix), (choice.damping, d_matrix)):
         if matrix is not None and matrix.shape[0] != n:
-            raise _fail(
+            raise located_error(
                 path,
                 None,
                 f"matrix {label} is {matrix.shape[0]} x {matrix.shape[0]} but "
@@ -204,17 +206,17 @@ def _read_dof_source(
     path: Path, n: int, stiffness: str, op4: Path
 ) -> tuple[DofTable, BulkData | None, list[str]]:
     """Dof table from ``dofs.csv`` or from the a-set of Nastran bulk data, checked against n."""
-    lines = _read_lines(path, "a dofs.csv or Nastran bulk data file")
+    lines = read_text_lines(path, "a dofs.csv or Nastran bulk data file")
     first = next((t.strip() for t in lines if t.strip() and not t.lstrip().startswith("#")), "")
     if path.suffix.lower() == ".csv" or first.replace(" ", "").lower() == "node,direction":
-        table, _ = _read_dofs(path)
+        table, _ = read_dofs_csv(path)
         bulk, notes = None, [f"dof table from {path.name}: {table.describe()}"]
         hint = ""
     else:
         bulk = read_bulk(path)
         aset = bulk.analysis_set(limit=n)
         if aset is None:
-            raise _fail(
+            raise located_error(
                 path,
                 None,
                 f"defines no a-set (no ASET/ASET1, BSET, QSET, EXTRN or SECONCT cards) for the "
@@ -229,7 +231,7 @@ def _read_dof_source(
             else ""
         )
     if len(table) != n:
-        raise _fail(
+        raise located_error(
             path, None, f"{len(table)} dofs but matrix {stiffness} in {op4} is {n} x {n}{hint}"
         )
     return table, bulk, notes
@@ -268,7 +270,7 @@ def _read_op4_file(path: Path) -> dict[str, _Op4Matrix]:
     for key, entry in raw.items():
         upper = str(key).strip().upper()
         if upper in matrices:
-            raise _fail(
+            raise located_error(
                 path, None, f"matrix names {matrices[upper].name} and {key} differ only in case"
             )
         tin = int(getattr(entry, "tin", 0) or 0)
@@ -294,7 +296,7 @@ def _read_with_pynastran(path: Path) -> dict:
     try:
         from pyNastran.op4.op4 import OP4
     except ImportError as err:
-        raise _fail(path, None, f"reading OP4 files needs pyNastran ({err})") from None
+        raise located_error(path, None, f"reading OP4 files needs pyNastran ({err})") from None
     try:
         chatter = io.StringIO()  # pyNastran prints diagnostics of damaged files
         with warnings.catch_warnings(), redirect_stdout(chatter), redirect_stderr(chatter):
@@ -302,7 +304,7 @@ def _read_with_pynastran(path: Path) -> dict:
             raw = OP4(debug=None).read_op4(str(path))
     except Exception as err:  # pyNastran's own errors (and MemoryError) become one line
         problem = "cannot read the OP4 file (truncated, damaged or not an OP4 file)"
-        raise _fail(path, None, f"{problem}: {reason(err)}") from None
+        raise located_error(path, None, f"{problem}: {reason(err)}") from None
     return raw
 
 
@@ -323,11 +325,11 @@ def _check_dense_sizes(path: Path) -> None:
             else:
                 headers = _ascii_headers(f)
     except (OSError, ValueError) as err:
-        raise _fail(path, None, f"cannot read: {reason(err)}") from None
+        raise located_error(path, None, f"cannot read: {reason(err)}") from None
     for name, nrows, ncols, kind, dense, line in headers:
         size = abs(nrows) * ncols * (16 if kind in (3, 4) else 8)
         if dense and size > DENSE_LIMIT_BYTES:
-            raise _fail(
+            raise located_error(
                 path,
                 line,
                 f"matrix {name} is {abs(nrows)} x {ncols} in dense format, {size / 2**30:.1f} GiB "
@@ -415,7 +417,7 @@ def _pick(matrices: dict[str, _Op4Matrix], wanted: str, path: Path) -> sp.csr_ma
     entry = matrices.get(key)
     if entry is None:
         held = ", ".join(sorted(m.name for m in matrices.values())) or "no matrices"
-        raise _fail(path, None, f"no matrix named {wanted!r}; the file holds {held}")
+        raise located_error(path, None, f"no matrix named {wanted!r}; the file holds {held}")
     where = f"{path}: matrix {entry.name}"
     if isinstance(entry.form, list):
         raise UserError(f"{where} appears {len(entry.form)} times")
