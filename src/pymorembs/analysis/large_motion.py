@@ -168,8 +168,13 @@ def _motions(
 
 
 def _run(
-    arrays: dict, motion: _Motion, clamp: str, joint_node: int | None, step: float, settings
-) -> dict[str, np.ndarray]:
+    arrays: dict,
+    motion: _Motion,
+    clamp: str,
+    joint_node: int | None,
+    step: float,
+    settings: LargeMotionSettings,
+) -> dict[str, Any]:
     """One Exudyn run: times, frame angular velocity, elastic deflections of the frame nodes."""
     model = build_exudyn_model(
         arrays,

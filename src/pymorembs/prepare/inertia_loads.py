@@ -37,6 +37,7 @@ none is; a body without coordinates has only the translational cases.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -188,7 +189,7 @@ def static_solver(system: SecondOrderSystem, label: str) -> Factorization | Iner
 def inertia_loads(
     body: ElasticBody,
     system: SecondOrderSystem,
-    transform_inputs,
+    transform_inputs: Callable[[np.ndarray], np.ndarray],
     cases: tuple[str, ...] = INERTIA_LOAD_CASES,
 ) -> InertiaLoads:
     """The scaled inertia load ports of a prepared body.
