@@ -90,7 +90,7 @@ import numpy as np
 
 from pymorembs.errors import NumericalError, UserError
 from pymorembs.export.deterministic import write_npz
-from pymorembs.export.invariants import skew
+from pymorembs.export.invariants import levi_civita, skew
 
 if TYPE_CHECKING:
     from pymorembs.export.invariants import BodyInvariants
@@ -160,13 +160,6 @@ _INTEGER_KEYS = (
 
 
 # ------------------------------------------------------------------------------ the arrays
-def _levi_civita() -> np.ndarray:
-    eps = np.zeros((3, 3, 3))
-    for a, b, c in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
-        eps[a, b, c], eps[a, c, b] = 1.0, -1.0
-    return eps
-
-
 def ffrf_inertia_matrices(inv: BodyInvariants) -> dict[str, np.ndarray]:
     """Exudyn's six FFRF inertia matrices from the mass invariants (SID_NOTES §5).
 
@@ -191,7 +184,7 @@ def ffrf_inertia_matrices(inv: BodyInvariants) -> dict[str, np.ndarray]:
     trace_s = np.einsum("kaa->k", s)
     minus_c4 = trace_s[:, None, None] * np.eye(3) - s.transpose(0, 2, 1)
     # Kr[a, k, l] = ∫(Φ_l × Φ_k)_a dm = Σ_bc ε_abc PP[c, b, k, l]
-    kr = np.einsum("abc,cbkl->akl", _levi_civita(), pp)
+    kr = np.einsum("abc,cbkl->akl", levi_civita(), pp)
     # -C6_kl[a, b] = δ_ab Σ_c PP[c, c, k, l] - PP[b, a, k, l], stored (k, a, l, b)
     trace_pp = np.einsum("cckl->kl", pp)
     minus_c6 = np.einsum("kl,ab->kalb", trace_pp, np.eye(3)) - pp.transpose(2, 1, 3, 0)

@@ -20,14 +20,20 @@ mass matrix ``m̄`` (N × N),
 * ``S[k, a, b] = ∫ c_a Φ_{k,b} dm = x_aᵀ m̄ U_b e_k``,
 * ``PP[a, b] = ∫ Φ_aᵀ Φ_b dm = U_aᵀ m̄ U_b``.
 
-If ``M`` has Kronecker structure on the translational dofs (``M[x,x] = M[y,y] = M[z,z] = m̄`` over
-the nodes, off-axis blocks zero, no mass on rotational dofs -- isoparametric solids, lumped point
-masses) these are exact (``second_order_mass = "exact"``). Otherwise (beams and shells with
-rotary inertia or Hermitian translation-rotation coupling, rigid bodies with rotary inertia)
-``m̄`` is the mean of the three axis blocks ``M[a,a]`` and the rotational and coupling parts of
-``M`` are left out of the second-order terms only (``"translational"``): ``J1``, ``Gr``, ``Oe0``,
-``Cr1 = Kr``, ``Ge`` and ``Oe1`` then miss the rotary-inertia contributions (SID_NOTES §4.2(b)
-calls them "commonly neglected"), while ``m``, ``c``, ``J0``, ``Ct``, ``Cr``, ``Me`` remain exact.
+Rigid bodies lumped at nodes (a node's 6 x 6 block of ``M`` that couples no other node, with an
+isotropic translational mass: plates, point masses with rotary inertia or offset) are taken out
+first and enter exactly: the mass points of such a body move as ``u_n + ψ_n × r``, and their
+integrals follow from the block's mass, first moment and second moments ``∫ r rᵀ dm =
+tr(Θ)/2 I − Θ`` (:class:`_RigidBodies`). For a body with beams in its mesh the beams' consistent
+mass is subtracted before the blocks are looked for. If the rest of ``M`` has Kronecker structure
+on the translational dofs (``M[x,x] = M[y,y] = M[z,z] = m̄`` over the nodes, off-axis blocks
+zero, no mass on rotational dofs -- isoparametric solids, lumped point masses), the terms are
+exact (``second_order_mass = "exact"``). Otherwise (beams and shells with the rotary inertia of
+their sections or Hermitian translation-rotation coupling) ``m̄`` of the rest is the mean of
+its three axis blocks ``M[a,a]`` and its rotational and coupling parts are left out of the
+second-order terms only (``"translational"``): ``J1``, ``Gr``, ``Oe0``, ``Cr1 = Kr``, ``Ge`` and
+``Oe1`` then miss those beams' own rotary-inertia contributions (SID_NOTES §4.2(b) calls them
+"commonly neglected"), while ``m``, ``c``, ``J0``, ``Ct``, ``Cr``, ``Me`` remain exact.
 
 Units: those of the FE model (SI for the built-in examples: kg, m); ``Φ`` is dimensionless if
 ``q`` has the length unit (mass-normalised modes: ``q`` in m·kg^½, then ``Me = I``).
@@ -40,6 +46,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from pymorembs.arrays import sorted_unique
 from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
 from pymorembs.linalg.products import extended
@@ -50,6 +57,7 @@ __all__ = [
     "NodeFrame",
     "StiffeningTerms",
     "compute_invariants",
+    "levi_civita",
     "skew",
 ]
 
@@ -313,9 +321,17 @@ def compute_invariants(
     m_full = sp.csr_matrix(body.mass)
     first = _first_order(body, m_full, phi)
     rows, directions = _dof_node_rows(body)
-    blocks = _translational_blocks(m_full, rows, directions, body.n_nodes)
-    exact = _is_kronecker(m_full, blocks, directions)
+    # rigid bodies lumped at nodes (6 x 6 blocks of their own): exact second-order terms
+    rigid = _lumped_rigid_bodies(body, m_full)
+    m_rest = m_full if rigid is None else sp.csr_matrix(m_full - rigid.matrix)
+    blocks = _translational_blocks(m_rest, rows, directions, body.n_nodes)
+    exact = _is_kronecker(m_rest, blocks, directions) or (
+        rigid is not None and m_rest.count_nonzero() == 0
+    )
     s, pp = _second_order(body.coordinates, phi, rows, directions, blocks)
+    if rigid is not None:
+        s_rigid, pp_rigid = rigid.second_order(phi)
+        s, pp = s + s_rigid, pp + pp_rigid
     return BodyInvariants(
         mass=first["mass"],
         first_moment=first["first_moment"],
@@ -419,6 +435,134 @@ def _is_kronecker(m_full: sp.csr_matrix, blocks: dict, directions: np.ndarray) -
         return False
     rotational = np.flatnonzero(directions >= 3)
     return rotational.size == 0 or small(m_full[rotational])
+
+
+#: A node block is a lumped rigid body when its translational mass is isotropic to this
+#: relative tolerance.
+RIGID_BLOCK_TOL = 1e-12
+
+
+@dataclass(frozen=True, eq=False)
+class _RigidBodies:
+    """Rigid bodies lumped at nodes: the 6 x 6 mass blocks of M that couple no other node.
+
+    A block ``[[m I, -(m s)~], [(m s)~, Theta]]`` about node ``n`` (position ``x_n``) is the mass
+    of a rigid body moving as ``u(x) = u_n + psi_n x (x - x_n)``; its second-order integrals
+    follow exactly from ``m``, the first moment ``m s`` and the second moments
+    ``R = int r r^T dm = tr(Theta)/2 I - Theta`` (SID_NOTES §4.2(c) generalised to
+    off-centre masses).
+    """
+
+    matrix: sp.csr_matrix  # the blocks on all dofs
+    dofs: np.ndarray  # (n_r, 6) equations ux .. rz of each body's node
+    position: np.ndarray  # (n_r, 3)
+    mass: np.ndarray  # (n_r,)
+    first: np.ndarray  # (n_r, 3) m s
+    second: np.ndarray  # (n_r, 3, 3) R
+
+    def second_order(self, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``S`` (nq, 3, 3) and ``PP`` (3, 3, nq, nq) of the rigid bodies for a basis."""
+        t = phi[self.dofs[:, :3]]  # (n_r, 3, nq) translations of the nodes
+        w = phi[self.dofs[:, 3:]]  # (n_r, 3, nq) rotations
+        eps = levi_civita()
+        x, m, ms, r = self.position, self.mass, self.first, self.second
+        w_ms = np.einsum("bcd,nck,nd->nbk", eps, w, ms)  # (psi_k x m s)_b
+        s = (
+            np.einsum("n,na,nbk->kab", m, x, t)
+            + np.einsum("na,nbk->kab", x, w_ms)
+            + np.einsum("na,nbk->kab", ms, t)
+            + np.einsum("bcd,nck,nad->kab", eps, w, r)
+        )
+        rot = np.einsum("acd,nck->nadk", eps, w)  # (psi_k x .)_a as a matrix on r: [a, d]
+        pp = (
+            np.einsum("n,nak,nbl->abkl", m, t, t)
+            + np.einsum("nak,nbl->abkl", t, w_ms)
+            + np.einsum("nak,nbl->abkl", w_ms, t)
+            + np.einsum("nadk,ndf,nbfl->abkl", rot, r, rot)
+        )
+        return s, pp
+
+
+def levi_civita() -> np.ndarray:
+    """The permutation symbol ``eps[a, b, c]`` (``(u x v)_a = eps[a, b, c] u_b v_c``)."""
+    eps = np.zeros((3, 3, 3))
+    for a, b, c in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
+        eps[a, b, c], eps[a, c, b] = 1.0, -1.0
+    return eps
+
+
+def _lumped_rigid_bodies(body: ElasticBody, m_full: sp.csr_matrix) -> _RigidBodies | None:
+    """The node blocks of ``M`` that are rigid bodies of their own, or None.
+
+    A node qualifies when it has all six dofs, its rows of ``M`` couple only its own dofs (no
+    other node), its rotational block is not zero and its translational block is ``m I``. With
+    beams in the body's mesh, their consistent mass is taken out first, so plates lumped at beam
+    nodes qualify too.
+    """
+    directions, nodes = body.dofs.directions, body.dofs.nodes
+    rotational = sorted_unique(nodes[directions >= 3])
+    if rotational.size == 0:
+        return None
+    # the six equations ux .. rz of every node that has them all
+    keys = nodes.astype(np.int64) * 8 + directions
+    order = np.argsort(keys)
+    wanted = rotational[:, None] * 8 + np.arange(6)
+    at = np.minimum(np.searchsorted(keys, wanted, sorter=order), keys.size - 1)
+    table = order[at]
+    complete = np.all(keys[table] == wanted, axis=1)
+    rows_of = np.searchsorted(np.sort(body.node_ids), rotational)
+    node_rows = np.argsort(body.node_ids)[rows_of]
+    lumped = m_full
+    mesh = body.mesh
+    if mesh is not None and mesh.element == "beam2":
+        from pymorembs.elements.beam import assemble_beams
+
+        index = np.full((body.n_nodes, 6), -1, dtype=np.int64)
+        index[node_rows[complete]] = table[complete]
+        up = None if mesh.up is None else np.asarray(mesh.up, dtype=float)
+        _, beam_mass = assemble_beams(
+            body.node_ids, body.coordinates, mesh.connectivity, mesh.section, index, up=up,
+            n_dof=body.n_dof,
+        )  # fmt: skip
+        lumped = sp.csr_matrix(m_full - beam_mass)
+    scale = max(float(abs(m_full).max()), np.finfo(float).tiny)
+    found = []
+    for dofs, row in zip(table[complete], node_rows[complete], strict=True):
+        block_rows = lumped[dofs]
+        if block_rows.nnz == 0:
+            continue
+        block = block_rows[:, dofs].toarray()
+        outside = abs(block_rows).sum() - np.abs(block).sum()
+        if outside > RIGID_BLOCK_TOL * scale:
+            continue  # coupled to other nodes: not a rigid body of its own
+        mass = block[0, 0]
+        inertia = block[3:, 3:]
+        if not mass > 0 or not np.abs(inertia).max() > 0:
+            continue
+        if np.abs(block[:3, :3] - mass * np.eye(3)).max() > RIGID_BLOCK_TOL * mass:
+            continue
+        coupling = block[:3, 3:]  # -(m s)~
+        first = np.array([-coupling[2, 1], -coupling[0, 2], -coupling[1, 0]])
+        if np.abs(coupling + skew(first)).max() > RIGID_BLOCK_TOL * scale:
+            continue
+        second = 0.5 * np.trace(inertia) * np.eye(3) - inertia
+        found.append((dofs, body.coordinates[row], mass, first, second, block))
+    if not found:
+        return None
+    n = body.n_dof
+    dofs = np.array([f[0] for f in found])
+    values = np.array([f[5] for f in found])
+    r = np.broadcast_to(dofs[:, :, None], values.shape).ravel()
+    c = np.broadcast_to(dofs[:, None, :], values.shape).ravel()
+    matrix = sp.csr_matrix((values.ravel(), (r, c)), shape=(n, n))
+    return _RigidBodies(
+        matrix,
+        dofs,
+        np.array([f[1] for f in found]),
+        np.array([f[2] for f in found]),
+        np.array([f[3] for f in found]),
+        np.array([f[4] for f in found]),
+    )
 
 
 def _second_order(
