@@ -118,6 +118,25 @@ class DofTable:
             for i, (n, d) in enumerate(zip(self.nodes, self.directions, strict=True))
         }
 
+    @cached_property
+    def _sorted_keys(self) -> tuple[np.ndarray, np.ndarray]:
+        keys = self.nodes * 8 + self.directions
+        order = np.argsort(keys, kind="stable")
+        return keys[order], order
+
+    def positions(self, nodes: np.ndarray, directions: np.ndarray | int) -> np.ndarray:
+        """Equation indices of many ``(node, direction code)`` pairs at once, -1 where the model
+        has no such dof; ``nodes`` and ``directions`` broadcast, the result has their shape."""
+        nodes, directions = np.broadcast_arrays(
+            np.asarray(nodes, dtype=np.int64), np.asarray(directions, dtype=np.int64)
+        )
+        keys, order = self._sorted_keys
+        wanted = nodes * 8 + directions
+        if keys.size == 0:
+            return np.full(wanted.shape, -1, dtype=np.int64)
+        at = np.minimum(np.searchsorted(keys, wanted), keys.size - 1)
+        return np.where(keys[at] == wanted, order[at], -1)
+
     def index(self, node: int, direction: int | str) -> int:
         """Equation index of one dof; :class:`UserError` if the model has no such dof."""
         code = direction if isinstance(direction, int | np.integer) else direction_code(direction)
@@ -518,14 +537,21 @@ class ElasticBody:
         except KeyError:
             raise UserError(f"node {node} does not exist in the model") from None
 
+    @cached_property
+    def _node_order(self) -> np.ndarray:
+        return np.argsort(self.node_ids)
+
+    def node_rows(self, ids: np.ndarray) -> np.ndarray:
+        """Rows in :attr:`coordinates` of node ids (any shape; all must be nodes of the body)."""
+        order = self._node_order
+        return order[np.searchsorted(self.node_ids, np.asarray(ids), sorter=order)]
+
     def dof_positions(self) -> np.ndarray:
         """The position of the node of each equation, shape (n_dof, 3); scalar coordinates: 0."""
         out = np.zeros((self.n_dof, 3))
         geometric = ~self.dofs.scalar
         if geometric.any():
-            order = np.argsort(self.node_ids)
-            rows = order[np.searchsorted(self.node_ids, self.dofs.nodes[geometric], sorter=order)]
-            out[geometric] = self.coordinates[rows]
+            out[geometric] = self.coordinates[self.node_rows(self.dofs.nodes[geometric])]
         return out
 
     def rigid_body_modes(self, origin: np.ndarray | None = None) -> np.ndarray:

@@ -86,8 +86,7 @@ def off_axis_node(body: ElasticBody, joint: np.ndarray | None = None) -> int:
     free = np.ones(body.n_dof, dtype=bool)
     free[body.fixed] = False
     candidates = np.unique(body.dofs.nodes[free & (body.dofs.directions < 3)])
-    order = np.argsort(body.node_ids)
-    xyz = body.coordinates[order[np.searchsorted(body.node_ids, candidates, sorter=order)]]
+    xyz = body.coordinates[body.node_rows(candidates)]
     centre = body.coordinates.mean(axis=0)
     extent = np.ptp(body.coordinates, axis=0)
     extent = np.where(extent > 0, extent, 1.0)

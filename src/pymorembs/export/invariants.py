@@ -396,9 +396,7 @@ def _first_order(body: ElasticBody, m_full: sp.csr_matrix, phi: np.ndarray) -> d
 
 def _dof_node_rows(body: ElasticBody) -> tuple[np.ndarray, np.ndarray]:
     """Row in ``body.coordinates`` and direction code of every dof, shapes (n_dof,)."""
-    order = np.argsort(body.node_ids)
-    rows = order[np.searchsorted(body.node_ids, body.dofs.nodes, sorter=order)]
-    return rows, body.dofs.directions
+    return body.node_rows(body.dofs.nodes), body.dofs.directions
 
 
 def _selection(rows: np.ndarray, directions: np.ndarray, axis: int, n_nodes: int) -> sp.csr_matrix:
@@ -504,14 +502,9 @@ def _lumped_rigid_bodies(body: ElasticBody, m_full: sp.csr_matrix) -> _RigidBodi
     if rotational.size == 0:
         return None
     # the six equations ux .. rz of every node that has them all
-    keys = nodes.astype(np.int64) * 8 + directions
-    order = np.argsort(keys)
-    wanted = rotational[:, None] * 8 + np.arange(6)
-    at = np.minimum(np.searchsorted(keys, wanted, sorter=order), keys.size - 1)
-    table = order[at]
-    complete = np.all(keys[table] == wanted, axis=1)
-    rows_of = np.searchsorted(np.sort(body.node_ids), rotational)
-    node_rows = np.argsort(body.node_ids)[rows_of]
+    table = body.dofs.positions(rotational[:, None], np.arange(6))
+    complete = np.all(table >= 0, axis=1)
+    node_rows = body.node_rows(rotational)
     lumped = m_full
     mesh = body.mesh
     if mesh is not None and mesh.element == "beam2":

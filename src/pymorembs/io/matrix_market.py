@@ -1179,13 +1179,8 @@ def _dof_indices(table: DofTable, nodes: np.ndarray, names: np.ndarray) -> np.nd
     codes = _direction_codes(names)
     if codes is None or not _plain_nodes(nodes):
         return None
-    keys = table.nodes * 8 + table.directions
-    order = np.argsort(keys, kind="stable")
-    wanted = nodes * 8 + codes
-    position = np.minimum(np.searchsorted(keys[order], wanted), max(keys.size - 1, 0))
-    if not keys.size or np.any(keys[order][position] != wanted):
-        return None
-    return order[position]
+    position = table.positions(nodes, codes)
+    return None if np.any(position < 0) else position
 
 
 def _constraints_fast(path: Path, table: DofTable) -> ConstraintEquations | None:

@@ -105,9 +105,7 @@ def geometric_stiffness(body: ElasticBody, displacement: np.ndarray) -> sp.csr_m
         raise UserError('stiffening: the model has no elements (source = "mesh")')
     connectivity = mesh.connectivity
     n = body.n_dof
-    order = np.argsort(body.node_ids)
-    rows = order[np.searchsorted(body.node_ids, connectivity, sorter=order)]
-    nodes = body.coordinates[rows]  # (n_el, nodes per element, 3)
+    nodes = body.coordinates[body.node_rows(connectivity)]  # (n_el, nodes per element, 3)
     u_all = np.asarray(displacement, dtype=float)
     if mesh.element == "hex20":
         equations = np.stack([_equations(body, connectivity, d) for d in range(3)], axis=-1)
@@ -130,14 +128,9 @@ def geometric_stiffness(body: ElasticBody, displacement: np.ndarray) -> sp.csr_m
 
 def _equations(body: ElasticBody, nodes: np.ndarray, direction: int) -> np.ndarray:
     """Equation index of ``(node, direction)`` for an array of node ids (all must exist)."""
-    keys = body.dofs.nodes.astype(np.int64) * 8 + body.dofs.directions
-    order = np.argsort(keys)
-    wanted = nodes.astype(np.int64) * 8 + direction
-    at = np.searchsorted(keys, wanted, sorter=order)
-    at = np.minimum(at, keys.size - 1)
-    found = order[at]
-    if np.any(keys[found] != wanted):
-        bad = nodes.ravel()[np.flatnonzero((keys[found] != wanted).ravel())[0]]
+    found = body.dofs.positions(nodes, direction)
+    if np.any(found < 0):
+        bad = nodes.ravel()[np.flatnonzero((found < 0).ravel())[0]]
         raise UserError(f"stiffening: element node {bad} has no dof {direction} in the dof table")
     return found
 
