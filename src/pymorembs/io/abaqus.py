@@ -667,8 +667,7 @@ def release_penalties(body: ElasticBody) -> ElasticBody:
     rebuilt[along] = -forces[along, direction[along]]
     about = np.flatnonzero((direction >= 3) & (direction < 6))
     if body.has_coordinates and about.size:
-        order = np.argsort(body.node_ids)
-        where = order[np.searchsorted(body.node_ids, body.dofs.nodes[fixed[about]], sorter=order)]
+        where = body.node_rows(body.dofs.nodes[fixed[about]])
         axis = np.eye(3)[direction[about] - 3]
         lever = np.cross(axis, body.coordinates[where])  # the node's own motion in the field
         own = np.einsum("ij,ij->i", lever, forces[about, :3])
