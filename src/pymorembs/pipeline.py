@@ -474,14 +474,6 @@ def _run_job(
         say(f"geometric stiffening from the {job.stiffening.source} (one static factorization)")
         prepared = _with_stiffening(prepared, job)
         timings["stiffening_s"] = time.perf_counter() - tick
-        notes = []
-        if "exudyn" in job.export.outputs:
-            notes.append(
-                "the Exudyn body carries the stiffening of the centrifugal load cases only "
-                "(through its force user function), not that of the frame's accelerations and "
-                "of nodal forces (in the SID body)"
-            )
-        prepared = replace(prepared, warnings=(*prepared.warnings, *notes))
     system = prepared.reduction_system  # what every reduction and the reference see
     units = detect_units(body)
     warnings = [*prepared.warnings, *validation.warnings, *units.warnings]

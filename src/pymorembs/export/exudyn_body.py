@@ -63,6 +63,13 @@ parameters above the archive holds ``format`` (``"pymorembs-exudyn-body"``), ``f
 ``satelliteMeshIndices`` (p, 6; -1 for a node without rotational dofs), ``meshNodeIds``
 (n_mesh,; the frame node each mesh node belongs to), ``satelliteLength`` () in m and
 ``satelliteDirections`` (6, 3). Lengths in m, masses in kg, times in s (those of the FE model).
+A body with geometric stiffening (SID_NOTES §4.6) also holds ``K0`` of the centrifugal load
+cases (``stiffeningOmega``, 6 × nq × nq, wxx wyy wzz wxy wyz wxz), of the frame's translational
+and angular accelerations (``stiffeningAcceleration``, ``stiffeningAngularAcceleration``,
+3 × nq × nq each) and, if any stiffens the body, of unit forces at the frame nodes
+(``stiffeningNodeForces``, p × 3 × nq × nq, body directions x, y, z); Exudyn's
+``ObjectFFRFreducedOrder`` has no input for them, so :func:`build_exudyn_model` applies them
+through the object's ``forceUserFunction``.
 
 Simulation
 ----------
@@ -90,7 +97,7 @@ import numpy as np
 
 from pymorembs.errors import NumericalError, UserError
 from pymorembs.export.deterministic import write_npz
-from pymorembs.export.invariants import levi_civita, skew
+from pymorembs.export.invariants import StiffeningTerms, levi_civita, skew
 
 if TYPE_CHECKING:
     from pymorembs.export.invariants import BodyInvariants
@@ -106,6 +113,7 @@ __all__ = [
     "ffrf_inertia_matrices",
     "load_exudyn_body",
     "simulate_exudyn",
+    "stiffening_force",
     "write_exudyn_body",
 ]
 
@@ -146,10 +154,20 @@ _KEYS_NDIM: dict[str, int] = {
     "satelliteDirections": 2,
 }
 _TEXT_KEYS = ("format", "bodyName")
-#: Optional keys: the geometric stiffening of the centrifugal load cases, shape (6, nq, nq).
-_OPTIONAL_KEYS_NDIM: dict[str, int] = {"stiffeningOmega": 3}
+#: Optional keys: the geometric stiffening ``K0`` of the centrifugal load cases (6, nq, nq), of
+#: the translational and of the angular acceleration cases (3, nq, nq each) and of unit forces at
+#: the frame nodes (p, 3, nq, nq; node order of ``nodeIds``, body directions x, y, z).
+_OPTIONAL_KEYS_NDIM: dict[str, int] = {
+    "stiffeningOmega": 3,
+    "stiffeningAcceleration": 3,
+    "stiffeningAngularAcceleration": 3,
+    "stiffeningNodeForces": 4,
+}
 #: The centrifugal load cases of ``stiffeningOmega``, in the order of the six products of Ω.
 CENTRIFUGAL_CASES = ("wxx", "wyy", "wzz", "wxy", "wyz", "wxz")
+#: The load cases of ``stiffeningAcceleration`` and ``stiffeningAngularAcceleration``.
+ACCELERATION_CASES = ("ax", "ay", "az")
+ANGULAR_ACCELERATION_CASES = ("alx", "aly", "alz")
 _INTEGER_KEYS = (
     "formatVersion",
     "nodeIds",
@@ -287,13 +305,33 @@ def exudyn_arrays(
         "satelliteLength": np.array(length),
         "satelliteDirections": SATELLITE_DIRECTIONS.copy(),
     }
-    if inv.stiffening is not None:  # K0 of the six centrifugal cases, Ω order of OMEGA_ORDER
-        zero = np.zeros((nq, nq))
-        arrays["stiffeningOmega"] = np.stack(
-            [inv.stiffening.cases.get(case, zero) for case in CENTRIFUGAL_CASES]
-        )
+    if inv.stiffening is not None:
+        arrays.update(_stiffening_arrays(inv.stiffening, arrays["nodeIds"], nq))
     _check_arrays(arrays, "exudyn export")
     return arrays
+
+
+def _stiffening_arrays(
+    stiffening: StiffeningTerms, node_ids: np.ndarray, nq: int
+) -> dict[str, np.ndarray]:
+    """The ``stiffening*`` entries: every load case and node force that has a ``K0`` (zeros for
+    the cases without), the node forces only if one of them stiffens the body."""
+    zero = np.zeros((nq, nq))
+
+    def stacked(cases: tuple[str, ...]) -> np.ndarray:
+        return np.stack([stiffening.cases.get(case, zero) for case in cases])
+
+    out = {
+        "stiffeningOmega": stacked(CENTRIFUGAL_CASES),
+        "stiffeningAcceleration": stacked(ACCELERATION_CASES),
+        "stiffeningAngularAcceleration": stacked(ANGULAR_ACCELERATION_CASES),
+    }
+    forces = np.array(
+        [[stiffening.nodes.get((int(n), d), zero) for d in range(3)] for n in node_ids]
+    ).reshape(len(node_ids), 3, nq, nq)
+    if np.any(forces):
+        out["stiffeningNodeForces"] = forces
+    return out
 
 
 def _check_arrays(arrays: Mapping[str, np.ndarray], where: str) -> None:
@@ -343,8 +381,13 @@ def _check_arrays(arrays: Mapping[str, np.ndarray], where: str) -> None:
         "satelliteMeshIndices": (p, 6),
         "satelliteDirections": (6, 3),
     }
-    if "stiffeningOmega" in arrays:
-        shapes["stiffeningOmega"] = (6, nq, nq)
+    optional_shapes = {
+        "stiffeningOmega": (6, nq, nq),
+        "stiffeningAcceleration": (3, nq, nq),
+        "stiffeningAngularAcceleration": (3, nq, nq),
+        "stiffeningNodeForces": (p, 3, nq, nq),
+    }
+    shapes.update({key: shape for key, shape in optional_shapes.items() if key in arrays})
     for key, shape in shapes.items():
         if arrays[key].shape != shape:
             raise UserError(f"{where}: entry {key} has shape {arrays[key].shape}, expected {shape}")
@@ -600,11 +643,14 @@ def build_exudyn_model(
     initial_coordinates : (nq,) float, optional
         Elastic coordinates at t = 0.
 
-    A body with ``stiffeningOmega`` (geometric stiffening of the centrifugal load cases) gets
-    the generalised force ``-sum_m Omega_m K0_m q`` on its elastic coordinates through the
-    object's ``forceUserFunction`` (``Omega_m`` the six products of the frame's angular velocity
-    in body coordinates, from its Euler parameters); the stiffening of the acceleration load
-    cases and of nodal forces is in the SID body only.
+    A body with ``stiffening*`` entries (geometric stiffening, SID_NOTES §4.6) gets the
+    generalised force ``-sum_L c_L K0_L q`` on its elastic coordinates through the object's
+    ``forceUserFunction``: the centrifugal cases weighted by the products of the frame's angular
+    velocity, the acceleration cases by the frame's acceleration less ``gravity`` and by its
+    angular acceleration, the node-force cases by the forces of ``loads`` (all in body
+    coordinates; the frame's accelerations are those of the current iterate of the implicit
+    solver). Joint reactions and ``torques`` on the frame node stiffen
+    nothing: a tangent frame's support already carries them in the load cases.
 
     Returns
     -------
@@ -666,8 +712,8 @@ def build_exudyn_model(
             )
         )
         extra = {}
-        if "stiffeningOmega" in arrays:
-            extra["forceUserFunction"] = _stiffening_force(arrays["stiffeningOmega"])
+        if any(key.startswith("stiffening") for key in arrays):
+            extra["forceUserFunction"] = stiffening_force(arrays, rigid, g, forces)
         obj = mbs.AddObject(
             eii.ObjectFFRFreducedOrder(
                 name=str(arrays["bodyName"]),
@@ -794,25 +840,97 @@ def _check_clamp(
         )
 
 
-def _stiffening_force(k0: np.ndarray) -> Callable[..., list[float]]:
-    """``forceUserFunction`` of the centrifugal geometric stiffening, ``-sum_m Omega_m K0_m q``.
+def _euler_parameter_rotation(p: np.ndarray) -> np.ndarray:
+    """Rotation matrix (3, 3), body to ground, of the Euler parameters ``p = (p0, p1, p2, p3)``."""
+    p0, p1, p2, p3 = p
+    return 2.0 * np.array(
+        [
+            [p0 * p0 + p1 * p1 - 0.5, p1 * p2 - p0 * p3, p1 * p3 + p0 * p2],
+            [p1 * p2 + p0 * p3, p0 * p0 + p2 * p2 - 0.5, p2 * p3 - p0 * p1],
+            [p1 * p3 - p0 * p2, p2 * p3 + p0 * p1, p0 * p0 + p3 * p3 - 0.5],
+        ]
+    )
 
-    ``k0`` (6, nq, nq): ``K0`` of the load cases wxx, wyy, wzz, wxy, wyz, wxz. The object's
+
+def stiffening_force(
+    arrays: Mapping[str, np.ndarray],
+    rigid: int,
+    gravity: Sequence[float] | None = None,
+    forces: Sequence[tuple[int, Any]] = (),
+) -> Callable[..., list[float]]:
+    """``forceUserFunction`` of the geometric stiffening (SID_NOTES §4.6) of an exported body.
+
+    For a body placed in one's own Exudyn system: pass the result as ``forceUserFunction`` of
+    its ``ObjectFFRFreducedOrder`` (:func:`build_exudyn_model` does).
+
+    Parameters
+    ----------
+    arrays : dict
+        The body (:func:`load_exudyn_body`) with its ``stiffening*`` entries.
+    rigid : int
+        Exudyn node number of the body's reference node (``NodeRigidBodyEP``).
+    gravity : (3,) float, optional
+        Gravitational acceleration in ground coordinates (m/s²) as applied to the body.
+    forces : sequence of (node id, force)
+        The forces applied at frame nodes, in ground coordinates (N): constant (3,) or a
+        function of time returning one.
+
+    The generalised force on the elastic coordinates is ``-(sum_m Omega_m K0_m + sum_a c_a K0_a
+    + sum_a alpha_a K0_al,a + sum_(n,a) f_na K0_na) q``, all in body coordinates: ``Omega_m``
+    the six products of the frame's angular velocity ``2 G(p) dp/dt`` (order of
+    :data:`CENTRIFUGAL_CASES`); ``c = A^T (r'' - g)`` the frame's acceleration less gravity (the
+    load case ``ax`` is the d'Alembert load of a unit frame acceleration, and gravity ``g`` loads
+    the body as a frame acceleration ``-g`` does); ``alpha = A^T alpha_ground`` the angular
+    acceleration; ``f_n = A^T F_n(t)`` the forces applied at frame nodes. The accelerations are
+    the reference node's of the current iterate (Exudyn's ``Current`` configuration), so the
+    implicit solver iterates them to convergence with the rest of the step. The object's
     coordinates are the reference node's (3 positions, 4 Euler parameters as displacements from
-    (1, 0, 0, 0)) followed by the elastic coordinates; the angular velocity in body coordinates
-    is ``2 G(p) dp/dt``.
+    (1, 0, 0, 0)) followed by the elastic coordinates.
     """
-    nq = k0.shape[1]
-    stacked = np.asarray(k0, dtype=float).reshape(6, nq * nq)
+    import exudyn
+
+    nq = arrays["massMatrixReduced"].shape[0]
+
+    def flat(key: str) -> np.ndarray | None:
+        value = arrays.get(key)
+        if value is None or not np.any(value):
+            return None
+        return np.asarray(value, dtype=float).reshape(-1, nq * nq)
+
+    omega_k0 = flat("stiffeningOmega")
+    acceleration_k0 = flat("stiffeningAcceleration")
+    angular_k0 = flat("stiffeningAngularAcceleration")
+    node_k0 = flat("stiffeningNodeForces")
+    index_of = {int(n): i for i, n in enumerate(arrays["nodeIds"])}
+    node_terms = []
+    if node_k0 is not None:
+        node_terms = [
+            (node_k0[3 * index_of[int(n)] : 3 * index_of[int(n)] + 3], f) for n, f in forces
+        ]
+    g = np.zeros(3) if gravity is None else np.asarray(gravity, dtype=float)
+    current = exudyn.ConfigurationType.Current
+    kinds = exudyn.OutputVariableType
 
     def force(mbs: Any, t: float, index: int, q: Any, q_t: Any) -> list[float]:
         q, q_t = np.asarray(q), np.asarray(q_t)
-        p0, p1, p2, p3 = np.array([1.0, 0.0, 0.0, 0.0]) + q[3:7]
-        g = np.array([[-p1, p0, p3, -p2], [-p2, -p3, p0, p1], [-p3, p2, -p1, p0]])
-        wx, wy, wz = 2.0 * g @ q_t[3:7]
-        products = np.array([wx * wx, wy * wy, wz * wz, wx * wy, wy * wz, wx * wz])
+        p = np.array([1.0, 0.0, 0.0, 0.0]) + q[3:7]
+        p0, p1, p2, p3 = p
+        gp = np.array([[-p1, p0, p3, -p2], [-p2, -p3, p0, p1], [-p3, p2, -p1, p0]])
+        rotation = _euler_parameter_rotation(p)
+        weights = np.zeros(nq * nq)
+        if omega_k0 is not None:
+            wx, wy, wz = 2.0 * gp @ q_t[3:7]
+            weights += np.array([wx * wx, wy * wy, wz * wz, wx * wy, wy * wz, wx * wz]) @ omega_k0
+        if acceleration_k0 is not None:
+            a = np.asarray(mbs.GetNodeOutput(rigid, kinds.Acceleration, configuration=current))
+            weights += (rotation.T @ (a - g)) @ acceleration_k0
+        if angular_k0 is not None:
+            alpha = mbs.GetNodeOutput(rigid, kinds.AngularAcceleration, configuration=current)
+            weights += (rotation.T @ np.asarray(alpha)) @ angular_k0
+        for k0, f in node_terms:
+            weights += (rotation.T @ np.asarray(f(t) if callable(f) else f, dtype=float)) @ k0
         out = np.zeros(q.size)
-        out[7:] = -((products @ stacked).reshape(nq, nq) @ q[7:])
+        out[7:] = -(weights.reshape(nq, nq) @ q[7:])
         return out.tolist()
 
     return force
