@@ -577,3 +577,19 @@ def test_a_misspelled_key_in_every_table_is_named_with_a_suggestion(line, where,
     message = str(info.value)
     assert message.startswith(f"{path}: {where}")
     assert f"'{typo}'" in message and f"'{key}'" in message
+
+
+def test_help_says_what_the_tool_does_and_where_the_job_format_is(capsys):
+    """Issue #16 day-one: no raw markup, what the tool does, the job format, the variants."""
+    for argv, expected in (
+        (["--help"], ["finite-element model of an elastic body", "exit codes", "docs/jobs.md"]),
+        (["reduce", "--help"], ["docs/jobs.md", "[[reduction]]"]),
+        (["example", "--help"], ["rigid", "distributing", "springs", "blade"]),
+    ):
+        with pytest.raises(SystemExit) as stop:
+            main(argv)
+        assert stop.value.code == 0
+        text = " ".join(capsys.readouterr().out.split())
+        assert "``" not in text
+        for phrase in expected:
+            assert phrase in text, (argv, phrase)
