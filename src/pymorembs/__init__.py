@@ -2,23 +2,44 @@
 
 The reduction process follows Fig. 1 and Fig. 8 of ``paper.md``::
 
-    ElasticBody --prepare--> SecondOrderSystem --reduce--> Projection --> reduced body
-"""
+    read / example --> ElasticBody --prepare--> PreparedModel --reduce--> ReducedBody
+        --> .error(band) / .to_sid() / .to_exudyn() / .to_neweul() / .to_matrices()
 
-from pymorembs.body import ConstraintEquations, Damping, DofTable, ElasticBody
-from pymorembs.errors import NumericalError, PymorembsError, UserError
-from pymorembs.system import SecondOrderSystem
+Everything a script needs is here (:mod:`pymorembs.api`); the command line and job files are a
+layer on it.
+"""
 
 __version__ = "0.1.0"
 
+from pymorembs.api import ErrorCurve, ReducedBody, example, prepare, read, reduce
+from pymorembs.body import ConstraintEquations, Damping, DofTable, ElasticBody
+from pymorembs.errors import NumericalError, PymorembsError, UserError
+from pymorembs.methods import METHODS, method_options
+from pymorembs.prepare import Frame, Port, PreparedModel
+from pymorembs.prepare.interface import InterfaceSpec, select_nodes
+from pymorembs.system import SecondOrderSystem
+
 __all__ = [
+    "METHODS",
     "ConstraintEquations",
     "Damping",
     "DofTable",
     "ElasticBody",
+    "ErrorCurve",
+    "Frame",
+    "InterfaceSpec",
     "NumericalError",
+    "Port",
+    "PreparedModel",
     "PymorembsError",
+    "ReducedBody",
     "SecondOrderSystem",
     "UserError",
     "__version__",
+    "example",
+    "method_options",
+    "prepare",
+    "read",
+    "reduce",
+    "select_nodes",
 ]
