@@ -593,3 +593,32 @@ def test_help_says_what_the_tool_does_and_where_the_job_format_is(capsys):
         assert "``" not in text
         for phrase in expected:
             assert phrase in text, (argv, phrase)
+
+
+def test_a_job_parsed_from_a_dictionary_runs_without_a_job_file(tmp_path):
+    """Issue #16: run_job on parse_job(dict, path) with no file at path hashed no file."""
+    import tomllib
+
+    from pymorembs.config import parse_job
+    from pymorembs.pipeline import run_job
+
+    text = """
+[model]
+example = "rack-beams"
+[frame]
+type = "tangent"
+node = 2
+[[inputs]]
+node = 1
+directions = "ux"
+[band]
+f_max_hz = 500
+points = 200
+[[reduction]]
+method = "modal"
+order = 6
+"""
+    job = parse_job(tomllib.loads(text), tmp_path / "never-written.toml")
+    summary = run_job(job, tmp_path / "out")
+    assert summary["reductions"][0]["order"] == 6
+    assert str(tmp_path / "never-written.toml") not in summary["provenance"]["inputs"]

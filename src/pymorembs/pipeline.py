@@ -823,7 +823,8 @@ def provenance(job: Job, validation: ValidationReport | None = None) -> dict[str
     """
     from pymorembs.linalg.backends import default_backend
 
-    inputs = {str(job.path): sha256_of(Path(job.path))}
+    # a job parsed from a dictionary (parse_job) may name a file that does not exist
+    inputs = {str(job.path): sha256_of(Path(job.path))} if Path(job.path).is_file() else {}
     for path in job.model.files.values():
         if Path(path).is_file():
             inputs[str(path)] = sha256_of(Path(path))
