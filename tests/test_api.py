@@ -159,3 +159,20 @@ def test_the_registry_documents_every_option():
             row = [line for line in table.splitlines() if line.startswith(f"| {name} | `{field}`")]
             assert row and not row[0].endswith("|  |"), (name, field)  # a meaning is given
     assert "| krylov | `tol` | 1e-10 |" in table and "| pod | `snapshots` | 40 |" in table
+
+
+def test_facts_are_what_info_prints(files, capsys):
+    body = pm.read(files / "model" / "K.mtx", mass=files / "model" / "M.mtx",
+                   dofs=files / "model" / "dofs.csv", nodes=files / "model" / "nodes.csv",
+                   constraints=files / "model" / "constraints.csv")  # fmt: skip
+    facts = pm.facts(body, modes=5)
+    assert main(["info", "--stiffness", str(files / "model" / "K.mtx"),
+                 "--mass", str(files / "model" / "M.mtx"),
+                 "--dofs", str(files / "model" / "dofs.csv"),
+                 "--nodes", str(files / "model" / "nodes.csv"),
+                 "--constraints", str(files / "model" / "constraints.csv"),
+                 "--json", "--modes", "5"]) == 0  # fmt: skip
+    printed = json.loads(capsys.readouterr().out)
+    np.testing.assert_allclose(facts["eigenfrequencies_hz"], printed["eigenfrequencies_hz"])
+    assert facts["rigid_body_modes"] == printed["rigid_body_modes"] == 6
+    assert facts["units"] == printed["units"]

@@ -11,7 +11,7 @@ layer on it.
 
 __version__ = "0.1.0"
 
-from pymorembs.api import ErrorCurve, ReducedBody, example, prepare, read, reduce
+from pymorembs.api import ErrorCurve, ReducedBody, example, facts, prepare, read, reduce
 from pymorembs.body import ConstraintEquations, Damping, DofTable, ElasticBody
 from pymorembs.errors import NumericalError, PymorembsError, UserError
 from pymorembs.methods import METHODS, method_options
@@ -37,6 +37,7 @@ __all__ = [
     "UserError",
     "__version__",
     "example",
+    "facts",
     "method_options",
     "prepare",
     "read",

@@ -25,6 +25,7 @@ import numpy as np
 
 from pymorembs.analysis.error import error_blocks, frequency_grid, relative_error
 from pymorembs.analysis.reference import reference_response
+from pymorembs.analysis.spectrum import model_facts
 from pymorembs.analysis.transfer import transfer_function
 from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
@@ -48,11 +49,13 @@ from pymorembs.reduce.projection import (
     without_stiff_directions,
 )
 from pymorembs.system import SecondOrderSystem
+from pymorembs.units import detect_units
 
 __all__ = [
     "ErrorCurve",
     "ReducedBody",
     "example",
+    "facts",
     "prepare",
     "read",
     "reduce",
@@ -128,6 +131,19 @@ def example(name: str, **options: Any) -> ElasticBody:
     """A built-in model: ``"rack-beams"``, ``"rack-solid"`` (``dofs``, ``interface``) or
     ``"blade"`` (``elements``, ``hub_radius``)."""
     return build_example(name, **options)
+
+
+def facts(body: ElasticBody, modes: int = 10) -> dict[str, Any]:
+    """What ``pymorembs info`` reports of a body as it was read (frame ``"none"``).
+
+    The dof table, massless dofs, total mass, rigid-body modes and how their count was decided,
+    coordinates, units (:func:`pymorembs.units.detect_units`) and the ``modes`` lowest elastic
+    eigenfrequencies (Hz), massless directions condensed exactly.
+    """
+    prepared = prepare_body(body, Frame("none"), allow_rigid_body_modes=True)
+    out = model_facts(body, prepared, int(modes))
+    out["units"] = detect_units(body).as_dict()
+    return out
 
 
 def _port(port: PortLike, what: str) -> Port:

@@ -21,7 +21,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from pymorembs import __version__, progress
-from pymorembs.analysis.spectrum import model_spectrum
+from pymorembs.analysis.spectrum import model_facts
 from pymorembs.body import ElasticBody
 from pymorembs.config import MODEL_FORMATS, load_job
 from pymorembs.errors import PymorembsError, UserError
@@ -246,51 +246,6 @@ def _prepared_for_info(args: argparse.Namespace) -> tuple[ElasticBody, PreparedM
     body = read_body(args.format, **files, **given)
     validate_body(body)
     return body, prepare(body, Frame("none"), allow_rigid_body_modes=True)
-
-
-def model_facts(body: ElasticBody, prepared: PreparedModel, modes: int) -> dict[str, Any]:
-    """Sizes, mass, massless dofs, rigid-body modes and the lowest elastic eigenfrequencies (Hz).
-
-    The eigen-analysis is :func:`pymorembs.analysis.spectrum.model_spectrum`: massless
-    directions condensed exactly, rigid-body modes decided by the spectrum within the rounding
-    bound of the file's entries and, with coordinates, by geometry.
-    """
-    spectrum = model_spectrum(body, prepared, modes)
-    rigid = spectrum.rigid
-    frequencies = spectrum.frequencies_hz
-    bounds = np.concatenate([np.zeros(rigid.count + rigid.mechanisms), spectrum.elastic_bound_hz])
-    facts: dict[str, Any] = {
-        "name": body.name,
-        "n_dof": prepared.body.n_dof,
-        "n_nodes": prepared.body.n_nodes,
-        "n_dependent": int(prepared.elimination.dependent.size),
-        "n_fixed": int(prepared.elimination.fixed.size),
-        "n_independent": prepared.system.order,
-        "n_massless": spectrum.massless.n_massless,
-        "massless": {
-            "directions": spectrum.massless.n_massless,
-            "dofs_without_mass": int(spectrum.massless.zero_rows.size),
-            "directions_in_mass_blocks": spectrum.massless.n_block_null,
-        },
-        "dof_table": body.dofs.describe(),
-        "has_coordinates": bool(body.has_coordinates),
-        "notes": list(body.notes),
-        "total_mass": body.total_mass(),
-        "rigid_body_modes": rigid.count,
-        "rigid_body_motions": list(rigid.labels),
-        "mechanisms": rigid.mechanisms,
-        "rigid_body_decision": {
-            "decided_by": rigid.decided_by,
-            "explanation": rigid.explanation,
-            "computed_hz": rigid.computed_hz.tolist(),
-        },
-        "rounding": spectrum.rounding,
-        "eigenfrequencies_hz": frequencies.tolist(),
-        "eigenfrequency_bounds_hz": bounds.tolist(),
-    }
-    if spectrum.fixed_interface_hz is not None:
-        facts["fixed_interface_hz"] = spectrum.fixed_interface_hz.tolist()
-    return facts
 
 
 def _info(args: argparse.Namespace) -> int:
