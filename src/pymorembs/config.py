@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from pymorembs.analysis.large_motion import LARGE_MOTION_CASES, LargeMotionSettings
+from pymorembs.analysis.reference import DEFAULT_CHECKS, REFERENCE_KINDS
 from pymorembs.body import Damping
 from pymorembs.errors import UserError
 from pymorembs.io.formats import FORMATS
@@ -35,11 +36,6 @@ EXPORT_KINDS = ("npz", "mtx", "mat", "sid", "neweul", "exudyn", "report")
 DEFAULT_EXPORTS = ("npz", "mtx")
 #: Exports of a body for a multibody code: inertia loads are inputs by default for these.
 MULTIBODY_EXPORTS = ("sid", "neweul", "exudyn")
-#: ``[band] reference``: what the error of eq. 27 is measured against
-#: (:mod:`pymorembs.analysis.reference`).
-REFERENCE_KINDS = ("auto", "full", "surrogate")
-#: ``[band] check_points``: checks of a reference model against the full model.
-DEFAULT_CHECKS = 4
 _NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$")
 #: Files of the job folder a reduction (a sub-folder of that name) must not shadow.
 RESERVED_NAMES = frozenset(("summary.json", "error.png", "decay.png", "time.png", "report.html"))
