@@ -11,6 +11,7 @@ layer on it.
 
 __version__ = "0.1.0"
 
+from pymorembs.analysis.time_domain import LoadCase, TimeResponse
 from pymorembs.api import ErrorCurve, ReducedBody, example, facts, prepare, read, reduce
 from pymorembs.body import ConstraintEquations, Damping, DofTable, ElasticBody
 from pymorembs.errors import NumericalError, PymorembsError, UserError
@@ -28,12 +29,14 @@ __all__ = [
     "ErrorCurve",
     "Frame",
     "InterfaceSpec",
+    "LoadCase",
     "NumericalError",
     "Port",
     "PreparedModel",
     "PymorembsError",
     "ReducedBody",
     "SecondOrderSystem",
+    "TimeResponse",
     "UserError",
     "__version__",
     "example",

@@ -26,6 +26,12 @@ import numpy as np
 from pymorembs.analysis.error import error_blocks, frequency_grid, relative_error
 from pymorembs.analysis.reference import reference_response
 from pymorembs.analysis.spectrum import model_facts
+from pymorembs.analysis.time_domain import (
+    LoadCase,
+    TimeResponse,
+    clamped_reduced_system,
+    simulate,
+)
 from pymorembs.analysis.transfer import transfer_function
 from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
@@ -381,6 +387,46 @@ class ReducedBody:
         folder.mkdir(parents=True, exist_ok=True)
         names = write_outputs(self.model, self.prepared, self.name, list(formats), [], folder)
         return [folder / name for name in names]
+
+    def simulate(
+        self,
+        load_cases: Sequence[LoadCase],
+        *,
+        clamp_node: int,
+        load_node: int,
+        duration_s: float = 0.2,
+        step_s: float = 5e-5,
+        rho_inf: float = 0.8,
+    ) -> TimeResponse:
+        """The linear response of the body held at ``clamp_node`` to forces at ``load_node``.
+
+        The reduced model clamped by a rigid joint (:func:`~pymorembs.analysis.time_domain.
+        clamped_reduced_system`: a tangent frame at the node, or the linearised floating body
+        on the joint otherwise), integrated from rest by the generalized-alpha method.
+
+        Parameters
+        ----------
+        load_cases : sequence of LoadCase
+            Force histories along x, y, z of ``load_node`` (N), e.g. ``LoadCase("step", "step",
+            [0, 0, -100])``.
+        clamp_node, load_node : int
+            Node ids (the clamp node needs all six dofs unless the frame holds it).
+        duration_s, step_s : float
+            End time and fixed step (s).
+        rho_inf : float
+            Spectral radius of the generalized-alpha method at infinite frequency.
+
+        Returns
+        -------
+        TimeResponse
+            Displacements of ``load_node`` (m) per load case.
+        """
+        system = clamped_reduced_system(
+            self.prepared.body, self.basis, np.asarray(self.system.mass),
+            np.asarray(self.system.stiffness), self.model.damping_matrix, int(clamp_node),
+            int(load_node),
+        )  # fmt: skip
+        return simulate(system, list(load_cases), duration_s, step_s, rho_inf)
 
     def _nodes(self, nodes: Sequence[int] | None) -> list[int]:
         if nodes is not None:
