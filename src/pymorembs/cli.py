@@ -31,7 +31,7 @@ from pymorembs.io.formats import read_body
 from pymorembs.io.matrix_market import write_matrix_files
 from pymorembs.io.native import write_body_h5
 from pymorembs.parallel import dask_client, usable_cores
-from pymorembs.pipeline import load_job_model, run_job
+from pymorembs.pipeline import load_job_model, run_job, validate_job_body
 from pymorembs.prepare import Frame, PreparedModel, prepare
 from pymorembs.prepare.validation import validate_body
 from pymorembs.units import detect_units, frequency_warnings
@@ -233,7 +233,7 @@ def _prepared_for_info(args: argparse.Namespace) -> tuple[ElasticBody, PreparedM
             raise UserError("info: a job file brings its own model; give no file options")
         job = load_job(args.model)
         body = load_job_model(job)
-        validate_body(body, job)
+        validate_job_body(body, job)
         try:
             return body, prepare(body, job.frame, allow_rigid_body_modes=True)
         except UserError as exc:

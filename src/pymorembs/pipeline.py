@@ -135,14 +135,88 @@ def prepare_and_validate(
     body = load_job_model(job)
     if job.damping is not None:
         body = body.with_damping(job.damping)
-    report = validate_body(body, job)
+    report = validate_job_body(body, job)
     check_requests(job, body)
     try:
         prepared = prepare(body, job.frame, list(job.inputs), list(job.outputs))
     except UserError as exc:
         raise UserError(f"{job.path}: {exc}") from None
-    report = report.merge(validate_prepared(prepared, job, deep=deep))
-    return body, prepared, report
+    check_job_orders(prepared, job, report)  # cheap: before the factorization
+    try:
+        deep_report = validate_prepared(prepared, deep=deep)
+    except PymorembsError as exc:
+        raise type(exc)(f"{job.path}: {exc}") from None
+    return body, prepared, report.merge(deep_report)
+
+
+def validate_job_body(body: ElasticBody, job: Job) -> ValidationReport:
+    """:func:`~pymorembs.prepare.validation.validate_body`, then the job's nodes on the body."""
+    try:
+        report = validate_body(body)
+    except PymorembsError as exc:
+        raise type(exc)(f"{job.path}: {exc}") from None
+    check_job_nodes(body, job, report)
+    return report
+
+
+def _where(job: Job, key: str) -> str:
+    """The prefix ``file: key: `` of a message about a job."""
+    return f"{job.path}: {key}: "
+
+
+def check_job_nodes(body: ElasticBody, job: Job, report: ValidationReport) -> None:
+    """Nodes the job names exist; no port acts on a dof the model fixes itself."""
+    fixed = set(int(i) for i in body.fixed)
+    for key, ports in (("[[inputs]]", job.inputs), ("[[outputs]]", job.outputs)):
+        for k, port in enumerate(ports, start=1):
+            where = _where(job, f"{key} #{k}")
+            indices = body.dofs.of_node(port.node)
+            if indices.size == 0:
+                raise UserError(f"{where}node {port.node} has no dofs in the model")
+            for code in port.directions:
+                try:
+                    index = body.dofs.index(port.node, code)
+                except UserError as exc:
+                    raise UserError(f"{where}{exc}") from None
+                if index in fixed:
+                    raise UserError(
+                        f"{where}node {port.node} {DIRECTIONS[code]} is a fixed dof of the "
+                        "model (a support): a force there acts on the ground; choose a free dof "
+                        "or remove the support"
+                    )
+    if job.frame.kind == "tangent" and job.frame.node is not None:
+        if body.dofs.of_node(job.frame.node).size == 0:
+            raise UserError(
+                f"{_where(job, '[frame]')}node {job.frame.node} does not exist in the model "
+                "(or has no dofs)"
+            )
+    report.checks.append("nodes of the job")
+
+
+def check_job_orders(prepared: PreparedModel, job: Job, report: ValidationReport) -> None:
+    """The job's reduction orders lie below the number of independent dofs, and its inputs
+    reach the elastic body."""
+    system = prepared.system
+    n = system.order
+    for k, spec in enumerate(job.reductions, start=1):
+        if spec.order is not None and spec.order >= n:
+            raise UserError(
+                f"{job.path}: [[reduction]] #{k}.order: {spec.order} is not below the "
+                f"{n} independent dofs of the model; choose a smaller order"
+            )
+        fixed_modes = spec.options.get("fixed_modes")
+        if fixed_modes is not None and fixed_modes >= n:
+            raise UserError(
+                f"{job.path}: [[reduction]] #{k}.fixed_modes: {fixed_modes} is not below the "
+                f"{n} independent dofs of the model"
+            )
+    inputs = np.asarray(system.input_matrix)
+    if inputs.size and not np.any(inputs):
+        raise UserError(
+            f"{job.path}: [[inputs]]: every input acts on a fixed dof of the frame; the "
+            "elastic body has no input to reduce for (choose inputs away from the frame node)"
+        )
+    report.checks.append("orders and inputs of the job")
 
 
 def run_reduction(
@@ -949,6 +1023,8 @@ def _jsonable(value: Any) -> Any:
 
 __all__ = [
     "add_interfaces",
+    "check_job_nodes",
+    "check_job_orders",
     "load_job_model",
     "load_model",
     "prepare_and_validate",
@@ -957,4 +1033,5 @@ __all__ = [
     "run_job",
     "run_reduction",
     "safe_child",
+    "validate_job_body",
 ]

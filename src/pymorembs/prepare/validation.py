@@ -1,7 +1,7 @@
-"""Checks of a model and a job before anything expensive is computed.
+"""Checks of a model before anything expensive is computed.
 
-Run by :func:`pymorembs.pipeline.prepare_and_validate` for every job (``pymorembs info`` runs
-:func:`validate_body`):
+Run for every job (the job layer adds the checks of what the job asks: its nodes exist, its
+orders fit the model; ``pymorembs info`` runs :func:`validate_body`):
 
 :func:`validate_body` -- on the body as read (interfaces added), O(nnz):
 
@@ -11,16 +11,12 @@ Run by :func:`pymorembs.pipeline.prepare_and_validate` for every job (``pymoremb
   worst pair is named by node and direction, with its relative size);
 * ``M`` and ``K`` have no negative diagonal entry and no negative 2x2 principal minor
   (``a_ij^2 <= a_ii a_jj``): both prove a matrix indefinite;
-* no dependent dof of a constraint equation is also fixed;
-* with a job: its input/output and frame nodes exist, and no port acts on a dof the model
-  itself fixes (a support, ``fixed.csv``).
+* no dependent dof of a constraint equation is also fixed.
 
 :func:`validate_prepared` -- on the system of the independent dofs (after frame and
 elimination, whose structural rigid-body check runs in :func:`~pymorembs.prepare.prepare`):
 
 * no independent dof without mass and stiffness (dangling) or without stiffness (free);
-* the orders of the job's reductions lie below the number of independent dofs, and at least one
-  input acts on the elastic body;
 * with ``deep=True`` (the pipeline's default):
 
   - 30 Lanczos steps on ``M`` (matrix-vector products only): a negative Rayleigh quotient
@@ -56,7 +52,6 @@ from pymorembs.errors import NumericalError, UserError
 from pymorembs.linalg.rounding import COMPUTATION_EPS, relative_rounding
 
 if TYPE_CHECKING:  # pragma: no cover
-    from pymorembs.config import Job
     from pymorembs.prepare import PreparedModel
 
 #: Largest accepted ``|a_ij - a_ji|`` relative to the largest ``|a_ij|`` of the matrix.
@@ -141,11 +136,6 @@ class ValidationReport:
         }
 
 
-def _where(job: Job | None, key: str) -> str:
-    """The prefix ``file: key: `` of a message about a job (or ``key: `` without a job)."""
-    return f"{job.path}: {key}: " if job is not None else f"{key}: "
-
-
 def _label(body: ElasticBody, index: int) -> str:
     """``node 12 uz`` for an equation index."""
     return f"node {int(body.dofs.nodes[index])} {DIRECTIONS[int(body.dofs.directions[index])]}"
@@ -193,15 +183,13 @@ def worst_principal_minor(
     return int(upper.row[k]), int(upper.col[k]), float(upper.data[k]), bound
 
 
-def validate_body(body: ElasticBody, job: Job | None = None) -> ValidationReport:
-    """O(nnz) checks of a body as read (and of the job's requests on it).
+def validate_body(body: ElasticBody) -> ValidationReport:
+    """O(nnz) checks of a body as read.
 
     Parameters
     ----------
     body : ElasticBody
-        The body with the job's interface nodes added.
-    job : Job, optional
-        The job whose ports, frame node, export and time-domain nodes are checked too.
+        The body (with its interface nodes added).
 
     Returns
     -------
@@ -218,7 +206,7 @@ def validate_body(body: ElasticBody, job: Job | None = None) -> ValidationReport
     """
     start = time.perf_counter()
     report = ValidationReport()
-    model = _where(job, "[model]")
+    model = "[model]: "
     n = body.n_dof
     matrices = {"mass": body.mass, "stiffness": body.stiffness}
     if body.damping_matrix is not None:
@@ -286,53 +274,17 @@ def validate_body(body: ElasticBody, job: Job | None = None) -> ValidationReport
             raise UserError(f"{model}constraint equations do not match the dof table")
     report.checks.append("constraint equations")
 
-    if job is not None:
-        _check_job_nodes(body, job, report)
     report.seconds = time.perf_counter() - start
     return report
 
 
-def _check_job_nodes(body: ElasticBody, job: Job, report: ValidationReport) -> None:
-    """Nodes the job names exist; no port acts on a dof the model fixes itself."""
-    fixed = set(int(i) for i in body.fixed)
-    for key, ports in (("[[inputs]]", job.inputs), ("[[outputs]]", job.outputs)):
-        for k, port in enumerate(ports, start=1):
-            where = _where(job, f"{key} #{k}")
-            indices = body.dofs.of_node(port.node)
-            if indices.size == 0:
-                raise UserError(f"{where}node {port.node} has no dofs in the model")
-            for code in port.directions:
-                try:
-                    index = body.dofs.index(port.node, code)
-                except UserError as exc:
-                    raise UserError(f"{where}{exc}") from None
-                if index in fixed:
-                    raise UserError(
-                        f"{where}node {port.node} {DIRECTIONS[code]} is a fixed dof of the "
-                        "model (a support): a force there acts on the ground; choose a free dof "
-                        "or remove the support"
-                    )
-    if job.frame.kind == "tangent" and job.frame.node is not None:
-        if body.dofs.of_node(job.frame.node).size == 0:
-            raise UserError(
-                f"{_where(job, '[frame]')}node {job.frame.node} does not exist in the model "
-                "(or has no dofs)"
-            )
-    report.checks.append("nodes of the job")
-
-
-def validate_prepared(
-    prepared: PreparedModel, job: Job | None = None, deep: bool = True
-) -> ValidationReport:
+def validate_prepared(prepared: PreparedModel, deep: bool = True) -> ValidationReport:
     """Checks of the system of the independent dofs, before any reduction.
 
     Parameters
     ----------
     prepared : PreparedModel
         The body in its frame, eliminated.
-    job : Job, optional
-        Its reductions' orders are compared with the number of independent dofs, and its
-        inputs must reach the elastic body.
     deep : bool
         Also factorize ``K + sigma M`` once (inertia) and, for a held body, look for a mechanism
         among the lowest eigenvalues of ``(K, M)`` (a few shift-invert Lanczos steps).
@@ -344,8 +296,7 @@ def validate_prepared(
     Raises
     ------
     UserError
-        A dangling dof, a dof without stiffness or a mechanism of a held body, a reduction order
-        above the number of independent dofs, inputs that all act on fixed dofs.
+        A dangling dof, a dof without stiffness or a mechanism of a held body.
     NumericalError
         ``K + sigma M`` is indefinite (``M`` or ``K`` is not positive semidefinite) or
         singular.
@@ -357,7 +308,7 @@ def validate_prepared(
     independent = prepared.elimination.independent
     n = system.order
     free_body = system.rigid_modes is not None  # Buckens: rigid-body modes are expected
-    where = _where(job, "[frame]")
+    where = "[frame]: "
 
     stiffness = sp.csr_matrix(system.stiffness)
     mass = sp.csr_matrix(system.mass)
@@ -380,27 +331,6 @@ def validate_prepared(
             "without elements, or rotational dofs of solid elements); fix it or connect it"
         )
     report.checks.append("every independent dof has stiffness")
-
-    if job is not None:
-        for k, spec in enumerate(job.reductions, start=1):
-            if spec.order is not None and spec.order >= n:
-                raise UserError(
-                    f"{job.path}: [[reduction]] #{k}.order: {spec.order} is not below the "
-                    f"{n} independent dofs of the model; choose a smaller order"
-                )
-            fixed_modes = spec.options.get("fixed_modes")
-            if fixed_modes is not None and fixed_modes >= n:
-                raise UserError(
-                    f"{job.path}: [[reduction]] #{k}.fixed_modes: {fixed_modes} is not below the "
-                    f"{n} independent dofs of the model"
-                )
-        inputs = np.asarray(system.input_matrix)
-        if inputs.size and not np.any(inputs):
-            raise UserError(
-                f"{job.path}: [[inputs]]: every input acts on a fixed dof of the frame; the "
-                "elastic body has no input to reduce for (choose inputs away from the frame node)"
-            )
-        report.checks.append("orders and inputs of the job")
 
     if deep and n > 1:
         _inertia_and_mechanisms(prepared, mass, stiffness, free_body, where, report)
