@@ -4,12 +4,12 @@ On ``rack-solid`` (frame at node 2, inputs and outputs ``1: ux uy uz``, Rayleigh
 ``D = 2e-6 s * K``), band 0-1000 Hz, three ways to the dominant eigenspace of the
 frequency-weighted Gramians ``P_p^w + Q_pv^w`` (paper section 3.2) of the large model:
 
-* ``rational-krylov``: :func:`pymorembs.reduce.rational_gramian.rational_gramian_reduction`,
+* ``rational-krylov``: :func:`pymorembs.reduction.rational_gramian.rational_gramian_reduction`,
   Galerkin projection on an adaptive rational Krylov subspace, stopped when the Gramian stops
   changing (no fixed first-stage order);
 * ``two-step``: what ``run_reduction`` does for method ``gramian`` on a large model -- SOAGA to
   order 132 (first tolerance 1e-10), then the dense Gramians of that medium model;
-* ``pod``: :func:`pymorembs.reduce.gramian.pod_reduction`, 40 Gauss snapshots.
+* ``pod``: :func:`pymorembs.reduction.gramian.pod_reduction`, 40 Gauss snapshots.
 
 Each at order 35 and with the tolerance 1e-6 of the eq. 24 indicator ``sigma_{n+1} / sigma_1``.
 For each: wall time of the reduction, sparse factorizations (``Factorization`` objects created,
@@ -65,8 +65,8 @@ def reduce(method: str, system):
     """The projection of ``method`` and facts about it (dimension of the intermediate space)."""
     from pymorembs.config import ReductionSpec
     from pymorembs.pipeline import run_reduction
-    from pymorembs.reduce.gramian import pod_reduction
-    from pymorembs.reduce.rational_gramian import rational_gramian_reduction
+    from pymorembs.reduction.gramian import pod_reduction
+    from pymorembs.reduction.rational_gramian import rational_gramian_reduction
 
     base = method.removesuffix("-tol")
     order, tolerance = (None, TOLERANCE) if method.endswith("-tol") else (ORDER, None)
@@ -101,7 +101,7 @@ def child(method: str, dofs: int, cache: Path) -> dict:
     """Build the model, reduce it with ``method`` and measure (runs in its own process)."""
     from pymorembs.analysis.error import relative_error
     from pymorembs.analysis.transfer import transfer_function
-    from pymorembs.reduce.projection import reduced_model
+    from pymorembs.reduction.projection import reduced_model
 
     prepared, _ = build_prepared("rack-solid", dofs, "rayleigh")
     system = prepared.system

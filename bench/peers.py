@@ -124,7 +124,7 @@ def reduce(method: str, system) -> tuple[object, dict]:
         return system.project(modes), {}
     from pymorembs.config import ReductionSpec
     from pymorembs.pipeline import run_reduction
-    from pymorembs.reduce.projection import reduced_model
+    from pymorembs.reduction.projection import reduced_model
 
     specs = {
         "modal-40": ReductionSpec(method, "modal", MODES, {}),

@@ -54,7 +54,7 @@ def measure(dofs: int) -> dict:
     from pymorembs.linalg.factorization import Factorization
     from pymorembs.parallel import usable_cores
     from pymorembs.pipeline import run_reduction
-    from pymorembs.reduce.projection import reduced_model
+    from pymorembs.reduction.projection import reduced_model
 
     prepared, _ = build_prepared("rack-solid", dofs, "rayleigh")
     system = prepared.system

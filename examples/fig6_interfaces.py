@@ -33,8 +33,8 @@ from pymorembs.analysis.transfer import transfer_function
 from pymorembs.body import Damping
 from pymorembs.examples import build_example
 from pymorembs.prepare import Frame, Port, prepare
-from pymorembs.reduce.krylov import krylov_reduction
-from pymorembs.reduce.projection import reduced_model
+from pymorembs.reduction.krylov import krylov_reduction
+from pymorembs.reduction.projection import reduced_model
 
 VARIANTS = ("rigid", "distributing", "steel-beams", "light-beams", "springs")
 CHECK_HZ = np.array([5.0, 150.0, 400.0, 650.0, 900.0])

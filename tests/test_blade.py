@@ -10,7 +10,7 @@ from pymorembs.errors import UserError
 from pymorembs.examples import build_example
 from pymorembs.io.native import read_body_h5
 from pymorembs.prepare import Frame, prepare
-from pymorembs.reduce.modal import eigenmodes
+from pymorembs.reduction.modal import eigenmodes
 
 E, RHO, B, H, L = 2.1e11, 7850.0, 0.04, 0.01, 1.0
 BETA1 = 1.875104068711961  # first root of cos(b) cosh(b) = -1

@@ -12,9 +12,9 @@ from pymorembs.analysis.transfer import transfer_function
 from pymorembs.errors import UserError
 from pymorembs.examples import build_example
 from pymorembs.prepare import Frame, Port, centre_of_gravity, prepare
-from pymorembs.reduce.krylov import krylov_reduction
-from pymorembs.reduce.modal import modal_reduction
-from pymorembs.reduce.projection import reduced_model
+from pymorembs.reduction.krylov import krylov_reduction
+from pymorembs.reduction.modal import modal_reduction
+from pymorembs.reduction.projection import reduced_model
 
 RACK_PORTS = [Port.parse(1, "ux uy uz"), Port.parse(2, "ux uy uz rx")]
 

@@ -150,8 +150,8 @@ def test_plain_moments_give_the_accuracy_of_refined_ones(monkeypatch) -> None:
     from pymorembs.examples import build_example
     from pymorembs.linalg import factorization
     from pymorembs.prepare import Frame, Port, prepare
-    from pymorembs.reduce.krylov import krylov_reduction
-    from pymorembs.reduce.projection import reduced_model
+    from pymorembs.reduction.krylov import krylov_reduction
+    from pymorembs.reduction.projection import reduced_model
 
     ports = [Port.parse(1, "ux uy uz")]
     system = prepare(build_example("rack-beams"), Frame("tangent", 2), ports, ports).system

@@ -12,8 +12,8 @@ from pymorembs.body import Damping
 from pymorembs.errors import UserError
 from pymorembs.export.matrices import reduced_arrays, to_pymor, write_mat
 from pymorembs.prepare import Frame, Port, prepare
-from pymorembs.reduce.krylov import krylov_reduction
-from pymorembs.reduce.projection import reduced_model
+from pymorembs.reduction.krylov import krylov_reduction
+from pymorembs.reduction.projection import reduced_model
 
 
 def prepared_lattice(damping: Damping):

@@ -26,8 +26,8 @@ from pymorembs.export.exudyn_body import (
 )
 from pymorembs.export.invariants import BodyInvariants, compute_invariants
 from pymorembs.prepare import Frame, Port, PreparedModel, prepare
-from pymorembs.reduce.krylov import krylov_reduction
-from pymorembs.reduce.projection import reduced_model
+from pymorembs.reduction.krylov import krylov_reduction
+from pymorembs.reduction.projection import reduced_model
 
 BETA = 2e-5  # s; Rayleigh D = beta K: damping ratio beta*omega/2 = 0.26 % at the 41.6 Hz sway
 STEP_S = 1e-4

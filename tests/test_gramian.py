@@ -18,15 +18,15 @@ from pymorembs.analysis.transfer import transfer_function
 from pymorembs.body import Damping
 from pymorembs.errors import UserError
 from pymorembs.prepare import Frame, Port, prepare
-from pymorembs.reduce import gramian
-from pymorembs.reduce.gramian import (
+from pymorembs.reduction import gramian
+from pymorembs.reduction.gramian import (
     frequency_weighted_gramians,
     gramian_reduction,
     pod_reduction,
     quadrature,
 )
-from pymorembs.reduce.krylov import krylov_reduction
-from pymorembs.reduce.projection import reduced_model
+from pymorembs.reduction.krylov import krylov_reduction
+from pymorembs.reduction.projection import reduced_model
 from pymorembs.system import SecondOrderSystem
 
 INPUTS = [Port.parse(70, "ux uy"), Port.parse(40, "uz")]

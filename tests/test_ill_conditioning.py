@@ -23,8 +23,8 @@ from pymorembs.analysis.transfer import transfer_function
 from pymorembs.examples.rack_solid import rack_solid
 from pymorembs.linalg.inertia_relief import InertiaRelief
 from pymorembs.prepare import Frame, Port, prepare
-from pymorembs.reduce.krylov import krylov_reduction
-from pymorembs.reduce.projection import reduced_model
+from pymorembs.reduction.krylov import krylov_reduction
+from pymorembs.reduction.projection import reduced_model
 from pymorembs.system import SecondOrderSystem
 
 DOFS = 7365  # the coarsest rack-solid mesh

@@ -27,9 +27,9 @@ from pymorembs.prepare import (
     with_inertia_loads,
 )
 from pymorembs.prepare.inertia_loads import acceleration_fields
-from pymorembs.reduce.krylov import krylov_reduction
-from pymorembs.reduce.modal_family import craig_bampton
-from pymorembs.reduce.projection import reduced_model
+from pymorembs.reduction.krylov import krylov_reduction
+from pymorembs.reduction.modal_family import craig_bampton
+from pymorembs.reduction.projection import reduced_model
 
 PORT = [Port.parse(24, "ux uy uz")]  # the far corner of the 4 x 3 x 2 truss
 

@@ -288,8 +288,8 @@ def test_rack_beams_torsion_mode_keeps_its_plate_inertia():
     from pymorembs.examples import build_example
     from pymorembs.export.outputs import body_invariants
     from pymorembs.prepare import Frame, Port, prepare
-    from pymorembs.reduce.modal import modal_reduction
-    from pymorembs.reduce.projection import reduced_model
+    from pymorembs.reduction.modal import modal_reduction
+    from pymorembs.reduction.projection import reduced_model
 
     ports = [Port.parse(1, "ux")]
     prepared = prepare(build_example("rack-beams"), Frame("tangent", 2), ports, ports)

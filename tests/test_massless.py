@@ -28,10 +28,10 @@ from pymorembs.errors import NumericalError
 from pymorembs.io.matrix_market import write_matrix_files
 from pymorembs.linalg.mass_split import condensed_dense_eigh, mass_split
 from pymorembs.prepare import Frame, Port, prepare
-from pymorembs.reduce.gramian import gramian_reduction
-from pymorembs.reduce.krylov import krylov_reduction
-from pymorembs.reduce.modal import eigenmodes
-from pymorembs.reduce.projection import reduced_model
+from pymorembs.reduction.gramian import gramian_reduction
+from pymorembs.reduction.krylov import krylov_reduction
+from pymorembs.reduction.modal import eigenmodes
+from pymorembs.reduction.projection import reduced_model
 
 SECTION = BeamSection.rectangular(0.04, 0.01, E=2.1e11, nu=0.3, rho=7850.0)
 

@@ -232,8 +232,8 @@ def test_exudyn_step_response_of_a_tangent_frame_body_matches_our_integration():
     from pymorembs.export.exudyn_body import build_exudyn_model, exudyn_arrays, simulate_exudyn
     from pymorembs.export.outputs import body_invariants
     from pymorembs.prepare import Frame, Port, prepare
-    from pymorembs.reduce.modal import modal_reduction
-    from pymorembs.reduce.projection import reduced_model
+    from pymorembs.reduction.modal import modal_reduction
+    from pymorembs.reduction.projection import reduced_model
 
     body = replace(build_example("rack-beams"), damping=Damping("rayleigh", beta=2e-6))
     port = Port.parse(1, "ux uy uz")

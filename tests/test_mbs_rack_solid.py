@@ -24,7 +24,7 @@ from pymorembs.export.outputs import body_invariants
 from pymorembs.export.sid import check_sid, sid_from_invariants
 from pymorembs.pipeline import run_reduction
 from pymorembs.prepare import Frame, Port, prepare
-from pymorembs.reduce.projection import reduced_model
+from pymorembs.reduction.projection import reduced_model
 
 
 @pytest.mark.slow

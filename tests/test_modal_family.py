@@ -15,15 +15,15 @@ from pymorembs.analysis.transfer import transfer_function
 from pymorembs.body import Damping
 from pymorembs.errors import UserError
 from pymorembs.prepare import Frame, Port, prepare
-from pymorembs.reduce.modal import modal_reduction
-from pymorembs.reduce.modal_family import (
+from pymorembs.reduction.modal import modal_reduction
+from pymorembs.reduction.modal_family import (
     DEFAULT_DAMPING_RATIO,
     best_modes,
     boundary_dofs_of_inputs,
     craig_bampton,
     modes_with_frm,
 )
-from pymorembs.reduce.projection import Projection, reduced_model
+from pymorembs.reduction.projection import Projection, reduced_model
 from pymorembs.system import SecondOrderSystem
 
 INPUTS = [Port.parse(70, "ux uy"), Port.parse(40, "uz")]

@@ -211,8 +211,8 @@ def test_progress_is_throttled_and_silent_when_off(capsys):
 
 
 def test_krylov_and_soaga_iterations_show_progress(rack_buckens, capsys):
-    from pymorembs.reduce.krylov import krylov_reduction
-    from pymorembs.reduce.soaga import soaga_reduction
+    from pymorembs.reduction.krylov import krylov_reduction
+    from pymorembs.reduction.soaga import soaga_reduction
 
     system, _ = rack_buckens
     with progress.settings("on"):

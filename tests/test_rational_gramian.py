@@ -9,9 +9,9 @@ import pytest
 from pymorembs.analysis.error import frequency_grid, relative_error
 from pymorembs.analysis.transfer import transfer_function
 from pymorembs.errors import UserError
-from pymorembs.reduce.gramian import frequency_weighted_gramians, gramian_reduction
-from pymorembs.reduce.projection import reduced_model
-from pymorembs.reduce.rational_gramian import (
+from pymorembs.reduction.gramian import frequency_weighted_gramians, gramian_reduction
+from pymorembs.reduction.projection import reduced_model
+from pymorembs.reduction.rational_gramian import (
     rational_gramian_reduction,
     rational_krylov_gramians,
 )

@@ -14,9 +14,9 @@ from pymorembs.analysis.transfer import transfer_function
 from pymorembs.body import Damping
 from pymorembs.errors import UserError
 from pymorembs.prepare import Frame, Port, prepare
-from pymorembs.reduce.krylov import krylov_reduction
-from pymorembs.reduce.modal import modal_reduction
-from pymorembs.reduce.projection import reduced_model
+from pymorembs.reduction.krylov import krylov_reduction
+from pymorembs.reduction.modal import modal_reduction
+from pymorembs.reduction.projection import reduced_model
 
 INPUTS = [Port.parse(70, "ux uy"), Port.parse(40, "uz")]
 OUTPUTS = [Port.parse(50, "ux uy uz")]
@@ -142,7 +142,7 @@ def test_all_modes_reproduce_the_full_response():
     system = system_of(Damping("rayleigh", alpha=0.5, beta=2e-6), n_nodes=8)
     k, m = system.stiffness.toarray(), system.mass.toarray()
     _, vectors = sla.eigh(k, m)
-    from pymorembs.reduce.projection import Projection
+    from pymorembs.reduction.projection import Projection
 
     model = reduced_model(system, Projection(vectors, vectors, "all-modes"))
     f = frequency_grid(0.0, 200.0, 200)

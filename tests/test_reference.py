@@ -27,7 +27,7 @@ from pymorembs.errors import UserError
 from pymorembs.examples import build_example
 from pymorembs.pipeline import run_reduction
 from pymorembs.prepare import Frame, Port, prepare
-from pymorembs.reduce.projection import reduced_model
+from pymorembs.reduction.projection import reduced_model
 
 DEMO = Path(__file__).resolve().parents[1] / "examples" / "rack-beams-demo.toml"
 BAND = (0.0, 1000.0)

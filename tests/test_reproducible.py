@@ -224,8 +224,8 @@ def test_a_bad_reduced_model_is_refused_and_nothing_written(change, message, tmp
     from pymorembs.errors import NumericalError
     from pymorembs.export.outputs import write_outputs
     from pymorembs.prepare import Frame, Port, prepare
-    from pymorembs.reduce.krylov import krylov_reduction
-    from pymorembs.reduce.projection import reduced_model
+    from pymorembs.reduction.krylov import krylov_reduction
+    from pymorembs.reduction.projection import reduced_model
 
     ports = [Port.parse(60, "ux uy")]
     body = spring_lattice(damping=Damping("rayleigh", alpha=0.5, beta=1e-4))

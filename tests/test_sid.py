@@ -22,8 +22,8 @@ from pymorembs.export.sid import (
 )
 from pymorembs.linalg.products import extended_product
 from pymorembs.prepare import Frame, Port, prepare
-from pymorembs.reduce.modal import modal_reduction
-from pymorembs.reduce.projection import reduced_model
+from pymorembs.reduction.modal import modal_reduction
+from pymorembs.reduction.projection import reduced_model
 from test_invariants import cross_matrix, lumped_body
 
 REFERENCE = Path("/work/shared/reference/sid")

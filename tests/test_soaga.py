@@ -8,16 +8,16 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 from threadpoolctl import threadpool_limits
 
-import pymorembs.reduce.krylov as krylov_module
+import pymorembs.reduction.krylov as krylov_module
 from pymorembs.analysis.error import frequency_grid, relative_error
 from pymorembs.analysis.transfer import transfer_function
 from pymorembs.body import Damping
 from pymorembs.errors import NumericalError, UserError
 from pymorembs.linalg.factorization import Factorization
 from pymorembs.prepare import Port
-from pymorembs.reduce.krylov import krylov_reduction
-from pymorembs.reduce.projection import Projection, reduced_model
-from pymorembs.reduce.soaga import GlobalSecondOrderArnoldi, soaga_reduction
+from pymorembs.reduction.krylov import krylov_reduction
+from pymorembs.reduction.projection import Projection, reduced_model
+from pymorembs.reduction.soaga import GlobalSecondOrderArnoldi, soaga_reduction
 from pymorembs.system import SecondOrderSystem
 from test_reduce import OUTPUTS, moments_of, system_of
 
@@ -325,7 +325,7 @@ def test_bad_soaga_options(kwargs, message):
 
 def test_soaga_opens_no_point_without_memory_for_its_factorization(lattice_system, monkeypatch):
     """When another factorization would not fit, SOAGA goes on with the points it has."""
-    import pymorembs.reduce.soaga as soaga_module
+    import pymorembs.reduction.soaga as soaga_module
 
     free = soaga_reduction(lattice_system, BAND, tolerance=1e-8)
     assert free.parameters["factorizations"] > 1 and not free.parameters["memory_limited"]

@@ -13,8 +13,8 @@ from pymorembs.config import parse_job
 from pymorembs.errors import UserError
 from pymorembs.examples import build_example
 from pymorembs.prepare import Frame, Port, prepare
-from pymorembs.reduce.krylov import krylov_reduction
-from pymorembs.reduce.projection import explicit_step_s, reduced_model, without_stiff_directions
+from pymorembs.reduction.krylov import krylov_reduction
+from pymorembs.reduction.projection import explicit_step_s, reduced_model, without_stiff_directions
 
 PORTS = [Port.parse(1, "ux uy uz")]
 

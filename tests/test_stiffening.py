@@ -209,8 +209,8 @@ def exudyn_models(elements: int = ELEMENTS, order: int = 8):
     from pymorembs.export.outputs import body_invariants
     from pymorembs.prepare import Frame, Port, prepare
     from pymorembs.prepare.stiffening import stiffening_from_mesh, with_stiffening
-    from pymorembs.reduce.modal import modal_reduction
-    from pymorembs.reduce.projection import reduced_model
+    from pymorembs.reduction.modal import modal_reduction
+    from pymorembs.reduction.projection import reduced_model
 
     body = blade(elements=elements)
     ports = [Port.parse(1, "ux uy uz")]

@@ -31,9 +31,9 @@ from pymorembs.body import Damping
 from pymorembs.errors import UserError
 from pymorembs.examples import build_example
 from pymorembs.prepare import Frame, Port, prepare
-from pymorembs.reduce.krylov import krylov_reduction
-from pymorembs.reduce.modal import modal_reduction
-from pymorembs.reduce.projection import reduced_model
+from pymorembs.reduction.krylov import krylov_reduction
+from pymorembs.reduction.modal import modal_reduction
+from pymorembs.reduction.projection import reduced_model
 from pymorembs.report.time_plots import plot_time_responses
 from pymorembs.system import SecondOrderSystem
 

@@ -11,7 +11,7 @@ import pytest
 from pymorembs.cli import main
 from pymorembs.examples import build_example
 from pymorembs.prepare import Frame, Port, prepare
-from pymorembs.reduce.modal import eigenmodes
+from pymorembs.reduction.modal import eigenmodes
 from pymorembs.units import SYSTEMS, convert_body, detect_units, frequency_warnings
 
 

@@ -48,7 +48,7 @@ from pymorembs.prepare.stiffening import (
     stiffening_from_mesh,
     with_stiffening,
 )
-from pymorembs.reduce.projection import (
+from pymorembs.reduction.projection import (
     Projection,
     ReducedModel,
     reduced_model,

@@ -1,7 +1,7 @@
 """The reduction methods and their options, written once (the method registry).
 
 Each method family of ``paper.md`` section 3 has one frozen dataclass of options with its
-defaults; the Python API (:func:`pymorembs.reduce`), the job file (``[[reduction]]`` tables,
+defaults; the Python API (:func:`pymorembs.reduction`), the job file (``[[reduction]]`` tables,
 :mod:`pymorembs.config`) and the job reference (:func:`options_table`) all use them. Building an
 options object checks it: a bad value raises :class:`OptionError`, which names the option.
 
@@ -33,18 +33,18 @@ import numpy as np
 
 from pymorembs.errors import UserError
 from pymorembs.prepare.inertia_loads import is_inertia_label
-from pymorembs.reduce.gramian import gramian_reduction, pod_reduction
-from pymorembs.reduce.krylov import krylov_reduction
-from pymorembs.reduce.modal import modal_reduction
-from pymorembs.reduce.modal_family import (
+from pymorembs.reduction.gramian import gramian_reduction, pod_reduction
+from pymorembs.reduction.krylov import krylov_reduction
+from pymorembs.reduction.modal import modal_reduction
+from pymorembs.reduction.modal_family import (
     best_modes,
     boundary_dofs_of_inputs,
     craig_bampton,
     modes_with_frm,
 )
-from pymorembs.reduce.projection import Projection
-from pymorembs.reduce.rational_gramian import rational_gramian_reduction
-from pymorembs.reduce.soaga import soaga_reduction
+from pymorembs.reduction.projection import Projection
+from pymorembs.reduction.rational_gramian import rational_gramian_reduction
+from pymorembs.reduction.soaga import soaga_reduction
 from pymorembs.system import SecondOrderSystem
 
 __all__ = [
@@ -144,7 +144,7 @@ class ReductionOptions:
     ----------
     max_frequency_hz : float, optional
         Remove the reduced model's eigen-directions above this frequency (Hz), e.g. for an
-        explicit integrator (:func:`~pymorembs.reduce.projection.without_stiff_directions`).
+        explicit integrator (:func:`~pymorembs.reduction.projection.without_stiff_directions`).
     """
 
     method: ClassVar[str] = ""

@@ -45,7 +45,7 @@ from pymorembs.prepare.stiffening import (
 )
 from pymorembs.prepare.validation import ValidationReport, validate_body, validate_prepared
 from pymorembs.progress import Progress as ProgressBar
-from pymorembs.reduce.projection import (
+from pymorembs.reduction.projection import (
     Projection,
     ReducedModel,
     explicit_step_s,

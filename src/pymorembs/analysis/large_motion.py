@@ -39,8 +39,8 @@ from pymorembs.errors import UserError
 from pymorembs.export.exudyn_body import build_exudyn_model, exudyn_arrays, simulate_exudyn
 from pymorembs.export.outputs import body_invariants
 from pymorembs.prepare import Frame, PreparedModel
-from pymorembs.reduce.modal import modal_reduction
-from pymorembs.reduce.projection import ReducedModel, reduced_model
+from pymorembs.reduction.modal import modal_reduction
+from pymorembs.reduction.projection import ReducedModel, reduced_model
 
 __all__ = ["LARGE_MOTION_CASES", "LargeMotionSettings", "large_motion_checks", "off_axis_node"]
 

@@ -256,8 +256,8 @@ def _reference_model(
     system: SecondOrderSystem, frequencies_hz: np.ndarray
 ) -> tuple[SecondOrderSystem, dict[str, Any], tuple[np.ndarray, np.ndarray] | None]:
     """The reference model by SOAGA; its reduced system, facts and estimator curve."""
-    from pymorembs.reduce.projection import reduced_model
-    from pymorembs.reduce.soaga import soaga_reduction
+    from pymorembs.reduction.projection import reduced_model
+    from pymorembs.reduction.soaga import soaga_reduction
 
     band = (float(frequencies_hz.min()), float(frequencies_hz.max()))
     projection = soaga_reduction(

@@ -44,7 +44,7 @@ from pymorembs.linalg.mass_split import MassSplit, dense_condensation, mass_spli
 from pymorembs.linalg.rounding import eigenvalue_bounds, relative_rounding
 from pymorembs.prepare import PreparedModel, with_rigid_modes
 from pymorembs.prepare.rigid_modes import NAMES, admissible_rigid_fields
-from pymorembs.reduce.modal import eigenmodes
+from pymorembs.reduction.modal import eigenmodes
 
 #: Up to this many independent dofs the eigenproblem is solved densely (all eigenpairs).
 DENSE_LIMIT = 600

@@ -36,7 +36,7 @@ from pymorembs.config import TimeDomainSpec
 from pymorembs.export.exudyn_body import build_exudyn_model, exudyn_arrays, simulate_exudyn
 from pymorembs.export.outputs import body_invariants
 from pymorembs.prepare import Frame, PreparedModel
-from pymorembs.reduce.projection import ReducedModel
+from pymorembs.reduction.projection import ReducedModel
 from pymorembs.report.time_plots import plot_time_responses
 
 #: Load factor of the small-motion Exudyn run.

@@ -20,7 +20,7 @@ import scipy.sparse as sp
 from pymorembs.errors import UserError
 from pymorembs.export import deterministic
 from pymorembs.prepare import PreparedModel
-from pymorembs.reduce.projection import ReducedModel
+from pymorembs.reduction.projection import ReducedModel
 from pymorembs.system import SecondOrderSystem
 
 

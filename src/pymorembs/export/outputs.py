@@ -27,7 +27,7 @@ from pymorembs.errors import NumericalError, UserError
 from pymorembs.export.invariants import BodyInvariants, StiffeningTerms, compute_invariants
 from pymorembs.io.atomic import atomic_path
 from pymorembs.prepare import PreparedModel
-from pymorembs.reduce.projection import ReducedModel
+from pymorembs.reduction.projection import ReducedModel
 from pymorembs.system import check_damping
 
 from .deterministic import write_npz
@@ -72,7 +72,7 @@ def check_before_writing(model: ReducedModel, name: str) -> None:
     (:attr:`ReducedModel.damping_matrix`, which includes a modal damping ratio). An oblique
     (two-sided) model has non-symmetric 2x2 blocks for complex pairs; it is checked for finite
     entries here, its stability when it is formed
-    (:func:`~pymorembs.reduce.projection.reduced_model`).
+    (:func:`~pymorembs.reduction.projection.reduced_model`).
 
     Raises
     ------

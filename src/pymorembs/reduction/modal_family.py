@@ -11,8 +11,8 @@ methods here use the ports:
 * :func:`craig_bampton` -- the component mode synthesis of Craig and Bampton: static constraint
   modes of the interface dofs plus fixed-interface normal modes.
 
-All of them return a one-sided :class:`~pymorembs.reduce.projection.Projection` (``W is V``); the
-basis is put into modal form by :func:`~pymorembs.reduce.projection.reduced_model`.
+All of them return a one-sided :class:`~pymorembs.reduction.projection.Projection` (``W is V``); the
+basis is put into modal form by :func:`~pymorembs.reduction.projection.reduced_model`.
 """
 
 from __future__ import annotations
@@ -27,8 +27,8 @@ from pymorembs.linalg.factorization import Factorization
 from pymorembs.linalg.inertia_relief import InertiaRelief
 from pymorembs.linalg.mass_split import condensed_dense_eigh
 from pymorembs.linalg.orthogonalization import OrthonormalBasis
-from pymorembs.reduce.modal import DEFAULT_SHIFT_HZ, eigenmodes
-from pymorembs.reduce.projection import Projection
+from pymorembs.reduction.modal import DEFAULT_SHIFT_HZ, eigenmodes
+from pymorembs.reduction.projection import Projection
 from pymorembs.system import SecondOrderSystem
 
 #: Damping ratio used in eq. 26 when neither the system nor the caller gives one. For a constant
@@ -232,7 +232,7 @@ def best_modes(
         (the system's modal damping ratio comes first). With a constant ratio the choice does
         not depend on it; with Rayleigh damping ``xi_i`` varies and the choice does.
     shift_hz : float
-        Shift of the eigensolver, see :func:`~pymorembs.reduce.modal.eigenmodes`.
+        Shift of the eigensolver, see :func:`~pymorembs.reduction.modal.eigenmodes`.
 
     Returns
     -------

@@ -45,7 +45,7 @@ from pymorembs.linalg.inertia_relief import InertiaRelief
 from pymorembs.linalg.orthogonalization import OrthonormalBasis
 from pymorembs.linalg.products import multiply
 from pymorembs.progress import Progress
-from pymorembs.reduce.projection import Projection
+from pymorembs.reduction.projection import Projection
 from pymorembs.system import SecondOrderSystem
 
 #: Safety cap on the number of moments per point when only an order is requested.

@@ -64,7 +64,7 @@ in other state coordinates, but with entries of size ``omega`` instead of ``omeg
 
 A damping model is needed (an undamped system has no Gramian): the viscous damping ``D`` plus,
 for a modal damping ratio ``xi``, ``M Phi diag(2 xi omega) Phi^T M`` -- the viscous modal damping
-that :attr:`~pymorembs.reduce.projection.ReducedModel.damping_matrix` gives a reduced model. A
+that :attr:`~pymorembs.reduction.projection.ReducedModel.damping_matrix` gives a reduced model. A
 loss factor ``eta`` alone counts as ``xi = eta / 2``.
 
 Reduction and error bound
@@ -121,7 +121,7 @@ from pymorembs.linalg.factorization import Factorization
 from pymorembs.linalg.inertia_relief import InertiaRelief
 from pymorembs.linalg.mass_split import condensed_dense_eigh, mass_split
 from pymorembs.linalg.products import extended_product
-from pymorembs.reduce.projection import Projection, ReducedModel, reduced_model
+from pymorembs.reduction.projection import Projection, ReducedModel, reduced_model
 from pymorembs.system import SecondOrderSystem
 
 #: Largest number of dofs for which dense Gramians of the full model are computed.
@@ -186,7 +186,7 @@ def _eigenmodes(
 
     Positive definite ``K``: the flexibility form ``M y = mu K y`` (``omega^2 = 1 / mu``), whose
     low eigenvalues are accurate to working precision however stiff the model (as in
-    :func:`~pymorembs.reduce.projection.reduced_model`). A free body (``rigid_modes`` given): its
+    :func:`~pymorembs.reduction.projection.reduced_model`). A free body (``rigid_modes`` given): its
     lowest ``r`` modes are the rigid ones. Otherwise eigenvalues below :data:`RIGID_TOL` times the
     largest count as rigid. Massless directions of ``M`` (infinite eigenvalues) have no mode:
     they are condensed statically (:mod:`pymorembs.linalg.mass_split`).
@@ -505,7 +505,7 @@ def gramian_reduction(
     medium : Projection or ReducedModel, optional
         Two-step approach (paper ref. [9]): the first-step reduction (Krylov, modal) of a large
         system. Its basis, made elastic and mass-normalised by
-        :func:`~pymorembs.reduce.projection.reduced_model` and then orthonormalised, is ``V_m``;
+        :func:`~pymorembs.reduction.projection.reduced_model` and then orthonormalised, is ``V_m``;
         the Gramians are those of the dense medium model ``system.project(V_m)``, and
         ``V = V_m V_gram``. Everything reported (eigenvalues, bound) then belongs to the medium
         model: the error of the first step is not in the bound.
@@ -586,7 +586,7 @@ def projection_from_gramians(
     """The projection on the dominant eigenvectors of ``P_p^w + Q_pv^w`` of ``working``.
 
     Shared by :func:`gramian_reduction` and the large-scale solver of
-    :mod:`pymorembs.reduce.rational_gramian`.
+    :mod:`pymorembs.reduction.rational_gramian`.
 
     Parameters
     ----------

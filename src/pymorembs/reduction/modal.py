@@ -16,7 +16,7 @@ import scipy.sparse.linalg as spla
 from pymorembs.errors import NumericalError, UserError
 from pymorembs.linalg.factorization import Factorization
 from pymorembs.linalg.mass_split import mass_split
-from pymorembs.reduce.projection import Projection
+from pymorembs.reduction.projection import Projection
 from pymorembs.system import SecondOrderSystem
 
 #: Default shift frequency: sigma = -(2 pi * 1 Hz)^2 (rad/s)^2.

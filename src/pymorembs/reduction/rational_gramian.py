@@ -24,14 +24,14 @@ projected system, and the same holds for the band-limited integral
 
 ``Z(s) = s^2 M + s D + K``: the integrand is approximated by its Galerkin solution
 ``V R_V(i w) V^T B`` at every frequency. ``X_P`` and ``X_Q`` (the same with ``C^T``) are the dense
-frequency-weighted Gramians of :mod:`pymorembs.reduce.gramian`, applied to the projected system.
+frequency-weighted Gramians of :mod:`pymorembs.reduction.gramian`, applied to the projected system.
 
 Subspace
 --------
 ``V`` spans ``R(i w_j) [B, C^T]`` (real and imaginary parts) and, with ``moments >= 2``, the
 next blocks of the second-order Krylov recurrence at the same shift (paper eq. 20,
 ``P_i = -R(s_j) ((2 s_j M + D) P_{i-1} + M P_{i-2})``) -- one sparse factorization per shift
-(:func:`pymorembs.reduce.gramian.resolvent`, inertia relief at 0 Hz for a free body). The
+(:func:`pymorembs.reduction.gramian.resolvent`, inertia relief at 0 Hz for a free body). The
 interpolation property of rational Krylov spaces makes the Galerkin integrand exact at every
 shift (``R(s_j) B`` lies in ``span(V)``), with ``moments`` derivatives matched there.
 
@@ -103,7 +103,7 @@ import numpy as np
 from pymorembs.analysis.error import frequency_grid
 from pymorembs.errors import UserError
 from pymorembs.linalg.orthogonalization import OrthonormalBasis
-from pymorembs.reduce.gramian import (
+from pymorembs.reduction.gramian import (
     KAPPA_POINTS,
     ModalForm,
     band_gramians,
@@ -112,8 +112,8 @@ from pymorembs.reduce.gramian import (
     projection_from_gramians,
     resolvent,
 )
-from pymorembs.reduce.projection import Projection
-from pymorembs.reduce.soaga import _Products
+from pymorembs.reduction.projection import Projection
+from pymorembs.reduction.soaga import _Products
 from pymorembs.system import SecondOrderSystem
 
 #: Default stopping tolerance on the relative change of the Gramian quantities.
@@ -146,7 +146,7 @@ class RationalKrylovGramians:
     x_p, x_q : ndarray, shape (k, k)
         Frequency-weighted position Gramians of the projected system, units ``(q/u)^2 rad/s``
         (with the ``1/(2 pi)`` of the H2 norm, as in
-        :func:`~pymorembs.reduce.gramian.frequency_weighted_gramians`).
+        :func:`~pymorembs.reduction.gramian.frequency_weighted_gramians`).
     projected : SecondOrderSystem
         The projected (dense) system ``system.project(V)``.
     modal : ModalForm
@@ -395,7 +395,7 @@ def rational_krylov_gramians(
     ----------
     system : SecondOrderSystem
         Sparse (or dense) full system with symmetric ``M``, ``D``, ``K``; damped as
-        :func:`~pymorembs.reduce.gramian.frequency_weighted_gramians` requires. A free body
+        :func:`~pymorembs.reduction.gramian.frequency_weighted_gramians` requires. A free body
         (``rigid_modes``) needs ``B``, ``C`` free of rigid-body parts (Buckens frame).
     band_hz : (float, float)
         ``(f_min, f_max)`` in Hz, finite, ``0 <= f_min < f_max``.
@@ -425,7 +425,7 @@ def rational_krylov_gramians(
         further moments are computed at the last shift (no new factorization) while they add
         directions, then new shifts.
     damping_ratio : float, optional
-        As in :func:`~pymorembs.reduce.gramian.frequency_weighted_gramians` (undamped models).
+        As in :func:`~pymorembs.reduction.gramian.frequency_weighted_gramians` (undamped models).
     deflation_tol : float
         Directions with less than this (relative) outside ``span(V)`` are dropped.
 
@@ -610,7 +610,7 @@ def rational_gramian_reduction(
     """Gramian reduction of a large model with rational-Krylov Gramians (no two-step detour).
 
     The Gramians come from :func:`rational_krylov_gramians`; the projection is then built
-    exactly as :func:`~pymorembs.reduce.gramian.gramian_reduction` builds it: ``V`` spans the
+    exactly as :func:`~pymorembs.reduction.gramian.gramian_reduction` builds it: ``V`` spans the
     dominant eigenvectors of ``V_k (X_P + X_Q) V_k^T`` (``V_k`` the Krylov basis), the order from
     ``order`` or from the indicator ``sigma_{n+1} / sigma_1 <= tolerance`` of eq. 24.
 
@@ -621,7 +621,7 @@ def rational_gramian_reduction(
     band_hz : (float, float)
         ``(f_min, f_max)`` in Hz, finite.
     order, tolerance :
-        As in :func:`~pymorembs.reduce.gramian.gramian_reduction`.
+        As in :func:`~pymorembs.reduction.gramian.gramian_reduction`.
     tol : float, optional
         Stopping tolerance of the Gramian iteration. Default ``min(1e-8, 1e-2 tolerance)``:
         the eigenvalues that decide the order are then converged well below the tolerance.
@@ -630,7 +630,7 @@ def rational_gramian_reduction(
     damping_ratio : float, optional
         For undamped models.
     kappa_points : int
-        As in :func:`~pymorembs.reduce.gramian.gramian_reduction` (sampled on the projected
+        As in :func:`~pymorembs.reduction.gramian.gramian_reduction` (sampled on the projected
         system).
     **options :
         Further keywords of :func:`rational_krylov_gramians` (``max_shifts``, ``moments``,
