@@ -328,8 +328,9 @@ class ModelPorts:
             )
 
 
-#: Element types an :class:`ElementMesh` can hold, with their number of nodes.
-ELEMENT_NODES = {"hex20": 20, "beam2": 2}
+#: Element types an :class:`ElementMesh` can hold, with their number of nodes (the solid kinds
+#: of :mod:`pymorembs.elements.solid` and the two-node beam).
+ELEMENT_NODES = {"hex20": 20, "hex20r": 20, "hex8": 8, "tet10": 10, "tet4": 4, "beam2": 2}
 
 
 @dataclass(frozen=True, eq=False)
@@ -342,9 +343,11 @@ class ElementMesh:
     Attributes
     ----------
     element : str
-        Element type, a key of :data:`ELEMENT_NODES` (``"hex20"``: 20-node hexahedra in the node
-        order of :data:`pymorembs.elements.hex20.HEX20_NODES`; ``"beam2"``: the two-node beams of
-        :mod:`pymorembs.elements.beam`, nodes with all six dofs).
+        Element type, a key of :data:`ELEMENT_NODES`: a solid kind of
+        :mod:`pymorembs.elements.solid` (``"hex20"``: 20-node hexahedra in the node order of
+        :data:`pymorembs.elements.hex20.HEX20_NODES`, 27 Gauss points; ``"hex20r"``: the same
+        with 8; ``"hex8"``, ``"tet4"``, ``"tet10"``), or ``"beam2"``: the two-node beams of
+        :mod:`pymorembs.elements.beam`, nodes with all six dofs.
     connectivity : ndarray of int, shape (n_el, nodes per element)
         Node ids of each element.
     young, poisson : float
