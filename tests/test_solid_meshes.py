@@ -373,6 +373,7 @@ def tet_model(folder: Path, **fields: str) -> dict[str, Path]:
         ({"elastic_type": ", type=ENGINEERING CONSTANTS"}, "TYPE=ENGINEERING CONSTANTS; only ISO"),
         ({"elastic": "2.0e11, 0.3, 20.\n1.9e11, 0.3, 200."}, "has 2 data lines"),
         ({"section": "*Solid Section, elset=some, material=steel"}, "element set some, which is"),
+        ({"elastic": "1.0e11, 0.3"}, "E = 1e+11, nu = 0.3 differs from the model's K by 5.0e-01"),
     ],
 )
 def test_models_without_a_usable_mesh_are_read_and_stiffening_says_why(tmp_path, fields, why):
@@ -405,3 +406,68 @@ def test_an_inverted_element_is_a_user_error():
     nodes = _TET4[[0, 2, 1, 3]][None]
     with pytest.raises(UserError, match="non-positive Jacobian"):
         solid_stiffness("tet4", nodes, 2e11, 0.3)
+
+
+# ------------------------------------------------------------------ Ansys SOLID186 (HexBeam)
+HEXBEAM = Path(__file__).parent / "data" / "pymapdl_reader_hexbeam"
+
+
+def test_solid186_kinematics_reproduce_the_ansys_stiffness_with_the_material_of_its_run():
+    """The genuine file.full does not come from the run of HexBeam.cdb's material (EX 7e10,
+    PRXY 0.35): the reader refuses that mesh. K is linear in Lame's (lambda, mu); fitted to the
+    free-free block of file.full, the 2 x 2 x 2 rule (SOLID186's default) reproduces it to 1e-13
+    with E = 1.69e7, nu = 0.31, the full 3 x 3 x 3 rule misses by 2 %. With that material the
+    archive's mesh is accepted."""
+    from pymorembs.io.ansys import read_ansys_full
+
+    body = read_ansys_full(HEXBEAM / "file.full", nodes=HEXBEAM / "HexBeam.cdb")
+    assert body.mesh is None
+    assert "hex20r elements with E = 7e+10, nu = 0.35 differs from the model's K" in mesh_problem(
+        body
+    )
+    from pymorembs.io.ansys_cdb import read_cdb
+
+    archive = read_cdb(HEXBEAM / "HexBeam.cdb")
+    rows = body.node_rows(archive.element_nodes.reshape(-1, 20))
+    equations = body.dofs.positions(body.node_ids[:, None], np.arange(3)).ravel()
+    free = np.setdiff1d(np.arange(body.n_dof), body.fixed)
+    target = body.stiffness.toarray()[np.ix_(free, free)].ravel()
+    residual, fitted = {}, {}
+    for kind in ("hex20r", "hex20"):
+        parts = []
+        for k in lame_parts(kind, body.coordinates, rows):  # K = lambda K_lambda + mu K_mu
+            dense = np.zeros((body.n_dof, body.n_dof))
+            dense[np.ix_(equations, equations)] = k.toarray()
+            parts.append(dense[np.ix_(free, free)].ravel())
+        basis = np.column_stack(parts)
+        (lam, mu), *_ = np.linalg.lstsq(basis, target, rcond=None)
+        residual[kind] = np.abs(basis @ [lam, mu] - target).max() / np.abs(target).max()
+        fitted[kind] = (mu * (3 * lam + 2 * mu) / (lam + mu), lam / (2 * (lam + mu)))
+    assert residual["hex20r"] < 1e-13 and residual["hex20"] > 1e-2
+    young, poisson = fitted["hex20r"]
+    assert young == pytest.approx(1.69e7, rel=1e-12) and poisson == pytest.approx(0.31, rel=1e-12)
+
+
+def lame_parts(kind, coordinates, rows):
+    """``K_lambda`` and ``K_mu`` of a mesh (``K = lambda K_lambda + mu K_mu``), from the
+    stiffness of the Lame pairs (1, 1) and (2, 1)."""
+
+    def k_of(lam, mu):
+        young, poisson = mu * (3 * lam + 2 * mu) / (lam + mu), lam / (2 * (lam + mu))
+        return assemble_solid_stiffness(kind, coordinates, rows, young, poisson)
+
+    one, two = k_of(1.0, 1.0), k_of(2.0, 1.0)
+    return two - one, 2.0 * one - two
+
+
+def test_hexbeam_archive_with_the_material_of_the_run_gives_the_mesh(tmp_path):
+    from pymorembs.io.ansys import read_ansys_full
+
+    text = (HEXBEAM / "HexBeam.cdb").read_text()
+    text = text.replace("7.000000000E+10", "1.690000000E+07").replace("0.350000000", "0.310000000")
+    (tmp_path / "HexBeam.cdb").write_text(text)
+    body = read_ansys_full(HEXBEAM / "file.full", nodes=tmp_path / "HexBeam.cdb")
+    assert body.mesh is not None and body.mesh.element == "hex20r"
+    assert (body.mesh.young, body.mesh.poisson) == (1.69e7, 0.31)
+    assert body.mesh.connectivity.shape == (40, 20)
+    assert "their stiffness reproduces K" in body.notes[-1]

@@ -14,20 +14,28 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
+import scipy.sparse as sp
 
 from pymorembs.body import ElasticBody, ElementMesh
+from pymorembs.elements.solid import SOLID_KINDS, solid_stiffness
 from pymorembs.errors import UserError
 
 __all__ = [
+    "MESH_TOLERANCE",
     "NO_MESH",
     "SolidBlock",
     "attach_mesh",
     "element_mesh",
     "mesh_problem",
+    "stiffness_mismatch",
 ]
 
 #: The note of a body whose elements give no mesh starts with this.
 NO_MESH = "no element mesh for geometric stiffening: "
+#: Largest relative difference between the elements' stiffness and the model's K accepted
+#: (files written with 7 significant digits stay far below it; another material, rule or node
+#: order lies far above).
+MESH_TOLERANCE = 1e-5
 
 
 @dataclass(frozen=True, eq=False)
@@ -85,17 +93,85 @@ def element_mesh(blocks: list[SolidBlock]) -> ElementMesh:
 def attach_mesh(body: ElasticBody, blocks: list[SolidBlock] | str) -> ElasticBody:
     """The body with the mesh of ``blocks``, or with a note saying why it has none.
 
-    ``blocks`` may already be that reason (a reader that found the elements unusable). A mesh
-    whose nodes lack translational dofs in the body is not attached either (noted).
+    ``blocks`` may already be that reason (a reader that found the elements unusable). The
+    mesh is attached only when the stiffness of its elements and material
+    (:func:`~pymorembs.elements.solid.solid_stiffness`) reproduces the body's own ``K`` on the
+    free dofs to :data:`MESH_TOLERANCE` (:func:`stiffness_mismatch`): that proves node order,
+    integration rule and material belong to the matrices (a material of another run would
+    scale every stress, and so ``K_G``, silently). A mesh whose nodes lack translational dofs
+    in the body is not attached either (noted).
     """
     if isinstance(blocks, str):
         problem = blocks
     else:
         try:
-            return replace(body, mesh=element_mesh(blocks))
+            mesh = element_mesh(blocks)
+            with_mesh = replace(body, mesh=mesh)
+            mismatch = stiffness_mismatch(with_mesh)
         except UserError as err:
             problem = str(err)
+        else:
+            if mismatch <= MESH_TOLERANCE:
+                note = (
+                    f"element mesh: {mesh.connectivity.shape[0]} {mesh.element} elements, "
+                    f"E = {mesh.young:g}, nu = {mesh.poisson:g}; their stiffness reproduces K "
+                    f"(relative difference {mismatch:.0e})"
+                )
+                return replace(with_mesh, notes=(*body.notes, note))
+            problem = (
+                f"the stiffness of its {mesh.connectivity.shape[0]} {mesh.element} elements with "
+                f"E = {mesh.young:g}, nu = {mesh.poisson:g} differs from the model's K by "
+                f"{mismatch:.1e} (relative; at most {MESH_TOLERANCE:g} when elements, node "
+                "order and material belong to the matrices)"
+            )
     return replace(body, mesh=None, notes=(*body.notes, NO_MESH + problem))
+
+
+def stiffness_mismatch(body: ElasticBody, chunk: int = 2048, seed: int = 0) -> float:
+    """How far the stiffness of the body's solid elements is from its ``K``, on the free dofs.
+
+    ``|(K_e v - K v)_f| / |(K v)_f|`` for two random fields ``v`` that vanish at the fixed dofs
+    (``f``: the rows of the other dofs), with ``K_e v`` summed element by element (no matrix
+    formed). Dependent dofs are treated like free ones.
+
+    Parameters
+    ----------
+    body : ElasticBody
+        With a solid ``mesh``.
+    chunk : int
+        Elements per batch.
+    seed : int
+        Of the random fields.
+
+    Returns
+    -------
+    float
+        The relative difference (0 for elements that are the whole model's stiffness).
+    """
+    mesh = body.mesh
+    if mesh is None or mesh.element not in SOLID_KINDS:
+        raise UserError("stiffness check: the body has no solid elements")
+    connectivity = mesh.connectivity
+    equations = np.stack([body.dofs.positions(connectivity, d) for d in range(3)], axis=-1).reshape(
+        connectivity.shape[0], -1
+    )
+    if np.any(equations < 0):
+        raise UserError("an element node has no translational dofs in the model's dof table")
+    xyz = body.coordinates[body.node_rows(connectivity)]
+    fields = np.random.default_rng(seed).standard_normal((body.n_dof, 2))
+    fields[body.fixed] = 0.0
+    product = np.zeros_like(fields)
+    for start in range(0, connectivity.shape[0], chunk):
+        eq = equations[start : start + chunk]
+        k_e = solid_stiffness(mesh.element, xyz[start : start + chunk], mesh.young, mesh.poisson)
+        local = np.einsum("eij,ejk->eik", k_e, fields[eq])
+        np.add.at(product, eq.ravel(), local.reshape(-1, 2))
+    reference = sp.csr_matrix(body.stiffness) @ fields
+    free = np.setdiff1d(np.arange(body.n_dof), body.fixed)
+    scale = np.linalg.norm(reference[free])
+    if not scale > 0:
+        return float("inf")
+    return float(np.linalg.norm((product - reference)[free]) / scale)
 
 
 def mesh_problem(body: ElasticBody) -> str | None:
