@@ -15,6 +15,7 @@ References, all independent of the code under test:
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -471,3 +472,101 @@ def test_hexbeam_archive_with_the_material_of_the_run_gives_the_mesh(tmp_path):
     assert (body.mesh.young, body.mesh.poisson) == (1.69e7, 0.31)
     assert body.mesh.connectivity.shape == (40, 20)
     assert "their stiffness reproduces K" in body.notes[-1]
+
+
+# ------------------------------------------------------------------ Nastran CTETRA / CHEXA
+def large_field(name: str, values: list) -> list[str]:
+    """A large-field card (``NAME*``, 4 fields of 16 per line, ``*`` continuations)."""
+    text = [sixteen(v) if isinstance(v, float) else str(v) for v in values]
+    lines = [f"{name + '*':<8}" + "".join(f"{t:>16}" for t in text[:4])]
+    for k in range(4, len(text), 4):
+        lines.append(f"{'*':<8}" + "".join(f"{t:>16}" for t in text[k : k + 4]))
+    return lines
+
+
+def sixteen(value: float) -> str:
+    """The most digits of ``value`` that fit a 16-column field."""
+    for digits in range(17, 5, -1):
+        text = f"{value:.{digits}g}"
+        if len(text) <= 16:
+            return text
+    raise AssertionError(value)
+
+
+def write_nastran_model(folder: Path, body, card: str, connectivity: np.ndarray, material: str):
+    """GRID, solid element, PSOLID and MAT1 cards and the body's K and M as DMIG (KAAX, MAAX,
+    upper triangles, every dof in the a-set) in one punch-like file."""
+    lines = ["$ written by the test"]
+    for nid, (x, y, z) in zip(body.node_ids, body.coordinates, strict=True):
+        lines += large_field("GRID", [int(nid), 0, float(x), float(y), float(z), 0])
+    for eid, grids in enumerate(connectivity, start=1):
+        lines += large_field(card, [eid, 7, *map(int, grids)])
+    lines += ["PSOLID,7,3", material]
+    for name, matrix in (("KAAX", body.stiffness), ("MAAX", body.mass)):
+        upper = sp.triu(sp.csr_matrix(matrix)).tocsc()
+        lines.append(f"DMIG,{name},0,6,2,0,,,{body.n_dof}")
+        for j in range(body.n_dof):
+            rows = upper.indices[upper.indptr[j] : upper.indptr[j + 1]]
+            if not rows.size:
+                continue
+            values = upper.data[upper.indptr[j] : upper.indptr[j + 1]]
+            gj, cj = int(body.dofs.nodes[j]), int(body.dofs.directions[j]) + 1
+            lines += large_field("DMIG", [name, gj, cj])[:1]
+            for i, v in zip(rows, values, strict=True):
+                gi, ci = int(body.dofs.nodes[i]), int(body.dofs.directions[i]) + 1
+                lines.append(f"{'*':<8}{gi:>16}{ci:>16}{v:>16.9E}".replace("E", "D"))
+    path = folder / "model.pch"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_chexa20_and_mat1_give_the_blade_mesh(tmp_path):
+    """The free blade as Nastran cards: CHEXA grids in Nastran's order (edges G13-G16 along the
+    blade's thickness direction before the face G17-G20), MAT1 with E and NU."""
+    from pymorembs.io.nastran_dmig import read_dmig
+
+    built = blade(elements=4)
+    free = replace(built, fixed=np.zeros(0, dtype=np.int64))
+    hex20 = built.mesh.connectivity
+    nastran = np.empty_like(hex20)
+    nastran[:, [*range(12), 16, 17, 18, 19, 12, 13, 14, 15]] = hex20  # written in CHEXA order
+    path = write_nastran_model(tmp_path, free, "CHEXA", nastran, "MAT1,3,2.1+11,,0.3")
+    body = read_dmig(path, nodes=path)
+    assert body.mesh is not None, body.notes
+    assert body.mesh.element == "hex20" and (body.mesh.young, body.mesh.poisson) == (2.1e11, 0.3)
+    np.testing.assert_array_equal(body.mesh.connectivity, hex20)
+    u = np.random.default_rng(5).standard_normal(body.n_dof) * 1e-4
+    a, b = geometric_stiffness(built, u), geometric_stiffness(body, u)
+    assert abs(a - b).max() <= 1e-12 * abs(a).max()
+
+
+def test_ctetra10_beam_with_the_abaqus_matrices(unpacked, tmp_path):
+    """The genuine C3D10 beam written as CTETRA cards with MAT1 E, G (NU derived) and its Abaqus
+    K and M: the same tet10 mesh, accepted by the stiffness check."""
+    from pymorembs.io.nastran_dmig import read_dmig
+
+    beam = read_abaqus(
+        genuine(f"{BEAM}/STIF1_coord_style.mtx", unpacked),
+        genuine(f"{BEAM}/MASS1_coord_style.mtx", unpacked),
+        inp=genuine(f"{BEAM}/abq_beam.inp", unpacked),
+    )
+    shear = 208000.0 / 2.6
+    path = write_nastran_model(
+        tmp_path, beam, "CTETRA", beam.mesh.connectivity, f"MAT1,3,208000.,{shear!r}"
+    )
+    body = read_dmig(path, nodes=path)
+    assert body.mesh is not None and body.mesh.element == "tet10"
+    assert body.mesh.poisson == pytest.approx(0.3, rel=1e-14)
+    np.testing.assert_array_equal(body.mesh.connectivity, beam.mesh.connectivity)
+    assert any("their stiffness reproduces K" in note for note in body.notes)
+
+
+def test_nastran_shells_next_to_solids_leave_no_mesh(tmp_path):
+    from pymorembs.io.nastran_dmig import read_dmig
+
+    built = replace(blade(elements=4), fixed=np.zeros(0, dtype=np.int64))
+    nastran = built.mesh.connectivity[:, [*range(12), 16, 17, 18, 19, 12, 13, 14, 15]]
+    path = write_nastran_model(tmp_path, built, "CHEXA", nastran, "MAT1,3,2.1+11,,0.3")
+    path.write_text(path.read_text() + "CQUAD4,99,7,1,2,3,4\n")
+    body = read_dmig(path, nodes=path)
+    assert body.mesh is None and "CQUAD4 elements" in mesh_problem(body)
