@@ -570,3 +570,38 @@ def test_nastran_shells_next_to_solids_leave_no_mesh(tmp_path):
     path.write_text(path.read_text() + "CQUAD4,99,7,1,2,3,4\n")
     body = read_dmig(path, nodes=path)
     assert body.mesh is None and "CQUAD4 elements" in mesh_problem(body)
+
+
+def test_elements_of_two_materials(tmp_path):
+    """Two *SOLID SECTION s with different materials: one E, nu per element, checked against
+    the K of the two materials, kept in the native file."""
+    inp = TWO_TETS.format(
+        type="C3D4",
+        extra="*Elset, elset=one\n1\n*Elset, elset=two\n2\n",
+        section="*Solid Section, elset=one, material=steel\n"
+        "*Solid Section, elset=two, material=alu\n*Material, name=alu\n*Elastic\n7.0e10, 0.33",
+        elastic_type="",
+        elastic="2.0e11, 0.3",
+    )
+    (tmp_path / "tets.inp").write_text(inp)
+    xyz = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]], dtype=float)
+    conn = np.array([[0, 1, 2, 3], [1, 2, 3, 4]])
+    k = assemble_solid_stiffness("tet4", xyz, conn, np.array([2e11, 7e10]), np.array([0.3, 0.33]))
+    reference = assemble_solid_stiffness("tet4", xyz, conn[:1], 2e11, 0.3)
+    reference = reference + assemble_solid_stiffness("tet4", xyz, conn[1:], 7e10, 0.33)
+    assert abs(k - reference).max() <= 1e-15 * abs(reference).max()  # per-element materials
+    k = k.tocoo()
+    values = np.where((k.row == k.col) & (k.row < 9), 1e36, k.data)
+    entries = zip(k.row, k.col, values, strict=True)
+    (tmp_path / "K.mtx").write_text("".join(f"{r + 1} {c + 1} {v:.17g}\n" for r, c, v in entries))
+    (tmp_path / "M.mtx").write_text("".join(f"{i + 1} {i + 1} 1.0\n" for i in range(15)))
+    body = read_abaqus(tmp_path / "K.mtx", tmp_path / "M.mtx", inp=tmp_path / "tets.inp")
+    assert body.mesh is not None, body.notes
+    np.testing.assert_array_equal(body.mesh.young, [2e11, 7e10])
+    np.testing.assert_array_equal(body.mesh.poisson, [0.3, 0.33])
+    assert "2 materials" in body.notes[-1]
+    write_body_h5(body, tmp_path / "tets.h5")
+    back = read_body_h5(tmp_path / "tets.h5")
+    np.testing.assert_array_equal(back.mesh.young, body.mesh.young)
+    u = np.random.default_rng(2).standard_normal(body.n_dof)
+    assert abs(geometric_stiffness(back, u) - geometric_stiffness(body, u)).max() == 0.0

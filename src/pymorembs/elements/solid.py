@@ -44,6 +44,7 @@ __all__ = [
     "SOLID_KINDS",
     "SolidKind",
     "assemble_solid_stiffness",
+    "part",
     "solid_geometric_matrices",
     "solid_geometry",
     "solid_kind",
@@ -194,13 +195,16 @@ def solid_geometry(kind: str, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return determinants * spec.weights, gradients
 
 
-def _lame(young: float, poisson: float) -> tuple[float, float]:
-    return young * poisson / ((1.0 + poisson) * (1.0 - 2.0 * poisson)), young / (
-        2.0 * (1.0 + poisson)
-    )
+def _lame(young, poisson, ndim: int) -> tuple[np.ndarray, np.ndarray]:
+    """Lame's lambda and mu, one per element shaped (n_el or 1, 1 x ndim) for broadcasting."""
+    e = np.asarray(young, dtype=float).reshape(-1, *(1,) * ndim)
+    nu = np.asarray(poisson, dtype=float).reshape(-1, *(1,) * ndim)
+    return e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)), e / (2.0 * (1.0 + nu))
 
 
-def solid_stiffness(kind: str, nodes: np.ndarray, young: float, poisson: float) -> np.ndarray:
+def solid_stiffness(
+    kind: str, nodes: np.ndarray, young: float | np.ndarray, poisson: float | np.ndarray
+) -> np.ndarray:
     """Element stiffness matrices of isotropic linear elasticity with the kind's Gauss rule.
 
     ``K[a i, b j] = sum_q w_q (lambda G_ai G_bj + mu G_aj G_bi + mu delta_ij G_ak G_bk)`` with
@@ -210,8 +214,8 @@ def solid_stiffness(kind: str, nodes: np.ndarray, young: float, poisson: float) 
     ----------
     kind : str
     nodes : ndarray, shape (n_el, n, 3)
-    young, poisson : float
-        Young's modulus (model stress unit) and Poisson's ratio.
+    young, poisson : float or ndarray, shape (n_el,)
+        Young's modulus (model stress unit) and Poisson's ratio (one, or one per element).
 
     Returns
     -------
@@ -219,18 +223,22 @@ def solid_stiffness(kind: str, nodes: np.ndarray, young: float, poisson: float) 
         Element dof order ``(node a, direction i) -> 3 a + i`` (force / length).
     """
     weights, gradients = solid_geometry(kind, nodes)
-    lam, mu = _lame(young, poisson)
+    lam, mu = _lame(young, poisson, 4)
     n_el, _, n, _ = gradients.shape
     x = np.einsum("eq,eqai,eqbj->eaibj", weights, gradients, gradients)
     trace = np.einsum("eakbk->eab", x)
     k = lam * x + mu * x.transpose(0, 1, 4, 3, 2)
-    k += mu * trace[:, :, None, :, None] * np.eye(3)[None, None, :, None, :]
+    k = k + mu * trace[:, :, None, :, None] * np.eye(3)[None, None, :, None, :]
     k = k.reshape(n_el, 3 * n, 3 * n)
     return 0.5 * (k + k.transpose(0, 2, 1))
 
 
 def solid_stresses(
-    kind: str, nodes: np.ndarray, displacements: np.ndarray, young: float, poisson: float
+    kind: str,
+    nodes: np.ndarray,
+    displacements: np.ndarray,
+    young: float | np.ndarray,
+    poisson: float | np.ndarray,
 ) -> np.ndarray:
     """Cauchy stresses of a small displacement field at the Gauss points of each element.
 
@@ -243,7 +251,7 @@ def solid_stresses(
         Node coordinates (length unit).
     displacements : ndarray, shape (n_el, n, 3)
         Nodal displacements (length unit).
-    young, poisson : float
+    young, poisson : float or ndarray, shape (n_el,)
 
     Returns
     -------
@@ -253,7 +261,7 @@ def solid_stresses(
     _, gradients = solid_geometry(kind, nodes)
     grad = np.einsum("eai,eqak->eqik", displacements, gradients)  # du_i / dx_k
     strain = 0.5 * (grad + grad.transpose(0, 1, 3, 2))
-    lam, mu = _lame(young, poisson)
+    lam, mu = _lame(young, poisson, 3)
     trace = np.trace(strain, axis1=2, axis2=3)
     return lam * trace[..., None, None] * np.eye(3) + 2.0 * mu * strain
 
@@ -281,12 +289,17 @@ def solid_geometric_matrices(kind: str, nodes: np.ndarray, stresses: np.ndarray)
     return 0.5 * (g + g.transpose(0, 2, 1))
 
 
+def part(value: float | np.ndarray, start: int, count: int) -> float | np.ndarray:
+    """``value[start : start + count]`` of a per-element material array; a scalar as it is."""
+    return value[start : start + count] if isinstance(value, np.ndarray) else value
+
+
 def assemble_solid_stiffness(
     kind: str,
     coordinates: np.ndarray,
     elements: np.ndarray,
-    young: float,
-    poisson: float,
+    young: float | np.ndarray,
+    poisson: float | np.ndarray,
     chunk: int = 2048,
 ) -> sp.csr_matrix:
     """Global stiffness of a mesh of one kind, equation ``3 r + i`` = direction ``i`` of row ``r``.
@@ -297,7 +310,7 @@ def assemble_solid_stiffness(
     coordinates : ndarray, shape (n_nodes, 3)
     elements : ndarray of int, shape (n_el, n)
         Rows of ``coordinates`` of each element's nodes.
-    young, poisson : float
+    young, poisson : float or ndarray, shape (n_el,)
     chunk : int
         Elements per batch (memory stays proportional to the matrix).
 
@@ -310,7 +323,9 @@ def assemble_solid_stiffness(
     rows, cols, values = [], [], []
     for start in range(0, elements.shape[0], chunk):
         conn = elements[start : start + chunk]
-        k_e = solid_stiffness(kind, coordinates[conn], young, poisson)
+        k_e = solid_stiffness(
+            kind, coordinates[conn], part(young, start, chunk), part(poisson, start, chunk)
+        )
         dofs = (3 * conn[:, :, None] + np.arange(3)).reshape(conn.shape[0], -1)
         rows.append(np.broadcast_to(dofs[:, :, None], k_e.shape).ravel())
         cols.append(np.broadcast_to(dofs[:, None, :], k_e.shape).ravel())

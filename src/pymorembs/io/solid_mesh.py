@@ -3,7 +3,7 @@
 Readers that see the elements of a model (the Abaqus ``.inp``, the Nastran bulk data, the Ansys
 ``.cdb``) hand them here as :class:`SolidBlock` s; :func:`element_mesh` makes the body's
 :class:`~pymorembs.body.ElementMesh` of them, or says in one sentence why it cannot (no solid
-elements, an element type without kinematics here, several element kinds or materials). The
+elements, an element type without kinematics here, several element kinds). The
 reader keeps the body readable either way: :func:`attach_mesh` puts the mesh on the body, or
 the sentence into its notes, where ``[stiffening] source = "mesh"`` finds it
 (:func:`mesh_problem`).
@@ -17,7 +17,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from pymorembs.body import ElasticBody, ElementMesh
-from pymorembs.elements.solid import SOLID_KINDS, solid_stiffness
+from pymorembs.elements.solid import SOLID_KINDS, part, solid_stiffness
 from pymorembs.errors import UserError
 
 __all__ = [
@@ -25,6 +25,7 @@ __all__ = [
     "NO_MESH",
     "SolidBlock",
     "attach_mesh",
+    "describe_material",
     "element_mesh",
     "mesh_problem",
     "stiffness_mismatch",
@@ -62,13 +63,14 @@ class SolidBlock:
 
 
 def element_mesh(blocks: list[SolidBlock]) -> ElementMesh:
-    """One :class:`~pymorembs.body.ElementMesh` of the blocks.
+    """One :class:`~pymorembs.body.ElementMesh` of the blocks (one material per element when
+    the blocks have several).
 
     Raises
     ------
     UserError
-        No blocks, blocks of different kinds or materials (a body holds one element kind and
-        one material for its stiffening), or a material that is not elastic.
+        No blocks, blocks of different kinds (a body holds one element kind for its
+        stiffening), or a material that is not elastic.
     """
     if not blocks:
         raise UserError("the model has no solid elements")
@@ -78,16 +80,23 @@ def element_mesh(blocks: list[SolidBlock]) -> ElementMesh:
             f"the solid elements are of several kinds ({', '.join(kinds)}); the stiffening of a "
             "body from its elements takes one kind"
         )
-    materials = sorted({(b.young, b.poisson) for b in blocks})
-    if len(materials) > 1:
-        listed = ", ".join(f"E = {e:g}, nu = {nu:g}" for e, nu in materials)
-        raise UserError(
-            f"the solid elements have several materials ({listed}); the stiffening of a body "
-            "from its elements takes one material"
-        )
     connectivity = np.concatenate([b.connectivity for b in blocks])
-    young, poisson = materials[0]
+    if len({(b.young, b.poisson) for b in blocks}) == 1:
+        return ElementMesh(kinds[0], connectivity, blocks[0].young, blocks[0].poisson)
+    counts = [b.connectivity.shape[0] for b in blocks]
+    young = np.repeat([b.young for b in blocks], counts)
+    poisson = np.repeat([b.poisson for b in blocks], counts)
     return ElementMesh(kinds[0], connectivity, young, poisson)
+
+
+def describe_material(mesh: ElementMesh) -> str:
+    """``E = .., nu = ..`` of a mesh, or the number of its materials and the first of them."""
+    young, poisson = np.broadcast_arrays(np.ravel(mesh.young), np.ravel(mesh.poisson))
+    pairs = np.unique(np.column_stack([young, poisson]), axis=0)
+    if len(pairs) == 1:
+        return f"E = {pairs[0, 0]:g}, nu = {pairs[0, 1]:g}"
+    listed = "; ".join(f"E = {e:g}, nu = {nu:g}" for e, nu in pairs[:4])
+    return f"{len(pairs)} materials ({listed}{'; ...' if len(pairs) > 4 else ''})"
 
 
 def attach_mesh(body: ElasticBody, blocks: list[SolidBlock] | str) -> ElasticBody:
@@ -114,13 +123,13 @@ def attach_mesh(body: ElasticBody, blocks: list[SolidBlock] | str) -> ElasticBod
             if mismatch <= MESH_TOLERANCE:
                 note = (
                     f"element mesh: {mesh.connectivity.shape[0]} {mesh.element} elements, "
-                    f"E = {mesh.young:g}, nu = {mesh.poisson:g}; their stiffness reproduces K "
+                    f"{describe_material(mesh)}; their stiffness reproduces K "
                     f"(relative difference {mismatch:.0e})"
                 )
                 return replace(with_mesh, notes=(*body.notes, note))
             problem = (
                 f"the stiffness of its {mesh.connectivity.shape[0]} {mesh.element} elements with "
-                f"E = {mesh.young:g}, nu = {mesh.poisson:g} differs from the model's K by "
+                f"{describe_material(mesh)} differs from the model's K by "
                 f"{mismatch:.1e} (relative; at most {MESH_TOLERANCE:g} when elements, node "
                 "order and material belong to the matrices)"
             )
@@ -163,7 +172,8 @@ def stiffness_mismatch(body: ElasticBody, chunk: int = 2048, seed: int = 0) -> f
     product = np.zeros_like(fields)
     for start in range(0, connectivity.shape[0], chunk):
         eq = equations[start : start + chunk]
-        k_e = solid_stiffness(mesh.element, xyz[start : start + chunk], mesh.young, mesh.poisson)
+        young, poisson = part(mesh.young, start, chunk), part(mesh.poisson, start, chunk)
+        k_e = solid_stiffness(mesh.element, xyz[start : start + chunk], young, poisson)
         local = np.einsum("eij,ejk->eik", k_e, fields[eq])
         np.add.at(product, eq.ravel(), local.reshape(-1, 2))
     reference = sp.csr_matrix(body.stiffness) @ fields

@@ -36,7 +36,12 @@ import scipy.sparse as sp
 
 from pymorembs.body import ElasticBody
 from pymorembs.elements.beam import batch_geometric_matrices
-from pymorembs.elements.solid import SOLID_KINDS, solid_geometric_matrices, solid_stresses
+from pymorembs.elements.solid import (
+    SOLID_KINDS,
+    part,
+    solid_geometric_matrices,
+    solid_stresses,
+)
 from pymorembs.errors import UserError
 from pymorembs.io.matrix_market import read_matrix_market
 from pymorembs.io.solid_mesh import mesh_problem
@@ -117,7 +122,8 @@ def geometric_stiffness(body: ElasticBody, displacement: np.ndarray) -> sp.csr_m
         total = sp.csr_matrix((n, n))
         for start in range(0, connectivity.shape[0], _CHUNK):  # memory ~ the matrix
             eq, xyz = equations[start : start + _CHUNK], nodes[start : start + _CHUNK]
-            stresses = solid_stresses(kind, xyz, u_all[eq], mesh.young, mesh.poisson)
+            young, poisson = part(mesh.young, start, _CHUNK), part(mesh.poisson, start, _CHUNK)
+            stresses = solid_stresses(kind, xyz, u_all[eq], young, poisson)
             g = solid_geometric_matrices(kind, xyz, stresses)
             r = np.broadcast_to(eq[:, :, None, :], (*g.shape, 3))
             c = np.broadcast_to(eq[:, None, :, :], (*g.shape, 3))
