@@ -605,3 +605,52 @@ def test_elements_of_two_materials(tmp_path):
     np.testing.assert_array_equal(back.mesh.young, body.mesh.young)
     u = np.random.default_rng(2).standard_normal(body.n_dof)
     assert abs(geometric_stiffness(back, u) - geometric_stiffness(body, u)).max() == 0.0
+
+
+def test_nx_nastran_element_matrices_of_ctetra_and_chexa():
+    """The genuine NX Nastran 2412 OP2 holds each element's stiffness (KELM, packed upper
+    triangles; no KDICT to order their dofs, so spectra are compared, which no node order
+    changes). Its two CTETRA (MAT1 E = 2.9e7, G = 1.1e7, NU = 0.32) are the tet4 kinematics with
+    E and NU (3e-16; with E from G and NU: 1e-3 off); its CHEXA (8 grids) is not the plain
+    2 x 2 x 2 hexahedron (10 % off: NX's own formulation), which is why a CHEXA8 mesh is only
+    attached when its K check passes."""
+    from pymorembs.io.pynastran_compat import op2_class, quiet_logger
+
+    op2 = op2_class()(debug=False, log=quiet_logger())
+    op2.read_op2(str(Path(__file__).parent / "data" / "pynastran" / "op2_kgg_kelm"
+                     / "static_solid_shell_bar_kelm.op2"), skip_undefined_matrices=True)  # fmt: skip
+    kelm = np.asarray(op2.matrices["KELM"].data)
+
+    def spectrum(size: int, column: np.ndarray) -> np.ndarray:
+        a = np.zeros((size, size))
+        a[np.triu_indices(size)] = column[: size * (size + 1) // 2]
+        return np.linalg.eigvalsh(a + np.triu(a, 1).T)
+
+    def closest(ours: np.ndarray) -> float:
+        size = ours.shape[0]
+        theirs = [spectrum(size, kelm[:, j]) for j in range(kelm.shape[1])]
+        ref = np.linalg.eigvalsh(ours)
+        return min(np.abs(t - ref).max() / ref.max() for t in theirs)
+
+    xyz = {
+        1: (0, 0, 0),
+        2: (1, 0, 0),
+        3: (1, 1, 0),
+        4: (0, 1, 0),
+        5: (1, 1, 1),
+        6: (0, 1, 1),
+        7: (0, 0, 1),
+        8: (1, 0, 1),
+        9: (1, 1, 2),
+        10: (0, 1, 2),
+        11: (1, 0, 2),
+        12: (0, 0, 2),
+        13: (0.5, 0.5, 3),
+    }  # fmt: skip  (the GRID cards of geom.inc / the .bdf)
+    for grids in ([10, 11, 9, 13], [10, 12, 11, 13]):  # CTETRA 4 and 5
+        nodes = np.array([xyz[g] for g in grids], dtype=float)
+        nodes = nodes[[0, 2, 1, 3]] if np.linalg.det(nodes[1:] - nodes[0]) < 0 else nodes
+        assert closest(solid_stiffness("tet4", nodes[None], 2.9e7, 0.32)[0]) < 1e-14
+        assert closest(solid_stiffness("tet4", nodes[None], 2 * 1.1e7 * 1.32, 0.32)[0]) > 1e-4
+    hexa = np.array([xyz[g] for g in (2, 3, 4, 1, 8, 5, 6, 7)], dtype=float)  # CHEXA 1
+    assert closest(solid_stiffness("hex8", hexa[None], 2.9e7, 0.32)[0]) > 0.05
