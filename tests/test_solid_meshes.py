@@ -617,8 +617,8 @@ def test_nx_nastran_element_matrices_of_ctetra_and_chexa():
     from pymorembs.io.pynastran_compat import op2_class, quiet_logger
 
     op2 = op2_class()(debug=False, log=quiet_logger())
-    op2.read_op2(str(Path(__file__).parent / "data" / "pynastran" / "op2_kgg_kelm"
-                     / "static_solid_shell_bar_kelm.op2"), skip_undefined_matrices=True)  # fmt: skip
+    folder = Path(__file__).parent / "data" / "pynastran" / "op2_kgg_kelm"
+    op2.read_op2(str(folder / "static_solid_shell_bar_kelm.op2"), skip_undefined_matrices=True)
     kelm = np.asarray(op2.matrices["KELM"].data)
 
     def spectrum(size: int, column: np.ndarray) -> np.ndarray:
