@@ -222,11 +222,19 @@ class ElementBlock:
 
     def node_labels(self, scopes: tuple[Scope, ...]) -> tuple[np.ndarray, np.ndarray]:
         """Scope index and label of every node reference, flat arrays of equal length."""
-        return _parse_elements(self, scopes)[1:]
+        return self._parsed(scopes)[1:]
 
     def element_labels(self, scopes: tuple[Scope, ...]) -> np.ndarray:
         """The label of every element of the block, in the order of :meth:`node_labels`."""
-        return _parse_elements(self, scopes)[0]
+        return self._parsed(scopes)[0]
+
+    def _parsed(self, scopes: tuple[Scope, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The parsed block, kept after the first call (the dof table and the mesh use it)."""
+        parsed = self.__dict__.get("_parsed_table")
+        if parsed is None:
+            parsed = _parse_elements(self, scopes)
+            object.__setattr__(self, "_parsed_table", parsed)
+        return parsed
 
 
 @dataclass(frozen=True, eq=False)
@@ -1190,6 +1198,8 @@ def solid_blocks(model: InpModel) -> list[SolidBlock] | str:
     for block in solid:
         kind = ABAQUS_SOLID_TYPES[block.type]
         labels = block.element_labels(model.scopes)
+        if not labels.size:
+            continue
         scope, node_labels = block.node_labels(model.scopes)
         index = model.index_of(scope, node_labels)
         if np.any(index < 0):
