@@ -27,9 +27,9 @@ from threadpoolctl import threadpool_limits
 
 from abaqus_models import genuine, read_coordinate_file
 from pymorembs.cli import main
-from pymorembs.elements.hex20 import assemble_hex20_geometric
 from pymorembs.elements.solid import (
     SOLID_KINDS,
+    assemble_solid_geometric,
     assemble_solid_stiffness,
     solid_geometric_matrices,
     solid_stiffness,
@@ -269,7 +269,7 @@ def full_rotating_hz(elements: int, omega: float) -> np.ndarray:
     load = m @ np.column_stack([x, y, 0 * x]).ravel()
     u = np.zeros(body.n_dof)
     u[free] = spla.spsolve(k[free][:, free].tocsc(), load[free])
-    k_g = assemble_hex20_geometric(mesh.coordinates, mesh.elements, u, 2.1e11, 0.3)
+    k_g = assemble_solid_geometric("hex20", mesh.coordinates, mesh.elements, u, 2.1e11, 0.3)
     in_plane = sp.diags(np.tile([1.0, 1.0, 0.0], body.n_nodes))
     a = (k + omega**2 * (k_g - in_plane @ m @ in_plane))[free][:, free]
     values = spla.eigsh(a.tocsc(), k=3, M=m[free][:, free].tocsc(), sigma=0.0)[0]

@@ -43,6 +43,7 @@ from pymorembs.errors import UserError
 __all__ = [
     "SOLID_KINDS",
     "SolidKind",
+    "assemble_solid_geometric",
     "assemble_solid_stiffness",
     "part",
     "solid_geometric_matrices",
@@ -330,6 +331,61 @@ def assemble_solid_stiffness(
         rows.append(np.broadcast_to(dofs[:, :, None], k_e.shape).ravel())
         cols.append(np.broadcast_to(dofs[:, None, :], k_e.shape).ravel())
         values.append(k_e.ravel())
+    if not rows:
+        return sp.csr_matrix((n, n))
+    return sp.csr_matrix(
+        (np.concatenate(values), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n)
+    )
+
+
+def assemble_solid_geometric(
+    kind: str,
+    coordinates: np.ndarray,
+    elements: np.ndarray,
+    displacement: np.ndarray,
+    young: float | np.ndarray,
+    poisson: float | np.ndarray,
+    chunk: int = 2048,
+) -> sp.csr_matrix:
+    """Global geometric stiffness ``K_G`` of a mesh of one kind under a displacement field.
+
+    The stresses of the linear displacement field (its prestress, :func:`solid_stresses`) give
+    the initial-stress matrix of every element (:func:`solid_geometric_matrices`), the same in
+    each direction. A tensile prestress makes ``K_G`` positive semidefinite: it stiffens
+    transverse motion (a rotating blade, a string under tension).
+
+    Parameters
+    ----------
+    kind : str
+    coordinates : ndarray, shape (n_nodes, 3)
+    elements : ndarray of int, shape (n_el, n)
+        Rows of ``coordinates`` of each element's nodes.
+    displacement : ndarray, shape (3 n_nodes,)
+        Equation ``3 r + i`` = direction ``i`` of the node in row ``r`` (length unit).
+    young, poisson : float or ndarray, shape (n_el,)
+        The material of the prestressed state.
+    chunk : int
+        Elements per batch.
+
+    Returns
+    -------
+    scipy.sparse.csr_matrix, shape (3 n_nodes, 3 n_nodes)
+    """
+    n = 3 * coordinates.shape[0]
+    u = np.asarray(displacement, dtype=float).reshape(-1, 3)
+    elements = np.asarray(elements, dtype=np.int64)
+    rows, cols, values = [], [], []
+    for start in range(0, elements.shape[0], chunk):
+        conn = elements[start : start + chunk]
+        nodes = coordinates[conn]
+        stresses = solid_stresses(
+            kind, nodes, u[conn], part(young, start, chunk), part(poisson, start, chunk)
+        )
+        g = solid_geometric_matrices(kind, nodes, stresses)[..., None]  # (n_el, n, n, 1)
+        shape = (*g.shape[:3], 3)
+        rows.append(np.broadcast_to(3 * conn[:, :, None, None] + np.arange(3), shape).ravel())
+        cols.append(np.broadcast_to(3 * conn[:, None, :, None] + np.arange(3), shape).ravel())
+        values.append(np.broadcast_to(g, shape).ravel())
     if not rows:
         return sp.csr_matrix((n, n))
     return sp.csr_matrix(
