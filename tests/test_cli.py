@@ -577,3 +577,48 @@ def test_a_misspelled_key_in_every_table_is_named_with_a_suggestion(line, where,
     message = str(info.value)
     assert message.startswith(f"{path}: {where}")
     assert f"'{typo}'" in message and f"'{key}'" in message
+
+
+def test_help_says_what_the_tool_does_and_where_the_job_format_is(capsys):
+    """Issue #16 day-one: no raw markup, what the tool does, the job format, the variants."""
+    for argv, expected in (
+        (["--help"], ["finite-element model of an elastic body", "exit codes", "docs/jobs.md"]),
+        (["reduce", "--help"], ["docs/jobs.md", "[[reduction]]"]),
+        (["example", "--help"], ["rigid", "distributing", "springs", "blade"]),
+    ):
+        with pytest.raises(SystemExit) as stop:
+            main(argv)
+        assert stop.value.code == 0
+        text = " ".join(capsys.readouterr().out.split())
+        assert "``" not in text
+        for phrase in expected:
+            assert phrase in text, (argv, phrase)
+
+
+def test_a_job_parsed_from_a_dictionary_runs_without_a_job_file(tmp_path):
+    """Issue #16: run_job on parse_job(dict, path) with no file at path hashed no file."""
+    import tomllib
+
+    from pymorembs.config import parse_job
+    from pymorembs.pipeline import run_job
+
+    text = """
+[model]
+example = "rack-beams"
+[frame]
+type = "tangent"
+node = 2
+[[inputs]]
+node = 1
+directions = "ux"
+[band]
+f_max_hz = 500
+points = 200
+[[reduction]]
+method = "modal"
+order = 6
+"""
+    job = parse_job(tomllib.loads(text), tmp_path / "never-written.toml")
+    summary = run_job(job, tmp_path / "out")
+    assert summary["reductions"][0]["order"] == 6
+    assert str(tmp_path / "never-written.toml") not in summary["provenance"]["inputs"]

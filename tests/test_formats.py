@@ -13,9 +13,10 @@ import scipy.sparse as sp
 
 from pymorembs.body import DofTable, ElasticBody
 from pymorembs.errors import UserError
-from pymorembs.io.formats import FORMATS, assemble_symmetric, detect_format, read_body
+from pymorembs.io.formats import FORMATS, detect_format, read_body
 from pymorembs.io.matrix_market import write_matrix_files, write_matrix_market
 from pymorembs.io.native import write_body_h5
+from pymorembs.io.reader_support import assemble_symmetric
 
 ABAQUS_K = "1,1, 1,1, 4.0\n1,2, 1,1, 1.0D+00\n1,2, 1,2, 3.0\n"
 ABAQUS_M = "1,1, 1,1, 2.0\n1,2, 1,2, 2.0\n"

@@ -319,8 +319,8 @@ def independent_rigid_body_data(body):
 
 
 CASES = {
-    "beams-tangent": ("rack-beams", {}, Frame("tangent", 2), "translational"),
-    "beams-buckens": ("rack-beams", {}, Frame("buckens"), "translational"),
+    "beams-tangent": ("rack-beams", {}, Frame("tangent", 2), "exact"),
+    "beams-buckens": ("rack-beams", {}, Frame("buckens"), "exact"),
     "solid-tangent": ("rack-solid", {"dofs": 7400, "interface": "rigid"}, Frame("tangent", 2),
                       "exact"),
     "solid-buckens": ("rack-solid", {"dofs": 7400, "interface": "rigid"}, Frame("buckens"),

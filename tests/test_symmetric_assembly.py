@@ -1,7 +1,8 @@
 """The fast symmetric assembly of triangle files against the general one, entry for entry.
 
 :func:`pymorembs.io.symmetric_assembly.assemble_symmetric_triangle` must return exactly the
-matrix of :func:`pymorembs.io.formats.assemble_symmetric` (pattern and values bit for bit), or
+matrix of :func:`pymorembs.io.reader_support.assemble_symmetric` (pattern and values bit for bit),
+or
 None wherever that function raises or the layout is not one it handles; here on random small
 matrices in every layout the Abaqus files use (sorted lower or upper triangle, both triangles
 with each mirror on the next line, one triangle in another equation order), with and without
@@ -18,7 +19,7 @@ import scipy.sparse as sp
 
 import pymorembs.io.symmetric_assembly as assembly
 from pymorembs.errors import UserError
-from pymorembs.io.formats import assemble_symmetric
+from pymorembs.io.reader_support import assemble_symmetric
 from pymorembs.io.symmetric_assembly import assemble_symmetric_triangle
 
 TOLERANCE = 1e-10

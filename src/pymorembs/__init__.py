@@ -2,23 +2,48 @@
 
 The reduction process follows Fig. 1 and Fig. 8 of ``paper.md``::
 
-    ElasticBody --prepare--> SecondOrderSystem --reduce--> Projection --> reduced body
-"""
+    read / example --> ElasticBody --prepare--> PreparedModel --reduce--> ReducedBody
+        --> .error(band) / .to_sid() / .to_exudyn() / .to_neweul() / .to_matrices()
 
-from pymorembs.body import ConstraintEquations, Damping, DofTable, ElasticBody
-from pymorembs.errors import NumericalError, PymorembsError, UserError
-from pymorembs.system import SecondOrderSystem
+Everything a script needs is here (:mod:`pymorembs.api`); the command line and job files are a
+layer on it.
+"""
 
 __version__ = "0.1.0"
 
+from pymorembs.analysis.time_domain import LoadCase, TimeResponse
+from pymorembs.api import ErrorCurve, ReducedBody, example, facts, prepare, read, reduce
+from pymorembs.body import ConstraintEquations, Damping, DofTable, ElasticBody
+from pymorembs.errors import NumericalError, PymorembsError, UserError
+from pymorembs.methods import METHODS, method_options
+from pymorembs.prepare import Frame, Port, PreparedModel
+from pymorembs.prepare.interface import InterfaceSpec, select_nodes
+from pymorembs.system import SecondOrderSystem
+
 __all__ = [
+    "METHODS",
     "ConstraintEquations",
     "Damping",
     "DofTable",
     "ElasticBody",
+    "ErrorCurve",
+    "Frame",
+    "InterfaceSpec",
+    "LoadCase",
     "NumericalError",
+    "Port",
+    "PreparedModel",
     "PymorembsError",
+    "ReducedBody",
     "SecondOrderSystem",
+    "TimeResponse",
     "UserError",
     "__version__",
+    "example",
+    "facts",
+    "method_options",
+    "prepare",
+    "read",
+    "reduce",
+    "select_nodes",
 ]

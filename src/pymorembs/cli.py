@@ -1,4 +1,4 @@
-"""Command line: ``pymorembs example | info | reduce``.
+"""Command line of pymorembs: ``pymorembs example | info | reduce``.
 
 Exit codes: 0 success; 2 a user mistake (one line on stderr naming the file or key and the
 problem); 3 a numerical failure on valid input (one line with the cause); 1 a bug (traceback).
@@ -21,11 +21,12 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from pymorembs import __version__, progress
-from pymorembs.analysis.spectrum import model_spectrum
+from pymorembs.analysis.spectrum import model_facts
 from pymorembs.body import ElasticBody
 from pymorembs.config import MODEL_FORMATS, load_job
 from pymorembs.errors import PymorembsError, UserError
 from pymorembs.examples import EXAMPLES, build_example
+from pymorembs.examples.rack_solid import INTERFACES
 from pymorembs.io.formats import read_body
 from pymorembs.io.matrix_market import write_matrix_files
 from pymorembs.io.native import write_body_h5
@@ -44,16 +45,52 @@ class _Parser(argparse.ArgumentParser):
         raise SystemExit(2)
 
 
+#: What ``pymorembs --help`` says the tool does.
+DESCRIPTION = """\
+Reduce the finite-element model of an elastic body (matrices from Ansys, Abaqus,
+Nastran, MATLAB or plain files) to a small, accurate body for flexible multibody
+simulation: modal, Krylov and Gramian methods with a measured error, exported as
+SID (Simpack), Neweul-M2 data, an Exudyn body and reduced matrices."""
+#: The epilog of ``pymorembs --help``: the usual sequence and the exit codes.
+EPILOG = """\
+a first session:
+  pymorembs example rack-beams --out model     write a built-in model
+  pymorembs info model/model.h5                what was read: dofs, units, modes
+  pymorembs reduce job.toml --out out/job      reduce as the job file says
+
+exit codes: 0 success, 2 a user mistake (one line naming the file or key),
+3 a numerical failure on valid input, 1 a bug (traceback).
+The job file format: docs/jobs.md (and the examples/*.toml files)."""
+JOB_HELP = (
+    "Run reduction jobs. A job is a TOML file: [model] (a file or a built-in example), "
+    "[frame], [[inputs]]/[[outputs]], [band], one [[reduction]] per method, [export]; "
+    "see docs/jobs.md and examples/*.toml."
+)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="pymorembs", description=__doc__.splitlines()[0])
+    parser = _Parser(
+        prog="pymorembs",
+        description=DESCRIPTION,
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     parser.add_argument("--version", action="version", version=f"pymorembs {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
-    ex = sub.add_parser("example", help="write a built-in example model")
+    ex = sub.add_parser(
+        "example",
+        help="write a built-in example model",
+        description="Write a built-in example model (native .h5 and Matrix Market files).",
+    )
     ex.add_argument("name", help=f"example name: {', '.join(EXAMPLES)}")
     ex.add_argument("--out", required=True, type=Path, help="output folder")
     ex.add_argument("--dofs", type=int, help="rack-solid: about this many dofs (35000)")
-    ex.add_argument("--interface", help="rack-solid: interface variant of node 2")
+    ex.add_argument(
+        "--interface",
+        help=f"rack-solid: coupling of the interface node 2 to its hole, one of "
+        f"{', '.join(INTERFACES)} (default light-beams)",
+    )
     ex.add_argument("--hub-radius", type=float, help="blade: root distance from the axis (m)")
     ex.add_argument("--elements", type=int, help="blade: elements along the length (40)")
 
@@ -82,7 +119,7 @@ def build_parser() -> argparse.ArgumentParser:
     info.add_argument("--modes", type=int, default=10, help="number of elastic eigenfrequencies")
     info.add_argument("--json", action="store_true", help="print JSON")
 
-    red = sub.add_parser("reduce", help="run reduction jobs (TOML)")
+    red = sub.add_parser("reduce", help="run reduction jobs (TOML)", description=JOB_HELP)
     red.add_argument("job", type=Path, nargs="+", help="job file(s)")
     red.add_argument(
         "--out", type=Path, help="output folder of a single job (default: out/<job name>)"
@@ -209,51 +246,6 @@ def _prepared_for_info(args: argparse.Namespace) -> tuple[ElasticBody, PreparedM
     body = read_body(args.format, **files, **given)
     validate_body(body)
     return body, prepare(body, Frame("none"), allow_rigid_body_modes=True)
-
-
-def model_facts(body: ElasticBody, prepared: PreparedModel, modes: int) -> dict[str, Any]:
-    """Sizes, mass, massless dofs, rigid-body modes and the lowest elastic eigenfrequencies (Hz).
-
-    The eigen-analysis is :func:`pymorembs.analysis.spectrum.model_spectrum`: massless
-    directions condensed exactly, rigid-body modes decided by the spectrum within the rounding
-    bound of the file's entries and, with coordinates, by geometry.
-    """
-    spectrum = model_spectrum(body, prepared, modes)
-    rigid = spectrum.rigid
-    frequencies = spectrum.frequencies_hz
-    bounds = np.concatenate([np.zeros(rigid.count + rigid.mechanisms), spectrum.elastic_bound_hz])
-    facts: dict[str, Any] = {
-        "name": body.name,
-        "n_dof": prepared.body.n_dof,
-        "n_nodes": prepared.body.n_nodes,
-        "n_dependent": int(prepared.elimination.dependent.size),
-        "n_fixed": int(prepared.elimination.fixed.size),
-        "n_independent": prepared.system.order,
-        "n_massless": spectrum.massless.n_massless,
-        "massless": {
-            "directions": spectrum.massless.n_massless,
-            "dofs_without_mass": int(spectrum.massless.zero_rows.size),
-            "directions_in_mass_blocks": spectrum.massless.n_block_null,
-        },
-        "dof_table": body.dofs.describe(),
-        "has_coordinates": bool(body.has_coordinates),
-        "notes": list(body.notes),
-        "total_mass": body.total_mass(),
-        "rigid_body_modes": rigid.count,
-        "rigid_body_motions": list(rigid.labels),
-        "mechanisms": rigid.mechanisms,
-        "rigid_body_decision": {
-            "decided_by": rigid.decided_by,
-            "explanation": rigid.explanation,
-            "computed_hz": rigid.computed_hz.tolist(),
-        },
-        "rounding": spectrum.rounding,
-        "eigenfrequencies_hz": frequencies.tolist(),
-        "eigenfrequency_bounds_hz": bounds.tolist(),
-    }
-    if spectrum.fixed_interface_hz is not None:
-        facts["fixed_interface_hz"] = spectrum.fixed_interface_hz.tolist()
-    return facts
 
 
 def _info(args: argparse.Namespace) -> int:

@@ -8,6 +8,7 @@ README for the full list.
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import math
 import re
@@ -17,31 +18,12 @@ from pathlib import Path
 from typing import Any
 
 from pymorembs.analysis.large_motion import LARGE_MOTION_CASES, LargeMotionSettings
+from pymorembs.analysis.reference import DEFAULT_CHECKS, REFERENCE_KINDS
 from pymorembs.body import Damping
 from pymorembs.errors import UserError
 from pymorembs.io.formats import FORMATS
+from pymorembs.methods import METHODS, OptionError, ReductionOptions, method_options
 from pymorembs.prepare import INERTIA_LOAD_CASES, Frame, Port
-
-#: Options each method accepts besides ``name``, ``method`` and ``order``.
-METHOD_OPTIONS: dict[str, tuple[str, ...]] = {
-    "modal": ("shift_hz", "select", "candidates", "frm_hz"),
-    "craig-bampton": ("fixed_modes", "shift_hz"),
-    "krylov": ("expansion_points_hz", "moments", "tol", "two_sided"),
-    "soaga": ("candidates_hz", "n_candidates", "tolerance", "tol"),
-    "gramian": (
-        "tolerance",
-        "first_stage",
-        "first_order",
-        "first_tolerance",
-        "expansion_points_hz",
-        "moments",
-    ),
-    "pod": ("tolerance", "snapshots"),
-}
-
-#: Options every method accepts: ``max_frequency_hz`` removes the reduced model's directions
-#: above it (:func:`~pymorembs.reduce.projection.without_stiff_directions`).
-COMMON_OPTIONS: tuple[str, ...] = ("max_frequency_hz",)
 
 MODEL_FILE_KEYS = (
     "file", "stiffness", "mass", "damping", "dofs", "nodes", "constraints", "fixed", "mapping",
@@ -54,11 +36,6 @@ EXPORT_KINDS = ("npz", "mtx", "mat", "sid", "neweul", "exudyn", "report")
 DEFAULT_EXPORTS = ("npz", "mtx")
 #: Exports of a body for a multibody code: inertia loads are inputs by default for these.
 MULTIBODY_EXPORTS = ("sid", "neweul", "exudyn")
-#: ``[band] reference``: what the error of eq. 27 is measured against
-#: (:mod:`pymorembs.analysis.reference`).
-REFERENCE_KINDS = ("auto", "full", "surrogate")
-#: ``[band] check_points``: checks of a reference model against the full model.
-DEFAULT_CHECKS = 4
 _NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$")
 #: Files of the job folder a reduction (a sub-folder of that name) must not shadow.
 RESERVED_NAMES = frozenset(("summary.json", "error.png", "decay.png", "time.png", "report.html"))
@@ -96,12 +73,24 @@ class InterfaceNodeSpec:
 
 @dataclass(frozen=True)
 class ReductionSpec:
-    """One reduction of a job: a unique name, a method, an order and method options."""
+    """One reduction of a job: a unique name, a method, an order and method options.
+
+    ``options`` are the ``[[reduction]]`` keys besides ``name``, ``method`` and ``order``
+    (:mod:`pymorembs.methods` lists them per method).
+    """
 
     name: str
     method: str
     order: int | None
     options: dict[str, Any]
+
+    @property
+    def settings(self) -> ReductionOptions:
+        """The checked options object of the method (:func:`~pymorembs.methods.method_options`)."""
+        values = dict(self.options)
+        if self.order is not None:
+            values["order"] = self.order
+        return method_options(self.method, values)
 
 
 @dataclass(frozen=True)
@@ -693,12 +682,12 @@ def _reductions(data: Any, path: Path) -> tuple[ReductionSpec, ...]:
     for k, item in enumerate(data, start=1):
         table = _Table(item, f"[[reduction]] #{k}", path)
         method = table.string("method", required=True)
-        if method not in METHOD_OPTIONS:
-            hint = difflib.get_close_matches(method, list(METHOD_OPTIONS), n=1)
+        if method not in METHODS:
+            hint = difflib.get_close_matches(method, list(METHODS), n=1)
             more = f"; did you mean '{hint[0]}'?" if hint else ""
             raise table.error(
                 "method",
-                f"unknown method {method!r}{more} (available: {', '.join(METHOD_OPTIONS)})",
+                f"unknown method {method!r}{more} (available: {', '.join(METHODS)})",
             )
         name = table.string("name", method)
         if not _NAME_PATTERN.match(name):
@@ -710,106 +699,20 @@ def _reductions(data: Any, path: Path) -> tuple[ReductionSpec, ...]:
                 "name", f"{name!r} is the name of a file of the job's output folder; choose another"
             )
         order = table.integer("order")
-        known = METHOD_OPTIONS[method] + COMMON_OPTIONS
+        if method == "craig-bampton" and order is not None:
+            raise table.error("order", "is set by the inputs (boundary dofs) and 'fixed_modes'")
+        known = tuple(f.name for f in dataclasses.fields(METHODS[method]) if f.name != "order")
         options = {key: table.get(key) for key in known if key in table.data}
         table.done(known)
-        _check_options(table, method, order, options)
-        limit = table.number("max_frequency_hz")
-        if limit is not None and not limit > 0:
-            raise table.error("max_frequency_hz", f"must be a frequency > 0 (Hz), got {limit!r}")
-        specs.append(ReductionSpec(name, method, order, options))
+        try:
+            settings = method_options(
+                method, {**options, **({} if order is None else {"order": order})}
+            )
+        except OptionError as exc:
+            if exc.key is None:
+                raise UserError(f"{table.path}: {table.where}: {exc.problem}") from None
+            raise table.error(exc.key, exc.problem) from None
+        checked = {key: getattr(settings, key) for key in options}
+        checked = {k: list(v) if isinstance(v, tuple) else v for k, v in checked.items()}
+        specs.append(ReductionSpec(name, method, order, checked))
     return tuple(specs)
-
-
-def _check_options(table: _Table, method: str, order: int | None, options: dict[str, Any]) -> None:
-    if method == "modal":
-        if order is None:
-            raise UserError(f"{table.path}: {table.where}: modal reduction needs 'order'")
-        table.number("shift_hz", 1.0, minimum=0.0)
-        select = table.string("select", "lowest")
-        if select not in ("lowest", "best"):
-            raise table.error("select", f"must be 'lowest' or 'best' (eq. 26), got {select!r}")
-        candidates = table.integer("candidates")
-        if candidates is not None and candidates <= order:
-            raise table.error("candidates", f"must exceed the order {order}, got {candidates}")
-        if "frm_hz" in options:
-            _frequencies(table, options, "frm_hz")
-    elif method == "craig-bampton":
-        if order is not None:
-            raise table.error("order", "is set by the inputs (boundary dofs) and 'fixed_modes'")
-        table.integer("fixed_modes", required=True, minimum=0)
-        table.number("shift_hz", 1.0, minimum=0.0)
-    elif method == "krylov":
-        table.get("expansion_points_hz", required=True)
-        points = _frequencies(table, options, "expansion_points_hz")
-        moments = options.get("moments")
-        if moments is None and order is None:
-            raise UserError(f"{table.path}: {table.where}: krylov needs 'moments' or 'order'")
-        if moments is not None:
-            values = moments if isinstance(moments, list) else [moments]
-            if not all(isinstance(m, int) and not isinstance(m, bool) and m >= 1 for m in values):
-                raise table.error("moments", f"must be whole numbers >= 1, got {moments!r}")
-            if isinstance(moments, list) and len(moments) != len(points):
-                raise table.error(
-                    "moments", f"{len(moments)} values for {len(points)} expansion points"
-                )
-        two_sided = table.get("two_sided", False)
-        if not isinstance(two_sided, bool):
-            raise table.error("two_sided", f"must be true or false, got {two_sided!r}")
-    elif method == "soaga":
-        if "candidates_hz" in options:
-            _frequencies(table, options, "candidates_hz")
-        table.integer("n_candidates", minimum=1)
-        tolerance = table.number("tolerance")
-        if tolerance is not None and not 0 < tolerance < 1:
-            raise table.error("tolerance", f"must lie in (0, 1) (relative error), got {tolerance}")
-        if order is None and tolerance is None:
-            raise UserError(
-                f"{table.path}: {table.where}: soaga needs 'order' (the largest "
-                "order) or 'tolerance' (estimated max relative error), or both"
-            )
-    elif method in ("gramian", "pod"):
-        tolerance = table.number("tolerance")
-        if tolerance is not None and not 0 < tolerance < 1:
-            raise table.error(
-                "tolerance", f"must lie in (0, 1) (sigma_n+1 / sigma_1), got {tolerance}"
-            )
-        if order is None and tolerance is None:
-            raise UserError(
-                f"{table.path}: {table.where}: {method} needs 'order' or "
-                "'tolerance' (the indicator sigma_n+1 / sigma_1), or both"
-            )
-        table.integer("snapshots", minimum=4)
-        stage = table.string("first_stage")
-        if stage is not None and stage not in ("soaga", "krylov", "rational-krylov", "none"):
-            raise table.error(
-                "first_stage",
-                f"must be 'soaga', 'krylov', 'rational-krylov' or 'none', got {stage!r}",
-            )
-        table.integer("first_order", minimum=1)
-        table.number("first_tolerance", minimum=0.0)
-        if stage == "krylov":
-            table.get("expansion_points_hz", required=True)
-            _frequencies(table, options, "expansion_points_hz")
-    if method in ("krylov", "soaga"):
-        tol = table.number("tol", 1e-10, minimum=1e-15)
-        if tol > 1e-3:
-            raise table.error("tol", f"must be at most 1e-3 (a deflation tolerance), got {tol!r}")
-
-
-def _frequencies(table: _Table, options: dict[str, Any], key: str) -> list[float]:
-    """A list of frequencies >= 0 in Hz (a single number is a list of one), stored back."""
-    points = options[key]
-    if isinstance(points, int | float) and not isinstance(points, bool):
-        points = [points]
-    if (
-        not isinstance(points, list)
-        or not points
-        or not all(
-            isinstance(p, int | float) and not isinstance(p, bool) and 0 <= p < math.inf
-            for p in points
-        )
-    ):
-        raise table.error(key, f"must be a list of finite frequencies >= 0 in Hz, got {points!r}")
-    options[key] = [float(p) for p in points]
-    return options[key]

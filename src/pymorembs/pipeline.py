@@ -15,7 +15,6 @@ import shutil
 import tempfile
 import time
 from collections.abc import Callable
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -23,7 +22,7 @@ import numpy as np
 import scipy
 
 from pymorembs import __version__
-from pymorembs.analysis.error import frequency_grid, relative_error
+from pymorembs.analysis.error import error_blocks, frequency_grid, relative_error
 from pymorembs.analysis.large_motion import large_motion_checks
 from pymorembs.analysis.reference import ReferenceResponse, choose_kind, reference_response
 from pymorembs.analysis.time_domain import clamped_full_system
@@ -38,7 +37,6 @@ from pymorembs.io.atomic import atomic_path, write_text
 from pymorembs.io.formats import read_body
 from pymorembs.linalg.mass_split import mass_split
 from pymorembs.prepare import PreparedModel, prepare, with_inertia_loads
-from pymorembs.prepare.inertia_loads import is_inertia_label
 from pymorembs.prepare.interface import InterfaceSpec, add_interface_node, select_nodes
 from pymorembs.prepare.stiffening import (
     stiffening_from_matrices,
@@ -47,15 +45,6 @@ from pymorembs.prepare.stiffening import (
 )
 from pymorembs.prepare.validation import ValidationReport, validate_body, validate_prepared
 from pymorembs.progress import Progress as ProgressBar
-from pymorembs.reduce.gramian import gramian_reduction, pod_reduction
-from pymorembs.reduce.krylov import krylov_reduction
-from pymorembs.reduce.modal import modal_reduction
-from pymorembs.reduce.modal_family import (
-    best_modes,
-    boundary_dofs_of_inputs,
-    craig_bampton,
-    modes_with_frm,
-)
 from pymorembs.reduce.projection import (
     Projection,
     ReducedModel,
@@ -63,8 +52,6 @@ from pymorembs.reduce.projection import (
     reduced_model,
     without_stiff_directions,
 )
-from pymorembs.reduce.rational_gramian import rational_gramian_reduction
-from pymorembs.reduce.soaga import soaga_reduction
 from pymorembs.report.html_report import write_report
 from pymorembs.report.plots import plot_decay, plot_relative_errors
 from pymorembs.system import SecondOrderSystem
@@ -162,85 +149,7 @@ def run_reduction(
     system: SecondOrderSystem, spec: ReductionSpec, band_hz: tuple[float, float]
 ) -> Projection:
     """Run one reduction method on a prepared system (band in Hz for the band-aware methods)."""
-    options = spec.options
-    if spec.method == "modal":
-        shift = options.get("shift_hz", 1.0)
-        select = options.get("select", "lowest")
-        if "frm_hz" in options:  # eigenmodes + frequency-response modes
-            return modes_with_frm(
-                system,
-                spec.order,
-                options["frm_hz"],
-                modes=select,
-                candidates=options.get("candidates"),
-                shift_hz=shift,
-            )
-        if select == "best":  # the modes with the largest approximate HSVs (eq. 26)
-            return best_modes(
-                system, spec.order, candidates=options.get("candidates"), shift_hz=shift
-            )
-        return modal_reduction(system, spec.order, shift_hz=shift)
-    if spec.method == "craig-bampton":
-        # the interface: the dofs of the port forces; inertia loads add static load modes
-        inertia = np.array([is_inertia_label(label) for label in system.input_labels], dtype=bool)
-        ports = replace(system, input_matrix=system.input_matrix[:, ~inertia])
-        return craig_bampton(
-            system,
-            boundary_dofs_of_inputs(ports),
-            options["fixed_modes"],
-            shift_hz=options.get("shift_hz", 1.0),
-            static_loads=system.input_matrix[:, inertia] if inertia.any() else None,
-        )
-    if spec.method == "krylov":
-        return krylov_reduction(
-            system,
-            options["expansion_points_hz"],
-            moments=options.get("moments"),
-            order=spec.order,
-            tol=options.get("tol", 1e-10),
-            two_sided=options.get("two_sided", False),
-        )
-    if spec.method == "gramian":
-        if options.get("first_stage") == "rational-krylov":
-            # the Gramians of the large model directly (issue #6), no medium model
-            extra = {"max_dim": options["first_order"]} if "first_order" in options else {}
-            return rational_gramian_reduction(
-                system,
-                band_hz,
-                order=spec.order,
-                tolerance=options.get("tolerance"),
-                tol=options.get("first_tolerance"),
-                **extra,
-            )
-        medium = _first_stage(system, options, band_hz)
-        order = spec.order
-        if medium is not None and order is not None and order > medium.order:
-            order = medium.order  # the two-step model cannot exceed its medium model
-        projection = gramian_reduction(
-            system, band_hz, order=order, tolerance=options.get("tolerance"), medium=medium
-        )
-        if order != spec.order:
-            projection.parameters["order_capped_by_first_stage"] = medium.order
-        return projection
-    if spec.method == "pod":
-        return pod_reduction(
-            system,
-            band_hz,
-            order=spec.order,
-            tolerance=options.get("tolerance"),
-            n_snapshots=options.get("snapshots", 40),
-        )
-    if spec.method == "soaga":
-        extra = {k: options[k] for k in ("candidates_hz", "n_candidates") if k in options}
-        return soaga_reduction(
-            system,
-            band_hz,
-            tolerance=options.get("tolerance"),
-            max_order=spec.order,
-            tol=options.get("tol", 1e-10),
-            **extra,
-        )
-    raise UserError(f"unknown method {spec.method!r}")  # config rejects it earlier
+    return spec.settings.reduce(system, band_hz)
 
 
 #: A reduction whose error under the inertia loads exceeds this and ...
@@ -248,37 +157,6 @@ INERTIA_WARNING = 1e-2
 #: ... this many times its error over the ports gets a warning: it misses a direction the frame
 #: motion excites.
 INERTIA_RATIO = 100.0
-
-#: Largest sparse model whose Gramians are computed directly (beyond: two-step).
-DIRECT_GRAMIAN_LIMIT = 2000
-
-
-def _first_stage(
-    system: SecondOrderSystem, options: dict[str, Any], band_hz: tuple[float, float]
-) -> Projection | None:
-    """The medium model of the two-step Gramian reduction (paper section 3.2), or None.
-
-    Default: SOAGA to order 132 (the paper's medium size) for models too large for dense
-    Gramians, none otherwise.
-    """
-    stage = options.get("first_stage")
-    if stage is None:
-        stage = "soaga" if system.order > DIRECT_GRAMIAN_LIMIT else "none"
-    if stage == "none":
-        return None
-    if stage == "soaga":
-        return soaga_reduction(
-            system,
-            band_hz,
-            max_order=options.get("first_order", 132),
-            tolerance=options.get("first_tolerance", 1e-10),
-        )
-    return krylov_reduction(
-        system,
-        options["expansion_points_hz"],
-        moments=options.get("moments"),
-        order=options.get("first_order"),
-    )
 
 
 def export_nodes(job: Job) -> list[int]:
@@ -712,7 +590,7 @@ def _reduce_one(
     system = prepared.reduction_system
     projection = run_reduction(system, spec, band_hz)
     model = reduced_model(system, projection)  # checked before writing
-    limit = spec.options.get("max_frequency_hz")
+    limit = spec.settings.max_frequency_hz
     if limit is not None and model.eigenfrequencies_hz.max() > limit:
         before = transfer_function(model.system, reference.frequencies_hz)
         model = without_stiff_directions(system, model, limit)
@@ -779,20 +657,6 @@ def _inertia_summary(prepared: PreparedModel) -> dict[str, Any] | None:
         "scales": loads.scales.tolist(),
         "scaling": "each load's static compliance equals the median of the port forces'",
     }
-
-
-def error_blocks(system: SecondOrderSystem) -> tuple[np.ndarray, np.ndarray | None]:
-    """Entries of ``H`` (n_outputs, n_inputs) of the ports and of the inertia loads.
-
-    Ports: port outputs to port inputs, the ``eps`` of eq. 27 as without inertia loads. Inertia
-    loads: every entry with an inertia load as input or its collocated output (how the frame
-    motion deforms the body at the ports and in the generalised coordinates the frame's
-    equations see). None when the system has no inertia loads.
-    """
-    cols = np.array([is_inertia_label(label) for label in system.input_labels], dtype=bool)
-    rows = np.array([is_inertia_label(label) for label in system.output_labels], dtype=bool)
-    ports = ~rows[:, None] & ~cols[None, :]
-    return ports, (None if ports.all() else ~ports)
 
 
 def _checked_errors(
@@ -959,7 +823,8 @@ def provenance(job: Job, validation: ValidationReport | None = None) -> dict[str
     """
     from pymorembs.linalg.backends import default_backend
 
-    inputs = {str(job.path): sha256_of(Path(job.path))}
+    # a job parsed from a dictionary (parse_job) may name a file that does not exist
+    inputs = {str(job.path): sha256_of(Path(job.path))} if Path(job.path).is_file() else {}
     for path in job.model.files.values():
         if Path(path).is_file():
             inputs[str(path)] = sha256_of(Path(path))

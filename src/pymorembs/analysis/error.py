@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from pymorembs.prepare.inertia_loads import is_inertia_label
+from pymorembs.system import SecondOrderSystem
+
 #: Number of log-spaced frequencies in an error grid unless asked otherwise.
 DEFAULT_POINTS = 400
 
@@ -48,3 +51,17 @@ def relative_error(
         return np.where(
             reference > 0, difference / reference, np.where(difference > 0, np.inf, 0.0)
         )
+
+
+def error_blocks(system: SecondOrderSystem) -> tuple[np.ndarray, np.ndarray | None]:
+    """Entries of ``H`` (n_outputs, n_inputs) of the ports and of the inertia loads.
+
+    Ports: port outputs to port inputs, the ``eps`` of eq. 27 as without inertia loads. Inertia
+    loads: every entry with an inertia load as input or its collocated output (how the frame
+    motion deforms the body at the ports and in the generalised coordinates the frame's
+    equations see). None when the system has no inertia loads.
+    """
+    cols = np.array([is_inertia_label(label) for label in system.input_labels], dtype=bool)
+    rows = np.array([is_inertia_label(label) for label in system.output_labels], dtype=bool)
+    ports = ~rows[:, None] & ~cols[None, :]
+    return ports, (None if ports.all() else ~ports)

@@ -32,6 +32,7 @@ What ``pymorembs info`` reports, as a library function (:func:`model_spectrum`):
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import scipy.linalg as sla
@@ -387,3 +388,50 @@ def _fixed_interface(prepared: PreparedModel) -> np.ndarray | None:
 
 def _dense(matrix: sp.spmatrix | np.ndarray) -> np.ndarray:
     return matrix.toarray() if sp.issparse(matrix) else np.asarray(matrix)
+
+
+def model_facts(body: ElasticBody, prepared: PreparedModel, modes: int) -> dict[str, Any]:
+    """Sizes, mass, massless dofs, rigid-body modes and the lowest elastic eigenfrequencies (Hz).
+
+    What ``pymorembs info`` prints (and ``--json`` gives): a plain dictionary.
+
+    The eigen-analysis is :func:`pymorembs.analysis.spectrum.model_spectrum`: massless
+    directions condensed exactly, rigid-body modes decided by the spectrum within the rounding
+    bound of the file's entries and, with coordinates, by geometry.
+    """
+    spectrum = model_spectrum(body, prepared, modes)
+    rigid = spectrum.rigid
+    frequencies = spectrum.frequencies_hz
+    bounds = np.concatenate([np.zeros(rigid.count + rigid.mechanisms), spectrum.elastic_bound_hz])
+    facts: dict[str, Any] = {
+        "name": body.name,
+        "n_dof": prepared.body.n_dof,
+        "n_nodes": prepared.body.n_nodes,
+        "n_dependent": int(prepared.elimination.dependent.size),
+        "n_fixed": int(prepared.elimination.fixed.size),
+        "n_independent": prepared.system.order,
+        "n_massless": spectrum.massless.n_massless,
+        "massless": {
+            "directions": spectrum.massless.n_massless,
+            "dofs_without_mass": int(spectrum.massless.zero_rows.size),
+            "directions_in_mass_blocks": spectrum.massless.n_block_null,
+        },
+        "dof_table": body.dofs.describe(),
+        "has_coordinates": bool(body.has_coordinates),
+        "notes": list(body.notes),
+        "total_mass": body.total_mass(),
+        "rigid_body_modes": rigid.count,
+        "rigid_body_motions": list(rigid.labels),
+        "mechanisms": rigid.mechanisms,
+        "rigid_body_decision": {
+            "decided_by": rigid.decided_by,
+            "explanation": rigid.explanation,
+            "computed_hz": rigid.computed_hz.tolist(),
+        },
+        "rounding": spectrum.rounding,
+        "eigenfrequencies_hz": frequencies.tolist(),
+        "eigenfrequency_bounds_hz": bounds.tolist(),
+    }
+    if spectrum.fixed_interface_hz is not None:
+        facts["fixed_interface_hz"] = spectrum.fixed_interface_hz.tolist()
+    return facts

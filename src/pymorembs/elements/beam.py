@@ -256,6 +256,64 @@ def _local_matrices(length: np.ndarray, s: BeamSection) -> tuple[np.ndarray, np.
     return k, m
 
 
+#: Gauss points (on [0, 1]) and weights that integrate the products of two element fields
+#: (cubic Hermite times cubic, degree 6) exactly.
+GAUSS_POINTS = 0.5 * (1.0 + np.polynomial.legendre.leggauss(4)[0])
+GAUSS_WEIGHTS = 0.5 * np.polynomial.legendre.leggauss(4)[1]
+
+
+def beam_kinematics(
+    p1: np.ndarray, p2: np.ndarray, points: np.ndarray, up: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The element fields behind the consistent mass: centreline displacement and twist.
+
+    A point of the cross-section at ``x(xi) + s`` (``s`` in the section plane) moves by
+    ``u(xi) + theta_x(xi) e_x x s``: the centreline displacement ``u`` (linear axial, cubic
+    Hermite transverse shape functions) and the torsion angle ``theta_x`` (linear); the bending
+    rotations of the section carry no mass (no rotary inertia of bending). With these fields
+    ``int rho (A u.u + Ip theta_x²) dx`` is the element's consistent mass.
+
+    Parameters
+    ----------
+    p1, p2 : ndarray, shape (n_el, 3)
+        Node positions (m).
+    points : ndarray, shape (n_pts,)
+        Positions ``xi`` along the elements, 0 at node 1 and 1 at node 2.
+    up : ndarray, shape (3,) or (n_el, 3), optional
+        Orientation vector(s); see :func:`element_matrices`.
+
+    Returns
+    -------
+    length : ndarray, shape (n_el,)
+        Element lengths (m).
+    rotation : ndarray, shape (n_el, 3, 3)
+        Rows: the local axes ``e_x, e_y, e_z`` in global coordinates.
+    displacement : ndarray, shape (n_el, n_pts, 3, 12)
+        Global centreline displacement at each point from the 12 global element dofs.
+    twist : ndarray, shape (n_el, n_pts, 12)
+        Torsion angle ``theta_x`` (rad) at each point from the global element dofs.
+    """
+    length, rotation = element_frames(p1, p2, up)
+    xi = np.asarray(points, dtype=float).ravel()
+    n_el, n_pts = length.size, xi.size
+    linear = np.stack([1.0 - xi, xi], axis=1)  # (n_pts, 2)
+    hermite = np.stack(
+        [1 - 3 * xi**2 + 2 * xi**3, xi - 2 * xi**2 + xi**3, 3 * xi**2 - 2 * xi**3, xi**3 - xi**2],
+        axis=1,
+    )  # (n_pts, 4), the rotation columns per unit length
+    scale = np.stack([np.ones(n_el), length, np.ones(n_el), length], axis=1)[:, None, :]
+    local = np.zeros((n_el, n_pts, 4, 12))  # rows u v w theta_x, columns local dofs
+    local[:, :, 0, [0, 6]] = linear
+    local[:, :, 3, [3, 9]] = linear
+    local[:, :, 1, [1, 5, 7, 11]] = hermite * scale
+    local[:, :, 2, [2, 4, 8, 10]] = hermite * scale * _PLANE_XZ_SIGN
+    # global element dofs -> local: blockdiag(R, R, R, R); local centreline -> global: R^T
+    blocks = local.reshape(n_el, n_pts, 4, 4, 3)
+    to_local = np.einsum("npqbk,nkj->npqbj", blocks, rotation).reshape(n_el, n_pts, 4, 12)
+    displacement = np.einsum("nqa,npqj->npaj", rotation, to_local[:, :, :3])
+    return length, rotation, displacement, to_local[:, :, 3]
+
+
 def _to_global(local: np.ndarray, rotation: np.ndarray) -> np.ndarray:
     """``T^T A T`` for T = blockdiag(R, R, R, R); ``local`` (n, 12, 12), ``rotation`` (n, 3, 3)."""
     n = local.shape[0]

@@ -20,20 +20,24 @@ mass matrix ``m̄`` (N × N),
 * ``S[k, a, b] = ∫ c_a Φ_{k,b} dm = x_aᵀ m̄ U_b e_k``,
 * ``PP[a, b] = ∫ Φ_aᵀ Φ_b dm = U_aᵀ m̄ U_b``.
 
-Rigid bodies lumped at nodes (a node's 6 x 6 block of ``M`` that couples no other node, with an
-isotropic translational mass: plates, point masses with rotary inertia or offset) are taken out
-first and enter exactly: the mass points of such a body move as ``u_n + ψ_n × r``, and their
-integrals follow from the block's mass, first moment and second moments ``∫ r rᵀ dm =
-tr(Θ)/2 I − Θ`` (:class:`_RigidBodies`). For a body with beams in its mesh the beams' consistent
-mass is subtracted before the blocks are looked for. If the rest of ``M`` has Kronecker structure
-on the translational dofs (``M[x,x] = M[y,y] = M[z,z] = m̄`` over the nodes, off-axis blocks
-zero, no mass on rotational dofs -- isoparametric solids, lumped point masses), the terms are
-exact (``second_order_mass = "exact"``). Otherwise (beams and shells with the rotary inertia of
-their sections or Hermitian translation-rotation coupling) ``m̄`` of the rest is the mean of
-its three axis blocks ``M[a,a]`` and its rotational and coupling parts are left out of the
-second-order terms only (``"translational"``): ``J1``, ``Gr``, ``Oe0``, ``Cr1 = Kr``, ``Ge`` and
-``Oe1`` then miss those beams' own rotary-inertia contributions (SID_NOTES §4.2(b) calls them
-"commonly neglected"), while ``m``, ``c``, ``J0``, ``Ct``, ``Cr``, ``Me`` remain exact.
+Two-node beams of the body's mesh (:class:`~pymorembs.body.ElementMesh` ``"beam2"``) enter
+exactly: a section point ``x(xi) + s`` moves by ``u(xi) + theta_x(xi) e_x x s``, the fields behind
+the beams' consistent mass (:func:`pymorembs.elements.beam.beam_kinematics`), integrated by Gauss
+points and the section moments (:class:`_Beams`). Rigid bodies lumped at nodes (a node's 6 x 6
+block of ``M`` without the beams that couples no other node, with an isotropic translational
+mass: plates, point masses with rotary inertia or offset) are taken out next and enter exactly:
+the mass points of such a body move as ``u_n + ψ_n × r``, and their integrals follow from the
+block's mass, first moment and second moments ``∫ r rᵀ dm = tr(Θ)/2 I − Θ``
+(:class:`_RigidBodies`). If the rest of ``M`` is zero or has Kronecker structure on the
+translational dofs (``M[x,x] = M[y,y] = M[z,z] = m̄`` over the nodes, off-axis blocks zero, no
+mass on rotational dofs -- isoparametric solids, lumped point masses), the terms are exact
+(``second_order_mass = "exact"``). Otherwise (imported beams and shells with the rotary inertia
+of their sections or Hermitian translation-rotation coupling, whose element fields are unknown)
+``m̄`` of the rest is the mean of its three axis blocks ``M[a,a]`` and its rotational and
+coupling parts are left out of the second-order terms only (``"translational"``): ``J1``,
+``Gr``, ``Oe0``, ``Cr1 = Kr``, ``Ge`` and ``Oe1`` then miss those elements' own rotary-inertia
+contributions (SID_NOTES §4.2(b) calls them "commonly neglected"), while ``m``, ``c``, ``J0``,
+``Ct``, ``Cr``, ``Me`` remain exact.
 
 Units: those of the FE model (SI for the built-in examples: kg, m); ``Φ`` is dimensionless if
 ``q`` has the length unit (mass-normalised modes: ``q`` in m·kg^½, then ``Me = I``).
@@ -48,6 +52,7 @@ import scipy.sparse as sp
 
 from pymorembs.arrays import sorted_unique
 from pymorembs.body import ElasticBody
+from pymorembs.elements.beam import BeamSection
 from pymorembs.errors import UserError
 from pymorembs.linalg.products import extended
 
@@ -321,17 +326,24 @@ def compute_invariants(
     m_full = sp.csr_matrix(body.mass)
     first = _first_order(body, m_full, phi)
     rows, directions = _dof_node_rows(body)
-    # rigid bodies lumped at nodes (6 x 6 blocks of their own): exact second-order terms
-    rigid = _lumped_rigid_bodies(body, m_full)
-    m_rest = m_full if rigid is None else sp.csr_matrix(m_full - rigid.matrix)
-    blocks = _translational_blocks(m_rest, rows, directions, body.n_nodes)
-    exact = _is_kronecker(m_rest, blocks, directions) or (
-        rigid is not None and m_rest.count_nonzero() == 0
-    )
-    s, pp = _second_order(body.coordinates, phi, rows, directions, blocks)
+    # exact second-order terms of the parts whose kinematics is known: the beams of the mesh
+    # (their consistent mass), then rigid bodies lumped at nodes (6 x 6 blocks of their own)
+    parts = [part for part in (_beams(body, phi),) if part is not None]
+    m_rest = m_full
+    for part in parts:
+        m_rest = sp.csr_matrix(m_rest - part.matrix)
+    rigid = _lumped_rigid_bodies(body, m_rest)
     if rigid is not None:
-        s_rigid, pp_rigid = rigid.second_order(phi)
-        s, pp = s + s_rigid, pp + pp_rigid
+        parts.append(rigid)
+        m_rest = sp.csr_matrix(m_rest - rigid.matrix)
+    m_rest.data[np.abs(m_rest.data) <= KRONECKER_TOL * abs(m_full).max()] = 0.0
+    m_rest.eliminate_zeros()
+    blocks = _translational_blocks(m_rest, rows, directions, body.n_nodes)
+    exact = _is_kronecker(m_rest, blocks, directions) or (parts and m_rest.nnz == 0)
+    s, pp = _second_order(body.coordinates, phi, rows, directions, blocks)
+    for part in parts:
+        s_part, pp_part = part.second_order(phi)
+        s, pp = s + s_part, pp + pp_part
     return BodyInvariants(
         mass=first["mass"],
         first_moment=first["first_moment"],
@@ -489,13 +501,12 @@ def levi_civita() -> np.ndarray:
     return eps
 
 
-def _lumped_rigid_bodies(body: ElasticBody, m_full: sp.csr_matrix) -> _RigidBodies | None:
-    """The node blocks of ``M`` that are rigid bodies of their own, or None.
+def _lumped_rigid_bodies(body: ElasticBody, lumped: sp.csr_matrix) -> _RigidBodies | None:
+    """The node blocks of a mass matrix that are rigid bodies of their own, or None.
 
-    A node qualifies when it has all six dofs, its rows of ``M`` couple only its own dofs (no
-    other node), its rotational block is not zero and its translational block is ``m I``. With
-    beams in the body's mesh, their consistent mass is taken out first, so plates lumped at beam
-    nodes qualify too.
+    A node qualifies when it has all six dofs, its rows of ``lumped`` (``M`` without the beams
+    of the mesh, so that plates lumped at beam nodes qualify too) couple only its own dofs (no
+    other node), its rotational block is not zero and its translational block is ``m I``.
     """
     directions, nodes = body.dofs.directions, body.dofs.nodes
     rotational = sorted_unique(nodes[directions >= 3])
@@ -505,20 +516,7 @@ def _lumped_rigid_bodies(body: ElasticBody, m_full: sp.csr_matrix) -> _RigidBodi
     table = body.dofs.positions(rotational[:, None], np.arange(6))
     complete = np.all(table >= 0, axis=1)
     node_rows = body.node_rows(rotational)
-    lumped = m_full
-    mesh = body.mesh
-    if mesh is not None and mesh.element == "beam2":
-        from pymorembs.elements.beam import assemble_beams
-
-        index = np.full((body.n_nodes, 6), -1, dtype=np.int64)
-        index[node_rows[complete]] = table[complete]
-        up = None if mesh.up is None else np.asarray(mesh.up, dtype=float)
-        _, beam_mass = assemble_beams(
-            body.node_ids, body.coordinates, mesh.connectivity, mesh.section, index, up=up,
-            n_dof=body.n_dof,
-        )  # fmt: skip
-        lumped = sp.csr_matrix(m_full - beam_mass)
-    scale = max(float(abs(m_full).max()), np.finfo(float).tiny)
+    scale = max(float(abs(lumped).max()) if lumped.nnz else 0.0, np.finfo(float).tiny)
     found = []
     for dofs, row in zip(table[complete], node_rows[complete], strict=True):
         block_rows = lumped[dofs]
@@ -555,6 +553,90 @@ def _lumped_rigid_bodies(body: ElasticBody, m_full: sp.csr_matrix) -> _RigidBodi
         np.array([f[2] for f in found]),
         np.array([f[3] for f in found]),
         np.array([f[4] for f in found]),
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class _Beams:
+    """The two-node beams of a body's mesh with the fields of their consistent mass.
+
+    A section point ``x(xi) + s`` moves by ``u(xi) + theta_x(xi) e_x x s``
+    (:func:`pymorembs.elements.beam.beam_kinematics`); with the section moments ``R = int s s^T
+    dA`` and ``Q = int (e_x x s)(e_x x s)^T dA`` (principal axes, scaled to the section's
+    ``Ip``) the second-order integrals are ``S[k,a,b] = int rho A x_a u_bk + rho theta_k
+    T_ab dx`` with ``T_ab = int s_a (e_x x s)_b dA`` and ``PP[a,b,k,l] = int rho A u_ak u_bl +
+    rho theta_k theta_l Q_ab dx``, integrated exactly by Gauss points.
+    """
+
+    matrix: sp.csr_matrix  # the beams' consistent mass on all dofs
+    p1: np.ndarray  # (n_el, 3)
+    p2: np.ndarray  # (n_el, 3)
+    equations: np.ndarray  # (n_el, 12), -1 for a dof the body does not have
+    section: BeamSection
+    up: np.ndarray | None
+
+    def second_order(self, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``S`` (nq, 3, 3) and ``PP`` (3, 3, nq, nq) of the beams for a basis (n_dof, nq)."""
+        from pymorembs.elements.beam import GAUSS_POINTS, GAUSS_WEIGHTS, beam_kinematics
+
+        nq = phi.shape[1]
+        padded = np.vstack([phi, np.zeros((1, nq))])  # row -1: a dof the body lacks
+        sec = self.section
+        c = sec.Ip / (sec.Iy + sec.Iz)
+        s_out, pp_out = np.zeros((nq, 3, 3)), np.zeros((3, 3, nq, nq))
+        chunk = max(1, 4_000_000 // (GAUSS_POINTS.size * 4 * 12 * max(nq, 1)))
+        for start in range(0, self.p1.shape[0], chunk):
+            part = slice(start, start + chunk)
+            up = self.up if self.up is None or self.up.ndim == 1 else self.up[part]
+            length, rot, disp, twist = beam_kinematics(
+                self.p1[part], self.p2[part], GAUSS_POINTS, up
+            )
+            q = padded[self.equations[part]]  # (n, 12, nq)
+            u = np.einsum("ngaj,njk->ngak", disp, q)  # centreline displacement
+            theta = np.einsum("ngj,njk->ngk", twist, q)
+            xi = GAUSS_POINTS[None, :, None]
+            x = self.p1[part][:, None] + xi * (self.p2[part] - self.p1[part])[:, None]
+            w_a = sec.rho * sec.area * length[:, None] * GAUSS_WEIGHTS  # (n, g), kg
+            w_i = sec.rho * length[:, None] * GAUSS_WEIGHTS  # (n, g), kg/m²
+            ey, ez = rot[:, 1], rot[:, 2]
+            t = c * (
+                sec.Iz * np.einsum("na,nb->nab", ey, ez) - sec.Iy * np.einsum("na,nb->nab", ez, ey)
+            )
+            qq = c * (
+                sec.Iz * np.einsum("na,nb->nab", ez, ez) + sec.Iy * np.einsum("na,nb->nab", ey, ey)
+            )
+            s_out += np.einsum("ng,nga,ngbk->kab", w_a, x, u)
+            s_out += np.einsum("ng,ngk,nab->kab", w_i, theta, t)
+            pp_out += np.einsum("ng,ngak,ngbl->abkl", w_a, u, u)
+            pp_out += np.einsum("ng,ngk,ngl,nab->abkl", w_i, theta, theta, qq)
+        return s_out, pp_out
+
+
+def _beams(body: ElasticBody, phi: np.ndarray) -> _Beams | None:
+    """The beams of the body's mesh (``"beam2"``), or None."""
+    mesh = body.mesh
+    if mesh is None or mesh.element != "beam2":
+        return None
+    from pymorembs.elements.beam import assemble_beams
+
+    index = body.dofs.positions(body.node_ids[:, None], np.arange(6))  # (n_nodes, 6)
+    up = None if mesh.up is None else np.asarray(mesh.up, dtype=float)
+    rows = body.node_rows(mesh.connectivity)  # (n_el, 2)
+    used = np.unique(rows)
+    if np.any(index[used] < 0):
+        return None  # a beam node without all six dofs: the translational model applies
+    _, matrix = assemble_beams(
+        body.node_ids, body.coordinates, mesh.connectivity, mesh.section,
+        np.where(index >= 0, index, 0), up=up, n_dof=body.n_dof,
+    )  # fmt: skip
+    coordinates = np.asarray(body.coordinates, dtype=float)
+    return _Beams(
+        sp.csr_matrix(matrix),
+        coordinates[rows[:, 0]],
+        coordinates[rows[:, 1]],
+        index[rows].reshape(-1, 12),
+        mesh.section,
+        up,
     )
 
 

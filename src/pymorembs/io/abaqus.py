@@ -97,8 +97,8 @@ from pymorembs.io.abaqus_inp import (
     read_inp,
     solid_blocks,
 )
-from pymorembs.io.formats import assemble_symmetric, is_nodes_csv, read_text
 from pymorembs.io.matrix_market import SYMMETRY_TOLERANCE, read_dofs_csv, read_nodes_csv
+from pymorembs.io.reader_support import assemble_symmetric, is_nodes_csv, read_text
 from pymorembs.io.solid_mesh import attach_mesh
 from pymorembs.io.symmetric_assembly import half_of_entries, symmetric_from_half
 

@@ -57,7 +57,7 @@ import numpy as np
 from pymorembs.arrays import sorted_unique
 from pymorembs.body import DofTable
 from pymorembs.errors import located_error
-from pymorembs.io.formats import read_text
+from pymorembs.io.reader_support import read_text
 from pymorembs.io.solid_mesh import SolidBlock
 
 __all__ = [

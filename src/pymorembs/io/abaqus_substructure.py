@@ -72,8 +72,8 @@ from pymorembs.io.abaqus_inp import (
     keyword_blocks,
     parse_keyword,
 )
-from pymorembs.io.formats import read_text
 from pymorembs.io.matrix_market import SYMMETRY_TOLERANCE
+from pymorembs.io.reader_support import read_text
 
 __all__ = ["read_abaqus_substructure"]
 

@@ -51,7 +51,6 @@ from pymorembs.body import DIRECTIONS, DofTable, ElasticBody
 from pymorembs.errors import UserError, located_error
 from pymorembs.io.ansys_cdb import AnsysArchive, cdb_solid_blocks, looks_like_cdb, read_cdb
 from pymorembs.io.checks import make_body, reason
-from pymorembs.io.formats import is_nodes_csv
 from pymorembs.io.matrix_market import (
     check_symmetric,
     parse_int,
@@ -59,6 +58,7 @@ from pymorembs.io.matrix_market import (
     read_nodes_csv,
     read_text_lines,
 )
+from pymorembs.io.reader_support import is_nodes_csv
 from pymorembs.io.solid_mesh import attach_mesh
 
 __all__ = ["ANSYS_DOF_LABELS", "RIGID_BODY_TOLERANCE", "read_ansys_full", "read_ansys_mmf"]

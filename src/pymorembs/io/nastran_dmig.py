@@ -77,7 +77,6 @@ import scipy.sparse as sp
 from pymorembs.arrays import sorted_unique
 from pymorembs.body import SCALAR, DofTable, ElasticBody
 from pymorembs.errors import located_error
-from pymorembs.io.formats import assemble_symmetric
 from pymorembs.io.line_blocks import IrregularText, iter_line_blocks, line_starts
 from pymorembs.io.nastran_bulk import (
     MAX_ID,
@@ -96,6 +95,7 @@ from pymorembs.io.nastran_matrices import (
     modal_block_notes,
     node_source,
 )
+from pymorembs.io.reader_support import assemble_symmetric
 
 __all__ = ["read_dmig"]
 
@@ -1012,7 +1012,7 @@ def _digit_histogram_by_masks(a: np.ndarray) -> np.ndarray:
 def _assemble_one_triangle(entries: list[np.ndarray], n: int, ifo: int) -> sp.csr_matrix | None:
     """The full symmetric matrix of a form-6 DMIG whose entries ``[rows, cols, values]`` give
     every position of one triangle once; None for anything else (the general
-    :func:`~pymorembs.io.formats.assemble_symmetric` then, with ``entries`` untouched).
+    :func:`~pymorembs.io.reader_support.assemble_symmetric` then, with ``entries`` untouched).
     ``entries`` is emptied when the matrix is built, to free its memory early.
 
     Nastran punches the upper triangle column by column: that is built directly. Entries of

@@ -36,9 +36,9 @@ import scipy.sparse as sp
 from pymorembs.body import SCALAR, DofTable, ElasticBody
 from pymorembs.errors import UserError, located_error
 from pymorembs.io.checks import make_body
-from pymorembs.io.formats import is_nodes_csv
 from pymorembs.io.matrix_market import check_symmetric, read_nodes_csv
 from pymorembs.io.nastran_bulk import AnalysisSet, BulkData, bulk_solid_blocks, read_bulk
+from pymorembs.io.reader_support import is_nodes_csv
 from pymorembs.io.solid_mesh import attach_mesh
 from pymorembs.sparse_rows import abs_row_sums
 

@@ -8,8 +8,8 @@ matrix of such entries in SciPy's compiled code (a counting sort by rows, or no 
 the entries are sorted already) instead of sorting every entry by its position in NumPy, and
 the full matrix is the triangle plus its transpose.
 
-It returns exactly the matrix that :func:`pymorembs.io.formats.assemble_symmetric` returns for
-the same entries (same pattern, same values), or None whenever that function would raise an
+It returns exactly the matrix that :func:`pymorembs.io.reader_support.assemble_symmetric` returns
+for the same entries (same pattern, same values), or None whenever that function would raise an
 error or the entries are in none of these layouts; the caller then uses ``assemble_symmetric``,
 which also names the offending lines.
 """

@@ -88,6 +88,8 @@ class PreparedModel:
     stiffening : Stiffening or None
         Geometric stiffness of the unit loads of the frame motion
         (:mod:`pymorembs.prepare.stiffening`), when the exported bodies carry it.
+    frame : Frame or None
+        The reference frame the body was prepared in.
     """
 
     body: ElasticBody
@@ -96,6 +98,7 @@ class PreparedModel:
     warnings: tuple[str, ...] = ()
     inertia: InertiaLoads | None = None
     stiffening: Stiffening | None = None
+    frame: Frame | None = None
 
     @cached_property
     def reduction_system(self) -> SecondOrderSystem:
@@ -180,7 +183,11 @@ def prepare(
     warnings += _massless_ports(system)
     if frame.kind == "buckens":
         return PreparedModel(
-            framed, elimination, _elastic_system(framed, elimination, system), tuple(warnings)
+            framed,
+            elimination,
+            _elastic_system(framed, elimination, system),
+            tuple(warnings),
+            frame=frame,
         )
     if not allow_rigid_body_modes:
         free = free_rigid_body_modes(framed, elimination, system)
@@ -196,7 +203,7 @@ def prepare(
                 f"({'; '.join(free)}): the stiffness is singular; fix a node with rotational "
                 "dofs or more nodes"
             )
-    return PreparedModel(framed, elimination, system, tuple(warnings))
+    return PreparedModel(framed, elimination, system, tuple(warnings), frame=frame)
 
 
 def with_inertia_loads(

@@ -142,7 +142,7 @@ KAPPA_POINTS = 400
 # band and damping
 
 
-def _band_rad(band_hz: Sequence[float], allow_infinite: bool) -> tuple[float, float]:
+def band_in_rad_s(band_hz: Sequence[float], allow_infinite: bool) -> tuple[float, float]:
     """``(w_1, w_2)`` in rad/s from ``(f_min, f_max)`` in Hz, checked."""
     try:
         f_min, f_max = (float(f) for f in band_hz)
@@ -164,7 +164,7 @@ def _dense(matrix: sp.spmatrix | np.ndarray | None) -> np.ndarray | None:
 
 
 @dataclass(frozen=True)
-class _ModalForm:
+class ModalForm:
     """The elastic part of a dense system in mass-normalised undamped eigenmodes.
 
     ``modes`` (n, m) with ``modes^T M modes = I``, ``omega`` (m,) rad/s > 0, ``damping`` (m, m)
@@ -214,7 +214,7 @@ def _eigenmodes(
     return values, modes, rigid
 
 
-def _modal_form(system: SecondOrderSystem, damping_ratio: float | None) -> _ModalForm:
+def _modal_form(system: SecondOrderSystem, damping_ratio: float | None) -> ModalForm:
     """Eigenmodes of a dense (or small sparse) system and its damping model; checks stability."""
     if system.order > MAX_DENSE_ORDER:
         raise UserError(
@@ -262,7 +262,7 @@ def _modal_form(system: SecondOrderSystem, damping_ratio: float | None) -> _Moda
             f"{omega[weak].min() / (2 * np.pi):.4g} Hz): the system is not asymptotically "
             "stable and has no Gramian; give it a damping model"
         )
-    return _ModalForm(modes, omega, damping, inputs, outputs_t)
+    return ModalForm(modes, omega, damping, inputs, outputs_t)
 
 
 # --------------------------------------------------------------------------------------------
@@ -317,7 +317,7 @@ def _matrix_log_weight(a: np.ndarray, w: float) -> np.ndarray:
 
 
 def _modal_gramians(
-    modal: _ModalForm, w1: float, w2: float, inputs: Sequence[np.ndarray]
+    modal: ModalForm, w1: float, w2: float, inputs: Sequence[np.ndarray]
 ) -> list[np.ndarray]:
     """Position Gramians ``P_eta`` of the modal system over the band, one per input matrix."""
     omega, damping = modal.omega, modal.damping
@@ -384,14 +384,14 @@ def frequency_weighted_gramians(
         If the system is undamped (not asymptotically stable), its inputs or outputs act on
         rigid-body modes, or it is too large for dense Gramians.
     """
-    w1, w2 = _band_rad(band_hz, allow_infinite=True)
-    p_p, q_pv, _ = _gramians(system, w1, w2, damping_ratio)
+    w1, w2 = band_in_rad_s(band_hz, allow_infinite=True)
+    p_p, q_pv, _ = band_gramians(system, w1, w2, damping_ratio)
     return p_p, q_pv
 
 
-def _gramians(
+def band_gramians(
     system: SecondOrderSystem, w1: float, w2: float, damping_ratio: float | None
-) -> tuple[np.ndarray, np.ndarray, _ModalForm]:
+) -> tuple[np.ndarray, np.ndarray, ModalForm]:
     """``P_p^w``, ``Q_pv^w`` over ``w1 <= |w| <= w2`` (rad/s) and the modal form used."""
     modal = _modal_form(system, damping_ratio)
     p_eta, q_eta = _modal_gramians(modal, w1, w2, [modal.inputs, modal.outputs_t])
@@ -404,7 +404,8 @@ def _gramians(
 # reduction
 
 
-def _check_order_options(order: int | None, tolerance: float | None, method: str) -> None:
+def check_order_options(order: int | None, tolerance: float | None, method: str) -> None:
+    """Raise :class:`UserError` unless ``order`` (>= 1) and/or ``tolerance`` is given."""
     if order is None and tolerance is None:
         raise UserError(f"{method}: give an 'order' or a 'tolerance'")
     if order is not None and (int(order) != order or order < 1):
@@ -541,8 +542,8 @@ def gramian_reduction(
     UserError
         Bad options, an undamped system, or a large system without ``medium``.
     """
-    _check_order_options(order, tolerance, "gramian")
-    w1, w2 = _band_rad(band_hz, allow_infinite=False)
+    check_order_options(order, tolerance, "gramian")
+    w1, w2 = band_in_rad_s(band_hz, allow_infinite=False)
     if medium is not None:
         outer = _medium_basis(system, medium)
         working = system.project(outer)
@@ -554,7 +555,7 @@ def gramian_reduction(
         )
     else:
         outer, working = None, system
-    p_p, q_pv, modal = _gramians(working, w1, w2, damping_ratio)
+    p_p, q_pv, modal = band_gramians(working, w1, w2, damping_ratio)
     return projection_from_gramians(
         working,
         outer,
@@ -574,7 +575,7 @@ def gramian_reduction(
 def projection_from_gramians(
     working: SecondOrderSystem,
     outer: np.ndarray | None,
-    gramians: tuple[np.ndarray, np.ndarray, _ModalForm],
+    gramians: tuple[np.ndarray, np.ndarray, ModalForm],
     band_rad: tuple[float, float],
     order: int | None,
     tolerance: float | None,
@@ -594,7 +595,7 @@ def projection_from_gramians(
     outer : ndarray, shape (N, k), or None
         Orthonormal basis with ``working = system.project(outer)``; ``V = outer V_gram``.
     gramians : (P_p, Q_pv, modal form)
-        Of ``working``, shape (k, k) each, as ``_gramians`` returns them.
+        Of ``working``, shape (k, k) each, as ``band_gramians`` returns them.
     band_rad : (float, float)
         ``(w_1, w_2)`` in rad/s.
     order, tolerance, kappa_points :
@@ -639,7 +640,7 @@ def projection_from_gramians(
 
 
 def _kappas(
-    system: SecondOrderSystem, modal: _ModalForm, v: np.ndarray, w1: float, w2: float, points: int
+    system: SecondOrderSystem, modal: ModalForm, v: np.ndarray, w1: float, w2: float, points: int
 ) -> tuple[float, float]:
     """``kappa = max ||C Pi(i w)||_2^2`` and ``kappa_T = max ||Pi_T(i w) B||_2^2`` on a grid.
 
@@ -698,7 +699,7 @@ def quadrature(
     ``"trapezoid"``: equally spaced nodes including both ends (0 Hz if the band starts there).
     The weights sum to ``w2 - w1``.
     """
-    w1, w2 = _band_rad(band_hz, allow_infinite=False)
+    w1, w2 = band_in_rad_s(band_hz, allow_infinite=False)
     count = int(n_snapshots)
     if count != n_snapshots or count < 2:
         raise UserError(f"pod: n_snapshots must be an integer >= 2, got {n_snapshots!r}")
@@ -818,7 +819,7 @@ def pod_reduction(
         ``i``), ``neglected_sum`` and ``a_priori_bound = sqrt(neglected_sum)`` -- eq. 24 with
         ``kappa = kappa_T = 1`` from the approximate eigenvalues (an estimate, not a bound).
     """
-    _check_order_options(order, tolerance, "pod")
+    check_order_options(order, tolerance, "pod")
     frequencies, weights = quadrature(band_hz, n_snapshots, rule)
     if system.n_inputs == 0 and system.n_outputs == 0:
         raise UserError("pod: the system has neither inputs nor outputs")
@@ -838,7 +839,7 @@ def pod_reduction(
     n = select_order(sigma, order, tolerance)
     v = u[:, :n]
     neglected = float(np.sum(sigma[n:]))
-    lo, hi = _band_rad(band_hz, allow_infinite=False)
+    lo, hi = band_in_rad_s(band_hz, allow_infinite=False)
     return Projection(
         V=v,
         W=v,

@@ -105,10 +105,10 @@ from pymorembs.errors import UserError
 from pymorembs.linalg.orthogonalization import OrthonormalBasis
 from pymorembs.reduce.gramian import (
     KAPPA_POINTS,
-    _band_rad,
-    _check_order_options,
-    _gramians,
-    _ModalForm,
+    ModalForm,
+    band_gramians,
+    band_in_rad_s,
+    check_order_options,
     projection_from_gramians,
     resolvent,
 )
@@ -149,7 +149,7 @@ class RationalKrylovGramians:
         :func:`~pymorembs.reduce.gramian.frequency_weighted_gramians`).
     projected : SecondOrderSystem
         The projected (dense) system ``system.project(V)``.
-    modal : _ModalForm
+    modal : ModalForm
         Its modal form as the dense Gramian code used it (for the ``kappa`` of eq. 24).
     band_hz : (float, float)
     sigma : ndarray, shape (k,)
@@ -178,7 +178,7 @@ class RationalKrylovGramians:
     x_p: np.ndarray
     x_q: np.ndarray
     projected: SecondOrderSystem
-    modal: _ModalForm
+    modal: ModalForm
     band_hz: tuple[float, float]
     sigma: np.ndarray
     h2_norm: float
@@ -434,7 +434,7 @@ def rational_krylov_gramians(
     RationalKrylovGramians
         ``V``, ``X_P``, ``X_Q`` and the diagnostics (shifts in Hz, factorizations, history).
     """
-    w1, w2 = _band_rad(band_hz, allow_infinite=False)
+    w1, w2 = band_in_rad_s(band_hz, allow_infinite=False)
     f_min, f_max = w1 / (2.0 * np.pi), w2 / (2.0 * np.pi)
     if not (np.isfinite(tol) and tol > 0):
         raise UserError(f"rational-krylov: tol must be a number > 0, got {tol!r}")
@@ -510,7 +510,7 @@ def rational_krylov_gramians(
         products.update(v)
         residuals.update(products, v.shape[1])
         projected = _projected(system, v, products, reduced_cache)
-        x_p, x_q, modal = _gramians(projected, w1, w2, damping_ratio)
+        x_p, x_q, modal = band_gramians(projected, w1, w2, damping_ratio)
         sigma = np.clip(np.linalg.eigvalsh(x_p + x_q)[::-1], 0.0, None)
         c_v = projected.output_matrix
         trace = max(float(np.trace(c_v @ x_p @ c_v.T)), 0.0)
@@ -648,8 +648,8 @@ def rational_gramian_reduction(
         largest relative Galerkin residual of the integrand over the shift grid) and
         ``history``. ``error_bound`` as in ``gramian_reduction``.
     """
-    _check_order_options(order, tolerance, "gramian")
-    w1, w2 = _band_rad(band_hz, allow_infinite=False)
+    check_order_options(order, tolerance, "gramian")
+    w1, w2 = band_in_rad_s(band_hz, allow_infinite=False)
     if tol is None:
         tol = DEFAULT_TOL if tolerance is None else min(DEFAULT_TOL, 1e-2 * tolerance)
     if order is not None and order > min(max_dim, system.order):

@@ -1,0 +1,486 @@
+"""The Python API: read a body, prepare it, reduce it, measure it, export it.
+
+The command line and job files are a layer on these functions; a notebook needs nothing else::
+
+    import pymorembs as pm
+
+    body = pm.example("rack-beams")            # or pm.read("model.h5"), pm.read("K.mtx", ...)
+    prepared = pm.prepare(body, frame=pm.Frame("tangent", node=2), inputs=[(1, "ux uy uz")])
+    reduced = pm.reduce(prepared, "krylov", expansion_points_hz=[0, 500, 1000], order=30)
+    error = reduced.error(band_hz=(0, 1000), points=200)
+    reduced.to_sid("rack.SID_FEM", nodes=[1, 2])
+
+Frequencies are in Hz, lengths, masses and times in the FE model's units.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pymorembs.analysis.error import error_blocks, frequency_grid, relative_error
+from pymorembs.analysis.reference import reference_response
+from pymorembs.analysis.spectrum import model_facts
+from pymorembs.analysis.time_domain import (
+    LoadCase,
+    TimeResponse,
+    clamped_reduced_system,
+    simulate,
+)
+from pymorembs.analysis.transfer import transfer_function
+from pymorembs.body import ElasticBody
+from pymorembs.errors import UserError
+from pymorembs.examples import build_example
+from pymorembs.export.invariants import BodyInvariants
+from pymorembs.export.outputs import body_invariants, check_before_writing, write_outputs
+from pymorembs.io.formats import read_body
+from pymorembs.methods import ReductionOptions, method_options
+from pymorembs.prepare import Frame, Port, PreparedModel, with_inertia_loads
+from pymorembs.prepare import prepare as prepare_body
+from pymorembs.prepare.interface import InterfaceSpec, add_interface_node
+from pymorembs.prepare.stiffening import (
+    stiffening_from_matrices,
+    stiffening_from_mesh,
+    with_stiffening,
+)
+from pymorembs.reduce.projection import (
+    Projection,
+    ReducedModel,
+    reduced_model,
+    without_stiff_directions,
+)
+from pymorembs.system import SecondOrderSystem
+from pymorembs.units import detect_units
+
+__all__ = [
+    "ErrorCurve",
+    "ReducedBody",
+    "example",
+    "facts",
+    "prepare",
+    "read",
+    "reduce",
+]
+
+PathLike = str | os.PathLike[str]
+PortLike = Port | tuple[int, str]
+
+
+def read(
+    path: PathLike | None = None,
+    *,
+    format: str | None = None,
+    stiffness: PathLike | None = None,
+    mass: PathLike | None = None,
+    damping: PathLike | None = None,
+    dofs: PathLike | None = None,
+    nodes: PathLike | None = None,
+    constraints: PathLike | None = None,
+    fixed: PathLike | None = None,
+    mapping: PathLike | None = None,
+    inp: PathLike | None = None,
+    stiffness_name: str | None = None,
+    mass_name: str | None = None,
+    damping_name: str | None = None,
+) -> ElasticBody:
+    """Read the FE model of a body from the files an FE program wrote.
+
+    Parameters
+    ----------
+    path : path-like, optional
+        A one-file model (``.h5``, ``.full``, ``.pch``, ``.op4``, ``.op2``, ``.mat``, an Abaqus
+        substructure ``.mtx``, a folder of Matrix Market files), or the stiffness matrix file of a
+        two-file format when ``mass`` is given.
+    format : str, optional
+        The format (``pymorembs.io.formats.FORMATS``); default: told from the content.
+    stiffness, mass, damping, dofs, nodes, constraints, fixed, mapping, inp : path-like, optional
+        The further files of the format (see the docs' "Reading FE models").
+    stiffness_name, mass_name, damping_name : str, optional
+        Matrix or variable names in Nastran and MATLAB files (default: found).
+
+    Returns
+    -------
+    ElasticBody
+
+    Raises
+    ------
+    UserError
+        A file that does not exist, cannot be read or does not hold a model, naming the file
+        (and line) and the problem.
+    """
+    if path is not None and mass is not None and stiffness is None:
+        path, stiffness = None, path  # read("K.mtx", mass="M.mtx", ...)
+    return read_body(
+        format,
+        file=path,
+        stiffness=stiffness,
+        mass=mass,
+        damping=damping,
+        dofs=dofs,
+        nodes=nodes,
+        constraints=constraints,
+        fixed=fixed,
+        mapping=mapping,
+        inp=inp,
+        stiffness_name=stiffness_name,
+        mass_name=mass_name,
+        damping_name=damping_name,
+    )
+
+
+def example(name: str, **options: Any) -> ElasticBody:
+    """A built-in model: ``"rack-beams"``, ``"rack-solid"`` (``dofs``, ``interface``) or
+    ``"blade"`` (``elements``, ``hub_radius``)."""
+    return build_example(name, **options)
+
+
+def facts(body: ElasticBody, modes: int = 10) -> dict[str, Any]:
+    """What ``pymorembs info`` reports of a body as it was read (frame ``"none"``).
+
+    The dof table, massless dofs, total mass, rigid-body modes and how their count was decided,
+    coordinates, units (:func:`pymorembs.units.detect_units`) and the ``modes`` lowest elastic
+    eigenfrequencies (Hz), massless directions condensed exactly.
+    """
+    prepared = prepare_body(body, Frame("none"), allow_rigid_body_modes=True)
+    out = model_facts(body, prepared, int(modes))
+    out["units"] = detect_units(body).as_dict()
+    return out
+
+
+def _port(port: PortLike, what: str) -> Port:
+    if isinstance(port, Port):
+        return port
+    if isinstance(port, tuple | list) and len(port) == 2:
+        return Port.parse(int(port[0]), port[1])
+    raise UserError(f"{what}: {port!r} is neither a Port nor a (node, directions) pair")
+
+
+def prepare(
+    body: ElasticBody,
+    frame: Frame | str = "none",
+    *,
+    node: int | None = None,
+    inputs: Sequence[PortLike] | None = None,
+    outputs: Sequence[PortLike] | None = None,
+    interfaces: Sequence[InterfaceSpec] = (),
+    inertia_loads: bool | Sequence[str] = False,
+    stiffening: str | Mapping[str, PathLike] | None = None,
+    stiffening_nodes: Sequence[int] = (),
+) -> PreparedModel:
+    """The body in its reference frame with its inputs and outputs (paper sections 2.1-2.3).
+
+    Parameters
+    ----------
+    body : ElasticBody
+    frame : Frame or {"tangent", "buckens", "none"}
+        The floating frame of reference: ``"tangent"`` holds ``node`` and measures from it,
+        ``"buckens"`` puts the origin in the centre of gravity (free body), ``"none"`` keeps the
+        model's own fixed dofs.
+    node : int, optional
+        The tangent frame's node (with a frame given by name).
+    inputs, outputs : sequence of Port or (node, directions), optional
+        Unit forces/moments in and displacements/rotations out, e.g. ``(1, "ux uy uz")``;
+        outputs default to the inputs' dofs, both to the ports the model file brought.
+    interfaces : sequence of InterfaceSpec
+        Interface nodes added first (paper section 2.2), e.g. a rigid coupling to a hole.
+    inertia_loads : bool or sequence of str
+        The d'Alembert loads of the frame motion as further inputs (all twelve cases with
+        ``True``, or the named ones: ``ax ay az alx aly alz wxx wyy wzz wxy wyz wxz``). Use them
+        for a body that goes into a multibody code.
+    stiffening : "mesh" or dict of str -> path, optional
+        Geometric stiffening from the model's elements, or one Matrix Market ``K_G`` file per
+        load case.
+    stiffening_nodes : sequence of int
+        Frame nodes whose unit forces also get their stiffening (``"mesh"`` only).
+
+    Returns
+    -------
+    PreparedModel
+        Carries its frame (``prepared.frame``).
+    """
+    if isinstance(frame, str):
+        frame = Frame(frame, node)
+    elif node is not None:
+        raise UserError("prepare: give node only with a frame given by name")
+    for spec in interfaces:
+        body = add_interface_node(body, spec)
+    ins = None if inputs is None else [_port(p, "inputs") for p in inputs]
+    outs = ins if outputs is None else [_port(p, "outputs") for p in outputs]
+    prepared = prepare_body(body, frame, ins, outs)
+    if inertia_loads:
+        cases = None if inertia_loads is True else tuple(inertia_loads)
+        prepared = (
+            with_inertia_loads(prepared) if cases is None else with_inertia_loads(prepared, cases)
+        )
+    if stiffening is not None:
+        if stiffening == "mesh":
+            terms = stiffening_from_mesh(prepared, nodes=list(stiffening_nodes))
+        elif isinstance(stiffening, Mapping):
+            terms = stiffening_from_matrices(prepared, dict(stiffening))
+        else:
+            raise UserError(
+                f"prepare: stiffening must be 'mesh' or a dict of load case -> K_G file, "
+                f"got {stiffening!r}"
+            )
+        prepared = with_stiffening(prepared, terms)
+    return prepared
+
+
+@dataclass(frozen=True, eq=False)
+class ErrorCurve:
+    """The relative error of eq. 27 over a band.
+
+    Attributes
+    ----------
+    frequencies_hz : ndarray, shape (n_f,)
+    relative : ndarray, shape (n_f,)
+        ``||H - H_r||_F / ||H||_F`` over the ports (port outputs to port inputs).
+    inertia : ndarray, shape (n_f,), or None
+        The same over the inertia loads (None without them).
+    reference : str
+        ``"full"`` or ``"surrogate"``: what ``H`` is.
+    """
+
+    frequencies_hz: np.ndarray
+    relative: np.ndarray
+    inertia: np.ndarray | None
+    reference: str
+
+    @property
+    def max(self) -> float:
+        """The largest error over the ports."""
+        return float(np.max(self.relative))
+
+    @property
+    def max_inertia(self) -> float | None:
+        """The largest error over the inertia loads, or None."""
+        return None if self.inertia is None else float(np.max(self.inertia))
+
+
+@dataclass(frozen=True, eq=False)
+class ReducedBody:
+    """A reduced body: the prepared model, the checked reduced model and how it was made.
+
+    Attributes
+    ----------
+    prepared : PreparedModel
+    model : ReducedModel
+        The projection (``V``, ``W``), the reduced system and its eigenfrequencies.
+    options : ReductionOptions
+        The method and its options.
+    name : str
+        Used in exported files.
+    """
+
+    prepared: PreparedModel
+    model: ReducedModel
+    options: ReductionOptions
+    name: str = "body"
+
+    @property
+    def method(self) -> str:
+        return self.options.method
+
+    @property
+    def projection(self) -> Projection:
+        return self.model.projection
+
+    @property
+    def system(self) -> SecondOrderSystem:
+        """The reduced second-order system (``M = I``, ``K = diag(w^2)`` for Galerkin bases)."""
+        return self.model.system
+
+    @property
+    def order(self) -> int:
+        return self.model.projection.order
+
+    @property
+    def eigenfrequencies_hz(self) -> np.ndarray:
+        return self.model.eigenfrequencies_hz
+
+    @property
+    def basis(self) -> np.ndarray:
+        """``V`` on all dofs of the prepared body (eq. 18), shape (n_dof, order)."""
+        return self.prepared.expand(self.model.projection.V)
+
+    def error(
+        self,
+        band_hz: tuple[float, float],
+        points: int = 400,
+        reference: str = "full",
+        workers: int | None = 1,
+    ) -> ErrorCurve:
+        """The relative error of eq. 27 against the full model over a band.
+
+        Parameters
+        ----------
+        band_hz : (f_min, f_max)
+            Band in Hz; ``points`` log-spaced frequencies (plus 0 Hz when f_min = 0).
+        reference : {"full", "surrogate", "auto"}
+            ``"full"``: the full model at every frequency (one sparse factorization each);
+            ``"surrogate"``: a reference model checked against the full model at the maximum of
+            the error and a few other frequencies (large models).
+        workers : int, optional
+            Processes for the full model's frequency sweep.
+        """
+        if reference not in ("full", "surrogate", "auto"):
+            raise UserError(f"error: reference must be 'full', 'surrogate' or 'auto', got "
+                            f"{reference!r}")  # fmt: skip
+        try:
+            frequencies = frequency_grid(float(band_hz[0]), float(band_hz[1]), int(points))
+        except (TypeError, ValueError, IndexError) as exc:
+            raise UserError(f"error: band_hz must be (f_min, f_max) in Hz: {exc}") from None
+        system = self.prepared.reduction_system
+        if system.input_matrix.shape[1] == 0 or system.output_matrix.shape[0] == 0:
+            raise UserError("error: the prepared model has no inputs or no outputs to compare")
+        ref = reference_response(system, frequencies, reference, workers=workers)
+        response = transfer_function(self.model.system, frequencies)
+        ref.settle(response)  # the maximum on a frequency checked against the full model
+        ports, inertia = error_blocks(system)
+        return ErrorCurve(
+            frequencies,
+            relative_error(ref.response, response, ports),
+            None if inertia is None else relative_error(ref.response, response, inertia),
+            ref.kind,
+        )
+
+    def invariants(self, nodes: Sequence[int] | None = None) -> BodyInvariants:
+        """The mass invariants (SID_NOTES section 4) with these frame nodes (default: the port
+        nodes)."""
+        return body_invariants(self.model, self.prepared, self._nodes(nodes), self.name)
+
+    def to_sid(self, path: PathLike, nodes: Sequence[int] | None = None) -> Path:
+        """Write the body as a SID file (Simpack, ``.SID_FEM``), checked before it is written."""
+        from pymorembs.export.sid import write_sid
+
+        check_before_writing(self.model, self.name)
+        return write_sid(path, self.invariants(nodes),
+                         comment=f"SID generated by pymorembs, reduction {self.name}")  # fmt: skip
+
+    def to_exudyn(self, path: PathLike, nodes: Sequence[int] | None = None) -> Path:
+        """Write the body for Exudyn's ``ObjectFFRFreducedOrder`` (``.npz``)."""
+        from pymorembs.export.exudyn_body import write_exudyn_body
+
+        check_before_writing(self.model, self.name)
+        return write_exudyn_body(path, self.invariants(nodes))
+
+    def to_neweul(self, path: PathLike, nodes: Sequence[int] | None = None) -> Path:
+        """Write the body as Neweul-M² data (``.mat``)."""
+        from pymorembs.export.neweul import write_neweul
+
+        check_before_writing(self.model, self.name)
+        return write_neweul(path, self.invariants(nodes))
+
+    def to_matrices(self, folder: PathLike, formats: Sequence[str] = ("npz", "mtx")) -> list[Path]:
+        """Write the reduced matrices (``reduced.npz``, ``M K D B C.mtx``, ``reduced.mat``)."""
+        unknown = sorted(set(formats) - {"npz", "mtx", "mat"})
+        if unknown:
+            raise UserError(f"to_matrices: unknown formats {unknown} (npz, mtx, mat)")
+        folder = Path(folder)
+        if folder.exists() and not folder.is_dir():
+            raise UserError(f"to_matrices: {folder} exists and is not a folder")
+        folder.mkdir(parents=True, exist_ok=True)
+        names = write_outputs(self.model, self.prepared, self.name, list(formats), [], folder)
+        return [folder / name for name in names]
+
+    def simulate(
+        self,
+        load_cases: Sequence[LoadCase],
+        *,
+        clamp_node: int,
+        load_node: int,
+        duration_s: float = 0.2,
+        step_s: float = 5e-5,
+        rho_inf: float = 0.8,
+    ) -> TimeResponse:
+        """The linear response of the body held at ``clamp_node`` to forces at ``load_node``.
+
+        The reduced model clamped by a rigid joint (:func:`~pymorembs.analysis.time_domain.
+        clamped_reduced_system`: a tangent frame at the node, or the linearised floating body
+        on the joint otherwise), integrated from rest by the generalized-alpha method.
+
+        Parameters
+        ----------
+        load_cases : sequence of LoadCase
+            Force histories along x, y, z of ``load_node`` (N), e.g. ``LoadCase("step", "step",
+            [0, 0, -100])``.
+        clamp_node, load_node : int
+            Node ids (the clamp node needs all six dofs unless the frame holds it).
+        duration_s, step_s : float
+            End time and fixed step (s).
+        rho_inf : float
+            Spectral radius of the generalized-alpha method at infinite frequency.
+
+        Returns
+        -------
+        TimeResponse
+            Displacements of ``load_node`` (m) per load case.
+        """
+        system = clamped_reduced_system(
+            self.prepared.body, self.basis, np.asarray(self.system.mass),
+            np.asarray(self.system.stiffness), self.model.damping_matrix, int(clamp_node),
+            int(load_node),
+        )  # fmt: skip
+        return simulate(system, list(load_cases), duration_s, step_s, rho_inf)
+
+    def _nodes(self, nodes: Sequence[int] | None) -> list[int]:
+        if nodes is not None:
+            return [int(n) for n in nodes]
+        labels = (*self.prepared.system.input_labels, *self.prepared.system.output_labels)
+        found = []
+        for label in labels:
+            head = str(label).split(":")[0]
+            if head.isdigit():
+                found.append(int(head))
+        if not found:
+            raise UserError(f"{self.name}: give the frame nodes of the exported body (nodes=[...])")
+        return list(dict.fromkeys(found))
+
+
+def reduce(
+    prepared: PreparedModel,
+    method: str,
+    *,
+    band_hz: tuple[float, float] | None = None,
+    name: str | None = None,
+    **options: Any,
+) -> ReducedBody:
+    """Reduce a prepared model with one method (paper section 3).
+
+    Parameters
+    ----------
+    prepared : PreparedModel
+    method : str
+        One of :data:`pymorembs.methods.METHODS`: ``modal``, ``craig-bampton``, ``krylov``,
+        ``soaga``, ``gramian``, ``pod``.
+    band_hz : (f_min, f_max), optional
+        The band (Hz) of the band-aware methods (``soaga``, ``gramian``, ``pod``); required
+        for them.
+    name : str, optional
+        Name of the body in exported files (default: the method).
+    **options
+        The method's options (:mod:`pymorembs.methods`), e.g. ``order=30``,
+        ``expansion_points_hz=[0, 500]``, ``tolerance=1e-6``, ``max_frequency_hz=2000``.
+
+    Returns
+    -------
+    ReducedBody
+        Checked (finite, symmetric, positive reduced matrices) before it is returned.
+    """
+    settings = method_options(method, options)
+    if band_hz is None:
+        if method in ("soaga", "gramian", "pod"):
+            raise UserError(f"reduce: {method} needs band_hz=(f_min, f_max) in Hz")
+        band_hz = (0.0, 1.0)
+    system = prepared.reduction_system
+    model = reduced_model(system, settings.reduce(system, (float(band_hz[0]),
+                                                           float(band_hz[1]))))  # fmt: skip
+    limit = settings.max_frequency_hz
+    if limit is not None and model.eigenfrequencies_hz.max() > limit:
+        model = without_stiff_directions(system, model, limit)
+    return ReducedBody(prepared, model, settings, method if name is None else str(name))

@@ -1,0 +1,571 @@
+"""The reduction methods and their options, written once (the method registry).
+
+Each method family of ``paper.md`` section 3 has one frozen dataclass of options with its
+defaults; the Python API (:func:`pymorembs.reduce`), the job file (``[[reduction]]`` tables,
+:mod:`pymorembs.config`) and the job reference (:func:`options_table`) all use them. Building an
+options object checks it: a bad value raises :class:`OptionError`, which names the option.
+
+=================  ==========================================================================
+method             what it keeps (paper section)
+=================  ==========================================================================
+``modal``          the lowest (or the dominant, eq. 26) eigenmodes, with frequency-response
+                   modes on request (3.1)
+``craig-bampton``  fixed-interface modes and the static constraint modes of the input dofs
+``krylov``         moments of the transfer function at expansion points (eqs. 19-22, 3.1)
+``soaga``          adaptive second-order global Arnoldi with an error estimator (3.1)
+``gramian``        the dominant directions of frequency-weighted Gramians (eqs. 23-26, 3.2)
+``pod``            Gramians approximated from frequency-response snapshots (3.2)
+=================  ==========================================================================
+
+Frequencies are in Hz throughout (``s = i 2 pi f``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+from pymorembs.errors import UserError
+from pymorembs.prepare.inertia_loads import is_inertia_label
+from pymorembs.reduce.gramian import gramian_reduction, pod_reduction
+from pymorembs.reduce.krylov import krylov_reduction
+from pymorembs.reduce.modal import modal_reduction
+from pymorembs.reduce.modal_family import (
+    best_modes,
+    boundary_dofs_of_inputs,
+    craig_bampton,
+    modes_with_frm,
+)
+from pymorembs.reduce.projection import Projection
+from pymorembs.reduce.rational_gramian import rational_gramian_reduction
+from pymorembs.reduce.soaga import soaga_reduction
+from pymorembs.system import SecondOrderSystem
+
+__all__ = [
+    "DIRECT_GRAMIAN_LIMIT",
+    "METHODS",
+    "CraigBamptonOptions",
+    "GramianOptions",
+    "KrylovOptions",
+    "ModalOptions",
+    "OptionError",
+    "PodOptions",
+    "ReductionOptions",
+    "SoagaOptions",
+    "method_options",
+    "options_table",
+]
+
+#: Models above this order get a medium model before dense Gramians (``first_stage``).
+DIRECT_GRAMIAN_LIMIT = 2000
+
+
+class OptionError(UserError):
+    """A bad reduction option; ``key`` names it (None: a missing combination of options)."""
+
+    def __init__(self, key: str | None, problem: str) -> None:
+        super().__init__(problem if key is None else f"{key}: {problem}")
+        self.key = key
+        self.problem = problem
+
+
+def _number(key: str, value: Any, minimum: float | None = None) -> float | None:
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise OptionError(key, f"must be a number, got {value!r}")
+    if not math.isfinite(value):
+        raise OptionError(key, f"must be finite, got {value!r}")
+    if minimum is not None and value < minimum:
+        raise OptionError(key, f"must be >= {minimum}, got {value!r}")
+    return float(value)
+
+
+def _whole(key: str, value: Any, minimum: int = 1) -> int | None:
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | np.integer):
+        raise OptionError(key, f"must be a whole number, got {value!r}")
+    if value < minimum:
+        raise OptionError(key, f"must be >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def _frequencies(key: str, value: Any) -> tuple[float, ...]:
+    """A list of frequencies >= 0 in Hz (a single number is a list of one)."""
+    if isinstance(value, int | float) and not isinstance(value, bool):
+        value = [value]
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if (
+        not isinstance(value, list | tuple)
+        or not value
+        or not all(
+            isinstance(p, int | float) and not isinstance(p, bool) and 0 <= p < math.inf
+            for p in value
+        )
+    ):
+        raise OptionError(key, f"must be a list of finite frequencies >= 0 in Hz, got {value!r}")
+    return tuple(float(p) for p in value)
+
+
+def _choice(key: str, value: Any, choices: tuple[str, ...], what: str = "") -> str:
+    if not isinstance(value, str) or value not in choices:
+        quoted = ", ".join(f"'{c}'" for c in choices[:-1]) + f" or '{choices[-1]}'"
+        raise OptionError(key, f"must be {quoted}{what}, got {value!r}")
+    return value
+
+
+def _relative(key: str, value: Any, meaning: str) -> float | None:
+    value = _number(key, value)
+    if value is not None and not 0 < value < 1:
+        raise OptionError(key, f"must lie in (0, 1) ({meaning}), got {value}")
+    return value
+
+
+def _deflation(value: Any) -> float:
+    tol = _number("tol", value, minimum=1e-15)
+    if tol > 1e-3:
+        raise OptionError("tol", f"must be at most 1e-3 (a deflation tolerance), got {tol!r}")
+    return tol
+
+
+@dataclass(frozen=True)
+class ReductionOptions:
+    """Options of every method.
+
+    Attributes
+    ----------
+    max_frequency_hz : float, optional
+        Remove the reduced model's eigen-directions above this frequency (Hz), e.g. for an
+        explicit integrator (:func:`~pymorembs.reduce.projection.without_stiff_directions`).
+    """
+
+    method: ClassVar[str] = ""
+    max_frequency_hz: float | None = None
+
+    def __post_init__(self) -> None:
+        limit = _number("max_frequency_hz", self.max_frequency_hz)
+        if limit is not None and not limit > 0:
+            raise OptionError("max_frequency_hz", f"must be a frequency > 0 (Hz), got {limit!r}")
+        self._set("max_frequency_hz", limit)
+
+    def _set(self, key: str, value: Any) -> None:
+        object.__setattr__(self, key, value)
+
+    @property
+    def order(self) -> int | None:  # overridden by the methods that have one
+        return None
+
+    def reduce(self, system: SecondOrderSystem, band_hz: tuple[float, float]) -> Projection:
+        """The projection of this method on ``system`` (band in Hz for the band-aware ones)."""
+        raise NotImplementedError
+
+    def given(self) -> dict[str, Any]:
+        """The options that differ from their defaults (as a job would write them)."""
+        out = {}
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            default = f.default if f.default is not dataclasses.MISSING else object()
+            if value != default:
+                out[f.name] = list(value) if isinstance(value, tuple) else value
+        return out
+
+
+@dataclass(frozen=True)
+class ModalOptions(ReductionOptions):
+    """``modal``: eigenmodes (and frequency-response modes).
+
+    Attributes
+    ----------
+    order : int
+        Number of modes (with ``frm_hz``: modes and frequency-response modes together).
+    select : {"lowest", "best"}
+        The lowest modes, or the ``order`` modes with the largest approximate Hankel singular
+        values (eq. 26) among ``candidates``.
+    candidates : int, optional
+        Modes computed for ``select = "best"`` (default ``max(3 order, order + 20)``).
+    frm_hz : tuple of float
+        Add the frequency-response modes ``(K - w^2 M)^-1 B`` at these frequencies (Hz).
+    shift_hz : float
+        Shift-invert about ``sigma = -(2 pi shift_hz)^2`` (Hz).
+    """
+
+    method: ClassVar[str] = "modal"
+    order: int | None = None
+    select: str = "lowest"
+    candidates: int | None = None
+    frm_hz: tuple[float, ...] = ()
+    shift_hz: float = 1.0
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.order is None:
+            raise OptionError(None, "modal reduction needs 'order'")
+        order = _whole("order", self.order)
+        self._set("order", order)
+        self._set("shift_hz", _number("shift_hz", self.shift_hz, minimum=0.0))
+        _choice("select", self.select, ("lowest", "best"), " (eq. 26)")
+        candidates = _whole("candidates", self.candidates)
+        if candidates is not None and candidates <= order:
+            raise OptionError("candidates", f"must exceed the order {order}, got {candidates}")
+        self._set("frm_hz", _frequencies("frm_hz", self.frm_hz) if self.frm_hz != () else ())
+
+    def reduce(self, system: SecondOrderSystem, band_hz: tuple[float, float]) -> Projection:
+        if self.frm_hz:
+            return modes_with_frm(system, self.order, list(self.frm_hz), modes=self.select,
+                                  candidates=self.candidates, shift_hz=self.shift_hz)  # fmt: skip
+        if self.select == "best":
+            return best_modes(system, self.order, candidates=self.candidates,
+                              shift_hz=self.shift_hz)  # fmt: skip
+        return modal_reduction(system, self.order, shift_hz=self.shift_hz)
+
+
+@dataclass(frozen=True)
+class CraigBamptonOptions(ReductionOptions):
+    """``craig-bampton``: fixed-interface modes and static constraint modes of the input dofs.
+
+    Attributes
+    ----------
+    fixed_modes : int
+        Fixed-interface normal modes (0: Guyan reduction). The order follows from them and the
+        boundary (the dofs of the port forces); with inertia loads, their static responses with
+        the boundary held are added.
+    shift_hz : float
+        Shift-invert of the fixed-interface eigenproblem (Hz).
+    """
+
+    method: ClassVar[str] = "craig-bampton"
+    fixed_modes: int | None = None
+    shift_hz: float = 1.0
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.fixed_modes is None:
+            raise OptionError(None, "craig-bampton needs 'fixed_modes'")
+        self._set("fixed_modes", _whole("fixed_modes", self.fixed_modes, minimum=0))
+        self._set("shift_hz", _number("shift_hz", self.shift_hz, minimum=0.0))
+
+    def reduce(self, system: SecondOrderSystem, band_hz: tuple[float, float]) -> Projection:
+        inertia = np.array([is_inertia_label(label) for label in system.input_labels], dtype=bool)
+        ports = dataclasses.replace(system, input_matrix=system.input_matrix[:, ~inertia])
+        return craig_bampton(
+            system,
+            boundary_dofs_of_inputs(ports),
+            self.fixed_modes,
+            shift_hz=self.shift_hz,
+            static_loads=system.input_matrix[:, inertia] if inertia.any() else None,
+        )
+
+
+@dataclass(frozen=True)
+class KrylovOptions(ReductionOptions):
+    """``krylov``: moment matching at expansion points (eqs. 19-22).
+
+    Attributes
+    ----------
+    expansion_points_hz : tuple of float
+        Expansion points (Hz, ``s = i 2 pi f``).
+    order : int, optional
+        Without ``moments``: blocks are added round-robin over the points, lowest moments first,
+        until the basis has ``order`` columns; with ``moments``: a cap.
+    moments : int or tuple of int, optional
+        Moments (blocks) per point: one number for all or one per point.
+    two_sided : bool
+        ``W`` from the output Krylov spaces (eq. 22): 2r moments for ``C != B^T``.
+    tol : float
+        Deflation tolerance of the block Arnoldi process (relative).
+    """
+
+    method: ClassVar[str] = "krylov"
+    expansion_points_hz: tuple[float, ...] = ()
+    order: int | None = None
+    moments: int | tuple[int, ...] | None = None
+    two_sided: bool = False
+    tol: float = 1e-10
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.expansion_points_hz == ():
+            raise OptionError(None, "missing key 'expansion_points_hz'")
+        points = _frequencies("expansion_points_hz", self.expansion_points_hz)
+        self._set("expansion_points_hz", points)
+        self._set("order", _whole("order", self.order))
+        moments = self.moments
+        if moments is None and self.order is None:
+            raise OptionError(None, "krylov needs 'moments' or 'order'")
+        if moments is not None:
+            values = list(moments) if isinstance(moments, list | tuple) else [moments]
+            if not all(isinstance(m, int) and not isinstance(m, bool) and m >= 1 for m in values):
+                raise OptionError("moments", f"must be whole numbers >= 1, got {moments!r}")
+            if isinstance(moments, list | tuple):
+                if len(values) != len(points):
+                    raise OptionError(
+                        "moments", f"{len(values)} values for {len(points)} expansion points"
+                    )
+                self._set("moments", tuple(values))
+        if not isinstance(self.two_sided, bool):
+            raise OptionError("two_sided", f"must be true or false, got {self.two_sided!r}")
+        self._set("tol", _deflation(self.tol))
+
+    def reduce(self, system: SecondOrderSystem, band_hz: tuple[float, float]) -> Projection:
+        moments = list(self.moments) if isinstance(self.moments, tuple) else self.moments
+        return krylov_reduction(system, list(self.expansion_points_hz), moments=moments,
+                                order=self.order, tol=self.tol,
+                                two_sided=self.two_sided)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class SoagaOptions(ReductionOptions):
+    """``soaga``: second-order adaptive global Arnoldi with its error estimator.
+
+    Attributes
+    ----------
+    tolerance : float, optional
+        Stop when the estimated maximum relative error over the band is below it.
+    order : int, optional
+        The largest order (at least one of ``tolerance`` and ``order``).
+    candidates_hz : tuple of float, optional
+        Candidate expansion points (Hz); default ``n_candidates`` equidistant over the band.
+    n_candidates : int, optional
+        Number of equidistant candidates.
+    tol : float
+        Deflation tolerance of the Arnoldi blocks (relative).
+    """
+
+    method: ClassVar[str] = "soaga"
+    tolerance: float | None = None
+    order: int | None = None
+    candidates_hz: tuple[float, ...] | None = None
+    n_candidates: int | None = None
+    tol: float = 1e-10
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        self._set("order", _whole("order", self.order))
+        if self.candidates_hz is not None:
+            self._set("candidates_hz", _frequencies("candidates_hz", self.candidates_hz))
+        self._set("n_candidates", _whole("n_candidates", self.n_candidates))
+        tolerance = _relative("tolerance", self.tolerance, "relative error")
+        self._set("tolerance", tolerance)
+        if self.order is None and tolerance is None:
+            raise OptionError(
+                None,
+                "soaga needs 'order' (the largest order) or 'tolerance' (estimated max relative "
+                "error), or both",
+            )
+        self._set("tol", _deflation(self.tol))
+
+    def reduce(self, system: SecondOrderSystem, band_hz: tuple[float, float]) -> Projection:
+        extra: dict[str, Any] = {}
+        if self.candidates_hz is not None:
+            extra["candidates_hz"] = list(self.candidates_hz)
+        if self.n_candidates is not None:
+            extra["n_candidates"] = self.n_candidates
+        return soaga_reduction(system, band_hz, tolerance=self.tolerance, max_order=self.order,
+                               tol=self.tol, **extra)  # fmt: skip
+
+
+def _indicator(options: ReductionOptions) -> float | None:
+    tolerance = _relative("tolerance", options.tolerance, "sigma_n+1 / sigma_1")
+    if options.order is None and tolerance is None:
+        raise OptionError(
+            None,
+            f"{options.method} needs 'order' or 'tolerance' (the indicator sigma_n+1 / "
+            "sigma_1), or both",
+        )
+    return tolerance
+
+
+@dataclass(frozen=True)
+class GramianOptions(ReductionOptions):
+    """``gramian``: dominant eigenspace of the frequency-weighted position Gramians (eqs. 23-26).
+
+    Attributes
+    ----------
+    order : int, optional
+        Reduced order; at least one of ``order`` and ``tolerance``.
+    tolerance : float, optional
+        Automatic order: the smallest n with ``sigma_n+1 / sigma_1 <= tolerance``.
+    first_stage : {"soaga", "krylov", "rational-krylov", "none"}, optional
+        The medium model of the two-step reduction (section 3.2). Default: ``"soaga"`` above
+        :data:`DIRECT_GRAMIAN_LIMIT` dofs, else none. ``"rational-krylov"``: no medium model, the
+        Gramians of the large model by a rational Krylov (Galerkin) solver.
+    first_order : int, optional
+        Order of the medium model (SOAGA default 132, Krylov as its ``order``), or the largest
+        dimension of the rational Krylov space (default 300).
+    first_tolerance : float, optional
+        SOAGA first stage: its estimated error target (default 1e-10); rational Krylov: stop when
+        trace and leading singular value change by less than this (default 1e-8).
+    expansion_points_hz, moments
+        Of the Krylov first stage (as for ``krylov``).
+    """
+
+    method: ClassVar[str] = "gramian"
+    order: int | None = None
+    tolerance: float | None = None
+    first_stage: str | None = None
+    first_order: int | None = None
+    first_tolerance: float | None = None
+    expansion_points_hz: tuple[float, ...] | None = None
+    moments: int | tuple[int, ...] | None = None
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        self._set("order", _whole("order", self.order))
+        self._set("tolerance", _indicator(self))
+        if self.first_stage is not None:
+            _choice("first_stage", self.first_stage, ("soaga", "krylov", "rational-krylov", "none"))
+        self._set("first_order", _whole("first_order", self.first_order))
+        self._set("first_tolerance", _number("first_tolerance", self.first_tolerance, 0.0))
+        if self.first_stage == "krylov":
+            if self.expansion_points_hz is None:
+                raise OptionError(None, "missing key 'expansion_points_hz'")
+            points = _frequencies("expansion_points_hz", self.expansion_points_hz)
+            self._set("expansion_points_hz", points)
+        elif self.expansion_points_hz is not None:
+            points = _frequencies("expansion_points_hz", self.expansion_points_hz)
+            self._set("expansion_points_hz", points)
+        if isinstance(self.moments, list):
+            self._set("moments", tuple(self.moments))
+
+    def reduce(self, system: SecondOrderSystem, band_hz: tuple[float, float]) -> Projection:
+        if self.first_stage == "rational-krylov":
+            extra = {} if self.first_order is None else {"max_dim": self.first_order}
+            return rational_gramian_reduction(system, band_hz, order=self.order,
+                                              tolerance=self.tolerance,
+                                              tol=self.first_tolerance, **extra)  # fmt: skip
+        medium = self._medium(system, band_hz)
+        order = self.order
+        if medium is not None and order is not None and order > medium.order:
+            order = medium.order  # the two-step model cannot exceed its medium model
+        projection = gramian_reduction(
+            system, band_hz, order=order, tolerance=self.tolerance, medium=medium
+        )
+        if order != self.order:
+            projection.parameters["order_capped_by_first_stage"] = medium.order
+        return projection
+
+    def _medium(self, system: SecondOrderSystem, band_hz: tuple[float, float]) -> Projection | None:
+        """The medium model of the two-step reduction (paper section 3.2), or None."""
+        stage = self.first_stage
+        if stage is None:
+            stage = "soaga" if system.order > DIRECT_GRAMIAN_LIMIT else "none"
+        if stage == "none":
+            return None
+        if stage == "soaga":
+            first = 1e-10 if self.first_tolerance is None else self.first_tolerance
+            order = 132 if self.first_order is None else self.first_order
+            return soaga_reduction(system, band_hz, max_order=order, tolerance=first)
+        moments = list(self.moments) if isinstance(self.moments, tuple) else self.moments
+        return krylov_reduction(system, list(self.expansion_points_hz), moments=moments,
+                                order=self.first_order)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class PodOptions(ReductionOptions):
+    """``pod``: Gramians approximated from frequency-response snapshots of the full model.
+
+    Attributes
+    ----------
+    order, tolerance
+        As for ``gramian`` (at least one).
+    snapshots : int
+        Frequency responses over the band (Gauss-Legendre nodes), at least 4.
+    """
+
+    method: ClassVar[str] = "pod"
+    order: int | None = None
+    tolerance: float | None = None
+    snapshots: int = 40
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        self._set("order", _whole("order", self.order))
+        self._set("tolerance", _indicator(self))
+        self._set("snapshots", _whole("snapshots", self.snapshots, minimum=4))
+
+    def reduce(self, system: SecondOrderSystem, band_hz: tuple[float, float]) -> Projection:
+        return pod_reduction(system, band_hz, order=self.order, tolerance=self.tolerance,
+                             n_snapshots=self.snapshots)  # fmt: skip
+
+
+#: Method name -> its options class.
+METHODS: dict[str, type[ReductionOptions]] = {
+    cls.method: cls
+    for cls in (
+        ModalOptions,
+        CraigBamptonOptions,
+        KrylovOptions,
+        SoagaOptions,
+        GramianOptions,
+        PodOptions,
+    )
+}
+
+
+def method_options(method: str, values: Mapping[str, Any] | None = None) -> ReductionOptions:
+    """The checked options of ``method`` from a mapping of option names to values.
+
+    Raises
+    ------
+    OptionError
+        Unknown method or option (with the nearest valid name), or a bad value.
+    """
+    if method not in METHODS:
+        hint = difflib.get_close_matches(str(method), list(METHODS), n=1)
+        more = f"; did you mean '{hint[0]}'?" if hint else ""
+        raise OptionError(
+            "method", f"unknown method {method!r}{more} (available: {', '.join(METHODS)})"
+        )
+    cls = METHODS[method]
+    known = [f.name for f in dataclasses.fields(cls)]
+    values = dict(values or {})
+    for key in values:
+        if key not in known:
+            hint = difflib.get_close_matches(key, known, n=1)
+            more = f"; did you mean '{hint[0]}'?" if hint else ""
+            raise OptionError(key, f"unknown option of {method}{more}")
+    return cls(**values)
+
+
+def options_table() -> str:
+    """The options of every method as a Markdown table (name, default, meaning) for the docs."""
+    lines = ["| method | option | default | meaning |", "|---|---|---|---|"]
+    for name, cls in METHODS.items():
+        docs = _attribute_docs(cls)
+        for f in dataclasses.fields(cls):
+            default = "" if f.default is dataclasses.MISSING else repr(f.default)
+            default = "required" if default == "None" and f.name in _REQUIRED.get(name, ()) else (
+                "—" if default == "None" else default)  # fmt: skip
+            lines.append(f"| {name} | `{f.name}` | {default} | {docs.get(f.name, '')} |")
+    return "\n".join(lines) + "\n"
+
+
+_REQUIRED = {
+    "modal": ("order",),
+    "craig-bampton": ("fixed_modes",),
+}
+
+
+def _attribute_docs(cls: type) -> dict[str, str]:
+    """First sentence of each attribute of a numpy-style ``Attributes`` section."""
+    docs: dict[str, str] = {}
+    text = (cls.__doc__ or "").split("Attributes\n    ----------\n", 1)
+    if len(text) < 2:
+        return docs
+    names: list[str] = []
+    for line in text[1].splitlines():
+        if line.startswith("    ") and not line.startswith("        ") and line.strip():
+            names = [n.strip() for n in line.split(":")[0].split(",")]
+        elif line.startswith("        ") and names:
+            for name in names:
+                docs[name] = (docs.get(name, "") + " " + line.strip()).strip()
+    inherited = _attribute_docs(ReductionOptions) if cls is not ReductionOptions else {}
+    return {**inherited, **docs}
