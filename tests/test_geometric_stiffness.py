@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import scipy.sparse.linalg as spla
 
-from pymorembs.elements.hex20 import assemble_hex20_geometric
+from pymorembs.elements.solid import assemble_solid_geometric
 from pymorembs.examples.blade import blade, blade_mesh
 
 E, NU, RHO, B, H, L = 2.1e11, 0.3, 7850.0, 0.04, 0.01, 1.0
@@ -21,7 +21,7 @@ def test_uniaxial_prestress_gives_the_string_stiffness():
     x, y, z = mesh.coordinates.T
     strain = 1e-4
     prestress = np.column_stack([strain * x, -NU * strain * y, -NU * strain * z]).ravel()
-    k_g = assemble_hex20_geometric(mesh.coordinates, mesh.elements, prestress, E, NU)
+    k_g = assemble_solid_geometric("hex20", mesh.coordinates, mesh.elements, prestress, E, NU)
     volume = 0.2 * B * H
     slope = 0.7  # a transverse displacement u_z = slope * x: sigma_xx * slope² * V
     test = np.column_stack([0 * x, 0 * x, slope * x]).ravel()
@@ -60,7 +60,7 @@ def solid_flap_hz(hub: float, omegas: list[float]) -> list[float]:
     load = m @ np.column_stack([x, y, 0 * x]).ravel()  # -M (omega x (omega x c)), omega = e_z
     u = np.zeros(body.n_dof)
     u[free] = spla.spsolve(k[free][:, free].tocsc(), load[free])
-    k_g = assemble_hex20_geometric(mesh.coordinates, mesh.elements, u, E, NU).tocsr()
+    k_g = assemble_solid_geometric("hex20", mesh.coordinates, mesh.elements, u, E, NU).tocsr()
     out = []
     for omega in omegas:
         a = (k + omega**2 * k_g)[free][:, free]

@@ -21,7 +21,7 @@ import scipy.sparse.linalg as spla
 from conftest import blade_job
 from pymorembs.cli import main
 from pymorembs.config import parse_job
-from pymorembs.elements.hex20 import assemble_hex20_geometric
+from pymorembs.elements.solid import assemble_solid_geometric
 from pymorembs.errors import UserError
 from pymorembs.examples.blade import blade, blade_mesh
 from pymorembs.export.exudyn_body import (
@@ -83,7 +83,9 @@ def centrifugal_k_g() -> sp.csr_matrix:
     load = m @ np.column_stack([x, y, 0 * x]).ravel()
     u = np.zeros(body.n_dof)
     u[free] = spla.spsolve(k[free][:, free].tocsc(), load[free])
-    return assemble_hex20_geometric(mesh.coordinates, mesh.elements, u, 2.1e11, 0.3).tocsr()
+    return assemble_solid_geometric(
+        "hex20", mesh.coordinates, mesh.elements, u, 2.1e11, 0.3
+    ).tocsr()
 
 
 def sid_rotating_hz(path: Path, omega: float) -> np.ndarray:
@@ -168,7 +170,7 @@ def test_a_tip_tension_stiffens_through_the_node_force_jacobian(runs):
     tip[body.dofs.index(1, 0)] = 1.0
     u = np.zeros(body.n_dof)
     u[free] = spla.spsolve(k[free][:, free].tocsc(), tip[free])
-    k_g = assemble_hex20_geometric(mesh.coordinates, mesh.elements, u, 2.1e11, 0.3).tocsr()
+    k_g = assemble_solid_geometric("hex20", mesh.coordinates, mesh.elements, u, 2.1e11, 0.3).tocsr()
     a = (k + force * k_g)[free][:, free]
     full = np.sqrt(np.sort(spla.eigsh(a.tocsc(), k=2, M=m[free][:, free].tocsc(), sigma=0)[0]))
     np.testing.assert_allclose(reduced, full / (2 * np.pi), rtol=1e-5)
@@ -257,7 +259,7 @@ def full_prestressed_hz(load: np.ndarray) -> float:
     k, m = body.stiffness.tocsr(), body.mass.tocsr()
     u = np.zeros(body.n_dof)
     u[free] = spla.spsolve(k[free][:, free].tocsc(), load[free])
-    k_g = assemble_hex20_geometric(mesh.coordinates, mesh.elements, u, 2.1e11, 0.3).tocsr()
+    k_g = assemble_solid_geometric("hex20", mesh.coordinates, mesh.elements, u, 2.1e11, 0.3).tocsr()
     a = (k + k_g)[free][:, free]
     value = spla.eigsh(a.tocsc(), k=1, M=m[free][:, free].tocsc(), sigma=0)[0][0]
     return float(np.sqrt(value) / (2 * np.pi))

@@ -328,8 +328,9 @@ class ModelPorts:
             )
 
 
-#: Element types an :class:`ElementMesh` can hold, with their number of nodes.
-ELEMENT_NODES = {"hex20": 20, "beam2": 2}
+#: Element types an :class:`ElementMesh` can hold, with their number of nodes (the solid kinds
+#: of :mod:`pymorembs.elements.solid` and the two-node beam).
+ELEMENT_NODES = {"hex20": 20, "hex20r": 20, "hex8": 8, "tet10": 10, "tet4": 4, "beam2": 2}
 
 
 @dataclass(frozen=True, eq=False)
@@ -342,13 +343,16 @@ class ElementMesh:
     Attributes
     ----------
     element : str
-        Element type, a key of :data:`ELEMENT_NODES` (``"hex20"``: 20-node hexahedra in the node
-        order of :data:`pymorembs.elements.hex20.HEX20_NODES`; ``"beam2"``: the two-node beams of
-        :mod:`pymorembs.elements.beam`, nodes with all six dofs).
+        Element type, a key of :data:`ELEMENT_NODES`: a solid kind of
+        :mod:`pymorembs.elements.solid` (``"hex20"``: 20-node hexahedra in the node order of
+        :data:`pymorembs.elements.hex20.HEX20_NODES`, 27 Gauss points; ``"hex20r"``: the same
+        with 8; ``"hex8"``, ``"tet4"``, ``"tet10"``), or ``"beam2"``: the two-node beams of
+        :mod:`pymorembs.elements.beam`, nodes with all six dofs.
     connectivity : ndarray of int, shape (n_el, nodes per element)
         Node ids of each element.
-    young, poisson : float
-        Young's modulus (model stress unit, N/m² in SI) and Poisson's ratio.
+    young, poisson : float or ndarray, shape (n_el,)
+        Young's modulus (model stress unit, N/m² in SI) and Poisson's ratio: one material, or
+        one per element (solids of several materials).
     section : BeamSection, optional
         The cross-section of ``"beam2"`` elements (required for them).
     up : (3,) float, optional
@@ -357,8 +361,8 @@ class ElementMesh:
 
     element: str
     connectivity: np.ndarray
-    young: float
-    poisson: float
+    young: float | np.ndarray
+    poisson: float | np.ndarray
     section: BeamSection | None = None
     up: tuple[float, float, float] | None = None
 
@@ -374,12 +378,27 @@ class ElementMesh:
                 f"element mesh: {self.element} connectivity must have "
                 f"{ELEMENT_NODES[self.element]} columns, got shape {connectivity.shape}"
             )
-        if not (np.isfinite(self.young) and self.young > 0) or not (
-            np.isfinite(self.poisson) and -1.0 < self.poisson < 0.5
-        ):
+        for key in ("young", "poisson"):
+            value = np.asarray(getattr(self, key), dtype=float)
+            if value.ndim == 0:
+                object.__setattr__(self, key, float(value))
+            elif value.shape == (connectivity.shape[0],) and self.element != "beam2":
+                object.__setattr__(self, key, value.copy())
+            else:
+                raise UserError(
+                    f"element mesh: {key} must be one number or one per element "
+                    f"({connectivity.shape[0]}), got shape {value.shape}"
+                )
+        young, poisson = np.asarray(self.young), np.asarray(self.poisson)
+        bad = ~(np.isfinite(young) & (young > 0)) | ~(
+            np.isfinite(poisson) & (-1.0 < poisson) & (poisson < 0.5)
+        )
+        if np.any(bad):
+            k = np.unravel_index(int(np.flatnonzero(bad)[0]), np.shape(bad)) if bad.ndim else ()
             raise UserError(
-                f"element mesh: material E = {self.young!r}, nu = {self.poisson!r} is not an "
-                "isotropic elastic material (E > 0, -1 < nu < 0.5)"
+                f"element mesh: material E = {np.broadcast_to(young, bad.shape)[k]!r}, nu = "
+                f"{np.broadcast_to(poisson, bad.shape)[k]!r} is not an isotropic elastic "
+                "material (E > 0, -1 < nu < 0.5)"
             )
         if self.element == "beam2" and self.section is None:
             raise UserError("element mesh: beam2 elements need their cross-section")

@@ -1,10 +1,11 @@
 """The 20-node serendipity hexahedron: shape functions, element matrices, assembly.
 
-Isoparametric, isotropic linear elasticity, full 3 x 3 x 3 Gauss integration, consistent mass;
-and the geometric (initial-stress) stiffness of a prestressed state. Node order of Abaqus C3D20 /
-Ansys SOLID186 (:data:`HEX20_NODES`); the tests check the matrices against scikit-fem's
-``ElementHexS2``. Used by the built-in solid models (:mod:`pymorembs.examples.rack_solid`,
-:mod:`pymorembs.examples.blade`) and for the geometric stiffening of their bodies.
+Isoparametric, isotropic linear elasticity, full 3 x 3 x 3 Gauss integration, consistent mass.
+Node order of Abaqus C3D20 / Ansys SOLID186 (:data:`HEX20_NODES`); the tests check the matrices
+against scikit-fem's ``ElementHexS2``. Used by the built-in solid models
+(:mod:`pymorembs.examples.rack_solid`, :mod:`pymorembs.examples.blade`); the stresses and the
+geometric (initial-stress) stiffness of a prestressed state are those of the kind ``"hex20"``
+of :mod:`pymorembs.elements.solid`.
 """
 
 from __future__ import annotations
@@ -141,102 +142,6 @@ def hex20_matrices(
         0.5 * (stiffness + stiffness.transpose(0, 2, 1)),
         0.5 * (mass + mass.transpose(0, 2, 1)),
     )
-
-
-def hex20_stresses(
-    nodes: np.ndarray, displacements: np.ndarray, young: float, poisson: float
-) -> np.ndarray:
-    """Cauchy stresses of a linear displacement field at the 27 Gauss points of each element.
-
-    ``sigma = lambda tr(eps) I + 2 mu eps`` with ``eps = sym(grad u)`` (small strains).
-
-    Parameters
-    ----------
-    nodes : ndarray, shape (n_el, 20, 3)
-        Node coordinates (m).
-    displacements : ndarray, shape (n_el, 20, 3)
-        Nodal displacements (m).
-    young, poisson : float
-        Young's modulus (N/m²) and Poisson's ratio.
-
-    Returns
-    -------
-    ndarray, shape (n_el, 27, 3, 3)
-        Stress tensors (N/m²).
-    """
-    _, gradients = hex20_geometry(nodes)
-    grad = np.einsum("eai,eqak->eqik", displacements, gradients)  # du_i / dx_k
-    strain = 0.5 * (grad + grad.transpose(0, 1, 3, 2))
-    lam = young * poisson / ((1.0 + poisson) * (1.0 - 2.0 * poisson))
-    mu = young / (2.0 * (1.0 + poisson))
-    trace = np.trace(strain, axis1=2, axis2=3)
-    return lam * trace[..., None, None] * np.eye(3) + 2.0 * mu * strain
-
-
-def hex20_geometric_matrices(nodes: np.ndarray, stresses: np.ndarray) -> np.ndarray:
-    """Scalar geometric stiffness of 20-node hexahedra under given stresses.
-
-    ``g[a, b] = int dN_a/dx_k sigma_kl dN_b/dx_l dV`` (27-point rule); the element's geometric
-    stiffness is ``K_G[a i, b j] = g[a, b] delta_ij`` (the initial-stress matrix of the
-    Green-Lagrange strain: ``u^T K_G u = int sigma : (grad u^T grad u) dV``).
-
-    Parameters
-    ----------
-    nodes : ndarray, shape (n_el, 20, 3)
-    stresses : ndarray, shape (n_el, 27, 3, 3)
-        Stresses at the Gauss points (:func:`hex20_stresses`), N/m².
-
-    Returns
-    -------
-    ndarray, shape (n_el, 20, 20)
-        ``g`` (N/m).
-    """
-    determinants, gradients = hex20_geometry(nodes)
-    weights = determinants * GAUSS_WEIGHTS
-    g = np.einsum("eq,eqak,eqkl,eqbl->eab", weights, gradients, stresses, gradients)
-    return 0.5 * (g + g.transpose(0, 2, 1))
-
-
-def assemble_hex20_geometric(
-    coordinates: np.ndarray,
-    elements: np.ndarray,
-    displacement: np.ndarray,
-    young: float,
-    poisson: float,
-    chunk: int = 2048,
-) -> sp.csr_matrix:
-    """Global geometric stiffness ``K_G`` of a 20-node hexahedron mesh under a displacement.
-
-    The stresses of the linear displacement field ``displacement`` (its prestress) give the
-    initial-stress matrix of every element (:func:`hex20_geometric_matrices`), assembled like
-    :func:`assemble_hex20`. A tensile prestress makes ``K_G`` positive semidefinite: it
-    stiffens transverse motion (a rotating blade, a string under tension).
-
-    Parameters
-    ----------
-    coordinates : ndarray, shape (n_nodes, 3)
-    elements : ndarray of int, shape (n_el, 20)
-    displacement : ndarray, shape (3 n_nodes,)
-        Equation ``3 r + i`` = direction ``i`` of the node in row ``r`` (m).
-    young, poisson : float
-        The material of the prestressed state.
-
-    Returns
-    -------
-    scipy.sparse.csr_matrix, shape (3 n_nodes, 3 n_nodes)
-    """
-    n = 3 * coordinates.shape[0]
-    u = np.asarray(displacement, dtype=float).reshape(-1, 3)
-    geometric = sp.csr_matrix((n, n))
-    directions = np.arange(3)
-    for start in range(0, elements.shape[0], chunk):
-        conn = elements[start : start + chunk]
-        nodes = coordinates[conn]
-        g = hex20_geometric_matrices(nodes, hex20_stresses(nodes, u[conn], young, poisson))
-        rows = 3 * conn[:, :, None, None] + directions
-        cols = 3 * conn[:, None, :, None] + directions
-        geometric = geometric + _scatter(g[..., None], rows, cols, n)
-    return geometric
 
 
 def assemble_hex20(

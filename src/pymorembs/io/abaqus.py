@@ -95,9 +95,11 @@ from pymorembs.io.abaqus_inp import (
     derive_dof_table,
     integer_field,
     read_inp,
+    solid_blocks,
 )
 from pymorembs.io.matrix_market import SYMMETRY_TOLERANCE, read_dofs_csv, read_nodes_csv
 from pymorembs.io.reader_support import assemble_symmetric, is_nodes_csv, read_text
+from pymorembs.io.solid_mesh import attach_mesh
 from pymorembs.io.symmetric_assembly import half_of_entries, symmetric_from_half
 
 __all__ = [
@@ -366,6 +368,8 @@ def _read(
                 f"no mass matrix: {k_file.path.name} was read alone, the mass is zero",
             ),
         )
+    if nodes is not None and nodes.model is not None:  # the solid elements, for stiffening
+        body = attach_mesh(body, solid_blocks(nodes.model))
     return body
 
 

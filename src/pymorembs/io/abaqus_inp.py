@@ -58,14 +58,19 @@ from pymorembs.arrays import sorted_unique
 from pymorembs.body import DofTable
 from pymorembs.errors import located_error
 from pymorembs.io.reader_support import read_text
+from pymorembs.io.solid_mesh import SolidBlock
 
 __all__ = [
     "ABAQUS_DOF_NAMES",
+    "ABAQUS_SOLID_TYPES",
     "MAX_LABEL",
     "ElementBlock",
+    "ElementSet",
     "InpModel",
+    "Material",
     "Placement",
     "Scope",
+    "SolidSection",
     "ascii_data",
     "derive_dof_table",
     "element_dofs",
@@ -73,6 +78,7 @@ __all__ = [
     "keyword_blocks",
     "parse_keyword",
     "read_inp",
+    "solid_blocks",
 ]
 
 PathLike = str | os.PathLike[str]
@@ -212,10 +218,63 @@ class ElementBlock:
     line: int
     text: str
     first_line: int
+    elset: str | None = None
 
     def node_labels(self, scopes: tuple[Scope, ...]) -> tuple[np.ndarray, np.ndarray]:
         """Scope index and label of every node reference, flat arrays of equal length."""
-        return _parse_elements(self, scopes)
+        return self._parsed(scopes)[1:]
+
+    def element_labels(self, scopes: tuple[Scope, ...]) -> np.ndarray:
+        """The label of every element of the block, in the order of :meth:`node_labels`."""
+        return self._parsed(scopes)[0]
+
+    def _parsed(self, scopes: tuple[Scope, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The parsed block, kept after the first call (the dof table and the mesh use it)."""
+        parsed = self.__dict__.get("_parsed_table")
+        if parsed is None:
+            parsed = _parse_elements(self, scopes)
+            object.__setattr__(self, "_parsed_table", parsed)
+        return parsed
+
+
+@dataclass(frozen=True, eq=False)
+class ElementSet:
+    """One ``*ELSET`` data block (or the ``ELSET=`` of an ``*ELEMENT`` block) of a scope."""
+
+    name: str
+    scope: int
+    path: Path
+    line: int
+    text: str
+    first_line: int
+    generate: bool = False
+
+
+@dataclass(frozen=True, eq=False)
+class SolidSection:
+    """``*SOLID SECTION, ELSET=..., MATERIAL=...`` of a scope."""
+
+    elset: str
+    material: str
+    scope: int
+    path: Path
+    line: int
+
+
+@dataclass(frozen=True, eq=False)
+class Material:
+    """``*MATERIAL, NAME=...`` with its ``*ELASTIC`` data lines (``None``: no ``*ELASTIC``).
+
+    ``elastic_type`` is the ``TYPE=`` of ``*ELASTIC`` (upper case, ``ISOTROPIC`` by default) and
+    ``elastic`` its data lines split into fields (temperature-dependent data has several).
+    """
+
+    name: str
+    path: Path
+    line: int
+    elastic_type: str | None = None
+    elastic: tuple[tuple[str, ...], ...] | None = None
+    elastic_line: int | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -243,6 +302,12 @@ class InpModel:
         Whether the file defines parts and an assembly.
     generated_elements : tuple of (Path, int) or None
         Where ``*ELGEN``/``*ELCOPY`` generate elements that :attr:`elements` lacks.
+    elsets : tuple of ElementSet
+        Element sets (a set of a part appears once per instance of the part).
+    sections : tuple of SolidSection
+        Solid sections (likewise per instance).
+    materials : dict of str -> Material
+        Materials by upper-case name.
     """
 
     path: Path
@@ -255,6 +320,9 @@ class InpModel:
     id_rule: str
     uses_parts: bool
     generated_elements: tuple[Path, int] | None = None
+    elsets: tuple[ElementSet, ...] = ()
+    sections: tuple[SolidSection, ...] = ()
+    materials: dict[str, Material] = field(default_factory=dict)
 
     def index_of(self, scope: np.ndarray, label: np.ndarray) -> np.ndarray:
         """Node index of each (scope, label) pair, -1 where no such node exists."""
@@ -315,7 +383,9 @@ class _Container:
     """Nodes and element blocks gathered for one part, instance, assembly or the model."""
 
     nodes: list[_NodeBlock] = field(default_factory=list)
-    elements: list[tuple[str, Path, int, str, int]] = field(default_factory=list)
+    elements: list[tuple[str, Path, int, str, int, str | None]] = field(default_factory=list)
+    elsets: list[tuple[str, Path, int, str, int, bool, str | None]] = field(default_factory=list)
+    sections: list[tuple[str, str, Path, int]] = field(default_factory=list)
 
 
 @dataclass
@@ -340,6 +410,8 @@ class _Reader:
         self.where = "model"
         self.generated: tuple[Path, int] | None = None
         self.uses_parts = False
+        self.materials: dict[str, Material] = {}
+        self.material: str | None = None  # the *MATERIAL the material options belong to
 
     def scan(self, path: Path, stack: tuple[Path, ...] = ()) -> None:
         resolved = path.resolve()
@@ -371,6 +443,18 @@ class _Reader:
             self._node(path, line, params, data, data_line)
         elif keyword == "ELEMENT":
             self._element(path, line, params, data, data_line)
+        elif keyword == "ELSET":
+            self._elset(path, line, params, data, data_line)
+        elif keyword == "SOLIDSECTION":
+            self._section(path, line, params)
+        elif keyword == "MATERIAL":
+            name = params.get("NAME")
+            if not name:
+                raise located_error(path, line, "*MATERIAL without NAME=")
+            self.materials[name.upper()] = Material(name, path, line)
+            self.material = name.upper()
+        elif keyword == "ELASTIC":
+            self._elastic(path, line, params, data, data_line)
         elif keyword == "INCLUDE":
             if "INPUT" not in params:
                 raise located_error(path, line, "*INCLUDE without INPUT=file")
@@ -461,7 +545,45 @@ class _Reader:
         if "INPUT" in params:
             path = path.parent / params["INPUT"]
             data, data_line = read_text(path, "a file of *ELEMENT data lines"), 1
-        self.context.elements.append((kind, path, line, data, data_line))
+        elset = params.get("ELSET") or None
+        self.context.elements.append((kind, path, line, data, data_line, elset))
+
+    def _elset(
+        self, path: Path, line: int, params: dict[str, str], data: str, data_line: int
+    ) -> None:
+        name = params.get("ELSET")
+        if not name:
+            raise located_error(path, line, "*ELSET without ELSET=")
+        generate = "GENERATE" in params
+        self.context.elsets.append(
+            (name, path, line, data, data_line, generate, params.get("INSTANCE") or None)
+        )
+
+    def _section(self, path: Path, line: int, params: dict[str, str]) -> None:
+        elset, material = params.get("ELSET"), params.get("MATERIAL")
+        if not elset or not material:
+            raise located_error(path, line, "*SOLID SECTION needs ELSET= and MATERIAL=")
+        self.context.sections.append((elset, material, path, line))
+
+    def _elastic(
+        self, path: Path, line: int, params: dict[str, str], data: str, data_line: int
+    ) -> None:
+        if self.material is None:
+            raise located_error(path, line, "*ELASTIC outside a *MATERIAL")
+        rows = tuple(
+            tuple(f.strip() for f in text.split("**", 1)[0].split(",") if f.strip())
+            for text in data.split("\n")
+            if text.split("**", 1)[0].strip()
+        )
+        first = self.materials[self.material]
+        self.materials[self.material] = Material(
+            first.name,
+            first.path,
+            first.line,
+            params.get("TYPE", "ISOTROPIC").upper(),
+            rows,
+            data_line,
+        )
 
     # --------------------------------------------------------------- the model
     def finish(self, path: Path) -> InpModel:
@@ -503,6 +625,8 @@ class _Reader:
 
         labels, xyz, owner = [], [], []
         elements: list[ElementBlock] = []
+        elsets: list[ElementSet] = []
+        sections: list[SolidSection] = []
         for index, (scope, group) in enumerate(zip(scopes, containers, strict=True)):
             blocks = [block for container in group for block in container.nodes]
             _check_unique(blocks, scope)
@@ -511,8 +635,20 @@ class _Reader:
                 xyz.append(scope.placement.apply(block.xyz))
                 owner.append(np.full(block.labels.size, index, dtype=np.int64))
             for container in group:
-                for kind, where, line, text, first in container.elements:
-                    elements.append(ElementBlock(kind, index, where, line, text, first))
+                for kind, where, line, text, first, elset in container.elements:
+                    elements.append(ElementBlock(kind, index, where, line, text, first, elset))
+                for name, where, line, text, first, generate, instance in container.elsets:
+                    owner_scope = index
+                    if instance is not None:  # a set of an instance's elements in the assembly
+                        found = [
+                            k
+                            for k, s in enumerate(scopes)
+                            if s.kind == "instance" and s.name.upper() == instance.upper()
+                        ]
+                        owner_scope = found[0] if found else -1
+                    elsets.append(ElementSet(name, owner_scope, where, line, text, first, generate))
+                for elset, material, where, line in container.sections:
+                    sections.append(SolidSection(elset, material, index, where, line))
         label = np.concatenate(labels) if labels else np.zeros(0, dtype=np.int64)
         node_scope = np.concatenate(owner) if owner else np.zeros(0, dtype=np.int64)
         coordinates = np.concatenate(xyz) if xyz else np.zeros((0, 3))
@@ -528,6 +664,9 @@ class _Reader:
             id_rule=rule,
             uses_parts=self.uses_parts,
             generated_elements=self.generated,
+            elsets=tuple(elsets),
+            sections=tuple(sections),
+            materials=dict(self.materials),
         )
 
 
@@ -760,12 +899,13 @@ def _parse_nodes_slowly(path: Path, data: str, first_line: int) -> tuple[np.ndar
 
 def _parse_elements(
     block: ElementBlock, scopes: tuple[Scope, ...]
-) -> tuple[np.ndarray, np.ndarray]:
-    """Scope and label of every node reference of an element block (vectorised; slow on error)."""
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Element labels, and scope and label of every node reference of an element block
+    (vectorised; element by element on error)."""
     text = ascii_data(block.path, _COMMENT_LINE.sub("", block.text), block.first_line)
     text = _TRAILING_COMMA.sub("", _CONTINUED.sub(",", text))
     if not text.strip():
-        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+        return (np.zeros(0, dtype=np.int64),) * 3
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -774,18 +914,21 @@ def _parse_elements(
         table = None
     if table is not None and table.shape[1] >= 2:
         labels = table[:, 1:].ravel()
-        if np.all((labels > 0) & (labels <= MAX_LABEL)):
-            return np.full(labels.size, block.scope, dtype=np.int64), labels
+        if np.all((labels > 0) & (labels <= MAX_LABEL)) and np.all(
+            (table[:, 0] > 0) & (table[:, 0] <= MAX_LABEL)
+        ):
+            return table[:, 0].copy(), np.full(labels.size, block.scope, dtype=np.int64), labels
     return _parse_elements_slowly(block, scopes)
 
 
 def _parse_elements_slowly(
     block: ElementBlock, scopes: tuple[Scope, ...]
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The same, element by element: ``instance.label`` references, or the exact bad line."""
     names = {s.name.upper(): k for k, s in enumerate(scopes) if s.kind == "instance"}
     scope_of: list[int] = []
     label_of: list[int] = []
+    element_of: list[int] = []
     width: tuple[int, int] | None = None
     pending: list[str] = []
     start = None
@@ -812,14 +955,20 @@ def _parse_elements_slowly(
                 f"this *ELEMENT, TYPE={block.type} block has {width[0] - 1}",
             )
         width = width or (len(fields), number)
-        integer_field(block.path, number, fields[0], "element label", positive=True)
+        element_of.append(
+            integer_field(block.path, number, fields[0], "element label", positive=True)
+        )
         for item in fields[1:]:
             scope, label = _node_reference(block, number, item, names)
             scope_of.append(scope)
             label_of.append(label)
     if pending:
         raise located_error(block.path, start, "the last element line ends with a comma")
-    return np.array(scope_of, dtype=np.int64), np.array(label_of, dtype=np.int64)
+    return (
+        np.array(element_of, dtype=np.int64),
+        np.array(scope_of, dtype=np.int64),
+        np.array(label_of, dtype=np.int64),
+    )
 
 
 def _node_reference(
@@ -995,3 +1144,173 @@ def derive_dof_table(
     node_of, direction = np.nonzero(bits)
     table = DofTable(model.node_ids[used][node_of], direction)
     return table, " ".join(types)
+
+
+# ============================================================================ solid elements
+#: Abaqus element types with solid kinematics in :mod:`pymorembs.elements.solid`.
+ABAQUS_SOLID_TYPES = {
+    "C3D4": "tet4",
+    "C3D10": "tet10",
+    "C3D8": "hex8",
+    "C3D20": "hex20",
+    "C3D20R": "hex20r",
+}
+
+
+def solid_blocks(model: InpModel) -> list[SolidBlock] | str:
+    """The solid elements of the model with their material, or why they cannot be used.
+
+    Every element of a type of :data:`ABAQUS_SOLID_TYPES` must lie in the ``ELSET`` of a
+    ``*SOLID SECTION`` of its scope whose ``*MATERIAL`` has ``*ELASTIC`` (``TYPE=ISOTROPIC``, one
+    data line ``E, nu``). Point masses (``MASS``, ``ROTARYI``) are ignored; any other element
+    type makes the mesh unusable (its stiffening would be missing).
+
+    Parameters
+    ----------
+    model : InpModel
+
+    Returns
+    -------
+    list of SolidBlock, or str
+        The blocks (connectivity in :attr:`InpModel.node_ids`), or a sentence saying why the
+        model gives no mesh.
+
+    Raises
+    ------
+    UserError
+        ``file:line: ...`` for an element that names an undefined node or a malformed
+        ``*ELSET``.
+    """
+    name = model.path.name
+    if model.generated_elements is not None:
+        return f"{name} generates elements with *ELGEN/*ELCOPY, which are not read"
+    other = sorted({b.type for b in model.elements} - set(ABAQUS_SOLID_TYPES) - {"MASS", "ROTARYI"})
+    if other:
+        return (
+            f"{name} has elements of type {', '.join(other)}, whose geometric stiffness is not "
+            f"implemented (solid types read: {', '.join(ABAQUS_SOLID_TYPES)})"
+        )
+    solid = [b for b in model.elements if b.type in ABAQUS_SOLID_TYPES]
+    if not solid:
+        return f"{name} has no solid elements ({', '.join(ABAQUS_SOLID_TYPES)})"
+    sets = _element_sets(model)
+    blocks: list[SolidBlock] = []
+    for block in solid:
+        kind = ABAQUS_SOLID_TYPES[block.type]
+        labels = block.element_labels(model.scopes)
+        if not labels.size:
+            continue
+        scope, node_labels = block.node_labels(model.scopes)
+        index = model.index_of(scope, node_labels)
+        if np.any(index < 0):
+            k = int(np.flatnonzero(index < 0)[0])
+            raise located_error(
+                block.path,
+                block.line,
+                f"an element of this *ELEMENT, TYPE={block.type} block names node "
+                f"{node_labels[k]}, which is not defined",
+            )
+        connectivity = model.node_ids[index].reshape(labels.size, -1)
+        material = np.full(labels.size, -1, dtype=np.int64)
+        found: list[Material] = []
+        for section in model.sections:
+            if section.scope != block.scope:
+                continue
+            members = sets.get((section.scope, section.elset.upper()))
+            if members is None:
+                return (
+                    f"{section.path.name}:{section.line}: *SOLID SECTION names element set "
+                    f"{section.elset}, which is not defined"
+                )
+            hit = np.isin(labels, members)
+            if not np.any(hit):
+                continue
+            entry = model.materials.get(section.material.upper())
+            if entry is None:
+                return (
+                    f"{section.path.name}:{section.line}: *SOLID SECTION names material "
+                    f"{section.material}, which is not defined"
+                )
+            problem = _isotropic(entry)
+            if isinstance(problem, str):
+                return problem
+            if entry not in found:
+                found.append(entry)
+            material[hit] = found.index(entry)
+        if np.any(material < 0):
+            label = int(labels[np.flatnonzero(material < 0)[0]])
+            return (
+                f"{block.path.name}:{block.line}: element {label} ({block.type}) lies in no "
+                "*SOLID SECTION, so its material is not known"
+            )
+        for k, entry in enumerate(found):
+            young, poisson = _isotropic(entry)  # type: ignore[misc]
+            blocks.append(
+                SolidBlock(
+                    kind,
+                    connectivity[material == k],
+                    young,
+                    poisson,
+                    f"{block.path.name}:{block.line} *ELEMENT, TYPE={block.type}",
+                )
+            )
+    return blocks
+
+
+def _isotropic(material: Material) -> tuple[float, float] | str:
+    """(E, nu) of a material, or why it is not an isotropic linear-elastic one."""
+    where = f"{material.path.name}:{material.line}: material {material.name}"
+    if material.elastic is None:
+        return f"{where} has no *ELASTIC"
+    if material.elastic_type != "ISOTROPIC":
+        return f"{where} is elastic TYPE={material.elastic_type}; only ISOTROPIC is read"
+    if len(material.elastic) != 1:
+        return (
+            f"{where}: *ELASTIC has {len(material.elastic)} data lines (temperature or field "
+            "dependence); give one line E, nu"
+        )
+    fields = material.elastic[0]
+    try:
+        young, poisson = float(fields[0]), float(fields[1] if len(fields) > 1 else "0")
+    except ValueError:
+        return f"{where}: *ELASTIC data {', '.join(fields)} is not E, nu"
+    if not (young > 0 and -1.0 < poisson < 0.5):
+        return f"{where}: E = {young:g}, nu = {poisson:g} is not an elastic material"
+    return young, poisson
+
+
+def _element_sets(model: InpModel) -> dict[tuple[int, str], np.ndarray]:
+    """Element labels of every set, keyed by (scope, upper-case name); later data adds to it."""
+    members: dict[tuple[int, str], list[np.ndarray]] = {}
+    for block in model.elements:
+        if block.elset:
+            key = (block.scope, block.elset.upper())
+            members.setdefault(key, []).append(block.element_labels(model.scopes))
+    for elset in model.elsets:
+        key = (elset.scope, elset.name.upper())
+        lists = members.setdefault(key, [])
+        for offset, line in enumerate(elset.text.split("\n")):
+            text = line.split("**", 1)[0].strip()
+            if not text:
+                continue
+            number = elset.first_line + offset
+            fields = [f.strip() for f in text.split(",") if f.strip()]
+            if elset.generate:
+                values = [integer_field(elset.path, number, f, "element label") for f in fields]
+                if len(values) not in (2, 3) or (len(values) == 3 and values[2] < 1):
+                    raise located_error(
+                        elset.path, number, "*ELSET, GENERATE data must be first, last[, step]"
+                    )
+                step = values[2] if len(values) == 3 else 1
+                lists.append(np.arange(values[0], values[1] + 1, step, dtype=np.int64))
+                continue
+            for item in fields:
+                if re.fullmatch(r"[+-]?\d+", item):
+                    lists.append(np.array([integer_field(elset.path, number, item, "label")]))
+                else:  # the name of another set of the scope
+                    for part in members.get((elset.scope, item.upper()), []):
+                        lists.append(part)
+    return {
+        key: np.concatenate(parts) if parts else np.zeros(0, np.int64)
+        for key, parts in members.items()
+    }

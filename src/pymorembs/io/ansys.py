@@ -49,7 +49,7 @@ import scipy.sparse as sp
 
 from pymorembs.body import DIRECTIONS, DofTable, ElasticBody
 from pymorembs.errors import UserError, located_error
-from pymorembs.io.ansys_cdb import AnsysArchive, looks_like_cdb, read_cdb
+from pymorembs.io.ansys_cdb import AnsysArchive, cdb_solid_blocks, looks_like_cdb, read_cdb
 from pymorembs.io.checks import make_body, reason
 from pymorembs.io.matrix_market import (
     check_symmetric,
@@ -59,6 +59,7 @@ from pymorembs.io.matrix_market import (
     read_text_lines,
 )
 from pymorembs.io.reader_support import is_nodes_csv
+from pymorembs.io.solid_mesh import attach_mesh
 
 __all__ = ["ANSYS_DOF_LABELS", "RIGID_BODY_TOLERANCE", "read_ansys_full", "read_ansys_mmf"]
 
@@ -266,7 +267,7 @@ def read_ansys_full(
         notes=tuple(notes),
     )
     note = _check_coordinates(body, geometry)
-    return _with_note(body, note)
+    return _with_mesh(_with_note(body, note), geometry)
 
 
 def _full_note(path: Path, info: _FullInfo, table: DofTable, n_fixed: int) -> str:
@@ -838,7 +839,7 @@ def read_ansys_mmf(
         has_coordinates=geometry.source is not None,
         notes=tuple(notes),
     )
-    return _with_note(body, _prove_mapping_order(body, map_path, geometry))
+    return _with_mesh(_with_note(body, _prove_mapping_order(body, map_path, geometry)), geometry)
 
 
 def _lone_diagonals(
@@ -1145,6 +1146,13 @@ def _check_coordinates(body: ElasticBody, geometry: _Geometry) -> str:
         f"coordinates from {source}, verified by the rigid-body check on {rows} "
         f"(max residual {largest:.1e})"
     )
+
+
+def _with_mesh(body: ElasticBody, geometry: _Geometry) -> ElasticBody:
+    """The body with the solid elements of its archive (or a note why it has none)."""
+    if geometry.archive is None or geometry.source is None:
+        return body
+    return attach_mesh(body, cdb_solid_blocks(geometry.archive, geometry.source))
 
 
 def _with_note(body: ElasticBody, note: str) -> ElasticBody:

@@ -20,7 +20,11 @@ Write the archive of the model in ``/PREP7`` (or from Mechanical: *Tools > Write
     ``-1``. Only the ``SOLID`` layout is read; blocks in another layout (contact and surface
     elements written without the key) are skipped.
 
-Everything else in the file (commands, components, materials, loads) is ignored. The parse is
+``ET``, ``KEYOPT`` and ``MPDATA`` commands
+    The element types and the material properties (:func:`cdb_solid_blocks`: the solid
+    elements and isotropic material for geometric stiffening).
+
+Everything else in the file (commands, components, loads) is ignored. The parse is
 vectorised (fixed-width fields read by NumPy); a slow pass over the lines runs only to name the
 first bad line in an error message.
 
@@ -35,15 +39,16 @@ from __future__ import annotations
 
 import os
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from pymorembs.errors import located_error
 from pymorembs.io.matrix_market import read_text_lines
+from pymorembs.io.solid_mesh import SolidBlock
 
-__all__ = ["AnsysArchive", "looks_like_cdb", "read_cdb"]
+__all__ = ["ANSYS_SOLID_TYPES", "AnsysArchive", "cdb_solid_blocks", "looks_like_cdb", "read_cdb"]
 
 PathLike = str | os.PathLike[str]
 
@@ -75,6 +80,15 @@ class AnsysArchive:
         Element ``k`` has the nodes ``element_nodes[element_offsets[k]:element_offsets[k + 1]]``.
     element_nodes : ndarray of int
         Node numbers of all elements, concatenated (zeros of dropped midside nodes removed).
+    element_materials, element_types : ndarray of int, shape (n_elements,)
+        Material and element type numbers of each element (EBLOCK fields 1 and 2).
+    element_type_names : dict of int -> int
+        ``ET,itype,number``: the Ansys element number (186 for SOLID186) of each type.
+    keyopts : dict of (int, int) -> int
+        ``KEYOPT,itype,knum,value``.
+    materials : dict of int -> dict of str -> tuple of float
+        ``MPDATA`` values by material number and property label (``EX``, ``PRXY``, ...), one
+        value per temperature.
     """
 
     node_ids: np.ndarray
@@ -83,6 +97,11 @@ class AnsysArchive:
     element_ids: np.ndarray
     element_offsets: np.ndarray
     element_nodes: np.ndarray
+    element_materials: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    element_types: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    element_type_names: dict[int, int] = field(default_factory=dict)
+    keyopts: dict[tuple[int, int], int] = field(default_factory=dict)
+    materials: dict[int, dict[str, tuple[float, ...]]] = field(default_factory=dict)
 
     @property
     def has_elements(self) -> bool:
@@ -150,10 +169,11 @@ def read_cdb(path: PathLike) -> AnsysArchive:
     element_ids = np.zeros(0, dtype=np.int64)
     offsets = np.zeros(1, dtype=np.int64)
     element_nodes = np.zeros(0, dtype=np.int64)
+    materials = types = np.zeros(0, dtype=np.int64)
     if "EBLOCK" in heads:
         read = _read_eblock(path, lines, heads["EBLOCK"])
         if read is not None:
-            element_ids, offsets, element_nodes = read
+            element_ids, offsets, element_nodes, materials, types = read
             unknown = ~np.isin(element_nodes, node_ids)
             if unknown.any():
                 k = int(np.searchsorted(offsets, np.flatnonzero(unknown)[0], side="right")) - 1
@@ -163,7 +183,48 @@ def read_cdb(path: PathLike) -> AnsysArchive:
                     f"EBLOCK: element {int(element_ids[k])} names node "
                     f"{int(element_nodes[unknown][0])}, which the NBLOCK does not define",
                 )
-    return AnsysArchive(node_ids, coordinates, angles, element_ids, offsets, element_nodes)
+    names, keyopts, properties = _element_types_and_materials(lines)
+    return AnsysArchive(
+        node_ids,
+        coordinates,
+        angles,
+        element_ids,
+        offsets,
+        element_nodes,
+        materials,
+        types,
+        names,
+        keyopts,
+        properties,
+    )
+
+
+def _element_types_and_materials(
+    lines: list[str],
+) -> tuple[dict[int, int], dict[tuple[int, int], int], dict[int, dict[str, tuple[float, ...]]]]:
+    """``ET``, ``KEYOPT`` and ``MPDATA`` commands of the archive (malformed ones are skipped:
+    the stiffening that needs them then says what is missing)."""
+    names: dict[int, int] = {}
+    keyopts: dict[tuple[int, int], int] = {}
+    materials: dict[int, dict[str, tuple[float, ...]]] = {}
+    for line in lines:
+        head = line[:7].upper()
+        if not head.startswith(("ET,", "KEYOPT,", "MPDATA,")):
+            continue
+        fields = [f.strip() for f in line.split(",")]
+        try:
+            if head.startswith("ET,") and len(fields) >= 3:
+                names[int(fields[1])] = int(float(fields[2]))
+            elif head.startswith("KEYOPT,") and len(fields) >= 4:
+                keyopts[(int(fields[1]), int(fields[2]))] = int(float(fields[3]))
+            elif head.startswith("MPDATA,") and len(fields) >= 7:
+                # MPDATA,R5.0,count,label,mat,first location,values...
+                count, label, mat = int(fields[2]), fields[3].upper(), int(fields[4])
+                values = tuple(float(v) for v in fields[6 : 6 + count] if v)
+                materials.setdefault(mat, {})[label] = values
+        except ValueError:
+            continue
+    return names, keyopts, materials
 
 
 def _block_starts(lines: list[str]) -> dict[str, int]:
@@ -343,7 +404,7 @@ def _read_nblock(
 
 def _read_eblock(
     path: Path, lines: list[str], index: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
     fields = _header_fields(path, lines, index)
     if len(fields) < 3 or fields[2].upper() != "SOLID":
         return None  # another layout (contact, surface elements): no connectivity
@@ -382,4 +443,80 @@ def _read_eblock(
         np.add.reduceat(keep.astype(np.int64), np.cumsum(count) - count) if count.size else count
     )
     offsets = np.concatenate([[0], np.cumsum(count)]).astype(np.int64)
-    return element_ids, offsets, nodes[keep]
+    return element_ids, offsets, nodes[keep], flat[start - 11], flat[start - 10]
+
+
+#: Ansys element numbers with solid kinematics in :mod:`pymorembs.elements.solid`: SOLID186
+#: (KEYOPT(2) = 0, the default: uniform reduced 2 x 2 x 2 integration; 1: full 3 x 3 x 3) and
+#: SOLID187 (4 points).
+ANSYS_SOLID_TYPES = (186, 187)
+
+
+def cdb_solid_blocks(archive: AnsysArchive, path: PathLike) -> list[SolidBlock] | str:
+    """The SOLID186/187 elements of an archive with their material, or why there are none.
+
+    Every element must be of a type ``ET,itype,186`` or ``187`` (other element types, also
+    surface effect or contact elements, make the mesh unusable: their stiffening would be
+    missing), with all its nodes (no dropped midside node, no degenerate shape), and its
+    material must have ``MPDATA`` ``EX`` and ``PRXY`` (or ``NUXY``) at one temperature and no
+    other elastic constants (``EY``, ``EZ``, ``GXY`` ... : anisotropy).
+
+    Parameters
+    ----------
+    archive : AnsysArchive
+    path : path-like
+        The archive, for messages.
+
+    Returns
+    -------
+    list of SolidBlock, or str
+    """
+    name = Path(path).name
+    if not archive.has_elements:
+        return f"{name} has no EBLOCK of elements"
+    counts = np.diff(archive.element_offsets)
+    blocks: list[SolidBlock] = []
+    for itype in np.unique(archive.element_types).tolist():
+        number = archive.element_type_names.get(int(itype))
+        if number not in ANSYS_SOLID_TYPES:
+            what = f"SOLID{number}" if number is not None else f"type {itype} (no ET command)"
+            return (
+                f"{name}: elements of {what} (ET {itype}), whose geometric stiffness is not "
+                "implemented (read: SOLID186, SOLID187)"
+            )
+        keyopt = archive.keyopts.get((int(itype), 2), 0)
+        if number == 186 and keyopt not in (0, 1):
+            return f"{name}: SOLID186 with KEYOPT(2) = {keyopt} is not read (0 or 1 are)"
+        kind, nodes = ("hex20r" if keyopt == 0 else "hex20", 20) if number == 186 else ("tet10", 10)
+        of_type = archive.element_types == itype
+        if np.any(counts[of_type] != nodes):
+            return f"{name}: SOLID{number} elements with dropped midside nodes are not read"
+        starts = archive.element_offsets[:-1][of_type]
+        connectivity = archive.element_nodes[starts[:, None] + np.arange(nodes)]
+        if number == 187 and connectivity.shape[0] == 0:
+            continue
+        ordered = np.sort(connectivity, axis=1)
+        if np.any(ordered[:, 1:] == ordered[:, :-1]):
+            return f"{name}: degenerate SOLID{number} elements (repeated nodes) are not read"
+        for mat in np.unique(archive.element_materials[of_type]).tolist():
+            properties = archive.materials.get(int(mat), {})
+            young = properties.get("EX", ())
+            poisson = properties.get("PRXY", properties.get("NUXY", ()))
+            others = sorted(set(properties) & {"EY", "EZ", "GXY", "GYZ", "GXZ", "PRYZ", "PRXZ",
+                                                 "NUYZ", "NUXZ"})  # fmt: skip
+            if len(young) != 1 or len(poisson) > 1 or others:
+                return (
+                    f"{name}: material {mat} is not isotropic linear elastic at one temperature "
+                    "(MPDATA EX and PRXY, one value each)"
+                )
+            chosen = of_type & (archive.element_materials == mat)
+            blocks.append(
+                SolidBlock(
+                    kind,
+                    connectivity[chosen[of_type]],
+                    young[0],
+                    poisson[0] if poisson else 0.0,
+                    f"{name}: SOLID{number}, material {mat}",
+                )
+            )
+    return blocks

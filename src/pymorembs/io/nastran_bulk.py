@@ -36,7 +36,9 @@ Cards read
     (pairs ``ID C``), their list forms ``ASET1`` ... (``C ID ID ...`` or ``C ID1 THRU ID2``) and
     the NX names ``BNDFIX``/``BNDFRE``; ``EXTRN`` (pairs ``ID C``, ``C = 0`` for scalar points);
     ``SECONCT``, ``SEBULK``; ``SEQGP`` and ``PARAM,OLDSEQ`` (resequencing); ``SUPORT``.
-    Every other card is counted (for messages) and skipped without being parsed.
+    ``CTETRA``, ``CHEXA``, ``PSOLID``, ``MAT1``: the solid elements and their isotropic
+    material (:func:`bulk_solid_blocks`, for geometric stiffening). Every other card is
+    counted (for messages) and skipped without being parsed.
 
 Coordinates
     A grid's ``X1 X2 X3`` are in its system ``CP``: rectangular ``(x, y, z)``, cylindrical
@@ -64,12 +66,15 @@ import numpy as np
 
 from pymorembs.errors import located_error
 from pymorembs.io.matrix_market import encoding_note
+from pymorembs.io.solid_mesh import SolidBlock
 
 __all__ = [
+    "CHEXA20_TO_HEX20",
     "AnalysisSet",
     "BulkData",
     "Card",
     "Frame",
+    "bulk_solid_blocks",
     "line_fields",
     "parse_int",
     "parse_real",
@@ -129,6 +134,10 @@ _WANTED = {
     "SUPORT1",
     "SEBULK",
     "SECONCT",
+    "CTETRA",
+    "CHEXA",
+    "PSOLID",
+    "MAT1",
     *_SYSTEMS,
     *PAIR_SETS,
     *LIST_SETS,
@@ -1396,3 +1405,104 @@ class _Parser:
             taken = flat[index]
             block[:, k] = np.where((column < size[:, None]) & (taken != 0), taken, _SPACE)
         return block, ok
+
+
+# ============================================================================ solid elements
+#: Nastran CHEXA (20 grids) lists the edges G1-G5 .. G4-G8 (G13-G16) before those of the face
+#: G5-G8 (G17-G20); the hex20 kinematics take the face first (Abaqus/Ansys order).
+CHEXA20_TO_HEX20 = np.r_[0:12, 16:20, 12:16]
+_SOLID_CARDS = {"CTETRA": {4: "tet4", 10: "tet10"}, "CHEXA": {8: "hex8", 20: "hex20"}}
+#: Element cards whose stiffening is not implemented (their presence makes the mesh unusable).
+_OTHER_ELEMENTS = (
+    "CPENTA", "CPYRAM", "CQUAD4", "CQUAD8", "CTRIA3", "CTRIA6", "CQUADR", "CTRIAR", "CSHEAR",
+    "CBAR", "CBEAM", "CROD", "CONROD", "CTUBE", "CBUSH", "CELAS1", "CELAS2", "CELAS3", "CELAS4",
+    "CGAP", "RBE2", "RBE3", "RBAR", "MPC",
+)  # fmt: skip
+
+
+def bulk_solid_blocks(bulk: BulkData) -> list[SolidBlock] | str:
+    """The CTETRA/CHEXA elements of the bulk data with their MAT1 material, or why not.
+
+    ``CTETRA EID PID G1 .. G4 [G5 .. G10]`` and ``CHEXA EID PID G1 .. G8 [G9 .. G20]`` (all edge
+    grids or none), ``PSOLID PID MID ...`` and ``MAT1 MID E G NU`` (E and NU; a blank one from
+    ``G = E / (2 (1 + NU))``, a G beside both is ignored, as Nastran does for solids). Other
+    element cards (shells, beams, springs, rigid elements, pentahedra ...) make the mesh
+    unusable. The card list is read with :func:`read_bulk` (these cards are kept for it).
+
+    Returns
+    -------
+    list of SolidBlock, or str
+        Blocks per card kind and material (CHEXA connectivity in the hex20 node order), or the
+        reason there is no usable mesh.
+    """
+    name = bulk.path.name
+    others = [card for card in _OTHER_ELEMENTS if bulk.counts.get(card)]
+    if others:
+        return (
+            f"{name} has {', '.join(others)} elements, whose geometric stiffness is not "
+            "implemented (solid cards read: CTETRA, CHEXA)"
+        )
+    properties = {}
+    for card in bulk.cards.get("PSOLID", []):
+        pid = parse_int(card.field(0), card.path, card.line, "PSOLID PID")
+        properties[pid] = parse_int(card.field(1), card.path, card.line, "PSOLID MID")
+    materials: dict[int, tuple[float, float] | str] = {}
+    for card in bulk.cards.get("MAT1", []):
+        mid = parse_int(card.field(0), card.path, card.line, "MAT1 MID")
+        materials[mid] = _mat1(card)
+    groups: dict[tuple[str, int], list[np.ndarray]] = {}
+    for card_name, kinds in _SOLID_CARDS.items():
+        for card in bulk.cards.get(card_name, []):
+            grids = [f for f in card.fields[2:22] if f.strip()]
+            kind = kinds.get(len(grids))
+            if kind is None:
+                return (
+                    f"{card.where}: {card_name} with {len(grids)} grids (read: "
+                    f"{' or '.join(map(str, kinds))}, all edge grids or none)"
+                )
+            ids = np.array([parse_int(g, card.path, card.line, f"{card_name} grid") for g in grids])
+            pid = parse_int(card.field(1) or card.field(0), card.path, card.line, "PID")
+            if pid not in properties:
+                return f"{card.where}: {card_name} names PSOLID {pid}, which is not defined"
+            if kind == "hex20":
+                ids = ids[CHEXA20_TO_HEX20]
+            groups.setdefault((kind, properties[pid]), []).append(ids)
+    if not groups:
+        return f"{name} has no CTETRA or CHEXA elements"
+    blocks = []
+    known = bulk.grid.get("ids", np.zeros(0, dtype=np.int64))
+    for (kind, mid), rows in groups.items():
+        material = materials.get(mid)
+        if material is None:
+            return f"{name}: material {mid} of the solid elements is not a MAT1 card"
+        if isinstance(material, str):
+            return material
+        connectivity = np.array(rows, dtype=np.int64)
+        missing = connectivity[~np.isin(connectivity, known)]
+        if missing.size:
+            raise located_error(
+                bulk.path, None, f"a solid element names grid {int(missing[0])}, which has no GRID"
+            )
+        blocks.append(SolidBlock(kind, connectivity, *material, f"{name}: MAT1 {mid}"))
+    return blocks
+
+
+def _mat1(card: Card) -> tuple[float, float] | str:
+    """(E, nu) of a MAT1 card, or why it is not an isotropic material.
+
+    Solid elements take ``E`` and ``NU`` when both are given (a ``G`` beside them is for shells
+    and beams; NX Nastran's CTETRA stiffness in tests/data has E and NU with G ignored); with
+    one of them blank it follows from ``G = E / (2 (1 + NU))``.
+    """
+    values = []
+    for k, what in ((1, "E"), (2, "G"), (3, "NU")):
+        text = card.field(k)
+        values.append(parse_real(text, card.path, card.line, f"MAT1 {what}") if text else None)
+    young, shear, poisson = values
+    if young is None and shear is not None and poisson is not None:
+        young = 2.0 * shear * (1.0 + poisson)
+    if poisson is None and young is not None and shear is not None:
+        poisson = young / (2.0 * shear) - 1.0
+    if young is None or poisson is None:
+        return f"{card.where}: MAT1 needs two of E, G, NU"
+    return float(young), float(poisson)

@@ -37,8 +37,9 @@ from pymorembs.body import SCALAR, DofTable, ElasticBody
 from pymorembs.errors import UserError, located_error
 from pymorembs.io.checks import make_body
 from pymorembs.io.matrix_market import check_symmetric, read_nodes_csv
-from pymorembs.io.nastran_bulk import AnalysisSet, BulkData, read_bulk
+from pymorembs.io.nastran_bulk import AnalysisSet, BulkData, bulk_solid_blocks, read_bulk
 from pymorembs.io.reader_support import is_nodes_csv
+from pymorembs.io.solid_mesh import attach_mesh
 from pymorembs.sparse_rows import abs_row_sums
 
 __all__ = [
@@ -461,6 +462,38 @@ def build_body(
     cd = bulk.grid["cd"][rows]
     model = _Model(source, node_ids, coordinates, table, matrices, name, fixed)
     body = _rotated_body(model, notes, bulk, rows, cd) if (cd != 0).any() else _body(model, notes)
+    return _with_solid_mesh(_with_cd_reading(body, model, notes, bulk, rows, cp, cd), bulk)
+
+
+def _with_solid_mesh(body: ElasticBody, bulk: BulkData) -> ElasticBody:
+    """The body with the CTETRA/CHEXA mesh of its bulk data, when the data has elements; a
+    CHEXA with 20 grids takes the Gauss rule (3 x 3 x 3, else 2 x 2 x 2) that reproduces K."""
+    if not bulk.has("CTETRA", "CHEXA"):
+        return body
+    blocks = bulk_solid_blocks(bulk)
+    full = attach_mesh(body, blocks)
+    if (
+        full.mesh is not None
+        or isinstance(blocks, str)
+        or not any(b.kind == "hex20" for b in blocks)
+    ):
+        return full
+    reduced = attach_mesh(body, [replace(b, kind="hex20r") if b.kind == "hex20" else b
+                                 for b in blocks])  # fmt: skip
+    return reduced if reduced.mesh is not None else full
+
+
+def _with_cd_reading(
+    body: ElasticBody,
+    model: _Model,
+    notes: list[str],
+    bulk: BulkData,
+    rows: np.ndarray,
+    cp: np.ndarray,
+    cd: np.ndarray,
+) -> ElasticBody:
+    """``body``, or the reading of blank CD fields as CD = CP when only that one passes."""
+    node_ids = model.node_ids
     # an EXTBULK punch of MSC Nastran leaves CD blank where it equals CP (se_test_n11): when
     # only that reading passes the rigid-body check, it is the one
     blank = bulk.grid["cd_blank"][rows] & (cp != 0)

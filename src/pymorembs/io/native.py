@@ -21,8 +21,10 @@ Layout (format version 2)::
                            attribute labels (list of str)
     /ports/outputs         CSR group of C (r, n_dof), optional; attribute labels
     /mesh/connectivity     int64 (n_el, nodes per element) node ids, only if the body has its
-                           solid elements (built-in solid models); attributes element, young,
-                           poisson (what geometric stiffening needs)
+                           elements (built-in models, solid meshes of imported models);
+                           attributes element, young, poisson (what geometric stiffening
+                           needs); young and poisson are datasets (n_el,) instead when the
+                           elements have several materials
 
 Version 1 files (no coordinates flag, notes or ports) are read as well.
 
@@ -107,8 +109,13 @@ def write_body_h5(body: ElasticBody, path: str | os.PathLike[str]) -> Path:
             damping.attrs[key] = np.float64(getattr(body.damping, key))
         if body.mesh is not None:
             _put(f, "mesh/connectivity", body.mesh.connectivity, np.int64)
-            for key in ("element", "young", "poisson"):
-                f["mesh"].attrs[key] = getattr(body.mesh, key)
+            f["mesh"].attrs["element"] = body.mesh.element
+            for key in ("young", "poisson"):
+                value = getattr(body.mesh, key)
+                if isinstance(value, np.ndarray):  # one per element
+                    _put(f, f"mesh/{key}", value, np.float64)
+                else:
+                    f["mesh"].attrs[key] = value
             if body.mesh.section is not None:
                 for key, value in asdict(body.mesh.section).items():
                     f["mesh"].attrs[f"section_{key}"] = float(value)
@@ -199,11 +206,17 @@ def _read_body(f: h5py.File) -> ElasticBody:
         if all(f"section_{name}" in attrs for name in names):
             section = BeamSection(**{name: float(attrs[f"section_{name}"]) for name in names})
         up = attrs.get("up")
+        material = {
+            key: _get(f, f"mesh/{key}", _FLOAT)
+            if key in f["mesh"]
+            else float(attrs.get(key, np.nan))
+            for key in ("young", "poisson")
+        }
         mesh = ElementMesh(
             _text(attrs.get("element", "")),
             _get(f, "mesh/connectivity", _INT, ndim=2),
-            float(attrs.get("young", np.nan)),
-            float(attrs.get("poisson", np.nan)),
+            material["young"],
+            material["poisson"],
             section,
             None if up is None else tuple(float(x) for x in np.ravel(up)),
         )

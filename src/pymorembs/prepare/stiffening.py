@@ -13,10 +13,12 @@ formed on the independent dofs; the exported body gets its projection ``K0_L = V
 Sources (``[stiffening] source``):
 
 ``"mesh"``
-    The body's own solid elements (:class:`~pymorembs.body.ElementMesh`, the built-in solid
-    models): ``u_L = K^+ f_L`` with the support of the frame (the same static solve as the
-    basis: fixed frame dofs, or inertia relief in the Buckens frame), the stresses of ``u_L``
-    at the Gauss points and the initial-stress matrix of every element.
+    The body's own elements (:class:`~pymorembs.body.ElementMesh`: the built-in models, or the
+    solid elements and material read with an Abaqus ``.inp``, Nastran bulk data or Ansys
+    ``.cdb``, :mod:`pymorembs.io.solid_mesh`): ``u_L = K^+ f_L`` with the support of the
+    frame (the same static solve as the basis: fixed frame dofs, or inertia relief in the
+    Buckens frame), the stresses of ``u_L`` at the Gauss points and the initial-stress matrix
+    of every element.
 ``"matrices"``
     One Matrix Market file per load case, in the model's equation order: ``K_G`` itself, or
     the stiffness of a prestressed run (``kind = "prestressed"``: ``K_G = K_pre - K``). Forces
@@ -34,9 +36,15 @@ import scipy.sparse as sp
 
 from pymorembs.body import ElasticBody
 from pymorembs.elements.beam import batch_geometric_matrices
-from pymorembs.elements.hex20 import hex20_geometric_matrices, hex20_stresses
+from pymorembs.elements.solid import (
+    SOLID_KINDS,
+    part,
+    solid_geometric_matrices,
+    solid_stresses,
+)
 from pymorembs.errors import UserError
 from pymorembs.io.matrix_market import read_matrix_market
+from pymorembs.io.solid_mesh import mesh_problem
 from pymorembs.prepare import PreparedModel
 from pymorembs.prepare.inertia_loads import INERTIA_LOAD_CASES, acceleration_fields, static_solver
 
@@ -49,6 +57,7 @@ __all__ = [
     "stiffening_from_mesh",
 ]
 
+_CHUNK = 4096  # solid elements per batch of the geometric stiffness
 #: ``[stiffening] source``.
 STIFFENING_SOURCES = ("mesh", "matrices", "none")
 #: ``[stiffening] kind`` of user matrices.
@@ -94,8 +103,8 @@ def geometric_stiffness(body: ElasticBody, displacement: np.ndarray) -> sp.csr_m
     Parameters
     ----------
     body : ElasticBody
-        With ``mesh`` (its elements and material): 20-node hexahedra (the stresses at the Gauss
-        points, :mod:`pymorembs.elements.hex20`) or two-node beams (their axial forces,
+        With ``mesh`` (its elements and material): solids (the stresses at the Gauss points of
+        their kind, :mod:`pymorembs.elements.solid`) or two-node beams (their axial forces,
         :func:`pymorembs.elements.beam.batch_geometric_matrices`).
     displacement : ndarray, shape (n_dof,)
         A displacement field over all equations of the body (model length unit).
@@ -107,14 +116,20 @@ def geometric_stiffness(body: ElasticBody, displacement: np.ndarray) -> sp.csr_m
     n = body.n_dof
     nodes = body.coordinates[body.node_rows(connectivity)]  # (n_el, nodes per element, 3)
     u_all = np.asarray(displacement, dtype=float)
-    if mesh.element == "hex20":
+    if mesh.element in SOLID_KINDS:
+        kind = mesh.element
         equations = np.stack([_equations(body, connectivity, d) for d in range(3)], axis=-1)
-        g = hex20_geometric_matrices(
-            nodes, hex20_stresses(nodes, u_all[equations], mesh.young, mesh.poisson)
-        )
-        r = np.broadcast_to(equations[:, :, None, :], (*g.shape, 3))
-        c = np.broadcast_to(equations[:, None, :, :], (*g.shape, 3))
-        values = np.broadcast_to(g[..., None], (*g.shape, 3))
+        total = sp.csr_matrix((n, n))
+        for start in range(0, connectivity.shape[0], _CHUNK):  # memory ~ the matrix
+            eq, xyz = equations[start : start + _CHUNK], nodes[start : start + _CHUNK]
+            young, poisson = part(mesh.young, start, _CHUNK), part(mesh.poisson, start, _CHUNK)
+            stresses = solid_stresses(kind, xyz, u_all[eq], young, poisson)
+            g = solid_geometric_matrices(kind, xyz, stresses)
+            r = np.broadcast_to(eq[:, :, None, :], (*g.shape, 3))
+            c = np.broadcast_to(eq[:, None, :, :], (*g.shape, 3))
+            values = np.broadcast_to(g[..., None], (*g.shape, 3))
+            total = total + sp.csr_matrix((values.ravel(), (r.ravel(), c.ravel())), shape=(n, n))
+        return total
     else:  # beam2: ux uy uz rx ry rz of node 1, then node 2
         equations = np.stack([_equations(body, connectivity, d) for d in range(6)], axis=-1)
         equations = equations.reshape(-1, 12)
@@ -170,9 +185,15 @@ def stiffening_from_mesh(
     """
     body, elimination, system = prepared.body, prepared.elimination, prepared.system
     if body.mesh is None:
+        why = mesh_problem(body)
         raise UserError(
-            '[stiffening]: source = "mesh" needs the elements of the model (the built-in models '
-            'have them); give matrices instead (source = "matrices")'
+            '[stiffening]: source = "mesh" needs the elements and material of the model '
+            + (
+                f"({why})"
+                if why is not None
+                else "(the built-in models and models read with their .inp or bulk data have them)"
+            )
+            + '; give matrices instead (source = "matrices")'
         )
     loads = {**_load_cases(prepared, cases), **_node_loads(prepared, nodes)}
     keys = list(loads)
