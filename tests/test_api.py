@@ -156,9 +156,11 @@ def test_the_registry_documents_every_option():
     table = options_table()
     for name, cls in pm.METHODS.items():
         for field in [f.name for f in dataclasses.fields(cls)]:
-            row = [line for line in table.splitlines() if line.startswith(f"| {name} | `{field}`")]
-            assert row and not row[0].endswith("|  |"), (name, field)  # a meaning is given
-    assert "| krylov | `tol` | 1e-10 |" in table and "| pod | `snapshots` | 40 |" in table
+            owner = "every method" if field == "max_frequency_hz" else name
+            row = [line for line in table.splitlines() if line.startswith(f"| {owner} | `{field}`")]
+            assert len(row) == 1 and not row[0].endswith("|  |"), (name, field)  # a meaning
+    assert "| krylov | `tol` | `1e-10` |" in table and "| pod | `snapshots` | `40` |" in table
+    assert "| modal | `order` | required |" in table and "``" not in table
 
 
 def test_facts_are_what_info_prints(files, capsys):
@@ -193,3 +195,13 @@ def test_simulate_follows_the_full_model_held_at_the_frame_node():
     a, b = mine.outputs["step"], full.outputs["step"]
     assert a.shape == b.shape and np.abs(b).max() > 1e-6
     assert np.abs(a - b).max() <= 1e-2 * np.abs(b).max()
+
+
+def test_the_job_reference_holds_the_generated_options_table():
+    from pathlib import Path
+
+    from pymorembs.methods import options_table
+
+    text = (Path(__file__).parents[1] / "docs" / "jobs.md").read_text(encoding="utf-8")
+    block = text.split("<!-- options-table:start -->\n")[1].split("<!-- options-table:end -->")[0]
+    assert block == options_table(), "regenerate the table in docs/jobs.md (see its section)"

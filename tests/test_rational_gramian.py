@@ -183,7 +183,7 @@ def test_job_option_first_stage_rational_krylov(lattice, tmp_path):
     from pymorembs.pipeline import run_reduction
 
     spec = ReductionSpec(
-        "rk", "gramian", 10, {"first_stage": "rational-krylov", "first_tolerance": 1e-8}
+        "rk", "gramian", 10, {"first_stage": "rational-krylov", "convergence_tolerance": 1e-8}
     )
     projection = run_reduction(lattice, spec, BAND)
     direct = rational_gramian_reduction(lattice, BAND, order=10, tol=1e-8)

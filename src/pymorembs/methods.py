@@ -25,6 +25,7 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import math
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar
@@ -401,8 +402,10 @@ class GramianOptions(ReductionOptions):
         Order of the medium model (SOAGA default 132, Krylov as its ``order``), or the largest
         dimension of the rational Krylov space (default 300).
     first_tolerance : float, optional
-        SOAGA first stage: its estimated error target (default 1e-10); rational Krylov: stop when
-        trace and leading singular value change by less than this (default 1e-8).
+        The SOAGA first stage's estimated error target (default 1e-10).
+    convergence_tolerance : float, optional
+        Rational Krylov: stop when trace and leading singular value of the Gramians change by
+        less than this (relative, default 1e-8).
     expansion_points_hz, moments
         Of the Krylov first stage (as for ``krylov``).
     """
@@ -413,6 +416,7 @@ class GramianOptions(ReductionOptions):
     first_stage: str | None = None
     first_order: int | None = None
     first_tolerance: float | None = None
+    convergence_tolerance: float | None = None
     expansion_points_hz: tuple[float, ...] | None = None
     moments: int | tuple[int, ...] | None = None
 
@@ -424,6 +428,19 @@ class GramianOptions(ReductionOptions):
             _choice("first_stage", self.first_stage, ("soaga", "krylov", "rational-krylov", "none"))
         self._set("first_order", _whole("first_order", self.first_order))
         self._set("first_tolerance", _number("first_tolerance", self.first_tolerance, 0.0))
+        self._set(
+            "convergence_tolerance",
+            _number("convergence_tolerance", self.convergence_tolerance, 0.0),
+        )
+        rational = self.first_stage == "rational-krylov"
+        if rational and self.first_tolerance is not None:
+            raise OptionError(
+                "first_tolerance",
+                "is the SOAGA first stage's error target; the rational Krylov solver stops by "
+                "'convergence_tolerance'",
+            )
+        if not rational and self.convergence_tolerance is not None:
+            raise OptionError("convergence_tolerance", "belongs to first_stage = 'rational-krylov'")
         if self.first_stage == "krylov":
             if self.expansion_points_hz is None:
                 raise OptionError(None, "missing key 'expansion_points_hz'")
@@ -440,7 +457,8 @@ class GramianOptions(ReductionOptions):
             extra = {} if self.first_order is None else {"max_dim": self.first_order}
             return rational_gramian_reduction(system, band_hz, order=self.order,
                                               tolerance=self.tolerance,
-                                              tol=self.first_tolerance, **extra)  # fmt: skip
+                                              tol=self.convergence_tolerance,
+                                              **extra)  # fmt: skip
         medium = self._medium(system, band_hz)
         order = self.order
         if medium is not None and order is not None and order > medium.order:
@@ -536,21 +554,38 @@ def method_options(method: str, values: Mapping[str, Any] | None = None) -> Redu
 
 
 def options_table() -> str:
-    """The options of every method as a Markdown table (name, default, meaning) for the docs."""
+    """The options of every method as a Markdown table (method, option, default, meaning), for
+    the job reference (``docs/jobs.md``). ``max_frequency_hz`` (every method) comes once."""
     lines = ["| method | option | default | meaning |", "|---|---|---|---|"]
+    common = {f.name for f in dataclasses.fields(ReductionOptions)}
+    base = _attribute_docs(ReductionOptions)
+    for key in sorted(common):
+        lines.append(f"| every method | `{key}` | — | {_markdown(base.get(key, ''))} |")
     for name, cls in METHODS.items():
         docs = _attribute_docs(cls)
         for f in dataclasses.fields(cls):
-            default = "" if f.default is dataclasses.MISSING else repr(f.default)
-            default = "required" if default == "None" and f.name in _REQUIRED.get(name, ()) else (
-                "—" if default == "None" else default)  # fmt: skip
-            lines.append(f"| {name} | `{f.name}` | {default} | {docs.get(f.name, '')} |")
+            if f.name in common:
+                continue
+            if f.name in _REQUIRED.get(name, ()):
+                default = "required"
+            elif f.default is None or f.default == ():
+                default = "—"
+            else:
+                default = f"`{f.default!r}`".replace("'", '"')
+            lines.append(f"| {name} | `{f.name}` | {default} | {_markdown(docs.get(f.name, ''))} |")
     return "\n".join(lines) + "\n"
+
+
+def _markdown(text: str) -> str:
+    """Docstring markup to Markdown: ``x`` and :role:`~a.b.c` to `x` and `c`."""
+    text = re.sub(r":[a-z]+:`~?(?:[\w.]+\.)?([\w]+)`", r"`\1`", text)
+    return text.replace("``", "`")
 
 
 _REQUIRED = {
     "modal": ("order",),
     "craig-bampton": ("fixed_modes",),
+    "krylov": ("expansion_points_hz",),
 }
 
 
