@@ -4,7 +4,8 @@
   repository, and every ``#anchor`` a heading of the linked page (GitHub's anchor rules).
 * The ``python`` code blocks of each page run in order in one namespace (a block may use the
   names of the blocks above it), in an empty temporary folder. A block preceded by the line
-  ``<!-- no-test: reason -->`` is skipped; the reason must be given.
+  ``<!-- no-test: reason -->`` is skipped; the reason must be given. A page with the line
+  ``<!-- docs-test: slow (reason) -->`` runs in the slow set.
 * Every ``examples/*.py`` runs as a script; the long ones are in the slow set.
 """
 
@@ -25,6 +26,7 @@ FENCE = re.compile(r"^(```|~~~)")
 LINK = re.compile(r"!?\[(?:[^\]\\]|\\.)*\]\(([^)\s]+)(?:\s+\"[^\"]*\")?\)")
 INLINE_CODE = re.compile(r"`[^`]*`")
 NO_TEST = re.compile(r"^<!--\s*no-test:\s*(\S.*?)\s*-->$")
+SLOW_PAGE = re.compile(r"^<!--\s*docs-test:\s*slow\b.*-->$", re.M)
 
 
 def _rel(page: Path) -> str:
@@ -141,13 +143,25 @@ def test_block_extraction(tmp_path):
         encoding="utf-8",
     )
     assert python_blocks(page) == [(2, "a = 1\n"), (13, "assert a == 1\n")]
+    assert not SLOW_PAGE.search(page.read_text(encoding="utf-8"))
+    assert SLOW_PAGE.search("text\n<!-- docs-test: slow (Exudyn run) -->\n")
 
 
 def test_readme_has_code():
     assert ROOT / "README.md" in PAGES_WITH_CODE
 
 
-@pytest.mark.parametrize("page", PAGES_WITH_CODE, ids=_rel)
+@pytest.mark.parametrize(
+    "page",
+    [
+        pytest.param(
+            page,
+            id=_rel(page),
+            marks=[pytest.mark.slow] if SLOW_PAGE.search(page.read_text(encoding="utf-8")) else [],
+        )
+        for page in PAGES_WITH_CODE
+    ],
+)
 def test_python_blocks_run(page, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     namespace: dict = {"__name__": "__docs__"}
