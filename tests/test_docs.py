@@ -202,3 +202,35 @@ def test_example_script_runs(name, tmp_path, monkeypatch):
         facts = json.loads((out / "fig6_interfaces.json").read_text())
         assert len(facts) == 5
         assert all(max(f["check_rel_error"]) <= 1e-6 for f in facts.values())
+
+
+def readme_walkthrough_job() -> str:
+    """The job file of the README's walkthrough (the ``toml`` block after "Write a job")."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    after = text[text.index("Write a job") :]
+    start = after.index("```toml\n") + len("```toml\n")
+    return after[start : after.index("\n```", start)]
+
+
+@pytest.mark.slow
+def test_readme_walkthrough_on_the_ansys_example(tmp_path, capsys):
+    """The walkthrough's job runs on the genuine Ansys export it names and writes a valid SID."""
+    from pymorembs.cli import main
+    from pymorembs.export.sid import check_sid, read_sid
+
+    data = ROOT / "tests" / "data" / "pymapdl_reader_hexbeam"
+    job = readme_walkthrough_job()
+    assert 'file = "Jobname.full"' in job and 'nodes = "Jobname.cdb"' in job
+    job = job.replace("Jobname.full", (data / "file.full").as_posix())
+    job = job.replace("Jobname.cdb", (data / "HexBeam.cdb").as_posix())
+    (tmp_path / "body.toml").write_text(job, encoding="utf-8")
+    assert main(["reduce", str(tmp_path / "body.toml"), "--out", str(tmp_path / "out")]) == 0
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    (reduction,) = summary["reductions"]
+    # the SOAGA tolerance of the job, checked against the full model's response
+    assert summary["reference"]["kind"] == "full"  # 963 dofs: every frequency solved in full
+    assert reduction["max_rel_error"] <= 1e-6
+    assert reduction["inertia_loads"]["max_rel_error"] <= 1e-6
+    sid = tmp_path / "out" / "soaga" / "soaga.SID_FEM"
+    assert check_sid(read_sid(sid)) == []
+    assert "soaga" in capsys.readouterr().out
