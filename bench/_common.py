@@ -35,7 +35,7 @@ CACHE = BENCH / ".cache"
 BAND_HZ = (0.0, 1000.0)
 FRAME_NODE = 2
 PORT_NODE = 1
-#: Peak memory of building the 300,000-dof rack-solid (README), scaled linearly for estimates.
+#: Peak memory of building the 300,000-dof rack-solid (docs/models.md), scaled linearly.
 BUILD_BYTES_PER_DOF = 3.2e9 / 300_000
 RESULT_TAG = "RESULT "
 

@@ -101,10 +101,6 @@ Rigid and light-beam coupling differ by less than 1e-5 relatively. The free body
 rigid-body modes and its first elastic mode at 105.2 Hz (rack-beams: 105 Hz). With all nodes of
 the upper plate held instead of node 2: 41.68, 41.69, 100.94 Hz; on the coarse 8,000-dof mesh of
 the tests 42.35, 42.40, 101.42 Hz.
-
-Build times (``rack_solid``, 2 cores, light-beams interface): 35,000 dofs 1.2-1.5 s (bare mesh
-0.8 s); 300,000 dofs 13-15 s with a peak memory of 3.2 GB (bare mesh 8.5-9.5 s, 1.5 GB). A
-shift-invert eigen-solve of the 35,000-dof model for 12 modes takes about 40 s (SuperLU).
 """
 
 from __future__ import annotations

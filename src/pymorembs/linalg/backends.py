@@ -28,9 +28,8 @@ All shifts ``K - omega^2 M + i omega D`` of a model share one sparsity pattern, 
 (METIS ordering and symbolic factorization) is done once: the symmetric factors of one pattern
 are kept in one PARDISO handle (a *family*, :class:`_Family`, up to
 :data:`FACTORS_PER_FAMILY` numeric factors, ``maxfct``/``mnum``), and every factorization after
-the first runs PARDISO's numeric phase only. On rack-solid at 35,679 dofs: 0.46 s for the
-analysis once, then 0.22 s per shift, against 0.37 s with the ordering given to a new handle and
-0.67 s for a complete factorization. ``PYMOREMBS_PARDISO_FAMILIES=0`` gives every factor its own
+the first runs PARDISO's numeric phase only, about a third of a complete factorization.
+``PYMOREMBS_PARDISO_FAMILIES=0`` gives every factor its own
 handle (the ordering of a pattern, :data:`MAX_ORDERINGS` of them, is still reused).
 
 Threads: ``PYMOREMBS_SOLVER_THREADS`` (default: the cores this process may use) for the
@@ -42,36 +41,9 @@ count, because a one-thread solve between a two-thread factorization and the rel
 factor (phase 0) made the next numeric factorization in the handle crash (MKL 2026.2). Worker
 processes that run factorizations in parallel should set the variable to 1.
 
-Measurements
-------------
-rack-solid, 35,000 dofs requested (n = 35,679, nnz(A) = 4.8 M), ``A = K - omega^2 M`` at
-500 Hz, complex case with loss factor ``(1 + 0.02 i) K - omega^2 M``, 3 right-hand sides, 2-core
-machine with one other job running, best of 3, seconds ("same pattern": the ordering of an
-earlier shift reused; "refined": :class:`~pymorembs.linalg.factorization.Factorization`'s
-solve with extended-precision refinement):
-
-=========================================  ======  =======  =====  =======  ======  ======
-backend (threads)                          factor  same     solve  refined  L nnz   memory
-                                                   pattern
-=========================================  ======  =======  =====  =======  ======  ======
-real, SuperLU (1)                          1.92    --       0.053  0.354    25.3 M  304 MB
-real, PARDISO mtype -2 (1)                 1.18    0.96     0.029  0.296    12.0 M  193 MB
-real, PARDISO mtype -2 (2)                 0.86    0.58     0.030  0.299    12.0 M  194 MB
-complex, SuperLU (1)                       3.77    --       0.099  0.678    25.3 M  506 MB
-complex, PARDISO mtype 6 (1)               1.91    1.74     0.092  0.656    12.0 M  310 MB
-complex, PARDISO mtype 6 (2)               1.30    1.14     0.090  0.665    12.0 M  311 MB
-complex as real 2n, PARDISO mtype 11 (2)   11.65   --       0.200  --       84.4 M  1.5 GB
-complex as real 2n symmetric, -2 (2)       8.16    --       0.242  --       44.1 M  0.7 GB
-=========================================  ======  =======  =====  =======  ======  ======
-
-The complex symmetric factorization (``mtype = 6``) is 2.9x faster than SuperLU's complex LU
-and 6-9x faster than the real equivalent forms of size 2n, so complex shifts use it. Residuals
-``|A x - b| / |b|`` of the plain solves were 1e-10 to 4e-10 for all.
-
-(The two rows "as real 2n" are single runs.) At 70,000 dofs requested (n = 72,555, nnz(A) =
-10.2 M; one run each, machine busy with 4-6 jobs): SuperLU real 53.1 s (L + U 92.9 M, 1.1 GB),
-complex 90.3 s (1.9 GB); PARDISO (2 threads) real 6.7 s, 5.3 s with a known ordering (L 34.2 M,
-0.48 GB), complex 9.6 s (0.80 GB).
+Complex shifts use the complex symmetric factorization (``mtype = 6``): it is several times
+faster than SuperLU's complex LU and than the real equivalent forms of size 2n, whose factors
+are also three to seven times larger (measurements: ``bench/RESULTS.md``).
 
 """
 

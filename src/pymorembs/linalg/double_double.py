@@ -3,8 +3,7 @@
 Refined solves and the reduced matrices of SOAGA need ``A X`` or ``B - sum_i c_i A_i X`` to
 more digits than double precision holds (:mod:`pymorembs.linalg.products`). ``numpy.longdouble``
 (the x87 80-bit format, 64-bit mantissa) does that without any extra package, but SciPy's
-sparse product in that type runs on one core at about 70 ms for 3 columns of the 35,000-dof
-rack-solid stiffness (4.9 M nonzeros).
+sparse product in that type runs on one core only and is several times slower than a double one.
 
 Here every term is computed exactly as an unevaluated sum ``hi + lo`` of two doubles
 (error-free transformations: Dekker's product split at 2^27 + 1, Knuth's two-sum), row by row,
@@ -15,14 +14,12 @@ Numba (``pip install pymorembs[fast]``) and runs on the PARDISO threads
 (:func:`~pymorembs.linalg.backends.solver_threads`) from the main thread, on one thread
 elsewhere (worker threads; Numba's default threading layer must not be entered twice at once).
 
-Measured on the 35,000-dof rack-solid stiffness (2-core machine, 3 / 6 columns): 25 / 26 ms on
-2 threads, 48 / 50 ms on one, against 69 / 130 ms for the ``longdouble`` product; the two agree
-to 1e-18 relative (the ``longdouble`` rounding).
+The compiled product is faster than SciPy's ``longdouble`` one and agrees with it to the
+``longdouble`` rounding (measurements: ``bench/RESULTS.md``).
 
 The same compiled loop in plain double precision (:func:`multiply`, terms added in SciPy's
 order, so the result is SciPy's to the bit) runs the hot ``M X`` products and residual checks of
-the Krylov bases on the solver threads: 2x faster than SciPy's one-threaded CSR product on 2
-cores.
+the Krylov bases on the solver threads, where SciPy's CSR product uses one.
 
 Without Numba, or with ``PYMOREMBS_EXTENDED=longdouble``, :func:`available` is False and the
 callers use SciPy and ``longdouble``.

@@ -39,9 +39,7 @@ complex ones -- when all its terms are symmetric matrices, as FE matrices are. P
 refinement works from the rounded matrix in double precision and cannot replace the one here:
 on rack-beams (n = 3,942) a plain PARDISO solve differs from the refined one by 3e-9 (SuperLU:
 5e-9), the refined solutions of the two backends agree to 1.4e-12. The refinement costs about
-two extended-precision residuals per solve (a ``longdouble`` sparse product is ~6x slower than
-a double one): on rack-solid at 35,000 dofs 0.30 s per refined solve of 3 right-hand sides
-against 0.03 s for the plain PARDISO solve and 0.8-1.4 s for the factorization.
+two extended-precision residuals per solve, each several times a double sparse product.
 """
 
 from __future__ import annotations
