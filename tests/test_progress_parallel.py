@@ -225,3 +225,32 @@ def test_krylov_and_soaga_iterations_show_progress(rack_buckens, capsys):
     with progress.settings("off"):
         krylov_reduction(system, [0.0], [2])
     assert capsys.readouterr().err == ""
+
+
+def test_soaga_bar_has_no_total_when_the_estimator_ends_the_work(rack_buckens, capsys):
+    """Issue #16: the bar promised the full order (thousands of columns, an ETA of minutes) and
+    stopped at a few dozen. With a tolerance it counts columns only; with an order cap alone
+    the cap is the total."""
+    import re
+
+    from pymorembs.reduction.soaga import soaga_reduction
+
+    system, _ = rack_buckens
+    with progress.settings("on"):
+        projection = soaga_reduction(system, (0.0, 200.0), tolerance=1e-3)
+        err = capsys.readouterr().err
+        assert projection.order < system.order // 10
+        assert "soaga" in err and f"/{system.order}" not in err
+        assert re.search(r"\d+/\d+", err) is None and "<" not in err  # no total, no ETA
+        assert f"{projection.order}column" in err  # the count where the work ended
+        soaga_reduction(system, (0.0, 200.0), max_order=12)
+        err = capsys.readouterr().err
+        assert "12/12" in err
+
+
+def test_finish_ends_a_bar_at_its_count(capsys):
+    with progress.Progress("cap", total=100, unit="column", force=True) as bar:
+        bar.update(18)
+        bar.finish()
+        assert bar.total == bar.count == 18
+    assert "18/18" in capsys.readouterr().err
