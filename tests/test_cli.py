@@ -171,6 +171,22 @@ def test_job_with_matrix_files_and_relative_paths(tmp_path, lattice_files, capsy
     assert summary["model"]["n_dependent"] == 3
 
 
+def test_job_and_tables_saved_with_a_byte_order_mark(tmp_path, lattice_files, capsys):
+    """Issue #16: a Windows editor saves UTF-8 with a byte order mark; the job file and the
+    CSV tables of such an editor read as without it."""
+    model = (
+        'stiffness = "lattice/K.mtx"\nmass = "lattice/M.mtx"\ndofs = "lattice/dofs.csv"\n'
+        'nodes = "lattice/nodes.csv"\nconstraints = "lattice/constraints.csv"'
+    )
+    job = write_job(tmp_path, model=model)
+    for path in [job, *lattice_files.glob("*.csv")]:
+        path.write_bytes(b"\xef\xbb\xbf" + path.read_bytes())
+    code, _, err = run(["reduce", job, "--out", tmp_path / "out", "--quiet"], capsys)
+    assert code == 0, err
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["model"]["n_dependent"] == 3 and summary["model"]["n_nodes"] == 12
+
+
 def test_second_run_replaces_results_and_keeps_other_files(tmp_path, lattice_files, capsys):
     job = write_job(tmp_path)
     out = tmp_path / "out"

@@ -75,6 +75,7 @@ from typing import Any, BinaryIO
 
 from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
+from pymorembs.io.line_blocks import UTF8_BOM
 from pymorembs.io.matrix_market import encoding_note
 
 __all__ = [
@@ -304,6 +305,7 @@ def _detect_head(path: Path, head: bytes) -> str | None:
         return binary
     if b"\x00" in head:
         return None
+    head = head.removeprefix(UTF8_BOM)  # a text file saved by a Windows editor
     text = head.decode("latin-1")
     first = _first_content_line(text, skip_abaqus_comments=False)
     if first is None:
