@@ -638,3 +638,19 @@ order = 6
     summary = run_job(job, tmp_path / "out")
     assert summary["reductions"][0]["order"] == 6
     assert str(tmp_path / "never-written.toml") not in summary["provenance"]["inputs"]
+
+
+@pytest.mark.parametrize("below", ["", "out"])
+def test_out_at_or_below_a_file_fails_before_any_work(below, tmp_path, lattice_files, capsys):
+    """Issue #16: ``--out`` at or below an existing file computed the whole job first and then
+    failed with a traceback."""
+    job = write_job(tmp_path)
+    blocker = tmp_path / "some.txt"
+    blocker.write_text("not a folder\n")
+    out = blocker / below if below else blocker
+    code, stdout, err = run(["reduce", job, "--out", out], capsys)
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err
+    assert err.startswith(f"pymorembs: error: {out}: the output folder ")
+    assert ("below the file" in err) == bool(below)
+    assert "loading the model" not in stdout  # nothing was started
+    assert blocker.read_text() == "not a folder\n"

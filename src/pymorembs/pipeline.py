@@ -33,7 +33,7 @@ from pymorembs.config import Job, ModelSpec, ReductionSpec
 from pymorembs.errors import NumericalError, PymorembsError, UserError
 from pymorembs.examples import build_example
 from pymorembs.export.outputs import BODY_OUTPUTS, write_outputs
-from pymorembs.io.atomic import atomic_path, write_text
+from pymorembs.io.atomic import atomic_path, check_output_folder, write_text
 from pymorembs.io.formats import read_body
 from pymorembs.linalg.mass_split import mass_split
 from pymorembs.prepare import PreparedModel, prepare, with_inertia_loads
@@ -408,6 +408,7 @@ def _run_job(
 ) -> dict[str, Any]:
     timings: dict[str, float] = {}
     clock = time.perf_counter()
+    check_output_folder(out_dir)  # a file in the way fails now, not after all the work
 
     stage(
         "loading the model, interfaces, frame, constraint elimination, inputs and outputs",
