@@ -305,3 +305,19 @@ def test_text_files_with_a_byte_order_mark_read_as_without(tmp_path: Path) -> No
         assert detect_format(path) == ("abaqus" if name == "k.inp" else "nastran-dmig")
     body = read_body(file=tmp_path / "d.pch")
     np.testing.assert_array_equal(body.stiffness.toarray(), K_DENSE)
+
+
+def test_missing_dofs_csv_is_named_not_nodes_csv(tmp_path: Path) -> None:
+    """Issue #16: without dofs.csv the generic dof table (equation i: ux of node i) meets the
+    real node ids of nodes.csv; the message named nodes.csv as the broken file."""
+    paths = write_matrix_files(small_body(), tmp_path / "body")
+    paths["dofs"].unlink()
+    for options in [
+        {"file": tmp_path / "body"},
+        {k: paths[k] for k in ("stiffness", "mass", "nodes")},
+    ]:
+        with pytest.raises(UserError) as err:
+            read_body(**options)
+        message = one_line(err)
+        assert message.startswith(f"{paths['stiffness']}: no dof table (dofs.csv) given")
+        assert "equation 2 is ux of node 2" in message and message.endswith("does not list")
