@@ -9,9 +9,12 @@ contradictions can be warned about.
 Two numbers decide, both computed in O(n_nodes log n_nodes + n_dof):
 
 ``implied_density``
-    total mass / volume of the bounding box of the nodes (mass per length^3). A body fills part
-    of its box (the rack: 9 % to 50 %), so the accepted range spans fill factors of about 0.001
-    to 1 and materials from foams to tungsten.
+    total mass / volume of the bounding box of the nodes along their principal axes (mass per
+    length^3). A body fills part of its box (the rack: 9 % to 50 %), so the accepted range spans
+    fill factors of about 0.001 to 1 and materials from foams to tungsten. Nodes on a line (a
+    beam model) or in a plane (a shell model) span no volume: in the missing directions the box
+    gets the section of a line of beams from its rotary inertia about the line (``r^2 = Ip /
+    A``), or else a section or thickness of the median node spacing, at least 1 % of the size.
 ``implied_wave_speed_squared``
     ``median(k_ii / m_ii) * h^2`` over translational dofs with mass, ``h`` the median distance
     of a node to its nearest neighbour (length^2 / time^2). For an element of size ``h`` the
@@ -174,21 +177,66 @@ def implied_numbers(body: ElasticBody) -> tuple[float, float]:
     coordinates = body.coordinates
     if coordinates.shape[0] < 2:
         return float("nan"), float("nan")
-    extent = coordinates.max(axis=0) - coordinates.min(axis=0)
-    largest = float(extent.max())
+    extent, axes = _principal_box(coordinates)
+    largest = float(extent[0])
     if largest <= 0:
         return float("nan"), float("nan")
-    volume = float(np.prod(np.maximum(extent, 1e-2 * largest)))  # flat models: 1 % thickness
-    mass = body.total_mass()
-    density = mass / volume if mass > 0 else float("nan")
     distance, _ = cKDTree(coordinates).query(coordinates, k=2)
     spacing = distance[:, 1][distance[:, 1] > 0]
+    h = float(np.median(spacing)) if spacing.size else 0.0
+    # nodes on a line (beams) or in a plane (shells) span no volume: a section or thickness in
+    # the missing directions -- from the rotary inertia about the line, else of the order of
+    # the node spacing, at least 1 % of the size
+    thickness = max(1e-2 * largest, h)
+    if extent[1] < thickness:
+        thickness = _section_from_rotary_inertia(body, axes[0]) or thickness
+    volume = float(np.prod(np.maximum(extent, thickness)))
+    mass = body.total_mass()
+    density = mass / volume if mass > 0 else float("nan")
     k_diag, m_diag = body.stiffness.diagonal(), body.mass.diagonal()
     use = (body.dofs.directions < 3) & (m_diag > 0) & (k_diag > 0)
     if spacing.size == 0 or not np.any(use):
         return density, float("nan")
-    h = float(np.median(spacing))
     return density, float(np.median(k_diag[use] / m_diag[use])) * h * h
+
+
+def _principal_box(coordinates: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Sizes of the box of the points along their principal axes, descending, and the axes
+    (rows); thin for an inclined line or plane of nodes, unlike the box along x, y, z."""
+    centred = coordinates - coordinates.mean(axis=0)
+    _, _, axes = np.linalg.svd(centred, full_matrices=False)  # (n, 3) points: cheap
+    along = centred @ axes.T
+    extent = along.max(axis=0) - along.min(axis=0)
+    return np.concatenate([extent, np.zeros(3 - extent.size)]), axes
+
+
+def _section_from_rotary_inertia(body: ElasticBody, axis: np.ndarray) -> float | None:
+    """Side of the square section with the polar radius of gyration of a line of beam nodes.
+
+    A beam's rotary mass about its axis is ``rho Ip`` per length and its translational mass
+    ``rho A``, so ``r^2 = Ip / A`` (median over the nodes, from each node's 3 x 3 block of
+    rotary mass); a square of side ``s`` has ``r^2 = s^2 / 6``. None without rotational dofs
+    with mass.
+    """
+    m_diag = body.mass.diagonal()
+    nodes = np.unique(body.dofs.nodes)
+    translation = body.dofs.positions(nodes[:, None], np.arange(3)[None, :])
+    rotation = body.dofs.positions(nodes[:, None], np.arange(3, 6)[None, :])
+    full = np.all(translation >= 0, axis=1) & np.all(rotation >= 0, axis=1)
+    if not np.any(full):
+        return None
+    moved = m_diag[translation[full]].mean(axis=1)
+    rows = rotation[full]
+    mass = sp.csr_matrix(body.mass)
+    turned = np.zeros(rows.shape[0])
+    for a in range(3):  # axis^T R axis with R the 3 x 3 rotary mass block of each node
+        for b in range(3):
+            block = np.asarray(mass[rows[:, a], rows[:, b]]).ravel()
+            turned += axis[a] * axis[b] * block
+    use = (moved > 0) & (turned > 0)
+    if not np.any(use):
+        return None
+    return float(np.sqrt(6.0 * np.median(turned[use] / moved[use])))
 
 
 def _ranges(system: UnitSystem) -> tuple[tuple[float, float], tuple[float, float]]:
