@@ -12,9 +12,9 @@ Two numbers decide, both computed in O(n_nodes log n_nodes + n_dof):
     total mass / volume of the bounding box of the nodes along their principal axes (mass per
     length^3). A body fills part of its box (the rack: 9 % to 50 %), so the accepted range spans
     fill factors of about 0.001 to 1 and materials from foams to tungsten. Nodes on a line (a
-    beam model) or in a plane (a shell model) span no volume: in the missing directions the box
-    gets the section of a line of beams from its rotary inertia about the line (``r^2 = Ip /
-    A``), or else a section or thickness of the median node spacing, at least 1 % of the size.
+    beam model) or in a plane (a shell model) span no volume: the box gets the section of the
+    beams or the thickness of the shell from the rotary inertia of the nodes (radius of
+    gyration), else a section of the node spacing (a line) or a thickness of 1 % of the size.
 ``implied_wave_speed_squared``
     ``median(k_ii / m_ii) * h^2`` over translational dofs with mass, ``h`` the median distance
     of a node to its nearest neighbour (length^2 / time^2). For an element of size ``h`` the
@@ -184,13 +184,19 @@ def implied_numbers(body: ElasticBody) -> tuple[float, float]:
     distance, _ = cKDTree(coordinates).query(coordinates, k=2)
     spacing = distance[:, 1][distance[:, 1] > 0]
     h = float(np.median(spacing)) if spacing.size else 0.0
-    # nodes on a line (beams) or in a plane (shells) span no volume: a section or thickness in
-    # the missing directions -- from the rotary inertia about the line, else of the order of
-    # the node spacing, at least 1 % of the size
-    thickness = max(1e-2 * largest, h)
-    if extent[1] < thickness:
-        thickness = _section_from_rotary_inertia(body, axes[0]) or thickness
-    volume = float(np.prod(np.maximum(extent, thickness)))
+    # nodes on a line (beams) or in a plane (shells) span no volume: a section or thickness
+    # from the rotary inertia of the nodes, else the node spacing (a line) or 1 % of the size
+    floor = 1e-2 * largest
+    thin = max(floor, h)
+    sizes = np.maximum(extent, floor)
+    if extent[1] < thin:  # a line: the section of its beams from the rotary inertia about it
+        r2 = _rotary_radius_squared(body, axes[:1])
+        sizes[1:] = np.maximum(extent[1:], thin if r2 is None else np.sqrt(6.0 * r2))
+    elif extent[2] < thin:  # a plane: the thickness of a shell, r^2 = t^2 / 12 in-plane
+        r2 = _rotary_radius_squared(body, axes[:2])
+        if r2 is not None:
+            sizes[2] = max(extent[2], np.sqrt(12.0 * r2))
+    volume = float(np.prod(sizes))
     mass = body.total_mass()
     density = mass / volume if mass > 0 else float("nan")
     k_diag, m_diag = body.stiffness.diagonal(), body.mass.diagonal()
@@ -210,13 +216,14 @@ def _principal_box(coordinates: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate([extent, np.zeros(3 - extent.size)]), axes
 
 
-def _section_from_rotary_inertia(body: ElasticBody, axis: np.ndarray) -> float | None:
-    """Side of the square section with the polar radius of gyration of a line of beam nodes.
+def _rotary_radius_squared(body: ElasticBody, axes: np.ndarray) -> float | None:
+    """Squared radius of gyration of the nodes' rotary mass about ``axes`` (rows, unit).
 
-    A beam's rotary mass about its axis is ``rho Ip`` per length and its translational mass
-    ``rho A``, so ``r^2 = Ip / A`` (median over the nodes, from each node's 3 x 3 block of
-    rotary mass); a square of side ``s`` has ``r^2 = s^2 / 6``. None without rotational dofs
-    with mass.
+    The median over the nodes with all six dofs of ``mean_a(a^T R a) / m``, ``R`` a node's
+    3 x 3 block of rotary mass and ``m`` its mean translational mass diagonal. A line of beams
+    (about its axis: ``rho Ip`` per length against ``rho A``) has ``r^2 = Ip / A``, ``s^2 / 6``
+    for a square of side ``s``; a shell (about in-plane axes: ``rho t^3 / 12`` against
+    ``rho t``) ``t^2 / 12``. None without rotational dofs with mass.
     """
     m_diag = body.mass.diagonal()
     nodes = np.unique(body.dofs.nodes)
@@ -229,14 +236,14 @@ def _section_from_rotary_inertia(body: ElasticBody, axis: np.ndarray) -> float |
     rows = rotation[full]
     mass = sp.csr_matrix(body.mass)
     turned = np.zeros(rows.shape[0])
-    for a in range(3):  # axis^T R axis with R the 3 x 3 rotary mass block of each node
+    for a in range(3):
         for b in range(3):
             block = np.asarray(mass[rows[:, a], rows[:, b]]).ravel()
-            turned += axis[a] * axis[b] * block
+            turned += (axes[:, a] @ axes[:, b]) / len(axes) * block
     use = (moved > 0) & (turned > 0)
     if not np.any(use):
         return None
-    return float(np.sqrt(6.0 * np.median(turned[use] / moved[use])))
+    return float(np.median(turned[use] / moved[use]))
 
 
 def _ranges(system: UnitSystem) -> tuple[tuple[float, float], tuple[float, float]]:
