@@ -97,6 +97,9 @@ def test_demo_job_meets_the_foundation_targets(tmp_path, capsys):
         assert np.allclose(npz["M"], np.eye(entry["order"]))
     assert (tmp_path / "demo" / "error.png").read_bytes()[:4] == b"\x89PNG"
     assert "krylov" in out and "max rel. error" in out
+    # issue #16: a newcomer's first run shows no warnings (it printed six)
+    assert err == "" and summary["warnings"] == []
+    assert len(summary["notes"]) == 2  # the ports at the frame node: inputs, outputs
 
 
 def test_example_writes_model_files_that_read_back_equal(tmp_path, capsys):
@@ -355,19 +358,32 @@ def test_invalid_toml_names_the_line(tmp_path, capsys):
     assert f"{job}:5: invalid TOML: " in err and "(column 8)" in err
 
 
-def test_warnings_go_to_stderr_in_one_line_each(tmp_path, capsys):
-    """The demo's ports at the frame node warn (elastic transfer zero), on stderr: three inputs
-    and three outputs, one line each; nothing on stdout with --quiet."""
+def test_ports_at_the_frame_node_are_notes_unless_outputs_are_asked_there(tmp_path, capsys):
+    """The demo's ports at the frame node (node 2): forces there move the reference frame only,
+    the usual joint of a multibody model -- a note on stdout, one line per node and side.
+    Outputs asked explicitly at the frame node are identically zero: a warning on stderr, one
+    line, even with --quiet."""
     text = DEMO.read_text().split("[[reduction]]")[0]
     text += '[[reduction]]\nname = "m"\nmethod = "modal"\norder = 12\n'
+    text = text.replace("points = 400", "points = 200")
     job = tmp_path / "demo.toml"
-    job.write_text(text.replace("points = 400", "points = 200"))
-    code, out, err = run(["reduce", job, "--out", tmp_path / "out", "--quiet"], capsys)
-    assert code == 0, err
-    assert out == ""
-    lines = err.strip().splitlines()
-    assert len(lines) == 6 and all(line.startswith("pymorembs: warning: ") for line in lines)
-    assert all("acts on a fixed dof of the frame" in line for line in lines)
+    job.write_text(text)
+    code, out, err = run(["reduce", job, "--out", tmp_path / "out"], capsys)
+    assert code == 0 and err == ""
+    assert "inputs 2:ux uy uz act on fixed dofs of the frame" in out
+    assert "outputs 2:ux uy uz act on fixed dofs of the frame" in out
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["warnings"] == [] and len(summary["notes"]) == 2
+    outputs = (
+        '[[outputs]]\nnode = 1\ndirections = "ux"\n\n[[outputs]]\nnode = 2\ndirections = "uz"\n'
+    )
+    job.write_text(text.replace("[band]", outputs + "\n[band]"))
+    code, out, err = run(["reduce", job, "--out", tmp_path / "out2", "--quiet"], capsys)
+    assert code == 0 and out == ""
+    assert err == (
+        "pymorembs: warning: output 2:uz acts on fixed dofs of the frame: no elastic transfer "
+        "(it moves the reference frame only)\n"
+    )
 
 
 def test_info_handles_massless_dofs(tmp_path, capsys):

@@ -432,6 +432,8 @@ def _run_job(
     warnings = [*prepared.warnings, *validation.warnings, *units.warnings]
     for warning in warnings:
         say(f"warning: {warning}")
+    for note in prepared.notes:  # facts of the setup, no mistake: not warnings
+        say(note)
 
     frequencies = frequency_grid(*job.band_hz, job.points)
     kind = choose_kind(job.reference, system.order)
@@ -630,6 +632,7 @@ def _run_job(
             "reference": reference.as_dict(),
             "reductions": entries,
             "warnings": warnings,
+            "notes": list(prepared.notes),
             "timings_s": timings,
             "files": overview,
         }
