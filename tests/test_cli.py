@@ -670,3 +670,15 @@ def test_out_at_or_below_a_file_fails_before_any_work(below, tmp_path, lattice_f
     assert ("below the file" in err) == bool(below)
     assert "loading the model" not in stdout  # nothing was started
     assert blocker.read_text() == "not a folder\n"
+
+
+def test_the_stiffness_file_as_the_mass_file_exits_2(tmp_path, lattice_files, capsys):
+    """Issue #16: K given twice (the same file, or a copy of it as M.mtx) ran to exit 0."""
+    shutil.copy(lattice_files / "K.mtx", lattice_files / "K-copy.mtx")
+    for mass, words in (("K.mtx", "given as both the stiffness and the mass"),
+                        ("K-copy.mtx", "the mass matrix is the stiffness matrix")):  # fmt: skip
+        model = f'stiffness = "lattice/K.mtx"\nmass = "lattice/{mass}"\ndofs = "lattice/dofs.csv"'
+        job = write_job(tmp_path, model=model)
+        code, out, err = run(["reduce", job, "--out", tmp_path / "out"], capsys)
+        assert code == 2 and err.count("\n") == 1 and words in err, err
+        assert "frequency response" not in out and not (tmp_path / "out").exists()

@@ -493,6 +493,7 @@ def read_body(
         "name": name,
     }
     given = {key: value for key, value in options.items() if value is not None}
+    _check_distinct_matrices(given)
     if format is None:
         source = file if file is not None else stiffness
         if source is None:
@@ -521,6 +522,23 @@ def read_body(
         )
     body, applied = _dispatch(fmt, given)
     return _finish(body, given, applied)
+
+
+def _check_distinct_matrices(given: dict[str, Any]) -> None:
+    """A :class:`UserError` if one file (or one matrix name) is given as both K and M."""
+    for first, second in (("stiffness", "mass"), ("stiffness_name", "mass_name")):
+        if first not in given or second not in given:
+            continue
+        a, b = given[first], given[second]
+        if first == "stiffness":
+            same = Path(a).resolve() == Path(b).resolve()
+        else:
+            same = str(a).strip() == str(b).strip()
+        if same:
+            raise UserError(
+                f"{b}: given as both the {first.replace('_', ' ')} and the "
+                f"{second.replace('_', ' ')}; the mass matrix must be its own"
+            )
 
 
 def _require(fmt: str, given: dict[str, Any], *keys: str) -> None:
