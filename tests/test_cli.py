@@ -682,3 +682,16 @@ def test_the_stiffness_file_as_the_mass_file_exits_2(tmp_path, lattice_files, ca
         code, out, err = run(["reduce", job, "--out", tmp_path / "out"], capsys)
         assert code == 2 and err.count("\n") == 1 and words in err, err
         assert "frequency response" not in out and not (tmp_path / "out").exists()
+
+
+def test_a_band_in_rad_per_s_warns_on_the_console_and_in_the_summary(
+    tmp_path, lattice_files, capsys
+):
+    job = write_job(tmp_path)
+    job.write_text(job.read_text().replace("f_max_hz = 200", "f_max_hz = 1256.64"))
+    code, out, err = run(["reduce", job, "--out", tmp_path / "out", "--quiet"], capsys)
+    assert code == 0 and out == ""
+    [line] = err.splitlines()
+    assert line.startswith("pymorembs: warning: band f_max_hz = 1256.64 is 2 pi x 200")
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert line.removeprefix("pymorembs: warning: ") in summary["warnings"]

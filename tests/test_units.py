@@ -174,3 +174,40 @@ def test_planar_and_rotation_free_line_models_are_judged():
     )
     guess = detect_units(frame)
     assert guess.name == "m-kg-s-N" and guess.plausible and guess.warnings == ()
+
+
+@pytest.mark.parametrize(
+    ("band", "suspect"),
+    [
+        ((0.0, 2 * np.pi * 1000), "f_max_hz = 6283.19 is 2 pi x 1000"),
+        ((0.0, 6283.0), "f_max_hz = 6283 is 2 pi x 1000"),
+        ((0.0, 628.3), "f_max_hz = 628.3 is 2 pi x 100"),
+        ((2 * np.pi * 10, 3141.59), "f_min_hz = 62.8319 is 2 pi x 10, f_max_hz = 3141.59"),
+    ],
+)
+def test_a_band_in_rad_per_s_warns(band, suspect):
+    """Issue #16: a band in rad/s ran silently. 2 pi times a round number warns, once."""
+    from pymorembs.units import band_unit_warnings
+
+    [line] = band_unit_warnings(band)
+    assert suspect in line and "rad/s" in line and "\n" not in line
+
+
+@pytest.mark.parametrize("f_max", [100, 200, 250, 314, 400, 1000, 1500, 2000, 2500, 20000, 40, 150])
+def test_round_bands_do_not_warn(f_max):
+    """Round limits, and 314 (only three digits of 100 pi), are Hz as written."""
+    from pymorembs.units import band_unit_warnings
+
+    assert band_unit_warnings((0.0, float(f_max))) == []
+
+
+def test_shipped_example_jobs_do_not_warn_about_the_band():
+    from pathlib import Path
+
+    from pymorembs.config import load_job
+    from pymorembs.units import band_unit_warnings
+
+    jobs = sorted((Path(__file__).resolve().parents[1] / "examples").glob("*.toml"))
+    assert len(jobs) >= 4
+    for path in jobs:
+        assert band_unit_warnings(load_job(path).band_hz) == [], path

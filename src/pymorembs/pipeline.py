@@ -55,7 +55,7 @@ from pymorembs.reduction.projection import (
 from pymorembs.report.html_report import write_report
 from pymorembs.report.plots import plot_decay, plot_relative_errors
 from pymorembs.system import SecondOrderSystem
-from pymorembs.units import detect_units, frequency_warnings
+from pymorembs.units import band_unit_warnings, detect_units, frequency_warnings
 
 Progress = Callable[[str], None]
 
@@ -430,6 +430,7 @@ def _run_job(
     system = prepared.reduction_system  # what every reduction and the reference see
     units = detect_units(body)
     warnings = [*prepared.warnings, *validation.warnings, *units.warnings]
+    warnings += band_unit_warnings(job.band_hz)
     for warning in warnings:
         say(f"warning: {warning}")
     for note in prepared.notes:  # facts of the setup, no mistake: not warnings

@@ -333,6 +333,42 @@ def frequency_warnings(
     return warnings
 
 
+#: ``f / 2 pi`` this close (relative) to a round number makes a band look like rad/s: four or
+#: more digits of 2 pi (6283, 628.3, 314.16), not a rounded 314 or 62.8.
+RADIANS_TOL = 2e-4
+
+
+def _round(value: float, tol: float) -> bool:
+    """Whether ``value > 0`` has at most two significant digits (1000, 50, 2.5), to ``tol``."""
+    mantissa = 10.0 * value / 10.0 ** np.floor(np.log10(value))  # in [10, 100)
+    return abs(mantissa - np.round(mantissa)) <= tol * mantissa
+
+
+def band_unit_warnings(band_hz: tuple[float, float]) -> list[str]:
+    """A band given in rad/s instead of Hz (one line, or none).
+
+    The rule: a limit that is not itself a round number but is 2 pi times one within
+    :data:`RADIANS_TOL` (``f_max_hz = 6283.19`` = 2 pi x 1000) was most likely converted to
+    rad/s. Round limits (``1000``, ``250``) never warn.
+
+    Parameters
+    ----------
+    band_hz : (float, float)
+        ``(f_min, f_max)`` of the job, in 1/(model time unit).
+    """
+    suspects = []
+    for key, value in zip(("f_min_hz", "f_max_hz"), band_hz, strict=True):
+        value = float(value)
+        if value > 0 and not _round(value, 1e-9) and _round(value / (2 * np.pi), RADIANS_TOL):
+            suspects.append(f"{key} = {value:g} is 2 pi x {value / (2 * np.pi):.4g}")
+    if not suspects:
+        return []
+    return [
+        f"band {', '.join(suspects)}: a band in rad/s? [band] is in Hz (cycles per time "
+        "unit of the model); divide by 2 pi"
+    ]
+
+
 def convert_body(
     body: ElasticBody, source: UnitSystem | str, target: UnitSystem | str
 ) -> ElasticBody:
@@ -386,6 +422,7 @@ __all__ = [
     "SYSTEMS",
     "UnitGuess",
     "UnitSystem",
+    "band_unit_warnings",
     "convert_body",
     "detect_units",
     "frequency_warnings",
