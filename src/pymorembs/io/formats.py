@@ -493,7 +493,6 @@ def read_body(
         "name": name,
     }
     given = {key: value for key, value in options.items() if value is not None}
-    _check_distinct_matrices(given)
     if format is None:
         source = file if file is not None else stiffness
         if source is None:
@@ -520,6 +519,7 @@ def read_body(
             f"option{plural} {', '.join(extra)} {verb} not apply to format {fmt}; "
             f"it takes {', '.join(sorted(_OPTIONS[fmt]))}"
         )
+    _check_distinct_matrices(given)
     body, applied = _dispatch(fmt, given)
     return _finish(body, given, applied)
 
