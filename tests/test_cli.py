@@ -97,6 +97,9 @@ def test_demo_job_meets_the_foundation_targets(tmp_path, capsys):
         assert np.allclose(npz["M"], np.eye(entry["order"]))
     assert (tmp_path / "demo" / "error.png").read_bytes()[:4] == b"\x89PNG"
     assert "krylov" in out and "max rel. error" in out
+    # issue #16: a newcomer's first run shows no warnings (it printed six)
+    assert err == "" and summary["warnings"] == []
+    assert len(summary["notes"]) == 2  # the ports at the frame node: inputs, outputs
 
 
 def test_example_writes_model_files_that_read_back_equal(tmp_path, capsys):
@@ -169,6 +172,22 @@ def test_job_with_matrix_files_and_relative_paths(tmp_path, lattice_files, capsy
     assert code == 0, err
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["model"]["n_dependent"] == 3
+
+
+def test_job_and_tables_saved_with_a_byte_order_mark(tmp_path, lattice_files, capsys):
+    """Issue #16: a Windows editor saves UTF-8 with a byte order mark; the job file and the
+    CSV tables of such an editor read as without it."""
+    model = (
+        'stiffness = "lattice/K.mtx"\nmass = "lattice/M.mtx"\ndofs = "lattice/dofs.csv"\n'
+        'nodes = "lattice/nodes.csv"\nconstraints = "lattice/constraints.csv"'
+    )
+    job = write_job(tmp_path, model=model)
+    for path in [job, *lattice_files.glob("*.csv")]:
+        path.write_bytes(b"\xef\xbb\xbf" + path.read_bytes())
+    code, _, err = run(["reduce", job, "--out", tmp_path / "out", "--quiet"], capsys)
+    assert code == 0, err
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["model"]["n_dependent"] == 3 and summary["model"]["n_nodes"] == 12
 
 
 def test_second_run_replaces_results_and_keeps_other_files(tmp_path, lattice_files, capsys):
@@ -339,19 +358,32 @@ def test_invalid_toml_names_the_line(tmp_path, capsys):
     assert f"{job}:5: invalid TOML: " in err and "(column 8)" in err
 
 
-def test_warnings_go_to_stderr_in_one_line_each(tmp_path, capsys):
-    """The demo's ports at the frame node warn (elastic transfer zero), on stderr: three inputs
-    and three outputs, one line each; nothing on stdout with --quiet."""
+def test_ports_at_the_frame_node_are_notes_unless_outputs_are_asked_there(tmp_path, capsys):
+    """The demo's ports at the frame node (node 2): forces there move the reference frame only,
+    the usual joint of a multibody model -- a note on stdout, one line per node and side.
+    Outputs asked explicitly at the frame node are identically zero: a warning on stderr, one
+    line, even with --quiet."""
     text = DEMO.read_text().split("[[reduction]]")[0]
     text += '[[reduction]]\nname = "m"\nmethod = "modal"\norder = 12\n'
+    text = text.replace("points = 400", "points = 200")
     job = tmp_path / "demo.toml"
-    job.write_text(text.replace("points = 400", "points = 200"))
-    code, out, err = run(["reduce", job, "--out", tmp_path / "out", "--quiet"], capsys)
-    assert code == 0, err
-    assert out == ""
-    lines = err.strip().splitlines()
-    assert len(lines) == 6 and all(line.startswith("pymorembs: warning: ") for line in lines)
-    assert all("acts on a fixed dof of the frame" in line for line in lines)
+    job.write_text(text)
+    code, out, err = run(["reduce", job, "--out", tmp_path / "out"], capsys)
+    assert code == 0 and err == ""
+    assert "inputs 2:ux uy uz act on fixed dofs of the frame" in out
+    assert "outputs 2:ux uy uz act on fixed dofs of the frame" in out
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["warnings"] == [] and len(summary["notes"]) == 2
+    outputs = (
+        '[[outputs]]\nnode = 1\ndirections = "ux"\n\n[[outputs]]\nnode = 2\ndirections = "uz"\n'
+    )
+    job.write_text(text.replace("[band]", outputs + "\n[band]"))
+    code, out, err = run(["reduce", job, "--out", tmp_path / "out2", "--quiet"], capsys)
+    assert code == 0 and out == ""
+    assert err == (
+        "pymorembs: warning: output 2:uz acts on fixed dofs of the frame: no elastic transfer "
+        "(it moves the reference frame only)\n"
+    )
 
 
 def test_info_handles_massless_dofs(tmp_path, capsys):
@@ -622,3 +654,44 @@ order = 6
     summary = run_job(job, tmp_path / "out")
     assert summary["reductions"][0]["order"] == 6
     assert str(tmp_path / "never-written.toml") not in summary["provenance"]["inputs"]
+
+
+@pytest.mark.parametrize("below", ["", "out"])
+def test_out_at_or_below_a_file_fails_before_any_work(below, tmp_path, lattice_files, capsys):
+    """Issue #16: ``--out`` at or below an existing file computed the whole job first and then
+    failed with a traceback."""
+    job = write_job(tmp_path)
+    blocker = tmp_path / "some.txt"
+    blocker.write_text("not a folder\n")
+    out = blocker / below if below else blocker
+    code, stdout, err = run(["reduce", job, "--out", out], capsys)
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err
+    assert err.startswith(f"pymorembs: error: {out}: the output folder ")
+    assert ("below the file" in err) == bool(below)
+    assert "loading the model" not in stdout  # nothing was started
+    assert blocker.read_text() == "not a folder\n"
+
+
+def test_the_stiffness_file_as_the_mass_file_exits_2(tmp_path, lattice_files, capsys):
+    """Issue #16: K given twice (the same file, or a copy of it as M.mtx) ran to exit 0."""
+    shutil.copy(lattice_files / "K.mtx", lattice_files / "K-copy.mtx")
+    for mass, words in (("K.mtx", "given as both the stiffness and the mass"),
+                        ("K-copy.mtx", "the mass matrix is the stiffness matrix")):  # fmt: skip
+        model = f'stiffness = "lattice/K.mtx"\nmass = "lattice/{mass}"\ndofs = "lattice/dofs.csv"'
+        job = write_job(tmp_path, model=model)
+        code, out, err = run(["reduce", job, "--out", tmp_path / "out"], capsys)
+        assert code == 2 and err.count("\n") == 1 and words in err, err
+        assert "frequency response" not in out and not (tmp_path / "out").exists()
+
+
+def test_a_band_in_rad_per_s_warns_on_the_console_and_in_the_summary(
+    tmp_path, lattice_files, capsys
+):
+    job = write_job(tmp_path)
+    job.write_text(job.read_text().replace("f_max_hz = 200", "f_max_hz = 1256.64"))
+    code, out, err = run(["reduce", job, "--out", tmp_path / "out", "--quiet"], capsys)
+    assert code == 0 and out == ""
+    [line] = err.splitlines()
+    assert line.startswith("pymorembs: warning: band f_max_hz = 1256.64 is 2 pi x 200")
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert line.removeprefix("pymorembs: warning: ") in summary["warnings"]

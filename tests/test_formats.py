@@ -272,3 +272,52 @@ def test_assemble_symmetric_both_triangles_and_duplicates() -> None:
         assemble_symmetric(
             rows, cols, values, 3, path=Path("f"), line_of=lines.__getitem__, label=str
         )
+
+
+# ============================================================================ byte order marks
+BOM = b"\xef\xbb\xbf"
+
+
+def with_bom(path: Path) -> Path:
+    """The file as a Windows editor saves UTF-8 text: a byte order mark in front."""
+    path.write_bytes(BOM + path.read_bytes())
+    return path
+
+
+def test_text_files_with_a_byte_order_mark_read_as_without(tmp_path: Path) -> None:
+    """Issue #16: files saved by Windows editors start with a UTF-8 byte order mark."""
+    from pymorembs.io.reader_support import is_nodes_csv
+
+    paths = write_matrix_files(small_body(), tmp_path / "body")
+    for path in paths.values():
+        with_bom(path)
+    assert detect_format(paths["stiffness"]) == "matrix-market"
+    assert is_nodes_csv(paths["nodes"])
+    body = read_body(
+        stiffness=paths["stiffness"], mass=paths["mass"], dofs=paths["dofs"], nodes=paths["nodes"]
+    )
+    np.testing.assert_array_equal(body.stiffness.toarray(), K_DENSE)
+    np.testing.assert_array_equal(body.mass.toarray(), M_DENSE)
+    assert body.dofs.label(1) == "1:uy"
+    for name, text in [("k.inp", ABAQUS_K), ("d.pch", DMIG)]:
+        path = tmp_path / name
+        path.write_bytes(BOM + text.encode())
+        assert detect_format(path) == ("abaqus" if name == "k.inp" else "nastran-dmig")
+    body = read_body(file=tmp_path / "d.pch")
+    np.testing.assert_array_equal(body.stiffness.toarray(), K_DENSE)
+
+
+def test_missing_dofs_csv_is_named_not_nodes_csv(tmp_path: Path) -> None:
+    """Issue #16: without dofs.csv the generic dof table (equation i: ux of node i) meets the
+    real node ids of nodes.csv; the message named nodes.csv as the broken file."""
+    paths = write_matrix_files(small_body(), tmp_path / "body")
+    paths["dofs"].unlink()
+    for options in [
+        {"file": tmp_path / "body"},
+        {k: paths[k] for k in ("stiffness", "mass", "nodes")},
+    ]:
+        with pytest.raises(UserError) as err:
+            read_body(**options)
+        message = one_line(err)
+        assert message.startswith(f"{paths['stiffness']}: no dof table (dofs.csv) given")
+        assert "equation 2 is ux of node 2" in message and message.endswith("does not list")

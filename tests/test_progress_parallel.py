@@ -4,6 +4,11 @@ from __future__ import annotations
 
 import json
 import operator
+import os
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -225,3 +230,127 @@ def test_krylov_and_soaga_iterations_show_progress(rack_buckens, capsys):
     with progress.settings("off"):
         krylov_reduction(system, [0.0], [2])
     assert capsys.readouterr().err == ""
+
+
+def test_soaga_bar_has_no_total_when_the_estimator_ends_the_work(rack_buckens, capsys):
+    """Issue #16: the bar promised the full order (thousands of columns, an ETA of minutes) and
+    stopped at a few dozen. With a tolerance it counts columns only; with an order cap alone
+    the cap is the total."""
+    import re
+
+    from pymorembs.reduction.soaga import soaga_reduction
+
+    system, _ = rack_buckens
+    with progress.settings("on"):
+        projection = soaga_reduction(system, (0.0, 200.0), tolerance=1e-3)
+        err = capsys.readouterr().err
+        assert projection.order < system.order // 10
+        assert "soaga" in err and f"/{system.order}" not in err
+        assert re.search(r"\d+/\d+", err) is None and "<" not in err  # no total, no ETA
+        assert f"{projection.order}column" in err  # the count where the work ended
+        soaga_reduction(system, (0.0, 200.0), max_order=12)
+        err = capsys.readouterr().err
+        assert "12/12" in err
+
+
+def test_finish_ends_a_bar_at_its_count(capsys):
+    with progress.Progress("cap", total=100, unit="column", force=True) as bar:
+        bar.update(18)
+        bar.finish()
+        assert bar.total == bar.count == 18
+    assert "18/18" in capsys.readouterr().err
+
+
+def live_children(pid: int) -> list[int]:
+    """Processes whose parent is ``pid`` and that are not zombies (from /proc)."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid and fields[0] != "Z":
+            found.append(int(entry.name))
+    return found
+
+
+def running(pid: int) -> bool:
+    """Whether ``pid`` exists and is not a zombie."""
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+def wait_until(condition, seconds: float) -> bool:
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        if condition():
+            return True
+        time.sleep(0.05)
+    return condition()
+
+
+needs_proc = pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc")
+
+
+@needs_proc
+def test_sweep_workers_end_when_the_run_is_killed(tmp_path):
+    """Issue #16: a run killed with SIGKILL left its forked sweep workers asleep for hours.
+    The demo job's full-model sweep on two workers; the run is killed during the sweep."""
+    script = Path(sys.executable).with_name("pymorembs")
+    run = subprocess.Popen(
+        [str(script), "reduce", str(ROOT / "examples" / "rack-beams-demo.toml"), "--out",
+         str(tmp_path / "out"), "--workers", "2", "--quiet"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+    )  # fmt: skip
+    workers: list[int] = []
+    try:
+        assert wait_until(lambda: len(live_children(run.pid)) >= 2 or run.poll() is not None, 60)
+        workers = live_children(run.pid)
+        assert run.poll() is None and len(workers) >= 2  # the sweep runs
+        run.send_signal(signal.SIGKILL)
+        run.wait(timeout=10)
+        assert wait_until(lambda: not any(running(pid) for pid in workers), 5)
+    finally:
+        if run.poll() is None:
+            run.kill()
+        for pid in workers:
+            if running(pid):
+                os.kill(pid, signal.SIGKILL)
+
+
+FALLBACK = """
+import os, sys, time
+from pymorembs import parallel
+parent = os.getpid()
+child = os.fork()
+if child == 0:
+    sys.platform = "darwin"  # no prctl: the watcher thread
+    parallel.PARENT_POLL_S = 0.05
+    parallel.die_with_parent(parent)
+    time.sleep(60)
+    os._exit(0)
+print(child, flush=True)
+time.sleep(60)
+"""
+
+
+@needs_proc
+def test_without_prctl_a_thread_ends_the_orphan():
+    """The portable fallback of die_with_parent: a thread that sees the parent change."""
+    middle = subprocess.Popen([sys.executable, "-c", FALLBACK], stdout=subprocess.PIPE, text=True)
+    child = int(middle.stdout.readline())
+    try:
+        time.sleep(0.3)
+        assert running(child)
+        middle.kill()
+        middle.wait(timeout=10)
+        assert wait_until(lambda: not running(child), 5)
+    finally:
+        if running(child):
+            os.kill(child, signal.SIGKILL)
+        middle.stdout.close()

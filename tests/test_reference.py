@@ -195,3 +195,15 @@ def test_unknown_reference_kind_is_a_user_error(tmp_path):
     job.write_text(text)
     with pytest.raises(UserError, match=r"\[band\]\.reference: must be one of"):
         load_job(job)
+
+
+def test_reference_bar_says_its_tolerance_is_internal(rack, capsys):
+    """Issue #16: the surrogate's bar showed "tolerance 1e-12" as if it were the user's."""
+    from pymorembs import progress
+
+    with progress.settings("on"):
+        reference_response(rack, frequency_grid(*BAND, 40), "surrogate", checks=0)
+    err = capsys.readouterr().err
+    assert "reference model (soaga)" in err
+    assert "internal SOAGA tolerance of the surrogate reference 1e-12" in err
+    assert "(tolerance 1e-12)" not in err

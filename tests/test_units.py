@@ -104,3 +104,110 @@ def test_info_and_summary_state_the_unit_system(tmp_path, capsys):
     assert main(["info", str(tmp_path / "rack" / "model.h5"), "--modes", "2", "--json"]) == 0
     facts = json.loads(capsys.readouterr().out)
     assert facts["units"]["system"] == "m-kg-s-N" and facts["units"]["plausible"] is True
+
+
+def straight_beam(n_nodes, direction, section):
+    """A 1 m steel beam in SI on the line through the origin along ``direction``."""
+    from pymorembs.body import DofTable, ElasticBody
+    from pymorembs.elements.beam import assemble_beams
+
+    ids = np.arange(1, n_nodes + 1)
+    xyz = np.outer(np.linspace(0.0, 1.0, n_nodes), direction / np.linalg.norm(direction))
+    elements = np.column_stack([ids[:-1], ids[1:]])
+    k, m = assemble_beams(
+        ids, xyz, elements, section, lambda node: 6 * (node - 1) + np.arange(6), n_dof=6 * n_nodes
+    )
+    dofs = DofTable(np.repeat(ids, 6), np.tile(np.arange(6), n_nodes))
+    return ElasticBody(node_ids=ids, coordinates=xyz, dofs=dofs, mass=m, stiffness=k, name="beam")
+
+
+@pytest.mark.parametrize("n_nodes", [3, 21, 101])
+@pytest.mark.parametrize("direction", [(1.0, 0.0, 0.0), (0.3, -0.5, 0.8)])
+def test_collinear_steel_beam_in_si_is_si(n_nodes, direction):
+    """Issue #16: a 1 m steel beam (nodes on a line) "fit no usual unit system". A 50 mm square
+    section: its box gets the section from the rotary inertia about the axis, so the implied
+    density is steel's (7,850 kg/m^3, within 10 %: the translational mass diagonal of the
+    consistent mass is slightly above rho A L / 3)."""
+    from pymorembs.elements.beam import BeamSection
+
+    section = BeamSection.rectangular(0.05, 0.05, E=2.1e11, nu=0.3, rho=7850.0)
+    body = straight_beam(n_nodes, np.array(direction), section)
+    guess = detect_units(body)
+    assert guess.name == "m-kg-s-N" and guess.plausible and guess.warnings == ()
+    assert guess.implied_density == pytest.approx(7850.0, rel=0.1)
+    for system in SYSTEMS[1:]:
+        assert detect_units(convert_body(body, "m-kg-s-N", system.name)).name == system.name
+
+
+def test_planar_and_rotation_free_line_models_are_judged():
+    """A plane frame of beams, and a line of nodes without rotational dofs (a chain of bars):
+    no rotary inertia to read the section from, the node spacing stands for it."""
+    from dataclasses import replace as with_
+
+    import scipy.sparse as sp
+
+    from pymorembs.body import DofTable
+    from pymorembs.elements.beam import BeamSection
+
+    section = BeamSection.rectangular(0.05, 0.05, E=2.1e11, nu=0.3, rho=7850.0)
+    body = straight_beam(21, np.array([1.0, 0.0, 0.0]), section)
+    keep = np.flatnonzero(body.dofs.directions < 3)
+    bars = with_(
+        body,
+        dofs=DofTable(body.dofs.nodes[keep], body.dofs.directions[keep]),
+        mass=sp.csr_matrix(body.mass[keep][:, keep]),
+        stiffness=sp.csr_matrix(body.stiffness[keep][:, keep]),
+    )
+    guess = detect_units(bars)
+    assert guess.name == "m-kg-s-N" and guess.plausible and guess.warnings == ()
+    # a flat frame: two such beams side by side in the x-y plane, 0.5 m apart
+    frame = with_(
+        body,
+        node_ids=np.concatenate([body.node_ids, body.node_ids + 100]),
+        coordinates=np.vstack([body.coordinates, body.coordinates + np.array([0.0, 0.5, 0.0])]),
+        dofs=DofTable(
+            np.concatenate([body.dofs.nodes, body.dofs.nodes + 100]),
+            np.concatenate([body.dofs.directions, body.dofs.directions]),
+        ),
+        mass=sp.block_diag([body.mass, body.mass], format="csr"),
+        stiffness=sp.block_diag([body.stiffness, body.stiffness], format="csr"),
+    )
+    guess = detect_units(frame)
+    assert guess.name == "m-kg-s-N" and guess.plausible and guess.warnings == ()
+
+
+@pytest.mark.parametrize(
+    ("band", "suspect"),
+    [
+        ((0.0, 2 * np.pi * 1000), "f_max_hz = 6283.19 is 2 pi x 1000"),
+        ((0.0, 6283.0), "f_max_hz = 6283 is 2 pi x 1000"),
+        ((0.0, 628.3), "f_max_hz = 628.3 is 2 pi x 100"),
+        ((2 * np.pi * 10, 3141.59), "f_min_hz = 62.8319 is 2 pi x 10, f_max_hz = 3141.59"),
+    ],
+)
+def test_a_band_in_rad_per_s_warns(band, suspect):
+    """Issue #16: a band in rad/s ran silently. 2 pi times a round number warns, once."""
+    from pymorembs.units import band_unit_warnings
+
+    [line] = band_unit_warnings(band)
+    assert suspect in line and "rad/s" in line and "\n" not in line
+
+
+@pytest.mark.parametrize("f_max", [100, 200, 250, 314, 400, 1000, 1500, 2000, 2500, 20000, 40, 150])
+def test_round_bands_do_not_warn(f_max):
+    """Round limits, and 314 (only three digits of 100 pi), are Hz as written."""
+    from pymorembs.units import band_unit_warnings
+
+    assert band_unit_warnings((0.0, float(f_max))) == []
+
+
+def test_shipped_example_jobs_do_not_warn_about_the_band():
+    from pathlib import Path
+
+    from pymorembs.config import load_job
+    from pymorembs.units import band_unit_warnings
+
+    jobs = sorted((Path(__file__).resolve().parents[1] / "examples").glob("*.toml"))
+    assert len(jobs) >= 4
+    for path in jobs:
+        assert band_unit_warnings(load_job(path).band_hz) == [], path

@@ -280,3 +280,31 @@ order = {order}
         check(60, 27)
     with pytest.raises(UserError, match="every input acts on a fixed dof of the frame"):
         check(10, 5)
+
+
+def test_a_stiffness_matrix_given_as_the_mass_is_refused():
+    """Issue #16: the stiffness file given as the mass file ran to exit 0. The same matrix (or a
+    multiple) is refused, and so is a free body whose "mass" matrix, like its stiffness, gives
+    a rigid translation no energy (an independent stiffness-like matrix: springs between
+    random node pairs, written here)."""
+    from pymorembs.prepare.validation import validate_body
+
+    lattice = spring_lattice()
+    for factor in (1.0, 3.0):
+        with pytest.raises(UserError, match="the mass matrix is the stiffness matrix"):
+            validate_body(replace(lattice, mass=factor * lattice.stiffness))
+    truss = space_truss()
+    n_nodes = truss.node_ids.size
+    rng = np.random.default_rng(1)
+    pairs = rng.integers(0, n_nodes, size=(3 * n_nodes, 2))
+    pairs = pairs[pairs[:, 0] != pairs[:, 1]]
+    springs = np.zeros((truss.n_dof, truss.n_dof))
+    for a, b in pairs:
+        d = np.zeros(n_nodes)
+        d[a], d[b] = 1.0, -1.0
+        springs += rng.uniform(1.0, 2.0) * np.kron(np.outer(d, d), np.eye(3))
+    assert np.allclose(springs @ np.tile(np.eye(3), (n_nodes, 1)), 0.0)  # no rigid energy
+    with pytest.raises(UserError, match=r"rigid translation in x no mass .*really the stiffness"):
+        validate_body(replace(truss, mass=sp.csr_matrix(springs)))
+    validate_body(truss)  # its own mass passes
+    validate_body(lattice)

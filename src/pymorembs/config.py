@@ -259,7 +259,7 @@ def load_job(path: str | Path) -> Job:
     """Read and check a job file. All problems are :class:`UserError` naming file and key."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")  # with a byte order mark (Windows editors)
     except FileNotFoundError:
         raise UserError(f"{path}: job file not found") from None
     except (OSError, UnicodeDecodeError) as exc:

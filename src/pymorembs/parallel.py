@@ -9,7 +9,8 @@ items. Where the work runs:
   module-level registry *before* the pool starts, so the workers inherit it through ``fork``
   instead of receiving a pickled copy per task. Each worker runs BLAS with one thread, so
   ``workers`` processes use ``workers`` cores (and so does the sparse solver:
-  ``PYMOREMBS_SOLVER_THREADS=1`` in the workers);
+  ``PYMOREMBS_SOLVER_THREADS=1`` in the workers). The workers end when their parent ends,
+  also when it is killed (:func:`die_with_parent`);
 - ``scheduler="local"``: a Dask ``LocalCluster`` of ``workers`` single-threaded processes;
   ``scheduler="tcp://host:port"`` (any address): the Dask cluster there. ``context`` is
   scattered to the workers once.
@@ -20,9 +21,14 @@ is called as ``func(context, item)``, else as ``func(item)``.
 
 from __future__ import annotations
 
+import ctypes
 import logging
 import multiprocessing
 import os
+import signal
+import sys
+import threading
+import time
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, wait
 from contextlib import contextmanager
@@ -150,8 +156,50 @@ def _registered(context: Any) -> Iterator[int]:
 SOLVER_THREADS_ENV = "PYMOREMBS_SOLVER_THREADS"
 
 
-def _init_worker(token: int | None = None, context: Any = _NO_CONTEXT) -> None:
-    """Set up a pool worker: one BLAS and solver thread; the context if it was not inherited."""
+#: ``prctl`` option of Linux: the signal a process receives when its parent dies.
+PR_SET_PDEATHSIG = 1
+#: Seconds between two looks at the parent where ``prctl`` is not available.
+PARENT_POLL_S = 1.0
+
+
+def die_with_parent(parent: int) -> None:
+    """End this process when the process ``parent`` ends, even by ``SIGKILL``.
+
+    Forked pool workers would otherwise outlive a killed run (asleep, holding their memory).
+    On Linux the kernel sends ``SIGKILL`` when the parent dies (``prctl(PR_SET_PDEATHSIG)``);
+    elsewhere a daemon thread looks every :data:`PARENT_POLL_S` seconds whether the parent
+    changed (an orphan is adopted by another process). A parent already gone ends it at once.
+
+    Parameters
+    ----------
+    parent : int
+        Process id of the parent (taken in the parent, before the fork).
+    """
+    if sys.platform.startswith("linux"):
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            armed = libc.prctl(PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0) == 0
+        except (OSError, AttributeError):
+            armed = False
+        if armed:
+            if os.getppid() != parent:  # died before prctl took effect
+                os._exit(1)
+            return
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_POLL_S)
+        os._exit(1)
+
+    if os.getppid() != parent:
+        os._exit(1)
+    threading.Thread(target=watch, name="pymorembs-parent-watch", daemon=True).start()
+
+
+def _init_worker(parent: int, token: int | None = None, context: Any = _NO_CONTEXT) -> None:
+    """Set up a pool worker: it ends with its parent, one BLAS and solver thread; the context
+    if it was not inherited."""
+    die_with_parent(parent)
     threadpool_limits(limits=1)
     os.environ[SOLVER_THREADS_ENV] = "1"
     if token is not None and context is not _NO_CONTEXT:
@@ -178,7 +226,8 @@ def _pool_map(
         use = None if context is _NO_CONTEXT else token
         # with fork the workers inherit the registry; elsewhere the context is pickled once per
         # worker (not per task)
-        initargs = (use,) if fork else (use, context)
+        parent = os.getpid()
+        initargs = (parent, use) if fork else (parent, use, context)
         executor = ProcessPoolExecutor(
             max_workers=workers,
             mp_context=multiprocessing.get_context(method),
@@ -288,4 +337,11 @@ def chunks(n: int, parts: int) -> list[range]:
     return [range(a, b) for a, b in pairwise(bounds) if b > a]
 
 
-__all__ = ["chunks", "dask_available", "dask_client", "parallel_map", "usable_cores"]
+__all__ = [
+    "chunks",
+    "dask_available",
+    "dask_client",
+    "die_with_parent",
+    "parallel_map",
+    "usable_cores",
+]

@@ -33,7 +33,7 @@ from pymorembs.config import Job, ModelSpec, ReductionSpec
 from pymorembs.errors import NumericalError, PymorembsError, UserError
 from pymorembs.examples import build_example
 from pymorembs.export.outputs import BODY_OUTPUTS, write_outputs
-from pymorembs.io.atomic import atomic_path, write_text
+from pymorembs.io.atomic import atomic_path, check_output_folder, write_text
 from pymorembs.io.formats import read_body
 from pymorembs.linalg.mass_split import mass_split
 from pymorembs.prepare import PreparedModel, prepare, with_inertia_loads
@@ -55,7 +55,7 @@ from pymorembs.reduction.projection import (
 from pymorembs.report.html_report import write_report
 from pymorembs.report.plots import plot_decay, plot_relative_errors
 from pymorembs.system import SecondOrderSystem
-from pymorembs.units import detect_units, frequency_warnings
+from pymorembs.units import band_unit_warnings, detect_units, frequency_warnings
 
 Progress = Callable[[str], None]
 
@@ -408,6 +408,7 @@ def _run_job(
 ) -> dict[str, Any]:
     timings: dict[str, float] = {}
     clock = time.perf_counter()
+    check_output_folder(out_dir)  # a file in the way fails now, not after all the work
 
     stage(
         "loading the model, interfaces, frame, constraint elimination, inputs and outputs",
@@ -429,8 +430,11 @@ def _run_job(
     system = prepared.reduction_system  # what every reduction and the reference see
     units = detect_units(body)
     warnings = [*prepared.warnings, *validation.warnings, *units.warnings]
+    warnings += band_unit_warnings(job.band_hz)
     for warning in warnings:
         say(f"warning: {warning}")
+    for note in prepared.notes:  # facts of the setup, no mistake: not warnings
+        say(note)
 
     frequencies = frequency_grid(*job.band_hz, job.points)
     kind = choose_kind(job.reference, system.order)
@@ -629,6 +633,7 @@ def _run_job(
             "reference": reference.as_dict(),
             "reductions": entries,
             "warnings": warnings,
+            "notes": list(prepared.notes),
             "timings_s": timings,
             "files": overview,
         }

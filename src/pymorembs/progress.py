@@ -75,13 +75,14 @@ class Progress:
     ----------
     label : str
         What is being done, e.g. ``"frequency response"``.
-    total : int
-        Number of units of the whole task.
+    total : int or None
+        Number of units of the whole task, or None when the end is not known in advance (e.g.
+        decided by an error estimator): the bar then counts units and shows no ETA.
     unit : str
         Name of one unit, e.g. ``"freq"`` or ``"step"``.
     every : int, optional
-        Draw at most once per this many units (default: about 1 % of ``total``); the
-        :meth:`update` calls in between only add to a counter.
+        Draw at most once per this many units (default: about 1 % of ``total``, or every unit
+        without a total); the :meth:`update` calls in between only add to a counter.
     force : bool, optional
         Draw the bar (True) or not (False) regardless of :func:`configure`.
     delay : float
@@ -98,18 +99,21 @@ class Progress:
     def __init__(
         self,
         label: str,
-        total: int,
+        total: int | None,
         unit: str = "it",
         every: int | None = None,
         force: bool | None = None,
         delay: float = 0.5,
     ) -> None:
         self.label = label
-        self.total = int(total)
+        self.total = None if total is None else int(total)
         self.unit = unit
-        self.every = max(1, self.total // 100) if every is None else max(1, int(every))
+        if every is None:
+            every = 1 if self.total is None else self.total // 100
+        self.every = max(1, int(every))
         self._enabled = enabled() if force is None else bool(force)
         self.delay = delay if force is None and _mode == "auto" else 0.0
+        self.count = 0  # units done, counted also when nothing is drawn
         self._pending = 0
         self._bar: Any = None
 
@@ -134,6 +138,7 @@ class Progress:
 
     def update(self, n: int = 1) -> None:
         """Advance by ``n`` units (drawn at most every :attr:`every` units)."""
+        self.count += n
         if not self._enabled:
             return
         self._pending += n
@@ -149,6 +154,17 @@ class Progress:
         if self._bar is not None and self._pending:
             self._bar.update(self._pending)
         self._pending = 0
+
+    def finish(self) -> None:
+        """End the bar at the units done so far: when the work ended before its total (e.g. a
+        basis exhausted before the order cap), the total shrinks to the count."""
+        if self.total is None:  # a count without a total already ends with the work
+            return
+        self.total = min(self.total, self.count)
+        if self._bar is not None:
+            self._flush()
+            self._bar.total = self._bar.n
+            self._bar.refresh()
 
     def close(self) -> None:
         """Draw the remaining units and remove the bar."""

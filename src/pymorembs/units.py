@@ -9,9 +9,12 @@ contradictions can be warned about.
 Two numbers decide, both computed in O(n_nodes log n_nodes + n_dof):
 
 ``implied_density``
-    total mass / volume of the bounding box of the nodes (mass per length^3). A body fills part
-    of its box (the rack: 9 % to 50 %), so the accepted range spans fill factors of about 0.001
-    to 1 and materials from foams to tungsten.
+    total mass / volume of the bounding box of the nodes along their principal axes (mass per
+    length^3). A body fills part of its box (the rack: 9 % to 50 %), so the accepted range spans
+    fill factors of about 0.001 to 1 and materials from foams to tungsten. Nodes on a line (a
+    beam model) or in a plane (a shell model) span no volume: the box gets the section of the
+    beams or the thickness of the shell from the rotary inertia of the nodes (radius of
+    gyration), else a section of the node spacing (a line) or a thickness of 1 % of the size.
 ``implied_wave_speed_squared``
     ``median(k_ii / m_ii) * h^2`` over translational dofs with mass, ``h`` the median distance
     of a node to its nearest neighbour (length^2 / time^2). For an element of size ``h`` the
@@ -174,21 +177,73 @@ def implied_numbers(body: ElasticBody) -> tuple[float, float]:
     coordinates = body.coordinates
     if coordinates.shape[0] < 2:
         return float("nan"), float("nan")
-    extent = coordinates.max(axis=0) - coordinates.min(axis=0)
-    largest = float(extent.max())
+    extent, axes = _principal_box(coordinates)
+    largest = float(extent[0])
     if largest <= 0:
         return float("nan"), float("nan")
-    volume = float(np.prod(np.maximum(extent, 1e-2 * largest)))  # flat models: 1 % thickness
-    mass = body.total_mass()
-    density = mass / volume if mass > 0 else float("nan")
     distance, _ = cKDTree(coordinates).query(coordinates, k=2)
     spacing = distance[:, 1][distance[:, 1] > 0]
+    h = float(np.median(spacing)) if spacing.size else 0.0
+    # nodes on a line (beams) or in a plane (shells) span no volume: a section or thickness
+    # from the rotary inertia of the nodes, else the node spacing (a line) or 1 % of the size
+    floor = 1e-2 * largest
+    thin = max(floor, h)
+    sizes = np.maximum(extent, floor)
+    if extent[1] < thin:  # a line: the section of its beams from the rotary inertia about it
+        r2 = _rotary_radius_squared(body, axes[:1])
+        sizes[1:] = np.maximum(extent[1:], thin if r2 is None else np.sqrt(6.0 * r2))
+    elif extent[2] < thin:  # a plane: the thickness of a shell, r^2 = t^2 / 12 in-plane
+        r2 = _rotary_radius_squared(body, axes[:2])
+        if r2 is not None:
+            sizes[2] = max(extent[2], np.sqrt(12.0 * r2))
+    volume = float(np.prod(sizes))
+    mass = body.total_mass()
+    density = mass / volume if mass > 0 else float("nan")
     k_diag, m_diag = body.stiffness.diagonal(), body.mass.diagonal()
     use = (body.dofs.directions < 3) & (m_diag > 0) & (k_diag > 0)
     if spacing.size == 0 or not np.any(use):
         return density, float("nan")
-    h = float(np.median(spacing))
     return density, float(np.median(k_diag[use] / m_diag[use])) * h * h
+
+
+def _principal_box(coordinates: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Sizes of the box of the points along their principal axes, descending, and the axes
+    (rows); thin for an inclined line or plane of nodes, unlike the box along x, y, z."""
+    centred = coordinates - coordinates.mean(axis=0)
+    _, _, axes = np.linalg.svd(centred, full_matrices=False)  # (n, 3) points: cheap
+    along = centred @ axes.T
+    extent = along.max(axis=0) - along.min(axis=0)
+    return np.concatenate([extent, np.zeros(3 - extent.size)]), axes
+
+
+def _rotary_radius_squared(body: ElasticBody, axes: np.ndarray) -> float | None:
+    """Squared radius of gyration of the nodes' rotary mass about ``axes`` (rows, unit).
+
+    The median over the nodes with all six dofs of ``mean_a(a^T R a) / m``, ``R`` a node's
+    3 x 3 block of rotary mass and ``m`` its mean translational mass diagonal. A line of beams
+    (about its axis: ``rho Ip`` per length against ``rho A``) has ``r^2 = Ip / A``, ``s^2 / 6``
+    for a square of side ``s``; a shell (about in-plane axes: ``rho t^3 / 12`` against
+    ``rho t``) ``t^2 / 12``. None without rotational dofs with mass.
+    """
+    m_diag = body.mass.diagonal()
+    nodes = np.unique(body.dofs.nodes)
+    translation = body.dofs.positions(nodes[:, None], np.arange(3)[None, :])
+    rotation = body.dofs.positions(nodes[:, None], np.arange(3, 6)[None, :])
+    full = np.all(translation >= 0, axis=1) & np.all(rotation >= 0, axis=1)
+    if not np.any(full):
+        return None
+    moved = m_diag[translation[full]].mean(axis=1)
+    rows = rotation[full]
+    mass = sp.csr_matrix(body.mass)
+    turned = np.zeros(rows.shape[0])
+    for a in range(3):
+        for b in range(3):
+            block = np.asarray(mass[rows[:, a], rows[:, b]]).ravel()
+            turned += (axes[:, a] @ axes[:, b]) / len(axes) * block
+    use = (moved > 0) & (turned > 0)
+    if not np.any(use):
+        return None
+    return float(np.median(turned[use] / moved[use]))
 
 
 def _ranges(system: UnitSystem) -> tuple[tuple[float, float], tuple[float, float]]:
@@ -278,6 +333,42 @@ def frequency_warnings(
     return warnings
 
 
+#: ``f / 2 pi`` this close (relative) to a round number makes a band look like rad/s: four or
+#: more digits of 2 pi (6283, 628.3, 314.16), not a rounded 314 or 62.8.
+RADIANS_TOL = 2e-4
+
+
+def _round(value: float, tol: float) -> bool:
+    """Whether ``value > 0`` has at most two significant digits (1000, 50, 2.5), to ``tol``."""
+    mantissa = 10.0 * value / 10.0 ** np.floor(np.log10(value))  # in [10, 100)
+    return abs(mantissa - np.round(mantissa)) <= tol * mantissa
+
+
+def band_unit_warnings(band_hz: tuple[float, float]) -> list[str]:
+    """A band given in rad/s instead of Hz (one line, or none).
+
+    The rule: a limit that is not itself a round number but is 2 pi times one within
+    :data:`RADIANS_TOL` (``f_max_hz = 6283.19`` = 2 pi x 1000) was most likely converted to
+    rad/s. Round limits (``1000``, ``250``) never warn.
+
+    Parameters
+    ----------
+    band_hz : (float, float)
+        ``(f_min, f_max)`` of the job, in 1/(model time unit).
+    """
+    suspects = []
+    for key, value in zip(("f_min_hz", "f_max_hz"), band_hz, strict=True):
+        value = float(value)
+        if value > 0 and not _round(value, 1e-9) and _round(value / (2 * np.pi), RADIANS_TOL):
+            suspects.append(f"{key} = {value:g} is 2 pi x {value / (2 * np.pi):.4g}")
+    if not suspects:
+        return []
+    return [
+        f"band {', '.join(suspects)}: a band in rad/s? [band] is in Hz (cycles per time "
+        "unit of the model); divide by 2 pi"
+    ]
+
+
 def convert_body(
     body: ElasticBody, source: UnitSystem | str, target: UnitSystem | str
 ) -> ElasticBody:
@@ -331,6 +422,7 @@ __all__ = [
     "SYSTEMS",
     "UnitGuess",
     "UnitSystem",
+    "band_unit_warnings",
     "convert_body",
     "detect_units",
     "frequency_warnings",

@@ -267,6 +267,8 @@ def _reference_model(
         tolerance=SURROGATE_TOLERANCE,
         max_order=max(1, min(SURROGATE_MAX_ORDER, system.order // 2)),
         tol=SURROGATE_DEFLATION,
+        label="reference model (soaga)",
+        tolerance_label="internal SOAGA tolerance of the surrogate reference",
     )
     model = reduced_model(system, projection)
     points = [float(f) for f in projection.parameters.get("expansion_points_hz", [])]

@@ -32,7 +32,7 @@ from typing import IO, Any
 
 from pymorembs.errors import UserError
 
-__all__ = ["atomic_open", "atomic_path", "write_bytes", "write_text"]
+__all__ = ["atomic_open", "atomic_path", "check_output_folder", "write_bytes", "write_text"]
 
 
 @contextmanager
@@ -126,6 +126,39 @@ def write_bytes(target: str | os.PathLike[str], data: bytes) -> Path:
     with atomic_open(target, "wb") as fh:
         fh.write(data)
     return Path(target)
+
+
+def check_output_folder(folder: str | os.PathLike[str]) -> Path:
+    """Check before any work that ``folder`` can be (or already is) a writable folder.
+
+    Parameters
+    ----------
+    folder : path-like
+        The output folder; it need not exist, nor its parents.
+
+    Returns
+    -------
+    Path
+        ``folder`` as a path.
+
+    Raises
+    ------
+    UserError
+        ``folder`` or one of its parents is an existing file, or the nearest existing folder is
+        not writable (one line; a job then stops before reading its model).
+    """
+    folder = Path(folder)
+    existing = folder
+    while not existing.exists() and existing != existing.parent:
+        if existing.is_symlink():  # a dangling link: cannot be made a folder
+            raise UserError(f"{folder}: the output folder lies at the broken link {existing}")
+        existing = existing.parent
+    if not existing.is_dir():
+        what = "is an existing file" if existing == folder else f"lies below the file {existing}"
+        raise UserError(f"{folder}: the output folder {what}")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise UserError(f"{folder}: cannot write the output folder: {existing} is not writable")
+    return folder
 
 
 def _create_temporary(target: Path) -> Path:

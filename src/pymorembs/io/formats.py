@@ -75,6 +75,7 @@ from typing import Any, BinaryIO
 
 from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
+from pymorembs.io.line_blocks import UTF8_BOM
 from pymorembs.io.matrix_market import encoding_note
 
 __all__ = [
@@ -304,6 +305,7 @@ def _detect_head(path: Path, head: bytes) -> str | None:
         return binary
     if b"\x00" in head:
         return None
+    head = head.removeprefix(UTF8_BOM)  # a text file saved by a Windows editor
     text = head.decode("latin-1")
     first = _first_content_line(text, skip_abaqus_comments=False)
     if first is None:
@@ -517,8 +519,26 @@ def read_body(
             f"option{plural} {', '.join(extra)} {verb} not apply to format {fmt}; "
             f"it takes {', '.join(sorted(_OPTIONS[fmt]))}"
         )
+    _check_distinct_matrices(given)
     body, applied = _dispatch(fmt, given)
     return _finish(body, given, applied)
+
+
+def _check_distinct_matrices(given: dict[str, Any]) -> None:
+    """A :class:`UserError` if one file (or one matrix name) is given as both K and M."""
+    for first, second in (("stiffness", "mass"), ("stiffness_name", "mass_name")):
+        if first not in given or second not in given:
+            continue
+        a, b = given[first], given[second]
+        if first == "stiffness":
+            same = Path(a).resolve() == Path(b).resolve()
+        else:
+            same = str(a).strip() == str(b).strip()
+        if same:
+            raise UserError(
+                f"{b}: given as both the {first.replace('_', ' ')} and the "
+                f"{second.replace('_', ' ')}; the mass matrix must be its own"
+            )
 
 
 def _require(fmt: str, given: dict[str, Any], *keys: str) -> None:

@@ -11,7 +11,10 @@ from collections.abc import Iterator
 
 import numpy as np
 
-__all__ = ["IrregularText", "iter_line_blocks", "line_starts"]
+__all__ = ["UTF8_BOM", "IrregularText", "iter_line_blocks", "line_starts"]
+
+#: The UTF-8 byte order mark that Windows editors put at the start of a text file.
+UTF8_BOM = b"\xef\xbb\xbf"
 
 #: Bytes read at a time.
 BLOCK_BYTES = 1 << 23
@@ -50,8 +53,8 @@ def iter_line_blocks(
                 data = f.read(size)
             except OSError:
                 raise IrregularText from None
-            if start and data.startswith(b"\xef\xbb\xbf"):
-                data = data[3:]
+            if start:
+                data = data.removeprefix(UTF8_BOM)
             start = False
             if not data:
                 if not carry:

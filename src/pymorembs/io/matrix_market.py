@@ -258,12 +258,12 @@ def read_matrix_files(
         if missing.size:
             first_missing = int(missing[0])
             node = int(table.nodes[first_missing])
-            if dof_lines is None:
+            if dof_lines is None:  # the missing file is the dof table, not nodes.csv
                 raise located_error(
-                    nodes_path,
+                    k_path,
                     None,
-                    f"node {node} (equation {first_missing + 1} of the generic dof table) "
-                    "is not listed",
+                    f"no dof table (dofs.csv) given: without it equation {first_missing + 1} "
+                    f"is ux of node {node}, which {nodes_path} does not list",
                 )
             raise located_error(
                 Path(dofs), dof_lines[first_missing], f"node {node} is not listed in {nodes_path}"

@@ -65,6 +65,7 @@ from pathlib import Path
 import numpy as np
 
 from pymorembs.errors import located_error
+from pymorembs.io.line_blocks import UTF8_BOM
 from pymorembs.io.matrix_market import encoding_note
 from pymorembs.io.solid_mesh import SolidBlock
 
@@ -225,8 +226,7 @@ def read_card_file(path: Path, kind: str) -> bytes:
         raise located_error(path, None, f"is a directory, expected {kind}") from None
     except OSError as err:
         raise located_error(path, None, f"cannot read: {err.strerror or err}") from None
-    if raw.startswith(b"\xef\xbb\xbf"):
-        raw = raw[3:]
+    raw = raw.removeprefix(UTF8_BOM)
     if b"\x00" in raw:
         raise located_error(path, None, f"a binary file, expected {kind}{encoding_note(raw[:512])}")
     return raw

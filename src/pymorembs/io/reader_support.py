@@ -14,6 +14,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from pymorembs.errors import located_error
+from pymorembs.io.line_blocks import UTF8_BOM
 from pymorembs.io.matrix_market import SYMMETRY_TOLERANCE, encoding_note
 
 __all__ = ["assemble_symmetric", "collect_nodes", "is_nodes_csv", "read_text"]
@@ -190,7 +191,7 @@ def is_nodes_csv(path: Path) -> bool:
     """Whether ``path`` looks like a ``nodes.csv`` (first content line ``id,x,y,z``)."""
     try:
         with open(path, "rb") as f:
-            head = f.read(4096).decode("latin-1")
+            head = f.read(4096).removeprefix(UTF8_BOM).decode("latin-1")
     except OSError:
         return False
     for line in head.splitlines():

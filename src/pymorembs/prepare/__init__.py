@@ -81,7 +81,7 @@ class PreparedModel:
     system : SecondOrderSystem
         The sparse system of the independent dofs with the ports.
     warnings : tuple of str
-        Facts the user should know (e.g. a port on fixed dofs).
+        Facts that may be mistakes (e.g. an explicit output on the frame's fixed dofs).
     inertia : InertiaLoads or None
         The inertia loads of the frame motion, when they are inputs too
         (:func:`with_inertia_loads`).
@@ -90,6 +90,9 @@ class PreparedModel:
         (:mod:`pymorembs.prepare.stiffening`), when the exported bodies carry it.
     frame : Frame or None
         The reference frame the body was prepared in.
+    notes : tuple of str
+        Facts of the setup that are no mistake, e.g. forces at the frame node: they move the
+        reference frame only (the usual joint node of a multibody model).
     """
 
     body: ElasticBody
@@ -99,6 +102,7 @@ class PreparedModel:
     inertia: InertiaLoads | None = None
     stiffening: Stiffening | None = None
     frame: Frame | None = None
+    notes: tuple[str, ...] = ()
 
     @cached_property
     def reduction_system(self) -> SecondOrderSystem:
@@ -140,6 +144,7 @@ def prepare(
     if elimination.n_independent == 0:
         raise UserError("the model has no independent dofs left after fixing and elimination")
     warnings: list[str] = []
+    notes: list[str] = []
     n_i = elimination.n_independent
     model_ports = body.ports if not inputs and not outputs else None
     if model_ports is not None and model_ports.inputs is not None:
@@ -150,19 +155,22 @@ def prepare(
             c_all, output_labels = model_ports.outputs.T, list(model_ports.output_labels)
         b = elimination.inputs(b_all)
         c = elimination.outputs(c_all.T)
-        warnings += _zero_ports(b, input_labels, "input", axis=0)
-        warnings += _zero_ports(c, output_labels, "output", axis=1)
+        notes += _zero_ports(b, input_labels, "input", axis=0)
+        mirrored = model_ports.outputs is None  # the outputs are the inputs' dofs
+        (notes if mirrored else warnings).extend(_zero_ports(c, output_labels, "output", axis=1))
     else:
         if inputs:
             b_all, input_labels = _selection(framed, inputs, "inputs")
             b = elimination.inputs(b_all)
-            warnings += _zero_ports(b, input_labels, "input", axis=0)
+            notes += _zero_ports(b, input_labels, "input", axis=0)
         else:
             b, input_labels = np.zeros((n_i, 0)), []
         if outputs:
             c_all, output_labels = _selection(framed, outputs, "outputs")
             c = elimination.outputs(c_all.T)
-            warnings += _zero_ports(c, output_labels, "output", axis=1)
+            mirrored = inputs is not None and list(outputs) == list(inputs)
+            zero = _zero_ports(c, output_labels, "output", axis=1)
+            (notes if mirrored else warnings).extend(zero)
         else:
             c, output_labels = np.zeros((0, n_i)), []
 
@@ -188,6 +196,7 @@ def prepare(
             _elastic_system(framed, elimination, system),
             tuple(warnings),
             frame=frame,
+            notes=tuple(notes),
         )
     if not allow_rigid_body_modes:
         free = free_rigid_body_modes(framed, elimination, system)
@@ -203,7 +212,9 @@ def prepare(
                 f"({'; '.join(free)}): the stiffness is singular; fix a node with rotational "
                 "dofs or more nodes"
             )
-    return PreparedModel(framed, elimination, system, tuple(warnings), frame=frame)
+    return PreparedModel(
+        framed, elimination, system, tuple(warnings), frame=frame, notes=tuple(notes)
+    )
 
 
 def with_inertia_loads(
@@ -307,11 +318,21 @@ def _massless_ports(system: SecondOrderSystem) -> list[str]:
 
 
 def _zero_ports(matrix: np.ndarray, labels: list[str], what: str, axis: int) -> list[str]:
-    """Warnings for ports that act only on fixed dofs (zero column of B / row of C)."""
+    """One line per node for the ports that act only on fixed dofs of the frame (zero column
+    of B / row of C), e.g. ``inputs 2:ux uy uz act on ...``."""
     norms = np.abs(matrix).max(axis=axis) if matrix.size else np.zeros(len(labels))
-    return [
-        f"{what} {label} acts on a fixed dof of the frame: its elastic transfer is zero "
-        "(it moves the reference frame only)"
-        for label, norm in zip(labels, norms, strict=True)
-        if norm == 0.0
-    ]
+    by_node: dict[str, list[str]] = {}
+    for label, norm in zip(labels, norms, strict=True):
+        if norm == 0.0:
+            node, _, direction = label.rpartition(":")
+            by_node.setdefault(node or label, []).append(direction if node else "")
+    lines = []
+    for node, directions in by_node.items():
+        several = len(directions) > 1
+        label = f"{node}:{' '.join(directions)}" if all(directions) else node
+        lines.append(
+            f"{what}{'s' if several else ''} {label} act{'' if several else 's'} on fixed dofs "
+            f"of the frame: no elastic transfer ({'they move' if several else 'it moves'} the "
+            "reference frame only)"
+        )
+    return lines

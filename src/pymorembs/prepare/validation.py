@@ -11,6 +11,8 @@ orders fit the model; ``pymorembs info`` runs :func:`validate_body`):
   worst pair is named by node and direction, with its relative size);
 * ``M`` and ``K`` have no negative diagonal entry and no negative 2x2 principal minor
   (``a_ij^2 <= a_ii a_jj``): both prove a matrix indefinite;
+* ``M`` is no stiffness matrix: not proportional to ``K``, and it has mass in every rigid
+  translation that ``K`` lets move freely;
 * no dependent dof of a constraint equation is also fixed.
 
 :func:`validate_prepared` -- on the system of the independent dofs (after frame and
@@ -59,6 +61,12 @@ SYMMETRY_TOL = 1e-8
 NEGATIVE_DIAGONAL_TOL = 1e-12
 #: Relative excess of ``a_ij^2`` over ``a_ii a_jj`` above which a 2x2 minor is negative.
 MINOR_TOL = 1e-8
+#: ``||M - c K||_F <= SAME_MATRIX_TOL ||M||_F`` (best ``c``): the mass matrix is a stiffness.
+SAME_MATRIX_TOL = 1e-9
+#: ``|r^T A r| <= RIGID_ENERGY_TOL sum |diag A|`` over a rigid translation ``r``: ``A`` does
+#: not resist (K) or carry mass in (M) that translation (a real M: its total mass, of the order
+#: of the diagonal; a free-free K: rounding, also of a file of 8 digits).
+RIGID_ENERGY_TOL = 1e-6
 #: ``sigma_typ = median(diag K / diag M)`` is a typical element-level ``omega^2``. A held body is
 #: factorized as ``K + SHIFT * sigma_typ * M`` (positive definite for PSD K and M, also with a
 #: mechanism), a free body as ``K + sigma_typ * M``.
@@ -199,7 +207,7 @@ def validate_body(body: ElasticBody) -> ValidationReport:
     UserError
         Sizes that disagree with the dof table, a non-symmetric matrix, a constraint equation
         naming a fixed dependent dof, a port on a dof the model fixes, a node that does not
-        exist.
+        exist, a mass matrix that is a stiffness matrix.
     NumericalError
         A negative diagonal entry of ``M`` or ``K`` (the matrix is indefinite).
     """
@@ -260,6 +268,8 @@ def validate_body(body: ElasticBody) -> ValidationReport:
                 "is negative); check the exported matrix"
             )
     report.checks.append("2x2 principal minors of M and K")
+    _check_mass_is_a_mass(body, model)
+    report.checks.append("M is no stiffness matrix (not proportional to K, moves rigidly)")
 
     constraints = body.constraints
     if constraints is not None and len(constraints):
@@ -275,6 +285,45 @@ def validate_body(body: ElasticBody) -> ValidationReport:
 
     report.seconds = time.perf_counter() - start
     return report
+
+
+def _check_mass_is_a_mass(body: ElasticBody, model: str) -> None:
+    """A :class:`UserError` when the mass matrix is really a stiffness matrix. O(nnz).
+
+    Two signs, neither possible for a mass matrix: ``M`` is proportional to ``K`` (within
+    :data:`SAME_MATRIX_TOL`; e.g. the stiffness file given twice), or a rigid translation
+    ``r`` (1 on every dof of one direction) that ``K`` lets move freely (``r^T K r`` at
+    rounding level, :data:`RIGID_ENERGY_TOL` of ``sum |diag|`` over those dofs) has no kinetic
+    energy either (``r^T M r``, the body's total mass in that direction, as small).
+    """
+    m, k = sp.csr_matrix(body.mass), sp.csr_matrix(body.stiffness)
+    k_norm2 = float(k.multiply(k).sum())
+    if k_norm2 > 0 and m.nnz:
+        scale = float(m.multiply(k).sum()) / k_norm2  # least squares M ~ scale K
+        gap = sp.csr_matrix(m - scale * k)
+        m_norm = float(np.sqrt(m.multiply(m).sum()))
+        if np.sqrt(float(gap.multiply(gap).sum())) <= SAME_MATRIX_TOL * m_norm:
+            times = "" if scale == 1.0 else f" times {scale:.6g}"
+            raise UserError(
+                f"{model}the mass matrix is the stiffness matrix{times}: the stiffness file "
+                "given as the mass file? (every eigenfrequency would be the same)"
+            )
+    directions = body.dofs.directions
+    m_diag, k_diag = m.diagonal(), k.diagonal()
+    for code in range(3):
+        r = (directions == code).astype(float)
+        m_scale = float(np.abs(m_diag) @ r)
+        k_scale = float(np.abs(k_diag) @ r)
+        if m_scale == 0 or k_scale == 0:
+            continue
+        free = abs(float(r @ (k @ r))) <= RIGID_ENERGY_TOL * k_scale
+        massless = abs(float(r @ (m @ r))) <= RIGID_ENERGY_TOL * m_scale
+        if free and massless:
+            raise UserError(
+                f"{model}the mass matrix gives a rigid translation in {'xyz'[code]} no mass "
+                f"(r^T M r = {float(r @ (m @ r)):.3g} against {m_scale:.3g} on its diagonal), "
+                "like the stiffness matrix: is the mass file really the stiffness file?"
+            )
 
 
 def validate_prepared(prepared: PreparedModel, deep: bool = True) -> ValidationReport:

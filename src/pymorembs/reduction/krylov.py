@@ -275,6 +275,7 @@ def krylov_reduction(
                 duals = [process.dual(system.output_matrix.T) for process in arnoldi]
                 _round_robin(basis_w, duals, limits, order, bar)
             computed = [process.moments for process in arnoldi]
+        bar.finish()  # exhausted bases end the work early
     if two_sided:
         # pad the smaller basis with further moments of its own, up to the size of the larger
         if basis.size < basis_w.size:

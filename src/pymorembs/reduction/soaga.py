@@ -266,6 +266,8 @@ def soaga_reduction(
     max_order: int | None = None,
     grid_points: int = DEFAULT_GRID_POINTS,
     tol: float = 1e-10,
+    label: str = "soaga",
+    tolerance_label: str = "tolerance",
 ) -> Projection:
     """Second-order adaptive global Arnoldi reduction with an error estimator (SOAGA).
 
@@ -295,6 +297,9 @@ def soaga_reduction(
         frequencies of the band (0 Hz added when the band starts there) and the candidates.
     tol : float
         Deflation and breakdown tolerance (relative).
+    label, tolerance_label : str
+        Name of the progress bar and of the tolerance it shows next to the estimated error
+        (a caller whose tolerance is internal says so, e.g. the error reference).
 
     Returns
     -------
@@ -424,8 +429,9 @@ def soaga_reduction(
         return blocks
 
     memory_limited = False
-    # progress: columns of V out of the largest possible order
-    bar = Progress("soaga", total=limit, unit="column", every=1)
+    # progress: columns of V; out of the order cap only when the cap ends the work, a
+    # tolerance's end is decided by the estimator (no total, no ETA)
+    bar = Progress(label, total=limit if tolerance is None else None, unit="column", every=1)
     shown = 0
     with bar:
         bar.describe(f"factorizing at {points[0].frequency_hz:g} Hz")
@@ -441,7 +447,7 @@ def soaga_reduction(
             estimate = _estimate(system, v, z, products, grid)
             worst = float(estimate.max())
             history.append(worst)
-            goal = "" if tolerance is None else f" (tolerance {tolerance:.0e})"
+            goal = "" if tolerance is None else f" ({tolerance_label} {tolerance:.0e})"
             bar.describe(f"estimated error {worst:.1e}{goal}")
             if tolerance is not None and worst <= tolerance:
                 stop = "tolerance"
@@ -463,6 +469,7 @@ def soaga_reduction(
             commit(k)
             if len(sequence) > 10 * system.order:  # cannot happen: every iteration adds or ends
                 raise NumericalError("soaga: no progress in the adaptive iteration")
+        bar.finish()
 
     v = _mass_orthonormal(basis.matrix, products.columns["m"])
     return Projection(
