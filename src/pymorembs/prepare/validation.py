@@ -206,8 +206,7 @@ def validate_body(body: ElasticBody) -> ValidationReport:
     ------
     UserError
         Sizes that disagree with the dof table, a non-symmetric matrix, a constraint equation
-        naming a fixed dependent dof, a port on a dof the model fixes, a node that does not
-        exist, a mass matrix that is a stiffness matrix.
+        naming a fixed dependent dof, a mass matrix that is a stiffness matrix.
     NumericalError
         A negative diagonal entry of ``M`` or ``K`` (the matrix is indefinite).
     """
