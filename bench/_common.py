@@ -79,8 +79,8 @@ def build_prepared(example: str, dofs: int | None, damping: str = "modal"):
 
 
 def krylov_or_soaga_spec(method: str):
-    """The :class:`~pymorembs.config.ReductionSpec` of the floor-ratio and scaling runs."""
-    from pymorembs.config import ReductionSpec
+    """The :class:`~pymorembs.job.schema.ReductionSpec` of the floor-ratio and scaling runs."""
+    from pymorembs.job.schema import ReductionSpec
 
     if method == "krylov":  # as in examples/rack-beams-demo.toml
         options = {"expansion_points_hz": [0.0, 500.0, 1000.0], "moments": [6, 5, 5]}

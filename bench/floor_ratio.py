@@ -76,7 +76,7 @@ def measure(
         ``reduction_peak_mb`` (from the end of the preparation), and with ``floor`` the backend
         times per kind and ``ratio``.
     """
-    from pymorembs.pipeline import run_reduction
+    from pymorembs.job.run import run_reduction
 
     if floor:
         warm_up()

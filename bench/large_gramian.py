@@ -63,8 +63,8 @@ METHODS = {
 
 def reduce(method: str, system):
     """The projection of ``method`` and facts about it (dimension of the intermediate space)."""
-    from pymorembs.config import ReductionSpec
-    from pymorembs.pipeline import run_reduction
+    from pymorembs.job.run import run_reduction
+    from pymorembs.job.schema import ReductionSpec
     from pymorembs.reduction.gramian import pod_reduction
     from pymorembs.reduction.rational_gramian import rational_gramian_reduction
 

@@ -122,8 +122,8 @@ def reduce(method: str, system) -> tuple[object, dict]:
         sigma = -((2 * np.pi * 1.0) ** 2)
         _, modes = spla.eigsh(system.stiffness, k=MODES, M=system.mass, sigma=sigma)
         return system.project(modes), {}
-    from pymorembs.config import ReductionSpec
-    from pymorembs.pipeline import run_reduction
+    from pymorembs.job.run import run_reduction
+    from pymorembs.job.schema import ReductionSpec
     from pymorembs.reduction.projection import reduced_model
 
     specs = {

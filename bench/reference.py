@@ -51,9 +51,9 @@ def measure(dofs: int) -> dict:
     from pymorembs.analysis.error import frequency_grid, relative_error
     from pymorembs.analysis.reference import reference_response
     from pymorembs.analysis.transfer import transfer_function
+    from pymorembs.job.run import run_reduction
     from pymorembs.linalg.factorization import Factorization
     from pymorembs.parallel import usable_cores
-    from pymorembs.pipeline import run_reduction
     from pymorembs.reduction.projection import reduced_model
 
     prepared, _ = build_prepared("rack-solid", dofs, "rayleigh")

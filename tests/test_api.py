@@ -12,10 +12,10 @@ import pytest
 import scipy.io
 
 import pymorembs as pm
-from pymorembs.cli import main
 from pymorembs.export.exudyn_body import load_exudyn_body
 from pymorembs.export.sid import check_sid, read_sid
 from pymorembs.io.matrix_market import write_matrix_files
+from pymorembs.job.cli import main
 
 
 @pytest.fixture(scope="module")

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pymorembs.cli import main
 from pymorembs.errors import UserError
 from pymorembs.examples import build_example
 from pymorembs.io.native import read_body_h5
+from pymorembs.job.cli import main
 from pymorembs.prepare import Frame, prepare
 from pymorembs.reduction.modal import eigenmodes
 

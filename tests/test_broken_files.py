@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from pymorembs.cli import main
+from pymorembs.job.cli import main
 
 FILES = Path(__file__).parent / "broken" / "files"
 
@@ -410,7 +410,11 @@ def test_the_corpus_is_used_and_large_enough() -> None:
 )
 def test_real_process(argv: str, code: int, pattern: str) -> None:
     """The installed command in a separate process: exit code, one line, no traceback."""
-    command = [sys.executable, "-c", "import sys; from pymorembs.cli import main; sys.exit(main())"]
+    command = [
+        sys.executable,
+        "-c",
+        "import sys; from pymorembs.job.cli import main; sys.exit(main())",
+    ]
     done = subprocess.run(
         [*command, "info", *argv.split()],
         cwd=FILES,

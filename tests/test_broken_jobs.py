@@ -29,9 +29,9 @@ import scipy.sparse as sp
 
 from conftest import space_truss, spring_lattice
 from pymorembs.body import DofTable, ElasticBody
-from pymorembs.cli import main
 from pymorembs.io.matrix_market import write_matrix_files
 from pymorembs.io.native import write_body_h5
+from pymorembs.job.cli import main
 
 JOBS = Path(__file__).parent / "broken" / "jobs"
 

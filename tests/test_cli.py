@@ -12,9 +12,9 @@ import pytest
 import scipy.linalg as sla
 
 from conftest import spring_lattice
-from pymorembs.cli import main
 from pymorembs.io.matrix_market import read_matrix_files, write_matrix_files
 from pymorembs.io.native import read_body_h5, write_body_h5
+from pymorembs.job.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
 DEMO = ROOT / "examples" / "rack-beams-demo.toml"
@@ -303,7 +303,7 @@ def test_bad_command_line_exits_2_with_one_line(argv, message, tmp_path, capsys,
 def test_reduced_folder_is_written_only_on_success(tmp_path, lattice_files, capsys, monkeypatch):
     """A job whose second reduction fails numerically (exit 3) leaves nothing behind, not even
     the first reduction's files."""
-    import pymorembs.pipeline as pipeline
+    import pymorembs.job.run as pipeline
     from pymorembs.errors import NumericalError
 
     original = pipeline.run_reduction
@@ -330,7 +330,7 @@ def test_reduced_folder_is_written_only_on_success(tmp_path, lattice_files, caps
 def test_unexpected_exception_exits_1_with_traceback_and_bug_request(
     tmp_path, lattice_files, capsys, monkeypatch
 ):
-    import pymorembs.pipeline as pipeline
+    import pymorembs.job.run as pipeline
 
     def broken(system, spec, band_hz):
         raise ZeroDivisionError("an internal slip")
@@ -529,7 +529,7 @@ def test_reduction_folder_replaces_a_symlink_instead_of_writing_through_it(
 @pytest.mark.parametrize("name", ["../x", "/tmp/x", "a/b", ".hidden", "..", "", "a\\b"])
 def test_safe_child_refuses_names_that_leave_the_folder(name, tmp_path):
     from pymorembs.errors import UserError
-    from pymorembs.pipeline import safe_child
+    from pymorembs.job.run import safe_child
 
     with pytest.raises(UserError, match="would leave the output folder"):
         safe_child(tmp_path, name)
@@ -594,8 +594,8 @@ MISSPELLED = [
 def test_a_misspelled_key_in_every_table_is_named_with_a_suggestion(line, where, key, tmp_path):
     """Every table of a job: a key with a doubled letter is an error naming table, key and the
     valid key (``did you mean``), never silently ignored."""
-    from pymorembs.config import load_job
     from pymorembs.errors import UserError
+    from pymorembs.job.schema import load_job
 
     load_job_text = FULL_JOB
     assert line in load_job_text
@@ -631,8 +631,8 @@ def test_a_job_parsed_from_a_dictionary_runs_without_a_job_file(tmp_path):
     """Issue #16: run_job on parse_job(dict, path) with no file at path hashed no file."""
     import tomllib
 
-    from pymorembs.config import parse_job
-    from pymorembs.pipeline import run_job
+    from pymorembs.job.run import run_job
+    from pymorembs.job.schema import parse_job
 
     text = """
 [model]

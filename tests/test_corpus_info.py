@@ -25,7 +25,7 @@ import pytest
 
 from abaqus_models import genuine, read_coordinate_file
 from nastran_reference import dense_frequencies, dense_matrix, dmig_entries, f06_cycles
-from pymorembs.cli import main
+from pymorembs.job.cli import main
 
 DATA = Path(__file__).parent / "data"
 MAEWING = DATA / "exportnastrankm_mAEWing1_FEMv5p2"

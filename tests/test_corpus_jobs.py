@@ -25,8 +25,8 @@ import scipy.linalg as sla
 from threadpoolctl import threadpool_limits
 
 from abaqus_models import genuine
-from pymorembs.config import load_job
-from pymorembs.pipeline import prepare_job, run_job
+from pymorembs.job.run import prepare_job, run_job
+from pymorembs.job.schema import load_job
 
 #: End-to-end jobs: in the slow set (``make test-slow``, which CI runs too).
 pytestmark = pytest.mark.slow

@@ -220,8 +220,8 @@ def readme_walkthrough_job() -> str:
 @pytest.mark.slow
 def test_readme_walkthrough_on_the_ansys_example(tmp_path, capsys):
     """The walkthrough's job runs on the genuine Ansys export it names and writes a valid SID."""
-    from pymorembs.cli import main
     from pymorembs.export.sid import check_sid, read_sid
+    from pymorembs.job.cli import main
 
     data = ROOT / "tests" / "data" / "pymapdl_reader_hexbeam"
     # step 2, the README's info line for Ansys: the frequencies Ansys' documentation publishes

@@ -16,8 +16,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from pymorembs.config import Job, load_job
 from pymorembs.errors import UserError
+from pymorembs.job.schema import Job, load_job
 
 EXAMPLES = sorted((Path(__file__).resolve().parents[1] / "examples").glob("*.toml"))
 SEEDS = [path.read_text(encoding="utf-8") for path in EXAMPLES]

@@ -14,11 +14,11 @@ from conftest import space_truss
 from pymorembs.analysis.error import error_blocks, relative_error
 from pymorembs.analysis.transfer import transfer_function
 from pymorembs.body import Damping
-from pymorembs.cli import main
-from pymorembs.config import parse_job
 from pymorembs.errors import UserError
 from pymorembs.io.matrix_market import write_matrix_files
-from pymorembs.pipeline import inertia_warning
+from pymorembs.job.cli import main
+from pymorembs.job.run import inertia_warning
+from pymorembs.job.schema import parse_job
 from pymorembs.prepare import (
     INERTIA_LOAD_CASES,
     Frame,

@@ -9,10 +9,10 @@ import pytest
 
 from conftest import blade_job
 from pymorembs.analysis.large_motion import off_axis_node
-from pymorembs.cli import main
-from pymorembs.config import parse_job
 from pymorembs.errors import UserError
 from pymorembs.examples.blade import blade
+from pymorembs.job.cli import main
+from pymorembs.job.schema import parse_job
 
 pytest.importorskip("exudyn")
 

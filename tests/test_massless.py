@@ -22,10 +22,10 @@ import scipy.sparse.linalg as spla
 from pymorembs.analysis.spectrum import model_spectrum
 from pymorembs.analysis.time_domain import LoadCase, simulate
 from pymorembs.body import Damping, DofTable, ElasticBody
-from pymorembs.cli import main
 from pymorembs.elements.beam import BeamSection, assemble_beams
 from pymorembs.errors import NumericalError
 from pymorembs.io.matrix_market import write_matrix_files
+from pymorembs.job.cli import main
 from pymorembs.linalg.mass_split import condensed_dense_eigh, mass_split
 from pymorembs.prepare import Frame, Port, prepare
 from pymorembs.reduction.gramian import gramian_reduction
@@ -354,8 +354,8 @@ order = 30
     ids=["tangent", "buckens"],
 )
 def test_every_method_reduces_a_model_with_massless_dofs(massless_rack, frame, extra):
-    from pymorembs.config import load_job
-    from pymorembs.pipeline import prepare_job, run_job
+    from pymorembs.job.run import prepare_job, run_job
+    from pymorembs.job.schema import load_job
 
     job_file = massless_rack / f"job_{frame.split()[2].strip(chr(34))}.toml"
     job_file.write_text(JOB.format(frame=frame, extra=extra))

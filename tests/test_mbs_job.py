@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 import scipy.io
 
-from pymorembs.cli import main
 from pymorembs.examples import build_example
 from pymorembs.export.exudyn_body import load_exudyn_body
 from pymorembs.export.sid import check_sid, read_sid, sid_invariants
+from pymorembs.job.cli import main
 
 JOB = """
 title = "rack-beams as a multibody body"

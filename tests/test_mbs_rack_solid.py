@@ -18,11 +18,11 @@ from pymorembs.analysis.time_domain import (
     simulate,
 )
 from pymorembs.body import Damping
-from pymorembs.config import ReductionSpec
 from pymorembs.examples import build_example
 from pymorembs.export.outputs import body_invariants
 from pymorembs.export.sid import check_sid, sid_from_invariants
-from pymorembs.pipeline import run_reduction
+from pymorembs.job.run import run_reduction
+from pymorembs.job.schema import ReductionSpec
 from pymorembs.prepare import Frame, Port, prepare
 from pymorembs.reduction.projection import reduced_model
 

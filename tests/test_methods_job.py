@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pymorembs.cli import main
+from pymorembs.job.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
 HEAD = (ROOT / "examples" / "rack-beams-demo.toml").read_text().split("[[reduction]]")[0]

@@ -14,11 +14,11 @@ import scipy.sparse as sp
 
 from conftest import spring_lattice
 from pymorembs.body import ModelPorts
-from pymorembs.cli import main
-from pymorembs.config import load_job
 from pymorembs.errors import UserError
 from pymorembs.io.native import write_body_h5
-from pymorembs.pipeline import run_job
+from pymorembs.job.cli import main
+from pymorembs.job.run import run_job
+from pymorembs.job.schema import load_job
 from pymorembs.prepare import Frame, Port, prepare
 from pymorembs.prepare.interface import InterfaceSpec, add_interface_node
 

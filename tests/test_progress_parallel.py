@@ -19,12 +19,12 @@ from conftest import spring_lattice
 from pymorembs import progress
 from pymorembs.analysis.error import frequency_grid
 from pymorembs.analysis.transfer import transfer_function
-from pymorembs.cli import main, worst
-from pymorembs.config import load_job
 from pymorembs.errors import NumericalError
 from pymorembs.io.native import write_body_h5
+from pymorembs.job.cli import main, worst
+from pymorembs.job.run import prepare_job
+from pymorembs.job.schema import load_job
 from pymorembs.parallel import chunks, dask_available, parallel_map, usable_cores
-from pymorembs.pipeline import prepare_job
 
 ROOT = Path(__file__).resolve().parents[1]
 

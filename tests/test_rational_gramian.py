@@ -179,8 +179,8 @@ def test_bad_options(lattice):
 
 def test_job_option_first_stage_rational_krylov(lattice, tmp_path):
     """``first_stage = "rational-krylov"`` in a job reaches this solver (no medium model)."""
-    from pymorembs.config import ReductionSpec
-    from pymorembs.pipeline import run_reduction
+    from pymorembs.job.run import run_reduction
+    from pymorembs.job.schema import ReductionSpec
 
     spec = ReductionSpec(
         "rk", "gramian", 10, {"first_stage": "rational-krylov", "convergence_tolerance": 1e-8}

@@ -567,7 +567,7 @@ def test_static_full_file_says_what_it_holds(tmp_path):
 
 def test_static_full_through_pymorembs_info(tmp_path, capsys):
     """The same refusal from the command line: exit code 2, one line, nothing on stdout."""
-    from pymorembs.cli import main
+    from pymorembs.job.cli import main
 
     def static(header: np.ndarray) -> None:
         header[header_item("ntermMl")] = 0
@@ -584,7 +584,7 @@ def test_info_with_the_archive(capsys):
     """pymorembs info on the genuine .full with its .cdb: the published frequencies."""
     import json
 
-    from pymorembs.cli import main
+    from pymorembs.job.cli import main
 
     code = main(["info", str(FULL), "--nodes", str(CDB), "--modes", "4", "--json"])
     out, err = capsys.readouterr()

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from pymorembs.cli import main
+from pymorembs.job.cli import main
 
 GOOD_ABAQUS = """** stiffness, matrix input layout: node, dof, node, dof, value (one triangle)
 1,1, 1,1, 2.0E+06

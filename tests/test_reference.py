@@ -21,11 +21,11 @@ from pymorembs.analysis.reference import (
     reference_response,
 )
 from pymorembs.analysis.transfer import transfer_function
-from pymorembs.cli import main
-from pymorembs.config import ReductionSpec, load_job
 from pymorembs.errors import UserError
 from pymorembs.examples import build_example
-from pymorembs.pipeline import run_reduction
+from pymorembs.job.cli import main
+from pymorembs.job.run import run_reduction
+from pymorembs.job.schema import ReductionSpec, load_job
 from pymorembs.prepare import Frame, Port, prepare
 from pymorembs.reduction.projection import reduced_model
 

@@ -31,7 +31,16 @@ def _run_demo(out: Path, seed: str) -> None:
     env = {**os.environ, "PYTHONHASHSEED": seed}
     env.pop("SOURCE_DATE_EPOCH", None)
     done = subprocess.run(
-        [sys.executable, "-m", "pymorembs.cli", "reduce", str(DEMO), "--out", str(out), "--quiet"],
+        [
+            sys.executable,
+            "-m",
+            "pymorembs.job.cli",
+            "reduce",
+            str(DEMO),
+            "--out",
+            str(out),
+            "--quiet",
+        ],
         capture_output=True,
         text=True,
         env=env,

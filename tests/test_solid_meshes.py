@@ -26,7 +26,6 @@ import scipy.sparse.linalg as spla
 from threadpoolctl import threadpool_limits
 
 from abaqus_models import genuine, read_coordinate_file
-from pymorembs.cli import main
 from pymorembs.elements.solid import (
     SOLID_KINDS,
     assemble_solid_geometric,
@@ -41,6 +40,7 @@ from pymorembs.export.sid import read_sid
 from pymorembs.io.abaqus import read_abaqus, read_abaqus_stiffness
 from pymorembs.io.native import read_body_h5, write_body_h5
 from pymorembs.io.solid_mesh import mesh_problem
+from pymorembs.job.cli import main
 from pymorembs.prepare import Frame, prepare
 from pymorembs.prepare.stiffening import geometric_stiffness, stiffening_from_mesh
 

@@ -19,8 +19,6 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from conftest import blade_job
-from pymorembs.cli import main
-from pymorembs.config import parse_job
 from pymorembs.elements.solid import assemble_solid_geometric
 from pymorembs.errors import UserError
 from pymorembs.examples.blade import blade, blade_mesh
@@ -32,6 +30,8 @@ from pymorembs.export.exudyn_body import (
 )
 from pymorembs.export.sid import check_sid, read_sid
 from pymorembs.io.matrix_market import write_matrix_market
+from pymorembs.job.cli import main
+from pymorembs.job.schema import parse_job
 
 ELEMENTS = 12
 RHO_A = 7850.0 * 0.04 * 0.01  # kg/m

@@ -8,8 +8,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from pymorembs.cli import main
 from pymorembs.examples import build_example
+from pymorembs.job.cli import main
 from pymorembs.prepare import Frame, Port, prepare
 from pymorembs.reduction.modal import eigenmodes
 from pymorembs.units import SYSTEMS, convert_body, detect_units, frequency_warnings
@@ -204,7 +204,7 @@ def test_round_bands_do_not_warn(f_max):
 def test_shipped_example_jobs_do_not_warn_about_the_band():
     from pathlib import Path
 
-    from pymorembs.config import load_job
+    from pymorembs.job.schema import load_job
     from pymorembs.units import band_unit_warnings
 
     jobs = sorted((Path(__file__).resolve().parents[1] / "examples").glob("*.toml"))

@@ -245,8 +245,8 @@ def test_rack_beams_tangent_and_buckens_pass_with_their_known_lowest_modes():
 
 
 def test_job_level_checks(tmp_path):
-    from pymorembs.config import load_job
     from pymorembs.io.native import write_body_h5
+    from pymorembs.job.schema import load_job
 
     body = spring_lattice()
     write_body_h5(body.with_fixed(body.dofs.of_node(20)), tmp_path / "model.h5")
@@ -269,7 +269,7 @@ order = {order}
     def check(node: int, order: int) -> None:
         job_path.write_text(text.format(node=node, order=order))
         job = load_job(job_path)
-        from pymorembs.pipeline import prepare_and_validate
+        from pymorembs.job.run import prepare_and_validate
 
         prepare_and_validate(job, deep=False)
 

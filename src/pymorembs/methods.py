@@ -2,7 +2,7 @@
 
 Each method family of ``paper.md`` section 3 has one frozen dataclass of options with its
 defaults; the Python API (:func:`pymorembs.reduction`), the job file (``[[reduction]]`` tables,
-:mod:`pymorembs.config`) and the job reference (:func:`options_table`) all use them. Building an
+:mod:`pymorembs.job.schema`) and the job reference (:func:`options_table`) all use them. Building an
 options object checks it: a bad value raises :class:`OptionError`, which names the option.
 
 =================  ==========================================================================

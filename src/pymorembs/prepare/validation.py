@@ -19,7 +19,7 @@ orders fit the model; ``pymorembs info`` runs :func:`validate_body`):
 elimination, whose structural rigid-body check runs in :func:`~pymorembs.prepare.prepare`):
 
 * no independent dof without mass and stiffness (dangling) or without stiffness (free);
-* with ``deep=True`` (the pipeline's default):
+* with ``deep=True`` (the default of a job run):
 
   - 30 Lanczos steps on ``M`` (matrix-vector products only): a negative Rayleigh quotient
     proves ``M`` indefinite;

@@ -32,9 +32,9 @@ from pymorembs.analysis.time_domain import (
     simulate,
 )
 from pymorembs.body import ElasticBody
-from pymorembs.config import TimeDomainSpec
 from pymorembs.export.exudyn_body import build_exudyn_model, exudyn_arrays, simulate_exudyn
 from pymorembs.export.outputs import body_invariants
+from pymorembs.job.schema import TimeDomainSpec
 from pymorembs.prepare import Frame, PreparedModel
 from pymorembs.reduction.projection import ReducedModel
 from pymorembs.report.time_plots import plot_time_responses

@@ -23,15 +23,15 @@ from threadpoolctl import threadpool_limits
 from pymorembs import __version__, progress
 from pymorembs.analysis.spectrum import model_facts
 from pymorembs.body import ElasticBody
-from pymorembs.config import MODEL_FORMATS, load_job
 from pymorembs.errors import PymorembsError, UserError
 from pymorembs.examples import EXAMPLES, build_example
 from pymorembs.examples.rack_solid import INTERFACES
 from pymorembs.io.formats import read_body
 from pymorembs.io.matrix_market import write_matrix_files
 from pymorembs.io.native import write_body_h5
+from pymorembs.job.run import load_job_model, run_job, validate_job_body
+from pymorembs.job.schema import MODEL_FORMATS, load_job
 from pymorembs.parallel import dask_client, usable_cores
-from pymorembs.pipeline import load_job_model, run_job, validate_job_body
 from pymorembs.prepare import Frame, PreparedModel, prepare
 from pymorembs.prepare.validation import validate_body
 from pymorembs.units import detect_units, frequency_warnings

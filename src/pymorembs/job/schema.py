@@ -2,8 +2,8 @@
 
 A job names a model, a damping model, a reference frame, inputs and outputs, a frequency band and
 one or more reductions to compare. Every key is checked: an unknown or misspelled key is an
-error that suggests the nearest valid key, never silently ignored. See ``examples/*.toml`` and the
-README for the full list.
+error that suggests the nearest valid key, never silently ignored. See ``examples/*.toml`` and
+``docs/jobs.md`` for the full list (the method options come from :mod:`pymorembs.methods`).
 """
 
 from __future__ import annotations

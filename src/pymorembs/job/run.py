@@ -26,15 +26,15 @@ from pymorembs.analysis.error import error_blocks, frequency_grid, relative_erro
 from pymorembs.analysis.large_motion import large_motion_checks
 from pymorembs.analysis.reference import ReferenceResponse, choose_kind, reference_response
 from pymorembs.analysis.time_domain import clamped_full_system
-from pymorembs.analysis.time_domain_job import time_domain_checks
 from pymorembs.analysis.transfer import transfer_function
 from pymorembs.body import DIRECTIONS, ElasticBody
-from pymorembs.config import Job, ModelSpec, ReductionSpec
 from pymorembs.errors import NumericalError, PymorembsError, UserError
 from pymorembs.examples import build_example
 from pymorembs.export.outputs import BODY_OUTPUTS, write_outputs
 from pymorembs.io.atomic import atomic_path, check_output_folder, write_text
 from pymorembs.io.formats import read_body
+from pymorembs.job.schema import Job, ModelSpec, ReductionSpec
+from pymorembs.job.time_domain import time_domain_checks
 from pymorembs.linalg.mass_split import mass_split
 from pymorembs.prepare import PreparedModel, prepare, with_inertia_loads
 from pymorembs.prepare.interface import InterfaceSpec, add_interface_node, select_nodes
