@@ -54,10 +54,10 @@ def available() -> bool:
 def _kernels():
     """The module of compiled kernels, or None without Numba."""
     try:
-        from pymorembs.linalg import _compiled
+        from pymorembs.linalg import compiled_kernels
     except ImportError:
         return None
-    return _compiled
+    return compiled_kernels
 
 
 def product(matrix: sp.spmatrix, block: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

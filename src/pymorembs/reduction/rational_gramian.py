@@ -113,7 +113,7 @@ from pymorembs.reduction.gramian import (
     resolvent,
 )
 from pymorembs.reduction.projection import Projection
-from pymorembs.reduction.soaga import _Products
+from pymorembs.reduction.soaga import BlockProducts
 from pymorembs.system import SecondOrderSystem
 
 #: Default stopping tolerance on the relative change of the Gramian quantities.
@@ -231,7 +231,7 @@ class _Residuals:
         self.segments: list[tuple[str, int, int]] = [("f", 0, rhs.shape[1])]
         self.count = 0
 
-    def update(self, products: _Products, size: int) -> None:
+    def update(self, products: BlockProducts, size: int) -> None:
         """Append ``K V``, ``D V``, ``M V`` of the columns ``count:size`` of ``V``."""
         if size == self.count:
             return
@@ -304,7 +304,7 @@ class _Residuals:
 
 
 def _projected(
-    system: SecondOrderSystem, v: np.ndarray, products: _Products, cache: dict[str, np.ndarray]
+    system: SecondOrderSystem, v: np.ndarray, products: BlockProducts, cache: dict[str, np.ndarray]
 ) -> SecondOrderSystem:
     """``system.project(V)`` from the cached products ``K V``, ``M V``, ``D V``.
 
@@ -474,7 +474,7 @@ def rational_krylov_gramians(
         # with these directions first in the basis, every later direction is elastic to working
         # precision, also those that are amplified rounding of nearly dependent solutions
         offset = basis.add(np.asarray(mass @ system.rigid_modes)).shape[1]
-    products = _Products(system)
+    products = BlockProducts(system)
     residuals = _Residuals(system, rhs, groups)
     history: list[dict[str, Any]] = []
     used: list[float] = []

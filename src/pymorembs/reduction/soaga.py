@@ -239,7 +239,7 @@ class _Candidate:
     exhausted: bool = False
 
 
-class _Products:
+class BlockProducts:
     """``K V``, ``M V``, ``D V`` for the columns of ``V`` (extended precision), grown with V."""
 
     def __init__(self, system: SecondOrderSystem) -> None:
@@ -372,7 +372,7 @@ def soaga_reduction(
     points = [_Candidate(f) for f in candidates]
     basis = OrthonormalBasis(system.order, tol)
     global_basis = FrobeniusBasis(tol)
-    products = _Products(system)
+    products = BlockProducts(system)
     sequence: list[float] = []
     used: list[int] = []
     history: list[float] = []
@@ -547,7 +547,7 @@ def _estimate(
     system: SecondOrderSystem,
     v: np.ndarray,
     z: np.ndarray,
-    products: _Products,
+    products: BlockProducts,
     frequencies_hz: np.ndarray,
 ) -> np.ndarray:
     """The estimator ``eps_check(f)`` of the model on ``V`` with look-ahead space ``Z``.
