@@ -5,7 +5,7 @@ Element kinematics for the geometric stiffening of a body read from an FE progra
 stresses of a displacement field at the Gauss points and the initial-stress matrix
 ``g[a, b] = int dN_a/dx_k sigma_kl dN_b/dx_l dV`` (with ``K_G[a i, b j] = g[a, b] delta_ij``).
 The stiffness ``K`` of the same kinematics (:func:`solid_stiffness`) is what proves node order,
-rule and material against the matrices the program wrote (tests/test_solid_meshes.py).
+rule and material against the matrices the program wrote (tests/io/test_solid_meshes.py).
 
 Element kinds (:data:`SOLID_KINDS`)
 

@@ -65,7 +65,7 @@ Arnoldi and Lanczos-like equations", Eur. J. Control 14, 2008) and its second-or
 by the authors ([32]; cf. Fehr & Eberhard, "Error-controlled model reduction in flexible
 multibody dynamics", J. Comput. Nonlinear Dyn. 5, 2010). Only abstracts of these were at hand,
 not their formulas: the estimator above is derived here from the exact error expression and
-tested against the true error (tests/test_soaga.py); it is not a transcription of [32].
+tested against the true error (tests/reduction/test_soaga.py); it is not a transcription of [32].
 """
 
 from __future__ import annotations

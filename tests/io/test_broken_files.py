@@ -17,7 +17,7 @@ import pytest
 
 from pymorembs.job.cli import main
 
-FILES = Path(__file__).parent / "broken" / "files"
+FILES = Path(__file__).parents[1] / "broken" / "files"
 
 # (arguments after "info", exit code, pattern of the message after "pymorembs: error: ")
 CASES: list[tuple[str, int, str]] = [

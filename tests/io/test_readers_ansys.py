@@ -28,7 +28,7 @@ from pymorembs.io.ansys_cdb import read_cdb
 
 reader = pytest.importorskip("ansys.mapdl.reader")
 
-DATA = Path(__file__).parent / "data" / "pymapdl_reader_hexbeam"
+DATA = Path(__file__).parents[1] / "data" / "pymapdl_reader_hexbeam"
 FULL = DATA / "file.full"
 CDB = DATA / "HexBeam.cdb"
 RST = DATA / "file.rst"

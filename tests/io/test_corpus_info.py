@@ -27,7 +27,7 @@ from abaqus_models import genuine, read_coordinate_file
 from nastran_reference import dense_frequencies, dense_matrix, dmig_entries, f06_cycles
 from pymorembs.job.cli import main
 
-DATA = Path(__file__).parent / "data"
+DATA = Path(__file__).parents[1] / "data"
 MAEWING = DATA / "exportnastrankm_mAEWing1_FEMv5p2"
 YETI = DATA / "pyyeti_nx_extseout"
 PYNASTRAN = DATA / "pynastran"

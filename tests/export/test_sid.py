@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_invariants import cross_matrix, lumped_body
 from threadpoolctl import threadpool_limits
 
 from pymorembs.errors import NumericalError, UserError
@@ -24,9 +25,8 @@ from pymorembs.linalg.products import extended_product
 from pymorembs.prepare import Frame, Port, prepare
 from pymorembs.reduction.modal import modal_reduction
 from pymorembs.reduction.projection import reduced_model
-from test_invariants import cross_matrix, lumped_body
 
-REFERENCE = Path(__file__).parent / "data" / "pymbs_fembs_sid"
+REFERENCE = Path(__file__).parents[1] / "data" / "pymbs_fembs_sid"
 FIVE_NODE = REFERENCE / "fembs_five_node_model.sid_fem"
 FEMBS_FILES = sorted(REFERENCE.glob("fembs_*.sid_fem"))
 

@@ -15,7 +15,7 @@ import pytest
 from pymorembs.errors import UserError
 from pymorembs.io.nastran_bulk import read_bulk, reals_of_fields, significant_digits
 
-DATA = Path(__file__).parent / "data"
+DATA = Path(__file__).parents[1] / "data"
 MAEWING = DATA / "exportnastrankm_mAEWing1_FEMv5p2" / "sol103_maewing1_femv5p2.f06"
 YETI = DATA / "pyyeti_nx_extseout"
 N11 = DATA / "pynastran" / "superelement_se_test_n11"

@@ -28,7 +28,7 @@ from pymorembs.io import nastran_dmig
 from pymorembs.io.nastran_bulk import significant_digits
 from pymorembs.io.op4_ascii import read_ascii_op4
 
-DATA = Path(__file__).parent / "data"
+DATA = Path(__file__).parents[1] / "data"
 MAEWING = DATA / "exportnastrankm_mAEWing1_FEMv5p2" / "sol103_maewing1_femv5p2.pch1"
 PYNASTRAN_DMIG = DATA / "pynastran" / "dmig_pch" / "dmig.pch"
 SE_OP4 = DATA / "pynastran" / "superelement_se_test_n11" / "se_test_n11.op4"

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_gramian import free_truss, system_of
 
 from pymorembs.analysis.error import frequency_grid, relative_error
 from pymorembs.analysis.transfer import transfer_function
@@ -15,7 +16,6 @@ from pymorembs.reduction.rational_gramian import (
     rational_gramian_reduction,
     rational_krylov_gramians,
 )
-from test_gramian import free_truss, system_of
 
 LARGE_NODES = 120  # 354 dofs, 6 eigenfrequencies below 10 Hz; inputs and outputs differ
 BAND = (0.0, 12.0)

@@ -10,7 +10,7 @@ import pytest
 
 from pymorembs.job.cli import main
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 HEAD = (ROOT / "examples" / "rack-beams-demo.toml").read_text().split("[[reduction]]")[0]
 
 METHODS = """

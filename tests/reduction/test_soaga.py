@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 import scipy.linalg as sla
 import scipy.sparse as sp
+from test_reduce import OUTPUTS, moments_of, system_of
 from threadpoolctl import threadpool_limits
 
 import pymorembs.reduction.krylov as krylov_module
@@ -19,7 +20,6 @@ from pymorembs.reduction.krylov import krylov_reduction
 from pymorembs.reduction.projection import Projection, reduced_model
 from pymorembs.reduction.soaga import GlobalSecondOrderArnoldi, soaga_reduction
 from pymorembs.system import SecondOrderSystem
-from test_reduce import OUTPUTS, moments_of, system_of
 
 RAYLEIGH = Damping("rayleigh", alpha=2.0, beta=1e-5)
 BAND = (0.0, 100.0)  # 26 modes of the 100-node lattice below 100 Hz

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_prepare import lagrange_response
 
 from conftest import space_truss, spring_lattice
 from pymorembs.analysis.transfer import transfer_function
@@ -15,7 +16,6 @@ from pymorembs.prepare.interface import (
     add_interface_node,
     select_nodes,
 )
-from test_prepare import lagrange_response
 
 # the truss: 4 x 3 x 2 nodes at 0.1 m spacing; face x = 0.3 holds nodes 19..24
 FACE = (np.array([0.25, -1.0, -1.0]), np.array([0.35, 1.0, 1.0]))

@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 from pymorembs.errors import UserError
 from pymorembs.job.schema import Job, load_job
 
-EXAMPLES = sorted((Path(__file__).resolve().parents[1] / "examples").glob("*.toml"))
+EXAMPLES = sorted((Path(__file__).resolve().parents[2] / "examples").glob("*.toml"))
 SEEDS = [path.read_text(encoding="utf-8") for path in EXAMPLES]
 
 #: Values a mutation may put on the right of ``=`` (TOML syntax, some of it invalid on purpose).

@@ -18,7 +18,7 @@ from pymorembs.io.pynastran_compat import op2_class
 
 pytest.importorskip("pyNastran")
 
-DATA = Path(__file__).parent / "data" / "pynastran" / "op2_kgg_kelm"
+DATA = Path(__file__).parents[1] / "data" / "pynastran" / "op2_kgg_kelm"
 OP2 = DATA / "static_solid_shell_bar_kelm.op2"
 
 

@@ -7,12 +7,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 import scipy.io
+from test_invariants import cross_matrix, lumped_body
 
 from pymorembs.errors import NumericalError
 from pymorembs.export.invariants import compute_invariants
 from pymorembs.export.neweul import FORMAT, FORMAT_VERSION, write_neweul
 from pymorembs.export.sid import read_sid, write_sid
-from test_invariants import cross_matrix, lumped_body
 
 
 @pytest.fixture(scope="module")

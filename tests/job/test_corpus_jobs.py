@@ -31,7 +31,7 @@ from pymorembs.job.schema import load_job
 #: End-to-end jobs: in the slow set (``make test-slow``, which CI runs too).
 pytestmark = pytest.mark.slow
 
-DATA = Path(__file__).parent / "data"
+DATA = Path(__file__).parents[1] / "data"
 
 
 def _model(case: str, tmp: Path) -> str:

@@ -19,7 +19,7 @@ import scipy.io
 
 from pymorembs.export.deterministic import DEFAULT_TIME, fixed_time, write_mat, write_npz
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SRC = ROOT / "src" / "pymorembs"
 DEMO = ROOT / "examples" / "rack-beams-demo.toml"
 #: Files that must be byte-identical between runs (everything but the timed summary/report).

@@ -24,7 +24,7 @@ from pymorembs.errors import UserError
 from pymorembs.io.formats import detect_format, read_body
 from pymorembs.io.matlab import mat_variables, read_mat_variables, read_matlab
 
-DATA = Path(__file__).parent / "data"
+DATA = Path(__file__).parents[1] / "data"
 SPARSE = DATA / "pymatreader_sparse"
 SCIPY = DATA / "scipy_matlab"
 SHAPES = {"col": (10, 1), "row": (1, 10), "wide": (10, 20), "square": (10, 10), "tall": (20, 10)}

@@ -16,7 +16,7 @@ from pymorembs.io.matrix_market import read_matrix_files, write_matrix_files
 from pymorembs.io.native import read_body_h5, write_body_h5
 from pymorembs.job.cli import main
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 DEMO = ROOT / "examples" / "rack-beams-demo.toml"
 
 SMALL_JOB = """

@@ -410,7 +410,7 @@ def test_an_inverted_element_is_a_user_error():
 
 
 # ------------------------------------------------------------------ Ansys SOLID186 (HexBeam)
-HEXBEAM = Path(__file__).parent / "data" / "pymapdl_reader_hexbeam"
+HEXBEAM = Path(__file__).parents[1] / "data" / "pymapdl_reader_hexbeam"
 
 
 def test_solid186_kinematics_reproduce_the_ansys_stiffness_with_the_material_of_its_run():
@@ -619,7 +619,7 @@ def test_nx_nastran_element_matrices_of_ctetra_and_chexa():
     from pymorembs.io.pynastran_compat import op2_class, quiet_logger
 
     op2 = op2_class()(debug=False, log=quiet_logger())
-    folder = Path(__file__).parent / "data" / "pynastran" / "op2_kgg_kelm"
+    folder = Path(__file__).parents[1] / "data" / "pynastran" / "op2_kgg_kelm"
     op2.read_op2(str(folder / "static_solid_shell_bar_kelm.op2"), skip_undefined_matrices=True)
     kelm = np.asarray(op2.matrices["KELM"].data)
 

@@ -29,7 +29,7 @@ from pymorembs.job.schema import ReductionSpec, load_job
 from pymorembs.prepare import Frame, Port, prepare
 from pymorembs.reduction.projection import reduced_model
 
-DEMO = Path(__file__).resolve().parents[1] / "examples" / "rack-beams-demo.toml"
+DEMO = Path(__file__).resolve().parents[2] / "examples" / "rack-beams-demo.toml"
 BAND = (0.0, 1000.0)
 
 

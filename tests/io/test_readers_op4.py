@@ -297,7 +297,7 @@ def test_op4_truncated_and_not_op4(tmp_path, dofs_csv, kind):
 
 
 # ============================================================================ genuine EXTSEOUT
-DATA = Path(__file__).parent / "data"
+DATA = Path(__file__).parents[1] / "data"
 YETI = DATA / "pyyeti_nx_extseout"
 NOTALL6 = YETI / "reduced_bset_notall6"
 N11 = DATA / "pynastran" / "superelement_se_test_n11"

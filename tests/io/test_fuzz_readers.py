@@ -233,7 +233,7 @@ NAMES_PCH = "\n".join(
         *_dmig_small("K4GG", {(101, 1): [(101, 1, 0.01)]}),
     ]
 )
-OP2_FILE = Path(__file__).parent / "data" / "pynastran" / "op2_kgg_kelm"
+OP2_FILE = Path(__file__).parents[1] / "data" / "pynastran" / "op2_kgg_kelm"
 OP2_FILE = OP2_FILE / "static_solid_shell_bar_kelm.op2"
 
 
@@ -316,7 +316,9 @@ def compressed_full() -> bytes:
 @functools.cache
 def hexbeam_cdb() -> bytes:
     """The genuine archive of the example's mesh (tests/data/pymapdl_reader_hexbeam)."""
-    return (Path(__file__).parent / "data" / "pymapdl_reader_hexbeam" / "HexBeam.cdb").read_bytes()
+    return (
+        Path(__file__).parents[1] / "data" / "pymapdl_reader_hexbeam" / "HexBeam.cdb"
+    ).read_bytes()
 
 
 def _matlab_model() -> dict[str, object]:

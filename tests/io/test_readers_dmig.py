@@ -436,7 +436,7 @@ def test_cd_with_some_components(tmp_path: Path) -> None:
 
 
 # ============================================================================ genuine files
-DATA = Path(__file__).parent / "data"
+DATA = Path(__file__).parents[1] / "data"
 MAEWING = DATA / "exportnastrankm_mAEWing1_FEMv5p2"
 PYNASTRAN = DATA / "pynastran"
 

@@ -33,7 +33,7 @@ from pymorembs.io.matrix_market import write_matrix_files
 from pymorembs.io.native import write_body_h5
 from pymorembs.job.cli import main
 
-JOBS = Path(__file__).parent / "broken" / "jobs"
+JOBS = Path(__file__).parents[1] / "broken" / "jobs"
 
 #: (job file stem, exit code, regular expression the one stderr line must match)
 CASES = [

@@ -11,12 +11,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from test_massless import beam_body, dense_reference, hz
 
 from pymorembs.analysis.spectrum import model_spectrum
 from pymorembs.body import ElasticBody
 from pymorembs.linalg.rounding import relative_rounding, significant_digits
 from pymorembs.prepare import Frame, prepare
-from test_massless import beam_body, dense_reference, hz
 
 
 def rounded(values: np.ndarray, digits: int) -> np.ndarray:
