@@ -72,6 +72,7 @@ from pymorembs.io.atomic import atomic_open, write_text
 from pymorembs.io.fast_text import (
     CheckedReader,
     PlainNumberScan,
+    all_distinct,
     csr_from_sorted_coo,
     full_from_triangle,
     transpose_gap,
@@ -1185,7 +1186,7 @@ def _plain_nodes(ids: np.ndarray) -> bool:
 
 
 def _distinct(keys: np.ndarray) -> bool:
-    return np.unique(keys).size == keys.size
+    return all_distinct(keys)
 
 
 def _dof_indices(table: DofTable, nodes: np.ndarray, names: np.ndarray) -> np.ndarray | None:
