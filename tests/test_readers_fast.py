@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import re
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -558,6 +559,8 @@ def test_compiled_mirror_of_a_triangle(monkeypatch, lower) -> None:
         with monkeypatch.context() as patch:  # the NumPy path
             patch.setattr(mm, "full_from_triangle", lambda stored: None)
             assert same(mm._mirrored(stored, lower), full)
+        with ThreadPoolExecutor(1) as pool:  # off the main thread: the one-thread kernel
+            assert same(pool.submit(fast_text.full_from_triangle, stored).result(), full)
 
 
 @needs_numba
@@ -571,7 +574,10 @@ def test_compiled_transpose_gap(monkeypatch) -> None:
             matrix = sp.csr_matrix(matrix)
             matrix.sum_duplicates()
             dense = matrix.toarray()
-            assert fast_text.transpose_gap(matrix) == np.max(np.abs(dense - dense.T))
+            expected = np.max(np.abs(dense - dense.T))
+            assert fast_text.transpose_gap(matrix) == expected
+            with ThreadPoolExecutor(1) as pool:  # off the main thread: the one-thread kernel
+                assert pool.submit(fast_text.transpose_gap, matrix).result() == expected
     b = sp.csr_matrix(np.array([[1.0, 2.0], [2.0, np.nan]]))
     assert np.isnan(fast_text.transpose_gap(b))
     unsorted = sp.csr_matrix((np.ones(2), np.array([1, 0]), np.array([0, 2, 2])), shape=(2, 2))

@@ -8,8 +8,9 @@ between two others is judged by the table of entry triples of the vectorised che
 accept exactly the same bytes). It holds the GIL for none of its work, so it runs beside the
 threads of the parser that reads the same bytes.
 
-:func:`mirror_counts` / :func:`mirror_fill` complete a stored triangle to the full symmetric CSR
-matrix and :func:`transpose_gap` finds ``max |A - A^T|``, each in one pass over the entries.
+:func:`mirror_counts` / :func:`mirror_rows` complete a stored triangle to the full symmetric CSR
+matrix and :func:`rows_gap` finds ``max |A - A^T|``, each in one pass over the entries
+(:func:`mirror_parallel`, :func:`transpose_gap_parallel`: the same on several threads).
 """
 
 from __future__ import annotations
@@ -106,58 +107,108 @@ def plain_number_fields(
 def mirror_counts(indptr, indices, out_indptr):  # pragma: no cover - compiled
     """Row pointer of the full symmetric matrix of a triangle in CSR form (``out_indptr``, n + 1
     entries, zeroed by the caller): every entry counts in its row and, off the diagonal, in the
-    row of its column."""
+    row of its column. Returns whether the triangle is the lower one (an entry below the
+    diagonal)."""
     n = indptr.size - 1
+    lower = False
     for i in range(n):
         for q in range(indptr[i], indptr[i + 1]):
             j = indices[q]
             out_indptr[i + 1] += 1
             if j != i:
                 out_indptr[j + 1] += 1
+                if j < i:
+                    lower = True
     for i in range(n):
         out_indptr[i + 1] += out_indptr[i]
+    return lower
 
 
 @numba.njit(cache=True, nogil=True)
-def mirror_fill(indptr, indices, data, out_indptr, out_indices, out_data):  # pragma: no cover
-    """Fill the full symmetric matrix of a canonical triangle (lower or upper) in CSR form.
+def mirror_rows(
+    indptr, indices, data, out_indptr, out_indices, out_data, lower, first, last
+):  # pragma: no cover - compiled
+    """Fill rows ``first .. last - 1`` of the full symmetric matrix of a canonical triangle.
 
-    Rows are visited in order and every entry ``(i, j)`` is appended to row ``i`` and, off the
-    diagonal, ``(j, i)`` to row ``j``. A row of the lower triangle receives its own entries
-    (columns up to ``i``) before the mirrored ones (columns after ``i``, from later rows, in
-    increasing order); of the upper triangle first the mirrored ones (from earlier rows) and
-    then its own: either way the rows come out sorted.
+    A row of the lower triangle is its own entries (columns up to ``i``) followed by the
+    mirrored ones (columns after ``i``); of the upper triangle first the mirrored ones, then its
+    own. The mirrored entries of row ``j`` are the entries ``(i, j)``, ``i != j``, of the other
+    rows, found by visiting those rows in increasing order, so they come out sorted.
     """
     n = indptr.size - 1
-    position = out_indptr[:-1].copy()
-    for i in range(n):
-        for q in range(indptr[i], indptr[i + 1]):
+    position = np.empty(last - first, dtype=out_indptr.dtype)
+    for i in range(first, last):
+        own = indptr[i + 1] - indptr[i]
+        start = out_indptr[i] if lower else out_indptr[i + 1] - own
+        for k in range(own):
+            out_indices[start + k] = indices[indptr[i] + k]
+            out_data[start + k] = data[indptr[i] + k]
+        position[i - first] = out_indptr[i] + own if lower else out_indptr[i]
+    # the rows that hold entries of columns first .. last - 1 off the diagonal
+    rows_from, rows_to = (first, n) if lower else (0, last)
+    for i in range(rows_from, rows_to):
+        row = indices[indptr[i] : indptr[i + 1]]
+        # the columns first .. last - 1 of the row (sorted)
+        for q in range(indptr[i] + np.searchsorted(row, first), indptr[i + 1]):
             j = indices[q]
-            value = data[q]
-            p = position[i]
-            out_indices[p] = j
-            out_data[p] = value
-            position[i] = p + 1
+            if j >= last:
+                break
             if j != i:
-                p = position[j]
+                p = position[j - first]
                 out_indices[p] = i
-                out_data[p] = value
-                position[j] = p + 1
+                out_data[p] = data[q]
+                position[j - first] = p + 1
+
+
+@numba.njit(cache=True, nogil=True, parallel=True)
+def mirror_parallel(
+    indptr, indices, data, out_indptr, out_indices, out_data, lower, parts
+):  # pragma: no cover - compiled
+    """:func:`mirror_rows` of all rows in ``parts`` contiguous ranges on Numba's threads."""
+    n = indptr.size - 1
+    for part in numba.prange(parts):
+        mirror_rows(
+            indptr,
+            indices,
+            data,
+            out_indptr,
+            out_indices,
+            out_data,
+            lower,
+            n * part // parts,
+            n * (part + 1) // parts,
+        )
+
+
+@numba.njit(cache=True, nogil=True, parallel=True)
+def transpose_gap_parallel(indptr, indices, data, parts):  # pragma: no cover - compiled
+    """``max |A - A^T|`` of a canonical square CSR matrix (NaN if a difference is NaN), the rows
+    shared out to Numba's threads in ``parts`` contiguous ranges (:func:`rows_gap` each)."""
+    n = indptr.size - 1
+    gaps = np.zeros(parts)
+    for part in numba.prange(parts):
+        gaps[part] = rows_gap(indptr, indices, data, n * part // parts, n * (part + 1) // parts)
+    gap = 0.0
+    for part in range(parts):
+        if gaps[part] != gaps[part]:
+            return gaps[part]
+        if gaps[part] > gap:
+            gap = gaps[part]
+    return gap
 
 
 @numba.njit(cache=True, nogil=True)
-def transpose_gap(indptr, indices, data):  # pragma: no cover - compiled
-    """``max |A - A^T|`` of a canonical square CSR matrix (NaN if a difference is NaN).
+def rows_gap(indptr, indices, data, first, last):  # pragma: no cover - compiled
+    """``max |a_ij - a_ji|`` over the entries ``(i, j)`` of rows ``first .. last - 1``.
 
     Entry ``(i, j)`` is compared with ``(j, i)`` (or zero where there is none). Row ``j`` is
     searched with a cursor of its own: the rows ``i`` that look into it come in increasing
     order, and so do the columns ``i`` sought there, so each cursor only moves forward and the
     whole comparison is one pass over the entries.
     """
-    n = indptr.size - 1
     cursor = indptr[:-1].copy()
     gap = 0.0
-    for i in range(n):
+    for i in range(first, last):
         for q in range(indptr[i], indptr[i + 1]):
             j = indices[q]
             p = cursor[j]

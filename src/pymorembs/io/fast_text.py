@@ -597,8 +597,9 @@ COMPILED_FROM_ENTRIES = 1 << 20
 
 def full_from_triangle(stored: sp.csr_matrix) -> sp.csr_matrix | None:
     """The full symmetric matrix of a canonical CSR matrix holding one triangle (either), by the
-    compiled kernels in one pass: row ``i`` is row ``i`` of the lower triangle followed by row
-    ``i`` of the upper one without its diagonal entry; explicit zeros are kept.
+    compiled kernels (on the solver threads from the main thread): row ``i`` is row ``i`` of
+    the lower triangle followed by row ``i`` of the upper one without its diagonal entry;
+    explicit zeros are kept.
 
     Returns None without Numba or, unless the kernels are loaded already, below
     :data:`COMPILED_FROM_ENTRIES` entries (the caller then uses its NumPy path).
@@ -618,15 +619,18 @@ def full_from_triangle(stored: sp.csr_matrix) -> sp.csr_matrix | None:
         return None
     n = stored.shape[0]
     counts = np.zeros(n + 1, dtype=np.int64)
-    kernels.mirror_counts(stored.indptr, stored.indices, counts)
+    lower = kernels.mirror_counts(stored.indptr, stored.indices, counts)
     total = int(counts[-1])
     index = stored.indices.dtype if total < 2**31 - 1 else np.dtype(np.int64)
     indptr = counts.astype(index, copy=False)
     del counts
     indices = np.empty(total, dtype=index)
     data = np.empty(total, dtype=stored.data.dtype)
-    kernels.mirror_fill(
-        stored.indptr, stored.indices.astype(index, copy=False), stored.data, indptr, indices, data
+    arrays = (stored.indptr, stored.indices.astype(index, copy=False), stored.data)
+    _on_threads(
+        lambda: kernels.mirror_rows(*arrays, indptr, indices, data, lower, 0, n),
+        lambda parts: kernels.mirror_parallel(*arrays, indptr, indices, data, lower, parts),
+        n,
     )
     full = sp.csr_matrix((data, indices, indptr), shape=(n, n), copy=False)
     full.has_sorted_indices = True
@@ -636,8 +640,10 @@ def full_from_triangle(stored: sp.csr_matrix) -> sp.csr_matrix | None:
 
 def transpose_gap(a: sp.csr_matrix) -> float | None:
     """``max |A - A^T|`` of a canonical square CSR matrix (NaN if it holds NaN) by the compiled
-    kernel, in one pass without forming ``A^T``; None without Numba, if ``a`` is not canonical
-    or, unless the kernels are loaded already, below :data:`COMPILED_FROM_ENTRIES` entries.
+    kernel, in one pass without forming ``A^T`` (on the solver threads from the main thread).
+
+    None without Numba, if ``a`` is not canonical or, unless the kernels are loaded already,
+    below :data:`COMPILED_FROM_ENTRIES` entries.
 
     Parameters
     ----------
@@ -652,7 +658,31 @@ def transpose_gap(a: sp.csr_matrix) -> float | None:
     kernels = _kernels() if a.nnz >= COMPILED_FROM_ENTRIES or _loaded() else None
     if kernels is None:
         return None
-    return float(kernels.transpose_gap(a.indptr, a.indices, a.data))
+    arrays = (a.indptr, a.indices, a.data)
+    gap = _on_threads(
+        lambda: kernels.rows_gap(*arrays, 0, a.shape[0]),
+        lambda parts: kernels.transpose_gap_parallel(*arrays, parts),
+        a.shape[0],
+    )
+    return float(gap)
+
+
+def _on_threads(serial, parallel, rows: int):
+    """``parallel(parts)`` on the solver threads from the main thread, else ``serial()`` (Numba's
+    default threading layer must not be entered from two threads at once)."""
+    import numba  # installed: the kernels are
+
+    from pymorembs.linalg.backends import solver_threads
+
+    parts = min(solver_threads(), numba.config.NUMBA_NUM_THREADS, rows)
+    if parts < 2 or threading.current_thread() is not threading.main_thread():
+        return serial()
+    previous = numba.get_num_threads()
+    numba.set_num_threads(parts)
+    try:
+        return parallel(parts)
+    finally:
+        numba.set_num_threads(previous)
 
 
 def all_distinct(keys: np.ndarray) -> bool:
