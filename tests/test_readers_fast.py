@@ -582,3 +582,31 @@ def test_compiled_transpose_gap(monkeypatch) -> None:
     assert np.isnan(fast_text.transpose_gap(b))
     unsorted = sp.csr_matrix((np.ones(2), np.array([1, 0]), np.array([0, 2, 2])), shape=(2, 2))
     assert fast_text.transpose_gap(unsorted) is None
+
+
+def test_numpy_paths_give_the_compiled_results(tmp_path, monkeypatch) -> None:
+    """Without Numba (kernels switched off) a symmetric and a general file with an asymmetric
+    pattern read to the same matrices, and the symmetry test finds the same gap."""
+    rng = np.random.default_rng(8)
+    lower = _random_triangle(rng, 80, 0.2, True)
+    general = sp.random(80, 80, density=0.2, random_state=rng, format="csr")
+    general.sort_indices()
+    entries = sp.coo_matrix(lower)
+    lines = [
+        f"{i + 1} {j + 1} {v!r}\n"
+        for i, j, v in zip(entries.row, entries.col, entries.data.tolist(), strict=True)
+    ]
+    path = tmp_path / "s.mtx"
+    path.write_text(SYMMETRIC + f"80 80 {lower.nnz}\n" + "".join(lines))
+    monkeypatch.setattr(fast_text, "COMPILED_FROM_ENTRIES", 0)
+    monkeypatch.setattr(fast_text, "COMPILED_FROM_BYTES", 0)
+    results = []
+    for kernels in (fast_text._kernels, lambda required=False: None):
+        with monkeypatch.context() as patch:
+            patch.setattr(fast_text, "_kernels", kernels)
+            results.append((mm.read_matrix_market(path), mm._transpose_gap(general)))
+    (compiled, gap), (plain, plain_gap) = results
+    dense = lower.toarray()
+    assert np.array_equal(plain.toarray(), dense + dense.T - np.diag(np.diag(dense)))
+    assert same(compiled, plain)
+    assert gap == plain_gap == np.max(np.abs(general.toarray() - general.toarray().T))
