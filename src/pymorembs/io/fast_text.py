@@ -46,7 +46,7 @@ _CHUNK = 1 << 20
 #: Longest line accepted (a region with a longer line is refused: no number file has one).
 _LONGEST_LINE = 1 << 22
 #: Region bytes from which :meth:`PlainNumberScan.expect` chooses the compiled checks.
-COMPILED_FROM_BYTES = 1 << 26
+COMPILED_FROM_BYTES = 1 << 28
 #: Threads of :func:`count_plain_fields` that check chunks while the calling thread reads.
 _WORKERS = 2
 
@@ -586,13 +586,13 @@ class CheckedReader(io.RawIOBase):
         super().close()
 
 
-#: Chunks of a :class:`CheckedReader` that may wait for their check (a few MiB of memory).
-_PENDING_CHUNKS = 4
+#: Chunks of a :class:`CheckedReader` that may wait for their check (16 MiB of memory).
+_PENDING_CHUNKS = 16
 
 
 #: Stored entries from which :func:`full_from_triangle` and :func:`transpose_gap` use the
 #: compiled kernels (for fewer, loading them costs more than they save).
-COMPILED_FROM_ENTRIES = 1 << 20
+COMPILED_FROM_ENTRIES = 1 << 23
 
 
 def full_from_triangle(stored: sp.csr_matrix) -> sp.csr_matrix | None:
