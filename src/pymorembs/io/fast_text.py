@@ -206,10 +206,10 @@ def compiled_checks() -> bool:
 def _compiled_module():
     """The module of compiled checks, or None without Numba."""
     try:
-        from pymorembs.io import _compiled
+        from pymorembs.io import compiled_kernels
     except ImportError:
         return None
-    return _compiled
+    return compiled_kernels
 
 
 def _loaded() -> bool:
