@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import re
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -452,3 +453,160 @@ def test_lone_carriage_return_after_the_head_goes_to_the_strict_pass(tmp_path) -
 def test_carriage_returns_end_lines_or_fail_the_check(text, fields) -> None:
     assert fast_text.check_chunk(text, 3, 2) == fields
     assert fast_text.check_chunk(text) == (None if fields is None else fields)
+
+
+# ============================================================================ compiled checks
+needs_numba = pytest.mark.skipif(
+    not fast_text.compiled_checks(), reason="the compiled checks need Numba"
+)
+
+#: Bytes of the random chunks: digits (often), the other plain bytes and a few bad ones.
+_CHUNK_BYTES = st.sampled_from(
+    [b"0", b"1", b"7", b"9", b"0", b"3"] * 3
+    + [b".", b"e", b"E", b"+", b"-", b" ", b" ", b"\t", b"\r", b"\n", b"\n", b"\r\n"]
+    + [b"d", b",", b"\x00", b"%", b"\xc3", b"/", b":"]
+)
+
+
+@st.composite
+def number_chunks(draw) -> bytes:
+    """Framed chunks of random bytes; half of them well-formed lines with one random edit."""
+    if draw(st.booleans()):
+        body = b"".join(draw(st.lists(_CHUNK_BYTES, max_size=80)))
+    else:
+        fields = st.one_of(
+            st.integers(0, 10**6).map(str),
+            st.floats(allow_nan=False, allow_infinity=False).map(repr),
+            st.floats(allow_nan=False, allow_infinity=False).map("{:.6E}".format),
+        )
+        lines = draw(st.lists(st.lists(fields, min_size=1, max_size=4).map(" ".join), max_size=6))
+        body = "\n".join(lines).encode()
+        if body and draw(st.booleans()):
+            at = draw(st.integers(0, len(body)))
+            body = body[:at] + draw(_CHUNK_BYTES) + body[at:]
+    return b"\n" + body + b"\n"
+
+
+@needs_numba
+@settings(max_examples=1000, deadline=None)
+@given(
+    chunk=number_chunks(),
+    layout=st.sampled_from([(None, 0), (1, 0), (2, 1), (3, 0), (3, 1), (3, 2), (3, 3), (4, 2)]),
+)
+def test_compiled_check_equals_the_numpy_check(chunk, layout) -> None:
+    """The one-pass compiled check accepts exactly the bytes the vectorised check accepts and
+    counts the same fields, for every layout (the Matrix Market line (3, 2) has its own
+    table)."""
+    expected = fast_text.check_chunk_numpy(chunk, *layout)
+    assert fast_text.check_chunk(chunk, *layout, compiled=True) == expected
+
+
+@needs_numba
+@pytest.mark.parametrize(
+    ("chunk", "layout", "fields"),
+    [
+        (b"\n1 2 3.5\n\n4 5 -6e-7\n", (3, 2), 6),
+        (b"\n1 2 3.5\n4 5\n", (3, 2), None),  # a line of two fields
+        (b"\n1 2.0 3.5\n", (3, 2), None),  # a point in an integer field
+        (b"\n1 2 3.5\r4 5 6\n", (3, 2), None),  # a lone carriage return
+        (b"\n1 2 3.5\r\n4 5 6\r\n", (3, 2), 6),
+        (b"\n1 2 1.0.5\n", (None, 0), None),
+        (b"\n1 -2 +.5 7e+3\n", (None, 0), 4),
+        (b"\n1 -2 +.5 7e+3\n", (4, 1), 4),
+        (b"\n1 -2 +.5 7e+3\n", (4, 2), None),  # a sign in the second integer field
+        (b"\n" + b"9" * 5000 + b" 1\n", (2, 2), 2),  # long runs of digits
+        (b"\n" + b" " * 5000 + b"1 2\n", (2, 0), 2),  # and of blanks
+    ],
+)
+def test_compiled_check_of_known_chunks(chunk, layout, fields) -> None:
+    """Known answers, independent of either implementation."""
+    assert fast_text.check_chunk(chunk, *layout, compiled=True) == fields
+    assert fast_text.check_chunk_numpy(chunk, *layout) == fields
+
+
+def _random_triangle(rng, n: int, density: float, lower: bool) -> sp.csr_matrix:
+    """A random canonical triangle with explicit zeros and an empty row or two."""
+    a = sp.random(n, n, density=density, random_state=rng, format="coo")
+    keep = a.row >= a.col if lower else a.row <= a.col
+    a = sp.coo_matrix((a.data[keep], (a.row[keep], a.col[keep])), shape=(n, n)).tocsr()
+    a.sort_indices()
+    a.data[::5] = 0.0  # explicit zeros stay entries
+    return a
+
+
+@needs_numba
+@pytest.mark.parametrize("lower", [True, False])
+def test_compiled_mirror_of_a_triangle(monkeypatch, lower) -> None:
+    monkeypatch.setattr(fast_text, "COMPILED_FROM_ENTRIES", 0)
+    rng = np.random.default_rng(11)
+    for n in (1, 7, 60):
+        stored = _random_triangle(rng, n, 0.3, lower)
+        full = fast_text.full_from_triangle(stored)
+        dense = stored.toarray()
+        assert np.array_equal(full.toarray(), dense + dense.T - np.diag(np.diag(dense)))
+        # the pattern, explicit zeros included: each stored entry and its mirror image
+        pattern = sp.coo_matrix(stored)
+        off = pattern.row != pattern.col
+        expected = set(zip(pattern.row.tolist(), pattern.col.tolist(), strict=True)) | set(
+            zip(pattern.col[off].tolist(), pattern.row[off].tolist(), strict=True)
+        )
+        got = sp.coo_matrix(full)
+        assert set(zip(got.row.tolist(), got.col.tolist(), strict=True)) == expected
+        assert got.nnz == len(expected)
+        assert full.has_canonical_format
+        assert all(np.all(np.diff(full.indices[full.indptr[i] : full.indptr[i + 1]]) > 0)
+                   for i in range(n))  # fmt: skip
+        with monkeypatch.context() as patch:  # the NumPy path
+            patch.setattr(mm, "full_from_triangle", lambda stored: None)
+            assert same(mm._mirrored(stored, lower), full)
+        with ThreadPoolExecutor(1) as pool:  # off the main thread: the one-thread kernel
+            assert same(pool.submit(fast_text.full_from_triangle, stored).result(), full)
+
+
+@needs_numba
+def test_compiled_transpose_gap(monkeypatch) -> None:
+    monkeypatch.setattr(fast_text, "COMPILED_FROM_ENTRIES", 0)
+    rng = np.random.default_rng(3)
+    for n, density in ((1, 1.0), (9, 0.4), (50, 0.1), (50, 0.6)):
+        a = sp.random(n, n, density=density, random_state=rng, format="csr")
+        a.sort_indices()
+        for matrix in (a, a + a.T, (a + a.T).tolil()):
+            matrix = sp.csr_matrix(matrix)
+            matrix.sum_duplicates()
+            dense = matrix.toarray()
+            expected = np.max(np.abs(dense - dense.T))
+            assert fast_text.transpose_gap(matrix) == expected
+            with ThreadPoolExecutor(1) as pool:  # off the main thread: the one-thread kernel
+                assert pool.submit(fast_text.transpose_gap, matrix).result() == expected
+    b = sp.csr_matrix(np.array([[1.0, 2.0], [2.0, np.nan]]))
+    assert np.isnan(fast_text.transpose_gap(b))
+    unsorted = sp.csr_matrix((np.ones(2), np.array([1, 0]), np.array([0, 2, 2])), shape=(2, 2))
+    assert fast_text.transpose_gap(unsorted) is None
+
+
+def test_numpy_paths_give_the_compiled_results(tmp_path, monkeypatch) -> None:
+    """Without Numba (kernels switched off) a symmetric and a general file with an asymmetric
+    pattern read to the same matrices, and the symmetry test finds the same gap."""
+    rng = np.random.default_rng(8)
+    lower = _random_triangle(rng, 80, 0.2, True)
+    general = sp.random(80, 80, density=0.2, random_state=rng, format="csr")
+    general.sort_indices()
+    entries = sp.coo_matrix(lower)
+    lines = [
+        f"{i + 1} {j + 1} {v!r}\n"
+        for i, j, v in zip(entries.row, entries.col, entries.data.tolist(), strict=True)
+    ]
+    path = tmp_path / "s.mtx"
+    path.write_text(SYMMETRIC + f"80 80 {lower.nnz}\n" + "".join(lines))
+    monkeypatch.setattr(fast_text, "COMPILED_FROM_ENTRIES", 0)
+    monkeypatch.setattr(fast_text, "COMPILED_FROM_BYTES", 0)
+    results = []
+    for kernels in (fast_text._kernels, lambda required=False: None):
+        with monkeypatch.context() as patch:
+            patch.setattr(fast_text, "_kernels", kernels)
+            results.append((mm.read_matrix_market(path), mm._transpose_gap(general)))
+    (compiled, gap), (plain, plain_gap) = results
+    dense = lower.toarray()
+    assert np.array_equal(plain.toarray(), dense + dense.T - np.diag(np.diag(dense)))
+    assert same(compiled, plain)
+    assert gap == plain_gap == np.max(np.abs(general.toarray() - general.toarray().T))

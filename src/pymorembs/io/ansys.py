@@ -51,6 +51,7 @@ from pymorembs.body import DIRECTIONS, DofTable, ElasticBody
 from pymorembs.errors import UserError, located_error
 from pymorembs.io.ansys_cdb import AnsysArchive, cdb_solid_blocks, looks_like_cdb, read_cdb
 from pymorembs.io.checks import make_body, reason
+from pymorembs.io.fast_text import all_distinct
 from pymorembs.io.matrix_market import (
     check_symmetric,
     parse_int,
@@ -1018,7 +1019,7 @@ def _read_mapping_fast(path: Path) -> DofTable | None:
     order = np.empty(n, dtype=np.int64)
     order[equation - 1] = np.arange(n)
     node, code = node[order], code[order]
-    if np.unique(node * 8 + code).size != n:
+    if not all_distinct(node * 8 + code):
         return None  # a (node, dof) twice
     return DofTable(node, code)
 

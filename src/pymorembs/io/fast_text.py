@@ -14,6 +14,7 @@ on the bytes while a parser reads them, so that a large file is read from disk o
 
 from __future__ import annotations
 
+import functools
 import io
 import os
 import threading
@@ -27,8 +28,14 @@ __all__ = [
     "PLAIN_NUMBER_BYTES",
     "CheckedReader",
     "PlainNumberScan",
+    "all_distinct",
+    "check_chunk",
+    "check_chunk_numpy",
+    "compiled_checks",
     "count_plain_fields",
     "csr_from_sorted_coo",
+    "full_from_triangle",
+    "transpose_gap",
 ]
 
 #: The bytes of plain decimal numbers (``-1.5e+03``) and of the white space between them.
@@ -38,6 +45,8 @@ PLAIN_NUMBER_BYTES = b"0123456789.eE+- \t\r\n"
 _CHUNK = 1 << 20
 #: Longest line accepted (a region with a longer line is refused: no number file has one).
 _LONGEST_LINE = 1 << 22
+#: Region bytes from which :meth:`PlainNumberScan.expect` chooses the compiled checks.
+COMPILED_FROM_BYTES = 1 << 28
 #: Threads of :func:`count_plain_fields` that check chunks while the calling thread reads.
 _WORKERS = 2
 
@@ -83,6 +92,7 @@ class PlainNumberScan:
     def __init__(self, fields_per_line: int | None = None, integer_fields: int = 0) -> None:
         self.fields_per_line = fields_per_line
         self.integer_fields = integer_fields if fields_per_line else 0
+        self.compiled: bool | None = False
         self._fields: int | None = 0
         self._tail = b""
         self._done = False
@@ -92,12 +102,22 @@ class PlainNumberScan:
         """Fields (maximal runs of non-white-space bytes) so far, or None if a check failed."""
         return self._fields
 
+    def expect(self, size: int) -> None:
+        """Choose the checks for a region of ``size`` bytes: the compiled ones (when Numba is
+        installed) from :data:`COMPILED_FROM_BYTES` on or once they are loaded, else NumPy's
+        (for a small region, loading the compiled code costs more than it saves)."""
+        self.compiled = None if size >= COMPILED_FROM_BYTES or _loaded() else False
+
+    def check(self, chunk: bytes | bytearray | memoryview) -> int | None:
+        """:func:`check_chunk` of a chunk from :meth:`split` with this scan's rules."""
+        return check_chunk(chunk, self.fields_per_line, self.integer_fields, compiled=self.compiled)
+
     def feed(self, data: bytes | bytearray | memoryview) -> bool:
         """Check the complete lines of ``data`` (the rest waits for the next chunk); False once
         a check has failed."""
         chunk = self.split(data)
         if chunk is not None:
-            self.add(check_chunk(chunk, self.fields_per_line, self.integer_fields))
+            self.add(self.check(chunk))
         return self._fields is not None
 
     def finish(self) -> int | None:
@@ -106,7 +126,7 @@ class PlainNumberScan:
             self._done = True
             if self._tail and self._fields is not None:
                 chunk = b"\n" + self._tail + b"\n"
-                self.add(check_chunk(chunk, self.fields_per_line, self.integer_fields))
+                self.add(self.check(chunk))
             self._tail = b""
         return self._fields
 
@@ -135,12 +155,84 @@ class PlainNumberScan:
 
 
 def check_chunk(
-    chunk: bytes, fields_per_line: int | None = None, integer_fields: int = 0
+    chunk: bytes | bytearray | memoryview,
+    fields_per_line: int | None = None,
+    integer_fields: int = 0,
+    *,
+    compiled: bool | None = None,
 ) -> int | None:
     """Fields of a chunk of whole lines, or None if it fails a check of :class:`PlainNumberScan`.
 
-    ``chunk`` must start and end with a line feed (the frame is not part of the region). The
-    checks run on the bytes that are not digits (white space, signs, points, exponent letters:
+    ``chunk`` must start and end with a line feed (the frame is not part of the region).
+
+    Parameters
+    ----------
+    chunk : bytes-like
+        The lines, framed by line feeds.
+    fields_per_line, integer_fields : int, optional
+        See :class:`PlainNumberScan`.
+    compiled : bool, optional
+        True: the compiled one-pass check (Numba; ``ImportError`` without it); False: the
+        vectorised NumPy check :func:`check_chunk_numpy`; None (default): the compiled check
+        when Numba is installed. Both accept exactly the same bytes.
+
+    Returns
+    -------
+    int or None
+        Fields (maximal runs of non-white-space bytes), or None if a check fails.
+    """
+    kernels = _kernels() if compiled is None else (_kernels(required=True) if compiled else None)
+    if kernels is None:
+        return check_chunk_numpy(chunk, fields_per_line, integer_fields)
+    k = int(fields_per_line or 0)
+    lines = (fields_per_line, integer_fields) == _MATRIX_MARKET_LINE
+    fields = kernels.plain_number_fields(
+        np.frombuffer(chunk, dtype=np.uint8),
+        k,
+        int(integer_fields) if k else 0,
+        lines,
+        _CLASS_TABLE,
+        _BAD_IN_LINE if lines else _BAD_TRIPLE,
+    )
+    return None if fields < 0 else int(fields)
+
+
+def compiled_checks() -> bool:
+    """Whether the compiled byte checks can be used (Numba is installed)."""
+    return _kernels() is not None
+
+
+@functools.cache
+def _compiled_module():
+    """The module of compiled checks, or None without Numba."""
+    try:
+        from pymorembs.io import compiled_kernels
+    except ImportError:
+        return None
+    return compiled_kernels
+
+
+def _loaded() -> bool:
+    """Whether the compiled kernels were loaded already (then they cost nothing more)."""
+    return _compiled_module.cache_info().currsize > 0 and _compiled_module() is not None
+
+
+def _kernels(required: bool = False):
+    """:func:`_compiled_module`; with ``required`` an ``ImportError`` if there is none."""
+    kernels = _compiled_module()
+    if kernels is None and required:
+        raise ImportError("the compiled byte checks need Numba (pip install numba)")
+    return kernels
+
+
+def check_chunk_numpy(
+    chunk: bytes | bytearray | memoryview,
+    fields_per_line: int | None = None,
+    integer_fields: int = 0,
+) -> int | None:
+    """:func:`check_chunk` with NumPy's vectorised operations (no compiled code).
+
+    The checks run on the bytes that are not digits (white space, signs, points, exponent letters:
     a sixth of a typical file), the *entries*, in file order, each with one flag: whether digits
     follow it. A run of white entries without digits between them is one separator (a line end
     if it holds a line feed; a carriage return must be part of a line end, as strict parsers
@@ -320,6 +412,8 @@ def _bad_in_line(a: int, b: int, c: int) -> bool:
 _BAD_IN_LINE = np.array(
     [_bad_in_line(t >> 8, (t >> 4) & 15, t & 15) for t in range(1 << 12)], dtype=bool
 )
+#: :data:`_CLASS_OF_BYTE` as an array, for the compiled check.
+_CLASS_TABLE = np.frombuffer(_CLASS_OF_BYTE, dtype=np.uint8)
 
 
 _SCRATCH = threading.local()
@@ -367,7 +461,9 @@ def count_plain_fields(
     """
     scan = PlainNumberScan(fields_per_line, integer_fields)
     try:
-        small = os.path.getsize(path) - offset <= _CHUNK
+        region = os.path.getsize(path) - offset
+        scan.expect(region)
+        small = region <= _CHUNK
         if small:  # one chunk: checked here, without threads
             with open(path, "rb") as stream:
                 stream.seek(offset)
@@ -388,9 +484,7 @@ def count_plain_fields(
                     if scan.fields is None:
                         return None
                     continue
-                pending.append(
-                    workers.submit(check_chunk, chunk, fields_per_line, scan.integer_fields)
-                )
+                pending.append(workers.submit(scan.check, chunk))
                 while len(pending) > _WORKERS or (pending and pending[0].done()):
                     scan.add(pending.popleft().result())
                 if scan.fields is None:
@@ -442,6 +536,7 @@ class CheckedReader(io.RawIOBase):
         self._eof = False
         self._pending: deque[Future[int | None]] = deque()
         self._worker = ThreadPoolExecutor(1)  # shut down in close()
+        scan.expect(os.fstat(self._file.fileno()).st_size - offset)
 
     def readable(self) -> bool:
         return True
@@ -468,12 +563,7 @@ class CheckedReader(io.RawIOBase):
         elif skip < size:
             chunk = self._scan.split(view[skip:size])
             if chunk is not None:
-                scan = self._scan
-                self._pending.append(
-                    self._worker.submit(
-                        check_chunk, chunk, scan.fields_per_line, scan.integer_fields
-                    )
-                )
+                self._pending.append(self._worker.submit(self._scan.check, chunk))
         if self._scan.fields is None:
             raise ValueError("the bytes fail the plain-number checks")
         return size
@@ -496,8 +586,119 @@ class CheckedReader(io.RawIOBase):
         super().close()
 
 
-#: Chunks of a :class:`CheckedReader` that may wait for their check (a few MiB of memory).
-_PENDING_CHUNKS = 4
+#: Chunks of a :class:`CheckedReader` that may wait for their check (16 MiB of memory).
+_PENDING_CHUNKS = 16
+
+
+#: Stored entries from which :func:`full_from_triangle` and :func:`transpose_gap` use the
+#: compiled kernels (for fewer, loading them costs more than they save).
+COMPILED_FROM_ENTRIES = 1 << 23
+
+
+def full_from_triangle(stored: sp.csr_matrix) -> sp.csr_matrix | None:
+    """The full symmetric matrix of a canonical CSR matrix holding one triangle (either), by the
+    compiled kernels (on the solver threads from the main thread): row ``i`` is row ``i`` of
+    the lower triangle followed by row ``i`` of the upper one without its diagonal entry;
+    explicit zeros are kept.
+
+    Returns None without Numba or, unless the kernels are loaded already, below
+    :data:`COMPILED_FROM_ENTRIES` entries (the caller then uses its NumPy path).
+
+    Parameters
+    ----------
+    stored : scipy.sparse.csr_matrix, shape (n, n)
+        Canonical (sorted, no duplicates), entries on one side of the diagonal only.
+
+    Returns
+    -------
+    scipy.sparse.csr_matrix or None
+        Canonical, shape (n, n).
+    """
+    kernels = _kernels() if stored.nnz >= COMPILED_FROM_ENTRIES or _loaded() else None
+    if kernels is None:
+        return None
+    n = stored.shape[0]
+    counts = np.zeros(n + 1, dtype=np.int64)
+    lower = kernels.mirror_counts(stored.indptr, stored.indices, counts)
+    total = int(counts[-1])
+    index = stored.indices.dtype if total < 2**31 - 1 else np.dtype(np.int64)
+    indptr = counts.astype(index, copy=False)
+    del counts
+    indices = np.empty(total, dtype=index)
+    data = np.empty(total, dtype=stored.data.dtype)
+    arrays = (stored.indptr, stored.indices.astype(index, copy=False), stored.data)
+    _on_threads(
+        lambda: kernels.mirror_rows(*arrays, indptr, indices, data, lower, 0, n),
+        lambda parts: kernels.mirror_parallel(*arrays, indptr, indices, data, lower, parts),
+        n,
+    )
+    full = sp.csr_matrix((data, indices, indptr), shape=(n, n), copy=False)
+    full.has_sorted_indices = True
+    full.has_canonical_format = True
+    return full
+
+
+def transpose_gap(a: sp.csr_matrix) -> float | None:
+    """``max |A - A^T|`` of a canonical square CSR matrix (NaN if it holds NaN) by the compiled
+    kernel, in one pass without forming ``A^T`` (on the solver threads from the main thread).
+
+    None without Numba, if ``a`` is not canonical or, unless the kernels are loaded already,
+    below :data:`COMPILED_FROM_ENTRIES` entries.
+
+    Parameters
+    ----------
+    a : scipy.sparse.csr_matrix, shape (n, n)
+
+    Returns
+    -------
+    float or None
+    """
+    if not a.has_canonical_format or a.shape[0] != a.shape[1]:
+        return None
+    kernels = _kernels() if a.nnz >= COMPILED_FROM_ENTRIES or _loaded() else None
+    if kernels is None:
+        return None
+    arrays = (a.indptr, a.indices, a.data)
+    gap = _on_threads(
+        lambda: kernels.rows_gap(*arrays, 0, a.shape[0]),
+        lambda parts: kernels.transpose_gap_parallel(*arrays, parts),
+        a.shape[0],
+    )
+    return float(gap)
+
+
+def _on_threads(serial, parallel, rows: int):
+    """``parallel(parts)`` on the solver threads from the main thread, else ``serial()`` (Numba's
+    default threading layer must not be entered from two threads at once)."""
+    import numba  # installed: the kernels are
+
+    from pymorembs.linalg.backends import solver_threads
+
+    parts = min(solver_threads(), numba.config.NUMBA_NUM_THREADS, rows)
+    if parts < 2 or threading.current_thread() is not threading.main_thread():
+        return serial()
+    previous = numba.get_num_threads()
+    numba.set_num_threads(parts)
+    try:
+        return parallel(parts)
+    finally:
+        numba.set_num_threads(previous)
+
+
+def all_distinct(keys: np.ndarray) -> bool:
+    """Whether no value of a 1-D array occurs twice (by one sort: NumPy's hash-based
+    ``unique`` is many times slower on integer keys that are all distinct).
+
+    Parameters
+    ----------
+    keys : ndarray, shape (k,)
+
+    Returns
+    -------
+    bool
+    """
+    ordered = np.sort(keys)
+    return not bool(np.any(ordered[1:] == ordered[:-1]))
 
 
 def csr_from_sorted_coo(

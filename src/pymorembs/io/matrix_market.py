@@ -69,7 +69,14 @@ import scipy.sparse as sp
 from pymorembs.body import DIRECTIONS, ConstraintEquations, DofTable, ElasticBody, direction_code
 from pymorembs.errors import UserError, located_error
 from pymorembs.io.atomic import atomic_open, write_text
-from pymorembs.io.fast_text import CheckedReader, PlainNumberScan, csr_from_sorted_coo
+from pymorembs.io.fast_text import (
+    CheckedReader,
+    PlainNumberScan,
+    all_distinct,
+    csr_from_sorted_coo,
+    full_from_triangle,
+    transpose_gap,
+)
 
 __all__ = [
     "FILE_NAMES",
@@ -627,7 +634,11 @@ def _mirrored(stored: sp.csr_matrix, lower_stored: bool) -> sp.csr_matrix:
     upper triangle without its diagonal entry; one of the two triangles is ``stored``, the other
     its transpose (one conversion in C, sorted). The rows are placed in blocks, so that no
     temporary of the size of the matrix is made besides the transpose; explicit zeros are kept.
+    With Numba, :func:`~pymorembs.io.fast_text.full_from_triangle` does it in one pass.
     """
+    full = full_from_triangle(stored)
+    if full is not None:
+        return full
     n = stored.shape[0]
     other = stored.T.tocsr()  # csr_tocsc: sorted rows
     lower, upper = (stored, other) if lower_stored else (other, stored)
@@ -718,7 +729,8 @@ def check_symmetric(
     if a.shape[0] != a.shape[1]:
         raise UserError(f"{where}: matrix is {a.shape[0]} x {a.shape[1]}, not square")
     gap = _transpose_gap(a)
-    if gap is not None and gap <= tolerance * (float(np.max(np.abs(a.data))) if a.nnz else 0.0):
+    largest = max(-float(np.min(a.data)), float(np.max(a.data))) if a.nnz else 0.0  # no |A| copy
+    if gap is not None and gap <= tolerance * largest:
         return
     if gap is None and _exactly_symmetric(a):
         return
@@ -755,6 +767,9 @@ def _transpose_gap(a: sp.csr_matrix) -> float | None:
     """
     if not a.has_canonical_format:
         return None
+    gap = transpose_gap(a)  # compiled, one pass (None without Numba)
+    if gap is not None:
+        return gap
     t = a.T.tocsr()
     t.sort_indices()
     gap = np.float64(0.0)
@@ -1171,7 +1186,7 @@ def _plain_nodes(ids: np.ndarray) -> bool:
 
 
 def _distinct(keys: np.ndarray) -> bool:
-    return np.unique(keys).size == keys.size
+    return all_distinct(keys)
 
 
 def _dof_indices(table: DofTable, nodes: np.ndarray, names: np.ndarray) -> np.ndarray | None:

@@ -10,7 +10,7 @@ Here every term is computed exactly as an unevaluated sum ``hi + lo`` of two dou
 and the row sums are carried in double-double: the product of a double matrix with a double
 block is as accurate as if it had been summed in twice the working precision (relative to the
 terms ~1e-30 instead of ~1e-19 for ``longdouble``). The kernel is compiled by
-Numba (``pip install pymorembs[fast]``) and runs on the PARDISO threads
+Numba (a dependency of pymorembs) and runs on the PARDISO threads
 (:func:`~pymorembs.linalg.backends.solver_threads`) from the main thread, on one thread
 elsewhere (worker threads; Numba's default threading layer must not be entered twice at once).
 
@@ -113,7 +113,7 @@ def _operands(
 ) -> tuple[sp.csr_matrix, np.ndarray, tuple[int, ...]]:
     """Real CSR matrix, contiguous 2-D float64 block, and the shape of the result."""
     if _kernels() is None:
-        raise RuntimeError("the compiled kernels need Numba (pip install 'pymorembs[fast]')")
+        raise RuntimeError("the compiled kernels need Numba (pip install numba)")
     csr = _canonical(matrix)
     x = np.asarray(block)
     if x.shape[0] != csr.shape[1]:
