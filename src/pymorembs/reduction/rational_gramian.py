@@ -77,7 +77,8 @@ What is exact and what is approximate
   good, the interpolation is then not exact.
 * Approximate: ``V X_P V^T ~ P_p^w``. There is no computable bound on the distance to the true
   Gramian; the stopping rule measures the change between iterations and ``rho`` the residual
-  of the integrand, both indicators. On the test models (tests/reduction/test_rational_gramian.py) with
+  of the integrand, both indicators. On the test models
+  (tests/reduction/test_rational_gramian.py) with
   ``tol = 1e-10`` the trace agrees with that of the dense Gramians of the full model to
   ``1e-9`` (relative), the leading ``sigma_i`` to ``1e-9 sigma_1``, the matrices entrywise to
   ``1e-7``; with ``tol = 1e-3`` the ``sigma_i`` are off by ``1e-12 .. 1e-2`` of ``sigma_1``.
