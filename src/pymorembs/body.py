@@ -19,6 +19,7 @@ Units are those of the FE model (the rack examples use SI: m, kg, s, N).
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import Literal
@@ -635,6 +636,13 @@ class ElasticBody:
     def translated(self, origin: np.ndarray) -> ElasticBody:
         """The same body with coordinates measured from ``origin`` (shape (3,))."""
         return replace(self, coordinates=self.coordinates - np.asarray(origin, dtype=float))
+
+    def with_notes(self, *notes: str) -> ElasticBody:
+        """The same body with more notes (nothing else changes, so nothing is checked again:
+        the checks of a large body cost more than reading a note)."""
+        out = copy.copy(self)
+        object.__setattr__(out, "notes", (*self.notes, *(str(note) for note in notes)))
+        return out
 
     def with_fixed(self, indices: np.ndarray) -> ElasticBody:
         """The body with further fixed dofs (eq. 10)."""

@@ -561,7 +561,7 @@ def _matrix_input_body(
         )
     proof = f"node labels = the labels of {scope.describe()}; verified by the rigid-body check "
     proof += f"(max residual {worst:.0e})"
-    return release_penalties(replace(body, notes=(*body.notes, proof)))
+    return release_penalties(body.with_notes(proof))
 
 
 def _coordinate_body(

@@ -56,7 +56,6 @@ from __future__ import annotations
 import os
 import re
 import warnings
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -186,7 +185,7 @@ def read_abaqus_substructure(
     if finite.size:
         which = "six rigid-body motions" if has_coordinates else "three rigid translations"
         check = f"rigid-body check of the {which}: max residual {finite.max():.0e}"
-        body = replace(body, notes=(*body.notes, check))
+        body = body.with_notes(check)
     return body
 
 

@@ -41,7 +41,7 @@ from __future__ import annotations
 import io
 import os
 import warnings
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -1158,7 +1158,7 @@ def _with_mesh(body: ElasticBody, geometry: _Geometry) -> ElasticBody:
 
 def _with_note(body: ElasticBody, note: str) -> ElasticBody:
     """The body with one more note."""
-    return replace(body, notes=(*body.notes, note))
+    return body.with_notes(note)
 
 
 # ============================================================================ shared helpers

@@ -624,7 +624,7 @@ def _body(
                 "or the dof order do not belong to the matrices"
             )
             text = f"rigid-body check (max |K r|/(|K| |r|) of 6 fields) {worst:.1e}, {verdict}"
-            body = replace(body, notes=(*body.notes, text))
+            body = body.with_notes(text)
     return body
 
 
