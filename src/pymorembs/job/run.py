@@ -459,84 +459,20 @@ def _run_job(
     parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=parent))
     try:
-        entries, errors, estimates, decay, models = [], {}, {}, {}, {}
-        outputs = job.export.outputs
         nodes = export_nodes(job)
         reduced_runs = []
         for spec in job.reductions:
             stage(f"reduction '{spec.name}' ({spec.method})", f"reduction '{spec.name}'")
             reduced_runs.append(_reduce_one(prepared, spec, job.band_hz, reference))
-        settled = -1
-        while settled != int(np.count_nonzero(reference.exact)):
-            # every reduction judged against the same reference, after all of its checks
-            settled = int(np.count_nonzero(reference.exact))
-            all_eps = [
-                _checked_errors(spec, reference, response)
-                for spec, (_, response, _) in zip(job.reductions, reduced_runs, strict=True)
-            ]
+        results = _judged(job, prepared, reference, reduced_runs, staging, nodes, warnings, say)
+        entries, errors, estimates, decay, models = results
         timings["reference_s"] = reference.seconds
-        ports, inertia = error_blocks(system)
-        for spec, (model, response, elapsed), eps in zip(
-            job.reductions, reduced_runs, all_eps, strict=True
-        ):
-            if inertia is not None:  # eq. 27 over the ports, and over the inertia loads
-                eps_inertia = relative_error(reference.response, response, inertia)
-                eps = relative_error(reference.response, response, ports)
-            else:
-                eps_inertia = None
-            entry = _write_one(
-                prepared, spec, model, (eps, eps_inertia), elapsed, reference, staging, outputs,
-                nodes,
-            )  # fmt: skip
-            projection = model.projection
-            models[spec.name] = model
-            if projection.error_curve is not None:
-                estimates[spec.name] = projection.error_curve
-            for key, label in DECAY_SERIES:
-                values = np.asarray(projection.parameters.get(key, []), dtype=float)
-                if values.size and not any(np.array_equal(values, v) for v in decay.values()):
-                    decay[f"{spec.name}: {label}"] = values
-            if spec.method == "krylov" and spec.order is not None and entry["order"] < spec.order:
-                warnings.append(
-                    f"reduction '{spec.name}': order {entry['order']} instead of {spec.order}: "
-                    "the Krylov space is exhausted (the reduced model is exact for these ports)"
-                )
-                say(f"warning: {warnings[-1]}")
-            missing = inertia_warning(spec.name, eps, eps_inertia)
-            if missing:
-                warnings.append(missing)
-                say(f"warning: {missing}")
-            entries.append(entry)
-            errors[spec.name] = eps
-            if eps_inertia is not None:
-                errors[f"{spec.name} (inertia loads)"] = eps_inertia
         computed = [f for e in entries for f in e["eigenfrequencies_hz"]]
         for warning in frequency_warnings(units, job.band_hz, np.asarray(computed)):
             warnings.append(warning)
             say(f"warning: {warning}")
-        plot_relative_errors(
-            frequencies,
-            errors,
-            staging / "error.png",
-            title=job.title or "Relative error of the reduced models",
-            estimates=estimates,
-            **_reference_marks(reference),
-        )
+        figures = [_error_figure(job, prepared, reference, errors, estimates, staging)]
         overview = ["summary.json", "error.png"]
-        caption = "Relative error ε(f) of eq. 27 of every reduction"
-        if prepared.inertia is not None:
-            caption += (
-                " over the ports, and '(inertia loads)' over the inertia loads of the frame motion"
-            )
-        if reference.kind == "surrogate":
-            caption += (
-                f" against a reference model of order {reference.parameters['order']}, "
-                "checked against the full model at the black-edged points (its measured "
-                "deviation: dotted)"
-            )
-        if estimates:
-            caption += "; dashed: the error estimators"
-        figures = [(staging / "error.png", caption)]
         if decay:
             plot_decay(decay, staging / "decay.png")
             overview.append("decay.png")
@@ -552,13 +488,7 @@ def _run_job(
             timings["time_domain_s"] = time.perf_counter() - tick
             overview.append("time.png")
             figures.append((staging / "time.png", "Time responses (paper Fig. 12)"))
-            for entry in entries:
-                entry["time_domain"] = {
-                    case["name"]: row
-                    for case in time_domain["cases"]
-                    for row in case["reductions"]
-                    if row["name"] == entry["name"]
-                }
+            _attach_rows(entries, "time_domain", time_domain)
         large_motion = None
         if job.large_motion is not None:
             stage("large motion in Exudyn", "large motion", line=False)
@@ -573,59 +503,14 @@ def _run_job(
                 (staging / "large_motion.png", "Large motions in Exudyn: each body against "
                  f"the modal reference of order {large_motion['reference']['order']}")
             )  # fmt: skip
-            for entry in entries:
-                entry["large_motion"] = {
-                    case["name"]: row
-                    for case in large_motion["cases"]
-                    for row in case["reductions"]
-                    if row["name"] == entry["name"]
-                }
+            _attach_rows(entries, "large_motion", large_motion)
         if "report" in job.export.outputs:
             overview.append("report.html")
         timings["total_s"] = time.perf_counter() - clock
-        massless = mass_split(system.mass)
         summary = {
             "pymorembs_version": __version__,
             "job": str(job.path),
-            "model": {
-                "name": body.name,
-                "n_dof": body.n_dof,
-                "n_nodes": body.n_nodes,
-                "n_independent": system.order,
-                "n_dependent": int(prepared.elimination.dependent.size),
-                "n_fixed": int(prepared.elimination.fixed.size),
-                "n_massless": massless.n_massless,
-                "massless": {
-                    "dofs_without_mass": int(massless.zero_rows.size),
-                    "directions_in_mass_blocks": massless.n_block_null,
-                },
-                "dof_table": body.dofs.describe(),
-                "has_coordinates": bool(body.has_coordinates),
-                "notes": list(body.notes),
-                "n_inputs": prepared.system.n_inputs,
-                "n_outputs": prepared.system.n_outputs,
-                "inputs": list(prepared.system.input_labels),
-                "outputs": list(prepared.system.output_labels),
-                "inertia_loads": _inertia_summary(prepared),
-                "stiffening": None
-                if prepared.stiffening is None
-                else {
-                    "source": prepared.stiffening.source,
-                    "cases": sorted(prepared.stiffening.cases),
-                    "node_loads": [
-                        f"{n}:{DIRECTIONS[d]}" for n, d in sorted(prepared.stiffening.nodes)
-                    ],
-                    "written_to": ["sid", "neweul", "exudyn (centrifugal cases)"],
-                },
-                "total_mass": body.total_mass(),
-                "damping": {
-                    "kind": body.damping.kind,
-                    "alpha": body.damping.alpha,
-                    "beta": body.damping.beta,
-                    "ratio": body.damping.ratio,
-                },
-                "frame": {"type": job.frame.kind, "node": job.frame.node},
-            },
+            "model": _model_summary(job, body, prepared),
             "units": units.as_dict(),
             "validation": validation.as_dict(),
             "band_hz": list(job.band_hz),
@@ -652,6 +537,155 @@ def _run_job(
         shutil.rmtree(staging, ignore_errors=True)
         raise
     return summary
+
+
+def _judged(
+    job: Job,
+    prepared: PreparedModel,
+    reference: ReferenceResponse,
+    reduced_runs: list[tuple[ReducedModel, np.ndarray, float]],
+    staging: Path,
+    nodes: list[int],
+    warnings: list[str],
+    say: Progress,
+) -> tuple[list[dict[str, Any]], dict, dict, dict, dict[str, ReducedModel]]:
+    """Every reduction's errors against the same reference (after all of its checks), its files
+    written into ``staging`` and its summary entry; the warnings they call for are added.
+
+    Returns the entries, the error curves (ports and inertia loads), the estimator curves, the
+    singular value decays and the reduced models, by reduction name.
+    """
+    entries, errors, estimates, decay, models = [], {}, {}, {}, {}
+    settled = -1
+    while settled != int(np.count_nonzero(reference.exact)):
+        # every reduction judged against the same reference, after all of its checks
+        settled = int(np.count_nonzero(reference.exact))
+        all_eps = [
+            _checked_errors(spec, reference, response)
+            for spec, (_, response, _) in zip(job.reductions, reduced_runs, strict=True)
+        ]
+    ports, inertia = error_blocks(prepared.reduction_system)
+    for spec, (model, response, elapsed), eps in zip(
+        job.reductions, reduced_runs, all_eps, strict=True
+    ):
+        eps_inertia = None
+        if inertia is not None:  # eq. 27 over the ports, and over the inertia loads
+            eps_inertia = relative_error(reference.response, response, inertia)
+            eps = relative_error(reference.response, response, ports)
+        entry = _write_one(
+            prepared, spec, model, (eps, eps_inertia), elapsed, reference, staging,
+            job.export.outputs, nodes,
+        )  # fmt: skip
+        projection = model.projection
+        models[spec.name] = model
+        if projection.error_curve is not None:
+            estimates[spec.name] = projection.error_curve
+        for key, label in DECAY_SERIES:
+            values = np.asarray(projection.parameters.get(key, []), dtype=float)
+            if values.size and not any(np.array_equal(values, v) for v in decay.values()):
+                decay[f"{spec.name}: {label}"] = values
+        if spec.method == "krylov" and spec.order is not None and entry["order"] < spec.order:
+            warnings.append(
+                f"reduction '{spec.name}': order {entry['order']} instead of {spec.order}: "
+                "the Krylov space is exhausted (the reduced model is exact for these ports)"
+            )
+            say(f"warning: {warnings[-1]}")
+        missing = inertia_warning(spec.name, eps, eps_inertia)
+        if missing:
+            warnings.append(missing)
+            say(f"warning: {missing}")
+        entries.append(entry)
+        errors[spec.name] = eps
+        if eps_inertia is not None:
+            errors[f"{spec.name} (inertia loads)"] = eps_inertia
+    return entries, errors, estimates, decay, models
+
+
+def _attach_rows(entries: list[dict[str, Any]], key: str, checks: dict[str, Any]) -> None:
+    """Give each reduction's summary entry its rows of a check (per case name)."""
+    for entry in entries:
+        entry[key] = {
+            case["name"]: row
+            for case in checks["cases"]
+            for row in case["reductions"]
+            if row["name"] == entry["name"]
+        }
+
+
+def _error_figure(
+    job: Job,
+    prepared: PreparedModel,
+    reference: ReferenceResponse,
+    errors: dict[str, np.ndarray],
+    estimates: dict[str, np.ndarray],
+    staging: Path,
+) -> tuple[Path, str]:
+    """``error.png`` of every reduction's eq. 27 error, and its caption."""
+    plot_relative_errors(
+        reference.frequencies_hz,
+        errors,
+        staging / "error.png",
+        title=job.title or "Relative error of the reduced models",
+        estimates=estimates,
+        **_reference_marks(reference),
+    )
+    caption = "Relative error ε(f) of eq. 27 of every reduction"
+    if prepared.inertia is not None:
+        caption += (
+            " over the ports, and '(inertia loads)' over the inertia loads of the frame motion"
+        )
+    if reference.kind == "surrogate":
+        caption += (
+            f" against a reference model of order {reference.parameters['order']}, "
+            "checked against the full model at the black-edged points (its measured "
+            "deviation: dotted)"
+        )
+    if estimates:
+        caption += "; dashed: the error estimators"
+    return staging / "error.png", caption
+
+
+def _model_summary(job: Job, body: ElasticBody, prepared: PreparedModel) -> dict[str, Any]:
+    """The ``model`` entry of ``summary.json``: sizes, ports, inertia loads, stiffening, mass."""
+    system = prepared.reduction_system
+    massless = mass_split(system.mass)
+    return {
+        "name": body.name,
+        "n_dof": body.n_dof,
+        "n_nodes": body.n_nodes,
+        "n_independent": system.order,
+        "n_dependent": int(prepared.elimination.dependent.size),
+        "n_fixed": int(prepared.elimination.fixed.size),
+        "n_massless": massless.n_massless,
+        "massless": {
+            "dofs_without_mass": int(massless.zero_rows.size),
+            "directions_in_mass_blocks": massless.n_block_null,
+        },
+        "dof_table": body.dofs.describe(),
+        "has_coordinates": bool(body.has_coordinates),
+        "notes": list(body.notes),
+        "n_inputs": prepared.system.n_inputs,
+        "n_outputs": prepared.system.n_outputs,
+        "inputs": list(prepared.system.input_labels),
+        "outputs": list(prepared.system.output_labels),
+        "inertia_loads": _inertia_summary(prepared),
+        "stiffening": None
+        if prepared.stiffening is None
+        else {
+            "source": prepared.stiffening.source,
+            "cases": sorted(prepared.stiffening.cases),
+            "node_loads": [f"{n}:{DIRECTIONS[d]}" for n, d in sorted(prepared.stiffening.nodes)],
+            "written_to": ["sid", "neweul", "exudyn"],
+        },
+        "total_mass": body.total_mass(),
+        "damping": {
+            "kind": body.damping.kind,
+            "alpha": body.damping.alpha,
+            "beta": body.damping.beta,
+            "ratio": body.damping.ratio,
+        },
+        "frame": {"type": job.frame.kind, "node": job.frame.node},
+    }
 
 
 def _reduce_one(
