@@ -207,3 +207,21 @@ def test_reference_bar_says_its_tolerance_is_internal(rack, capsys):
     assert "reference model (soaga)" in err
     assert "internal SOAGA tolerance of the surrogate reference 1e-12" in err
     assert "(tolerance 1e-12)" not in err
+
+
+def test_settle_all_judges_every_reduction_against_the_same_checks(rack, grid, full):
+    """Two reductions settled together: every maximum lies on a frequency checked against the
+    full model, and each curve is the one a second round would give (nothing moves any more)."""
+    spec = ReductionSpec(
+        "k", "krylov", None, {"expansion_points_hz": [0.0, 1000.0], "moments": [4, 4]}
+    )
+    krylov = reduced_model(rack, run_reduction(rack, spec, BAND))
+    modal = reduced_model(rack, run_reduction(rack, ReductionSpec("m", "modal", 8, {}), BAND))
+    responses = [transfer_function(m.system, grid) for m in (krylov, modal)]
+    reference = reference_response(rack, grid, "surrogate", checks=0)
+    curves = reference.settle_all(responses)
+    for eps, response in zip(curves, responses, strict=True):
+        assert reference.exact[int(np.argmax(eps))]
+        np.testing.assert_array_equal(eps, reference.errors(response))
+        exact = reference.exact
+        np.testing.assert_allclose(eps[exact], relative_error(full, response)[exact], rtol=1e-12)

@@ -156,6 +156,20 @@ class ReferenceResponse:
             eps = self.errors(reduced)
         return eps
 
+    def settle_all(self, responses: list[np.ndarray]) -> list[np.ndarray]:
+        """``eps(f)`` of several reduced responses, all judged against the same reference.
+
+        Each response is settled (:meth:`settle`); as the checks one response asks for change
+        the reference the others were judged against, the round is repeated until no response
+        asks for a new check. The reference keeps every check (it is the job's cache of
+        full-model frequencies).
+        """
+        while True:
+            before = int(np.count_nonzero(self.exact))
+            out = [self.settle(response) for response in responses]
+            if int(np.count_nonzero(self.exact)) == before:
+                return out
+
     def resolved(self, eps: np.ndarray) -> bool:
         """Whether a reduction's maximum error stands 10 times above the reference's accuracy."""
         return bool(np.max(eps, initial=0.0) >= 10.0 * self.accuracy)

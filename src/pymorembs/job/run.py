@@ -556,14 +556,9 @@ def _judged(
     singular value decays and the reduced models, by reduction name.
     """
     entries, errors, estimates, decay, models = [], {}, {}, {}, {}
-    settled = -1
-    while settled != int(np.count_nonzero(reference.exact)):
-        # every reduction judged against the same reference, after all of its checks
-        settled = int(np.count_nonzero(reference.exact))
-        all_eps = [
-            _checked_errors(spec, reference, response)
-            for spec, (_, response, _) in zip(job.reductions, reduced_runs, strict=True)
-        ]
+    all_eps = reference.settle_all([response for _, response, _ in reduced_runs])
+    for spec, eps in zip(job.reductions, all_eps, strict=True):
+        _finite(spec, reference, eps)
     ports, inertia = error_blocks(prepared.reduction_system)
     for spec, (model, response, elapsed), eps in zip(
         job.reductions, reduced_runs, all_eps, strict=True
@@ -776,7 +771,11 @@ def _checked_errors(
     spec: ReductionSpec, reference: ReferenceResponse, response: np.ndarray
 ) -> np.ndarray:
     """``eps(f)`` (eq. 27) with its maximum on a frequency checked against the full model."""
-    eps = reference.settle(response)
+    return _finite(spec, reference, reference.settle(response))
+
+
+def _finite(spec: ReductionSpec, reference: ReferenceResponse, eps: np.ndarray) -> np.ndarray:
+    """``eps`` if it is finite everywhere; else a :class:`NumericalError` naming a frequency."""
     if not np.all(np.isfinite(eps)):
         bad = reference.frequencies_hz[~np.isfinite(eps)][0]
         raise NumericalError(
