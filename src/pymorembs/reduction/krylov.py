@@ -171,6 +171,24 @@ class SecondOrderArnoldi:
         return max(2.0 * np.pi * self.frequency_hz, omega_r)
 
 
+def checked_points(
+    frequencies_hz: Sequence[float], method: str, one: str, many: str
+) -> list[float]:
+    """Expansion points (Hz) as floats: at least one, finite, >= 0, none repeated.
+
+    ``one`` and ``many`` name them in the messages (``"expansion point"``, ``"expansion
+    points"``); a bad list is a :class:`UserError` starting with ``method``.
+    """
+    points = [float(f) for f in frequencies_hz]
+    if not points:
+        raise UserError(f"{method}: at least one {one} is needed")
+    if any(not np.isfinite(f) or f < 0 for f in points):
+        raise UserError(f"{method}: {many} must be finite frequencies >= 0 Hz, got {points}")
+    if len(set(points)) != len(points):
+        raise UserError(f"{method}: {many} repeat: {points}")
+    return points
+
+
 def krylov_reduction(
     system: SecondOrderSystem,
     expansion_points_hz: Sequence[float],
@@ -210,15 +228,7 @@ def krylov_reduction(
         ``parameters`` holds the points, the moments computed per point (for ``two_sided`` also
         ``output_moments``, those of ``W``) and the factorizations.
     """
-    points = [float(f) for f in expansion_points_hz]
-    if not points:
-        raise UserError("krylov: at least one expansion point is needed")
-    if any(not np.isfinite(f) or f < 0 for f in points):
-        raise UserError(
-            f"krylov: expansion points must be finite frequencies >= 0 Hz, got {points}"
-        )
-    if len(set(points)) != len(points):
-        raise UserError(f"krylov: expansion points repeat: {points}")
+    points = checked_points(expansion_points_hz, "krylov", "expansion point", "expansion points")
     if moments is None and order is None:
         raise UserError("krylov: give 'moments' (per expansion point) or 'order'")
     if isinstance(moments, int | np.integer):

@@ -83,7 +83,7 @@ from pymorembs.linalg.orthogonalization import OrthonormalBasis
 from pymorembs.linalg.products import extended_product, multiply
 from pymorembs.parallel import available_memory_bytes
 from pymorembs.progress import Progress
-from pymorembs.reduction.krylov import SecondOrderArnoldi
+from pymorembs.reduction.krylov import SecondOrderArnoldi, checked_points
 from pymorembs.reduction.projection import Projection
 from pymorembs.system import SecondOrderSystem
 
@@ -329,15 +329,12 @@ def soaga_reduction(
         candidates = np.linspace(lower, f_max, n_candidates) if n_candidates > 1 else [lower]
         candidates = [float(f) for f in candidates]
     else:
-        candidates = sorted(float(f) for f in candidates_hz)
-        if not candidates:
-            raise UserError("soaga: at least one candidate expansion point is needed")
-        if any(not np.isfinite(f) or f < 0 for f in candidates):
-            raise UserError(
-                f"soaga: candidate points must be finite frequencies >= 0 Hz, got {candidates}"
-            )
-        if len(set(candidates)) != len(candidates):
-            raise UserError(f"soaga: candidate points repeat: {candidates}")
+        candidates = checked_points(
+            sorted(float(f) for f in candidates_hz),
+            "soaga",
+            "candidate expansion point",
+            "candidate points",
+        )
     if block_per_step < 1:
         raise UserError(f"soaga: block_per_step must be at least 1, got {block_per_step}")
     if tolerance is None and max_order is None:
