@@ -268,7 +268,7 @@ def read_ansys_full(
         notes=tuple(notes),
     )
     note = _check_coordinates(body, geometry)
-    return _with_mesh(_with_note(body, note), geometry)
+    return _with_mesh(body.with_notes(note), geometry)
 
 
 def _full_note(path: Path, info: _FullInfo, table: DofTable, n_fixed: int) -> str:
@@ -840,7 +840,7 @@ def read_ansys_mmf(
         has_coordinates=geometry.source is not None,
         notes=tuple(notes),
     )
-    return _with_mesh(_with_note(body, _prove_mapping_order(body, map_path, geometry)), geometry)
+    return _with_mesh(body.with_notes(_prove_mapping_order(body, map_path, geometry)), geometry)
 
 
 def _lone_diagonals(
@@ -1154,11 +1154,6 @@ def _with_mesh(body: ElasticBody, geometry: _Geometry) -> ElasticBody:
     if geometry.archive is None or geometry.source is None:
         return body
     return attach_mesh(body, cdb_solid_blocks(geometry.archive, geometry.source))
-
-
-def _with_note(body: ElasticBody, note: str) -> ElasticBody:
-    """The body with one more note."""
-    return body.with_notes(note)
 
 
 # ============================================================================ shared helpers
