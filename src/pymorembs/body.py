@@ -31,6 +31,7 @@ from pymorembs.arrays import first_duplicate, missing_from, sorted_unique
 from pymorembs.elements.beam import BeamSection
 from pymorembs.errors import UserError
 from pymorembs.sparse_rows import abs_row_sums
+from pymorembs.surface import Surface
 
 #: The six nodal directions and the scalar coordinate ``q``, in the order of the codes 0..6.
 DIRECTIONS: tuple[str, ...] = ("ux", "uy", "uz", "rx", "ry", "rz", "q")
@@ -442,6 +443,10 @@ class ElasticBody:
         Inputs and outputs that came with the model file.
     mesh : ElementMesh, optional
         The solid elements (built-in solid models), for geometric stiffening.
+    surface : Surface, optional
+        What a viewer draws of the body (outer faces and line elements,
+        :func:`pymorembs.surface.outer_surface`); ``None``: the file held no elements, the
+        nodes are drawn as points.
     precision : float, optional
         Relative rounding of the matrix entries as the file stores them, when the reader knows
         it (single-precision binary ``2^-24``, decimal text of ``d`` digits ``0.5 * 10^(1 - d)``;
@@ -464,6 +469,7 @@ class ElasticBody:
     ports: ModelPorts | None = None
     precision: float | None = None
     mesh: ElementMesh | None = None
+    surface: Surface | None = None
 
     def __post_init__(self) -> None:
         node_ids = np.asarray(self.node_ids, dtype=np.int64).ravel()
@@ -499,6 +505,8 @@ class ElasticBody:
                     f"element mesh: node {missing[0]} of an element has no translational dofs "
                     "in the dof table"
                 )
+        if self.surface is not None:
+            self.surface.check_nodes(node_ids)
         if self.precision is not None and not (
             np.isfinite(self.precision) and 0 < self.precision < 1
         ):

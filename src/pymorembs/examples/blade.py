@@ -33,6 +33,7 @@ from pymorembs.elements.hex20 import assemble_hex20
 from pymorembs.errors import UserError
 from pymorembs.examples.rack_beams import STEEL_E, STEEL_NU, STEEL_RHO
 from pymorembs.examples.rack_solid import merge_blocks, structured_block
+from pymorembs.surface import outer_surface
 
 __all__ = ["BladeMesh", "blade", "blade_mesh"]
 
@@ -134,4 +135,6 @@ def blade(
         damping=Damping(),
         name="blade",
         mesh=ElementMesh("hex20", mesh.node_ids[mesh.elements], STEEL_E, STEEL_NU),
-    )
+        surface=outer_surface([("hex20", mesh.node_ids[mesh.elements])], mesh.node_ids,
+                              mesh.coordinates),
+    )  # fmt: skip

@@ -69,6 +69,7 @@ from pymorembs.body import Damping, DofTable, ElasticBody, ElementMesh
 from pymorembs.elements.beam import BeamSection, assemble_beams
 from pymorembs.elements.rigid import rigid_body_mass_matrix
 from pymorembs.prepare.interface import rigid_links
+from pymorembs.surface import outer_surface
 
 #: Steel of rods and plates: Young's modulus (N/m²), Poisson's ratio, density (kg/m³).
 STEEL_E = 2.1e11
@@ -246,6 +247,7 @@ def rack_beams(design: RackDesign | None = None) -> ElasticBody:
         damping=Damping(),
         name="rack-beams",
         mesh=ElementMesh("beam2", elements, STEEL_E, STEEL_NU, section=d.rod_section),
+        surface=outer_surface([("beam2", elements)], node_ids, coordinates),
     )
     # Rod end nodes (first and last node of each rod) follow the plates rigidly (eq. 9).
     body = rigid_links(body, 1, rod_ids[:, 0].tolist())

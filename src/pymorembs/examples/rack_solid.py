@@ -122,6 +122,7 @@ from pymorembs.elements.hex20 import (
 )
 from pymorembs.errors import UserError
 from pymorembs.examples.rack_beams import STEEL_E, STEEL_NU, STEEL_RHO, RackDesign
+from pymorembs.surface import outer_surface
 
 # -------------------------------------------------------------------------- structured blocks
 #: Half-side of the centre square of a rod's O-grid, as a fraction of the rod radius.
@@ -664,7 +665,9 @@ def rack_solid(dofs: int = 35_000, interface: str = "light-beams") -> ElasticBod
         damping=Damping(),
         name="rack-solid",
         mesh=ElementMesh("hex20", mesh.node_ids[mesh.elements], STEEL_E, STEEL_NU),
-    )
+        surface=outer_surface([("hex20", mesh.node_ids[mesh.elements])], mesh.node_ids,
+                              mesh.coordinates),
+    )  # fmt: skip
     if interface == "none":
         return body
     return _with_interface(body, design, INTERFACES[interface])

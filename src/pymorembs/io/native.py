@@ -25,6 +25,9 @@ Layout (format version 2)::
                            attributes element, young, poisson (what geometric stiffening
                            needs); young and poisson are datasets (n_el,) instead when the
                            elements have several materials
+    /surface/triangles     int64 (n_t, 3), /surface/lines int64 (n_l, 2): node ids of what a
+                           viewer draws (outer faces, line elements), only if the body has a
+                           surface; attribute source
 
 Version 1 files (no coordinates flag, notes or ports) are read as well.
 
@@ -54,6 +57,7 @@ from pymorembs.body import (
 from pymorembs.elements.beam import BeamSection
 from pymorembs.errors import UserError
 from pymorembs.io.atomic import atomic_path
+from pymorembs.surface import Surface
 
 __all__ = ["COMPRESS_FROM", "FORMAT", "VERSION", "read_body_h5", "write_body_h5"]
 
@@ -121,6 +125,10 @@ def write_body_h5(body: ElasticBody, path: str | os.PathLike[str]) -> Path:
                     f["mesh"].attrs[f"section_{key}"] = float(value)
             if body.mesh.up is not None:
                 f["mesh"].attrs["up"] = np.asarray(body.mesh.up, dtype=float)
+        if body.surface is not None:
+            _put(f, "surface/triangles", body.surface.triangles, np.int64)
+            _put(f, "surface/lines", body.surface.lines, np.int64)
+            f["surface"].attrs["source"] = body.surface.source
         if body.ports is not None:
             for key, labels in (
                 ("inputs", body.ports.input_labels),
@@ -220,6 +228,13 @@ def _read_body(f: h5py.File) -> ElasticBody:
             section,
             None if up is None else tuple(float(x) for x in np.ravel(up)),
         )
+    surface = None
+    if "surface" in f:
+        surface = Surface(
+            _get(f, "surface/triangles", _INT, ndim=2),
+            _get(f, "surface/lines", _INT, ndim=2),
+            _text(f["surface"].attrs.get("source", "")),
+        )
     return ElasticBody(
         node_ids=_get(f, "nodes/ids", _INT),
         coordinates=_get(f, "nodes/coordinates", _FLOAT, ndim=2),
@@ -245,6 +260,7 @@ def _read_body(f: h5py.File) -> ElasticBody:
         ports=ports,
         precision=None if np.isnan(precision) else precision,
         mesh=mesh,
+        surface=surface,
     )
 
 
