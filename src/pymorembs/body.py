@@ -652,6 +652,14 @@ class ElasticBody:
         object.__setattr__(out, "notes", (*self.notes, *(str(note) for note in notes)))
         return out
 
+    def with_surface(self, surface: Surface | None) -> ElasticBody:
+        """The same body with another surface (only the surface's nodes are checked)."""
+        if surface is not None:
+            surface.check_nodes(self.node_ids)
+        out = copy.copy(self)
+        object.__setattr__(out, "surface", surface)
+        return out
+
     def with_fixed(self, indices: np.ndarray) -> ElasticBody:
         """The body with further fixed dofs (eq. 10)."""
         return replace(self, fixed=np.union1d(self.fixed, np.asarray(indices, dtype=np.int64)))

@@ -326,6 +326,15 @@ def test_the_tet10_mesh_travels_in_the_native_file(unpacked, tmp_path):
     back = read_body_h5(tmp_path / "beam.h5")
     assert back.mesh.element == "tet10" and back.mesh.young == 208000.0
     np.testing.assert_array_equal(back.mesh.connectivity, body.mesh.connectivity)
+    # The outer skin travels too: closed, outward, holding the volume of the tetrahedra.
+    triangles = back.surface.triangles
+    np.testing.assert_array_equal(triangles, body.surface.triangles)
+    p = body.coordinates[body.node_rows(triangles)]
+    enclosed = np.einsum("ij,ij->i", p[:, 0], np.cross(p[:, 1], p[:, 2])).sum() / 6.0
+    c = body.coordinates[body.node_rows(body.mesh.connectivity[:, :4])]
+    volume = np.abs(np.linalg.det(c[:, 1:] - c[:, :1])).sum() / 6.0
+    assert enclosed == pytest.approx(volume, rel=1e-12)
+    assert any(note.startswith("surface: outer faces of") for note in body.notes)
 
 
 # ------------------------------------------------------------------ what the reader refuses

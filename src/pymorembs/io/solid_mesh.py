@@ -19,6 +19,7 @@ import scipy.sparse as sp
 from pymorembs.body import ElasticBody, ElementMesh
 from pymorembs.elements.solid import SOLID_KINDS, part, solid_stiffness
 from pymorembs.errors import UserError
+from pymorembs.surface import outer_surface
 
 __all__ = [
     "MESH_TOLERANCE",
@@ -29,6 +30,7 @@ __all__ = [
     "element_mesh",
     "mesh_problem",
     "stiffness_mismatch",
+    "with_surface",
 ]
 
 #: The note of a body whose elements give no mesh starts with this.
@@ -99,6 +101,28 @@ def describe_material(mesh: ElementMesh) -> str:
     return f"{len(pairs)} materials ({listed}{'; ...' if len(pairs) > 4 else ''})"
 
 
+def with_surface(body: ElasticBody, blocks: list[SolidBlock]) -> ElasticBody:
+    """The body with the outer surface of ``blocks`` for viewers (:mod:`pymorembs.surface`).
+
+    Drawing needs node ids and coordinates only, so the surface is kept even where the
+    material does not prove the mesh for stiffening. Without coordinates (or with elements on
+    nodes the body lacks) the body stays as it is, with a note saying why.
+    """
+    if not blocks:
+        return body
+    if not body.has_coordinates:
+        return body.with_notes("surface: the file gives no coordinates; nodes cannot be drawn")
+    try:
+        surface = outer_surface(
+            [(block.kind, block.connectivity) for block in blocks], body.node_ids, body.coordinates
+        )
+    except UserError as err:
+        return body.with_notes(f"surface: none ({err})")
+    return body.with_surface(surface).with_notes(
+        f"surface: {surface.source} ({surface.triangles.shape[0]:,} triangles) for viewers"
+    )
+
+
 def attach_mesh(body: ElasticBody, blocks: list[SolidBlock] | str) -> ElasticBody:
     """The body with the mesh of ``blocks``, or with a note saying why it has none.
 
@@ -113,6 +137,7 @@ def attach_mesh(body: ElasticBody, blocks: list[SolidBlock] | str) -> ElasticBod
     if isinstance(blocks, str):
         problem = blocks
     else:
+        body = with_surface(body, blocks)
         try:
             mesh = element_mesh(blocks)
             with_mesh = replace(body, mesh=mesh)
