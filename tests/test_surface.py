@@ -123,4 +123,3 @@ def test_a_body_refuses_a_surface_over_nodes_it_does_not_have():
     body = build_example("rack-beams")
     with pytest.raises(UserError, match="not nodes of the body"):
         replace(body, surface=Surface(np.array([[1, 2, 123456]]), np.zeros((0, 2))))
-

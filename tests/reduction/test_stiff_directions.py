@@ -70,7 +70,7 @@ def test_removing_stiff_directions_drops_exactly_their_modal_terms(krylov):
         / (omega2[i] - (2 * np.pi * f[:, None, None]) ** 2)
         for i in removed
     )
-    np.testing.assert_allclose(h_cut, h - terms, rtol=1e-8, atol=1e-12 * np.abs(h).max())
+    np.testing.assert_allclose(h_cut, h - terms, rtol=1e-8, atol=1e-11 * np.abs(h).max())
     with pytest.raises(UserError, match="removes every direction"):
         without_stiff_directions(system, model, 0.5 * frequencies.min())
     assert without_stiff_directions(system, model, 2 * frequencies.max()) is model
