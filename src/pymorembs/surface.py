@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pymorembs.arrays import missing_from, sorted_unique
 from pymorembs.errors import UserError
 
 __all__ = ["SURFACE_ELEMENTS", "Surface", "outer_surface"]
@@ -102,11 +103,11 @@ class Surface:
     @property
     def node_ids(self) -> np.ndarray:
         """Sorted ids of the nodes the surface uses, shape (n,)."""
-        return np.unique(np.concatenate([self.triangles.ravel(), self.lines.ravel()]))
+        return sorted_unique(np.concatenate([self.triangles.ravel(), self.lines.ravel()]))
 
     def check_nodes(self, node_ids: np.ndarray) -> None:
         """Raise :class:`UserError` if the surface uses a node that ``node_ids`` lacks."""
-        missing = np.setdiff1d(self.node_ids, node_ids)
+        missing = missing_from(self.node_ids, np.asarray(node_ids, dtype=np.int64))
         if missing.size:
             raise UserError(
                 f"surface: {missing.size} node(s) of the elements are not nodes of the body, "

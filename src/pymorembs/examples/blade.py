@@ -124,6 +124,7 @@ def blade(
     """
     mesh = blade_mesh(hub_radius, length, chord, thickness, elements)
     stiffness, mass = assemble_hex20(mesh.coordinates, mesh.elements, STEEL_E, STEEL_NU, STEEL_RHO)
+    connectivity = mesh.node_ids[mesh.elements]
     n_nodes = mesh.node_ids.size
     return ElasticBody(
         node_ids=mesh.node_ids,
@@ -134,7 +135,6 @@ def blade(
         fixed=(3 * mesh.root[:, None] + np.arange(3)).ravel(),
         damping=Damping(),
         name="blade",
-        mesh=ElementMesh("hex20", mesh.node_ids[mesh.elements], STEEL_E, STEEL_NU),
-        surface=outer_surface([("hex20", mesh.node_ids[mesh.elements])], mesh.node_ids,
-                              mesh.coordinates),
-    )  # fmt: skip
+        mesh=ElementMesh("hex20", connectivity, STEEL_E, STEEL_NU),
+        surface=outer_surface([("hex20", connectivity)], mesh.node_ids, mesh.coordinates),
+    )

@@ -654,6 +654,7 @@ def rack_solid(dofs: int = 35_000, interface: str = "light-beams") -> ElasticBod
     design = RackDesign()
     mesh = mesh_rack(plan_mesh(dofs, design), design)
     stiffness, mass = assemble_hex20(mesh.coordinates, mesh.elements, STEEL_E, STEEL_NU, STEEL_RHO)
+    connectivity = mesh.node_ids[mesh.elements]
     n_nodes = mesh.coordinates.shape[0]
     body = ElasticBody(
         node_ids=mesh.node_ids,
@@ -664,10 +665,9 @@ def rack_solid(dofs: int = 35_000, interface: str = "light-beams") -> ElasticBod
         constraints=tie_rods(mesh, design),
         damping=Damping(),
         name="rack-solid",
-        mesh=ElementMesh("hex20", mesh.node_ids[mesh.elements], STEEL_E, STEEL_NU),
-        surface=outer_surface([("hex20", mesh.node_ids[mesh.elements])], mesh.node_ids,
-                              mesh.coordinates),
-    )  # fmt: skip
+        mesh=ElementMesh("hex20", connectivity, STEEL_E, STEEL_NU),
+        surface=outer_surface([("hex20", connectivity)], mesh.node_ids, mesh.coordinates),
+    )
     if interface == "none":
         return body
     return _with_interface(body, design, INTERFACES[interface])
