@@ -60,6 +60,7 @@ __all__ = [
     "ReductionOptions",
     "SoagaOptions",
     "method_options",
+    "option_fields",
     "options_table",
 ]
 
@@ -574,6 +575,75 @@ def options_table() -> str:
                 default = f"`{f.default!r}`".replace("'", '"')
             lines.append(f"| {name} | `{f.name}` | {default} | {_markdown(docs.get(f.name, ''))} |")
     return "\n".join(lines) + "\n"
+
+
+def option_fields(method: str) -> list[dict[str, Any]]:
+    """The options of ``method`` as a form would show them, read from its options dataclass.
+
+    Returns
+    -------
+    list of dict
+        One per option, in the dataclass's order (``max_frequency_hz`` last): ``name``;
+        ``kind`` -- ``"int"``, ``"float"``, ``"bool"``, ``"str"``, ``"choice"`` (one of
+        ``choices``), ``"floats"`` (a list of numbers) or ``"ints"`` (one whole number or one
+        per expansion point); ``default`` (None: none), ``required`` (bool), ``choices`` (list
+        of str, for ``"choice"``) and ``meaning`` (the docstring's first sentence, Markdown).
+
+    Raises
+    ------
+    OptionError
+        An unknown method.
+    """
+    if method not in METHODS:
+        method_options(method)  # raises, with the nearest name
+    cls = METHODS[method]
+    docs = _attribute_docs(cls)
+    types = _attribute_types(cls)
+    common = {f.name for f in dataclasses.fields(ReductionOptions)}
+    fields = [f for f in dataclasses.fields(cls) if f.name not in common]
+    fields += [f for f in dataclasses.fields(cls) if f.name in common]
+    out = []
+    for f in fields:
+        annotation = str(f.type)
+        choices = types.get(f.name, [])
+        if "bool" in annotation:
+            kind = "bool"
+        elif "tuple[float" in annotation:
+            kind = "floats"
+        elif "tuple[int" in annotation:
+            kind = "ints"
+        elif annotation.startswith("int"):
+            kind = "int"
+        elif annotation.startswith("float"):
+            kind = "float"
+        else:
+            kind = "choice" if choices else "str"
+        default = None if f.default is dataclasses.MISSING else f.default
+        out.append(
+            {
+                "name": f.name,
+                "kind": kind,
+                "default": list(default) if isinstance(default, tuple) else default,
+                "required": f.name in _REQUIRED.get(method, ()),
+                "choices": choices if kind == "choice" else [],
+                "meaning": _markdown(docs.get(f.name, "")),
+            }
+        )
+    return out
+
+
+def _attribute_types(cls: type) -> dict[str, list[str]]:
+    """The choices ``{"a", "b"}`` of each attribute whose docstring type line lists them."""
+    found: dict[str, list[str]] = {}
+    text = (cls.__doc__ or "").split("Attributes\n    ----------\n", 1)
+    for line in text[-1].splitlines() if len(text) == 2 else ():
+        if line.startswith("    ") and not line.startswith("        ") and ":" in line:
+            names, kind = line.split(":", 1)
+            braces = re.search(r"\{([^}]*)\}", kind)
+            if braces:
+                for name in names.split(","):
+                    found[name.strip()] = re.findall(r'"([^"]+)"', braces.group(1))
+    return found
 
 
 def _markdown(text: str) -> str:

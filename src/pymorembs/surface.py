@@ -22,7 +22,7 @@ import numpy as np
 from pymorembs.arrays import missing_from, sorted_unique
 from pymorembs.errors import UserError
 
-__all__ = ["SURFACE_ELEMENTS", "Surface", "outer_surface"]
+__all__ = ["SURFACE_ELEMENTS", "Surface", "outer_surface", "smooth_patch"]
 
 # Faces of each element kind as loops of local node numbers (0-based). Quadratic faces list
 # corner, mid-side, corner, ... in turn. Node orders of Abaqus (C3D4, C3D10, C3D8, C3D20, C3D6,
@@ -177,6 +177,65 @@ def outer_surface(
     seg = np.concatenate(lines) if lines else np.zeros((0, 2), np.int64)
     source = "outer faces of " + ", ".join(f"{n:,} {k}" for k, n in counts.items()) + " elements"
     return Surface(node_ids[tri], seg, source if counts else "no elements")
+
+
+def smooth_patch(
+    surface: Surface,
+    node_ids: np.ndarray,
+    coordinates: np.ndarray,
+    seed: int,
+    max_angle_deg: float = 30.0,
+) -> np.ndarray:
+    """The smooth region of a surface around one triangle: e.g. the wall of a hole.
+
+    Triangles that share an edge belong to one region when their normals differ by less than
+    ``max_angle_deg``; the sharp edges of a part (the rim of a hole, a plate's corners) bound
+    the regions. The wall of a round hole is one region: its facets turn by a few degrees each.
+
+    Parameters
+    ----------
+    surface : Surface
+    node_ids : ndarray of int, shape (n_nodes,)
+        The body's node ids.
+    coordinates : ndarray, shape (n_nodes, 3)
+        Their positions.
+    seed : int
+        Row of the triangle in ``surface.triangles`` the region grows from.
+    max_angle_deg : float
+        Largest angle (degrees) between the normals of neighbouring triangles of one region.
+
+    Returns
+    -------
+    ndarray of int
+        Rows of the region's triangles in ``surface.triangles``, sorted.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    triangles = surface.triangles
+    if not 0 <= int(seed) < triangles.shape[0]:
+        raise UserError(f"surface: no triangle {seed} (the surface has {triangles.shape[0]})")
+    node_ids = np.asarray(node_ids, dtype=np.int64)
+    order = np.argsort(node_ids, kind="stable")
+    rows = _rows(triangles, node_ids, order)
+    p = np.asarray(coordinates, dtype=float)[rows]
+    normal = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    length = np.linalg.norm(normal, axis=1)
+    normal = normal / np.where(length > 0, length, 1.0)[:, None]
+    edges = np.sort(rows[:, [[0, 1], [1, 2], [2, 0]]], axis=2).reshape(-1, 2)
+    owner = np.repeat(np.arange(rows.shape[0]), 3)
+    _, edge, count = np.unique(edges, axis=0, return_inverse=True, return_counts=True)
+    edge = edge.ravel()
+    by_edge = np.argsort(edge, kind="stable")
+    first = np.concatenate([[0], np.cumsum(count)[:-1]])
+    pairs = count == 2  # an edge of two triangles (more: a non-manifold seam, left apart)
+    a = owner[by_edge[first[pairs]]]
+    b = owner[by_edge[first[pairs] + 1]]
+    smooth = np.einsum("ij,ij->i", normal[a], normal[b]) >= np.cos(np.radians(max_angle_deg))
+    n = rows.shape[0]
+    graph = coo_matrix((np.ones(int(smooth.sum())), (a[smooth], b[smooth])), shape=(n, n))
+    _, label = connected_components(graph, directed=False)
+    return np.flatnonzero(label == label[int(seed)])
 
 
 def _rows(elements: np.ndarray, node_ids: np.ndarray, order: np.ndarray) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""Command line of pymorembs: ``pymorembs example | info | reduce``.
+"""Command line of pymorembs: ``pymorembs example | info | reduce | app``.
 
 Exit codes: 0 success; 2 a user mistake (one line on stderr naming the file or key and the
 problem); 3 a numerical failure on valid input (one line with the cause); 1 a bug (traceback).
@@ -142,6 +142,21 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="draw progress bars on stderr even when it is not a terminal (not with --quiet)",
     )
+    web = sub.add_parser(
+        "app",
+        help="a local web page that edits, runs and compares jobs",
+        description="Serve the job editor on http://127.0.0.1:PORT: open a model, pick "
+        "interfaces in 3D, add reductions, run, compare (docs/app.md).",
+    )
+    web.add_argument(
+        "model",
+        nargs="?",
+        type=Path,
+        help="model file (.h5, .full, .pch, ...) or job file (.toml); default the built-in "
+        "rack-solid",
+    )
+    web.add_argument("--port", type=int, default=8765, help="port on 127.0.0.1 (8765)")
+    web.add_argument("--no-browser", action="store_true", help="do not open a browser")
     return parser
 
 
@@ -170,6 +185,8 @@ def _run(args: argparse.Namespace) -> int:
             return _example(args)
         if args.command == "info":
             return _info(args)
+        if args.command == "app":
+            return _app(args)
         return _reduce(args)
     except BrokenPipeError:  # the reader of the output went away (e.g. `| head`)
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no error at exit
@@ -325,6 +342,14 @@ def _print_facts(facts: dict[str, Any], units: str) -> None:
             + ", ".join(f"{f:.6g}" for f in values[:12])
             + (" ..." if len(values) > 12 else "")
         )
+
+
+def _app(args: argparse.Namespace) -> int:
+    from pymorembs.job.app import serve
+
+    if not 0 <= args.port <= 65535:
+        raise UserError(f"--port must be 0..65535, got {args.port}")
+    return serve(args.model, args.port, open_browser=not args.no_browser)
 
 
 def _reduce(args: argparse.Namespace) -> int:

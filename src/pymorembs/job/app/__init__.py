@@ -1,0 +1,76 @@
+"""``pymorembs app``: a local web page that edits, runs and compares reduction jobs.
+
+The page is a job editor (paper Fig. 1 and Fig. 8): open a model, look at it in 3D, pick the
+interface nodes on its surface (or give a cylinder or a box), choose frame, inputs, outputs and
+the band, add reductions with the options of the method registry; the job file it builds is
+shown as it changes, saved on request and run exactly as ``pymorembs reduce`` runs it. The
+results -- error curves, estimators, eigenfrequencies, MAC between bases, shape functions --
+come from the run's own output folder. See ``docs/app.md``.
+
+* :mod:`~pymorembs.job.app.editor` -- the job as a dictionary, its TOML text, picked selections;
+* :mod:`~pymorembs.job.app.runner` -- a run of the job in a child process (progress, cancel);
+* :mod:`~pymorembs.job.app.server` -- the HTTP server and its JSON API; ``static/`` the page.
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+import webbrowser
+from pathlib import Path
+
+from pymorembs.errors import UserError
+from pymorembs.job.app.server import DEFAULT_EXAMPLE, App, make_server
+
+__all__ = ["DEFAULT_PORT", "App", "make_server", "serve"]
+
+#: The port ``pymorembs app`` listens on unless ``--port`` says otherwise.
+DEFAULT_PORT = 8765
+
+
+def serve(
+    model: str | Path | None = None,
+    port: int = DEFAULT_PORT,
+    open_browser: bool = True,
+    workdir: Path | None = None,
+) -> int:
+    """Serve the app on http://127.0.0.1:port until interrupted; return the exit code.
+
+    Parameters
+    ----------
+    model : path, optional
+        A model file (any format :func:`pymorembs.read` knows) or a job file (``.toml``) to
+        open; default the built-in rack-solid (35,000 dofs, bare mesh, no interface yet).
+    port : int
+        TCP port on 127.0.0.1.
+    open_browser : bool
+        Open the page in the default browser.
+    workdir : Path, optional
+        Where the runs write their job files and results (default: a temporary folder).
+
+    Raises
+    ------
+    UserError
+        A model path that does not exist or cannot be read, or a port in use; raised before
+        the server starts.
+    """
+    if model is not None and not Path(model).exists():
+        raise UserError(f"{model}: no such file")
+    server = make_server(App(workdir), port)
+    try:
+        app = server.app  # type: ignore[attr-defined]
+        app.open({"path": str(model)} if model is not None else DEFAULT_EXAMPLE)
+        url = f"http://127.0.0.1:{server.server_address[1]}/"
+        print(f"pymorembs app: {url} (runs in {app.workdir}); Ctrl-C ends it", flush=True)
+        if open_browser:
+            threading.Thread(target=webbrowser.open, args=(url,), daemon=True).start()
+        try:
+            server.serve_forever()
+        except KeyboardInterrupt:
+            sys.stderr.write("pymorembs app: stopped\n")
+        finally:
+            if app.run is not None:
+                app.run.cancel()
+    finally:
+        server.server_close()
+    return 0

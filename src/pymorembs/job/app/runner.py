@@ -1,0 +1,139 @@
+"""A job run off the page's request threads: ``pymorembs reduce`` in a child process.
+
+The child is the command line itself (``python -m pymorembs.job.cli reduce JOB --out DIR``), so
+a run from the page is a run of the saved job file, and Cancel ends the process (and its
+workers) without leaving anything half-written: the job layer writes into a temporary folder
+and renames it only at the end. Progress comes from the stage lines the command prints
+(``loading the model``, ``frequency response ...``, ``reduction 'name'``).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+#: Lines of ``pymorembs reduce`` that start a stage (after the ``[   1.23 s]`` time stamp).
+STAGE_STARTS = (
+    "loading the model", "frequency response", "reference model", "reduction '", "time domain",
+    "large motion",
+)  # fmt: skip
+
+
+@dataclass
+class Run:
+    """One run of a job file: its process, progress and outcome.
+
+    Attributes
+    ----------
+    job : Path
+        The job file it runs.
+    out : Path
+        The output folder (``summary.json`` there once it succeeded).
+    stages : int
+        The stages the job has (model, reference, one per reduction, time domain, large motion).
+    state : str
+        ``"running"``, ``"done"``, ``"failed"`` or ``"cancelled"``.
+    """
+
+    job: Path
+    out: Path
+    stages: int
+    state: str = "running"
+    done_stages: int = 0
+    stage: str = "starting"
+    lines: list[str] = field(default_factory=list)
+    error: str = ""
+    started: float = field(default_factory=time.time)
+    ended: float | None = None
+    process: subprocess.Popen | None = None
+
+    @property
+    def fraction(self) -> float:
+        """Share of the work done, 0..1 (stages begun, the current one counted half)."""
+        if self.state == "done":
+            return 1.0
+        return min(0.99, max(0.0, (self.done_stages - 0.5) / max(self.stages, 1)))
+
+    def as_dict(self) -> dict:
+        return {
+            "state": self.state,
+            "fraction": self.fraction,
+            "stage": self.stage,
+            "lines": self.lines[-12:],
+            "error": self.error,
+            "seconds": (self.ended or time.time()) - self.started,
+            "job": str(self.job),
+            "out": str(self.out),
+        }
+
+    def cancel(self) -> None:
+        """End the child process and its workers (a cancelled run writes nothing)."""
+        process = self.process
+        if self.state == "running" and process is not None and process.poll() is None:
+            self.state = "cancelled"
+            try:
+                os.killpg(process.pid, signal.SIGTERM)
+            except ProcessLookupError:
+                pass
+
+
+def start_run(
+    job: Path, out: Path, stages: int, finished: Callable[[Run], None] | None = None
+) -> Run:
+    """Start ``pymorembs reduce job --out out`` in a child process and follow it in a thread."""
+    run = Run(job=job, out=out, stages=stages)
+    env = dict(os.environ)
+    source = str(Path(__file__).resolve().parents[3])  # the folder holding the package
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (source, env.get("PYTHONPATH", "")) if p)
+    env["PYTHONUNBUFFERED"] = "1"
+    run.process = subprocess.Popen(
+        [sys.executable, "-m", "pymorembs.job.cli", "reduce", str(job), "--out", str(out)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        stdin=subprocess.DEVNULL,
+        text=True,
+        env=env,
+        start_new_session=True,  # its own process group: Cancel ends its workers too
+    )
+    threading.Thread(target=_follow, args=(run, finished), daemon=True).start()
+    return run
+
+
+def _follow(run: Run, finished: Callable[[Run], None] | None) -> None:
+    process = run.process
+    assert process is not None and process.stdout is not None and process.stderr is not None
+    errors: list[str] = []
+    reader = threading.Thread(target=lambda: errors.extend(process.stderr), daemon=True)
+    reader.start()
+    for line in process.stdout:
+        line = line.rstrip()
+        if not line:
+            continue
+        run.lines.append(line)
+        text = line.split("] ", 1)[-1]
+        if text.startswith(STAGE_STARTS):
+            run.done_stages += 1
+            run.stage = text
+    code = process.wait()
+    reader.join(timeout=5)
+    run.ended = time.time()
+    if run.state == "cancelled":
+        run.stage = "cancelled"
+    elif code == 0:
+        run.state, run.stage = "done", "done"
+    else:
+        run.state = "failed"
+        message = [e.strip() for e in errors if e.strip()]
+        run.error = message[-1] if message else f"pymorembs reduce exited with code {code}"
+    for line in errors:
+        if line.startswith("pymorembs: warning"):
+            run.lines.append(line.rstrip())
+    if finished is not None:
+        finished(run)
