@@ -1,0 +1,262 @@
+"""The body as a scene for the 3D viewer (``viewer.js``): nodes, surface, frame, shapes.
+
+:func:`body_scene` turns an :class:`~pymorembs.body.ElasticBody` (and optionally a basis of
+shape functions over its dofs, its reference frame and its interface nodes) into a plain,
+JSON-serialisable dict that ``viewer.js`` draws. The HTML report embeds it; the local web app
+sends it to the page.
+
+The scene holds only the nodes a viewer shows: those of the surface (plus the frame node, the
+interface nodes and their coupled nodes), or every node when the body has no surface. Numbers
+are rounded so that the JSON stays small: positions to 6 significant digits of the model's
+size, shape values to 4 significant digits of each shape's largest translation (single
+precision and below: what a picture needs, not what a computation needs).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pymorembs.body import ElasticBody
+from pymorembs.errors import UserError
+from pymorembs.prepare import Frame, centre_of_gravity
+from pymorembs.prepare.interface import InterfaceSpec
+
+__all__ = ["POSITION_DIGITS", "SHAPE_DIGITS", "body_scene", "viewer_script"]
+
+#: Significant digits of the positions, relative to the model's size.
+POSITION_DIGITS = 6
+#: Significant digits of the shape values, relative to each shape's largest translation.
+SHAPE_DIGITS = 4
+
+InterfaceLike = InterfaceSpec | Mapping[str, Any] | tuple[str, int, Sequence[int]]
+FrameLike = Frame | Mapping[str, Any] | tuple[Any, Any]
+
+
+def viewer_script() -> str:
+    """The text of ``viewer.js``, the dependency-free WebGL viewer of a scene."""
+    return (Path(__file__).with_name("viewer.js")).read_text(encoding="utf-8")
+
+
+def body_scene(
+    body: ElasticBody,
+    *,
+    basis: np.ndarray | None = None,
+    shape_names: Sequence[str] | None = None,
+    frame: FrameLike | None = None,
+    interfaces: Sequence[InterfaceLike] | None = None,
+    max_shapes: int | None = None,
+    max_values: int | None = None,
+    all_nodes: bool = False,
+) -> dict[str, Any]:
+    """The scene of a body for ``viewer.js``, as a JSON-serialisable dict.
+
+    Parameters
+    ----------
+    body : ElasticBody
+        The body; its coordinates (model length unit) are the positions.
+    basis : ndarray, shape (n_dof, k), optional
+        Shape functions over the body's dofs (e.g. ``ReducedBody.basis`` with the body
+        ``ReducedBody.prepared.body``); their translations (ux uy uz) at the scene's nodes
+        become the shapes, dofs the body lacks count as zero.
+    shape_names : sequence of str, optional
+        One name per column of ``basis`` (default ``"shape 1"``, ...).
+    frame : Frame, mapping or (origin, axes), optional
+        The reference frame drawn as an axis triad: a :class:`pymorembs.prepare.Frame`
+        (tangent: at its node; Buckens: at the centre of gravity; none: no triad), a mapping
+        ``{"origin": [3], "axes": [[3], [3], [3]]}`` or a pair ``(origin, axes)``; axes are the
+        rows, default the model's axes.
+    interfaces : sequence, optional
+        Interface nodes with their coupled nodes: :class:`~pymorembs.prepare.interface.
+        InterfaceSpec`, mappings ``{"name", "node", "coupled"}`` or tuples
+        ``(name, node, coupled)``, node ids of the body.
+    max_shapes : int, optional
+        Keep at most this many shapes (the first ones).
+    max_values : int, optional
+        Keep at most as many shapes as fit ``3 n`` values each into this many numbers.
+    all_nodes : bool
+        Keep every node of the body, not only those a viewer shows.
+
+    Returns
+    -------
+    dict
+        ``positions`` (flat, 3 n, model length unit), ``node_ids`` (n), ``triangles`` (flat,
+        3 t, indices into the nodes), ``lines`` (flat, 2 l), ``frame`` (``{"origin", "axes"}``
+        or None), ``interfaces`` (``{"name", "node", "coupled"}`` with indices into the nodes),
+        ``shapes`` (``{"name", "values"}``, values flat, 3 n translations), ``size`` (diagonal
+        of the nodes' bounding box, model length unit), ``shapes_total`` (columns of ``basis``
+        before capping) and ``notes`` (str each: what the viewer should say).
+
+    Raises
+    ------
+    UserError
+        A basis of the wrong height, names of the wrong number, an unknown node.
+    """
+    notes: list[str] = []
+    triad = _frame(body, frame)
+    couplings = [_interface(body, item) for item in interfaces or ()]
+    surface = body.surface
+    if all_nodes or surface is None:
+        rows = np.arange(body.n_nodes)
+    else:
+        wanted = [surface.node_ids]
+        for _, node, coupled in couplings:
+            wanted += [np.array([node]), coupled]
+        if frame is not None and isinstance(frame, Frame) and frame.node is not None:
+            if frame.kind == "tangent":
+                wanted.append(np.array([int(frame.node)]))
+        rows = np.unique(body.node_rows(np.concatenate(wanted)))
+    ids = body.node_ids[rows]
+    order = np.argsort(ids, kind="stable")
+    if surface is None:
+        notes.append("no surface: the nodes are drawn as points")
+    if not body.has_coordinates:
+        notes.append("the model file gave no coordinates: every node lies at the origin")
+    coordinates = body.coordinates[rows]
+    size = _size(coordinates)
+
+    def index(node_ids: np.ndarray) -> list[int]:
+        return order[np.searchsorted(ids, node_ids, sorter=order)].tolist()
+
+    triangles: list[int] = []
+    lines: list[int] = []
+    if surface is not None:
+        triangles = index(surface.triangles.ravel())
+        lines = index(surface.lines.ravel())
+    shapes, total = _shapes(body, ids, basis, shape_names, max_shapes, max_values)
+    if len(shapes) < total:
+        notes.append(f"{len(shapes)} of {total} shapes kept, to keep the page small")
+    return {
+        "positions": _rounded(coordinates.ravel(), size, POSITION_DIGITS),
+        "node_ids": ids.tolist(),
+        "triangles": triangles,
+        "lines": lines,
+        "frame": triad,
+        "interfaces": [
+            {"name": name, "node": index(np.array([node]))[0], "coupled": index(coupled)}
+            for name, node, coupled in couplings
+        ],
+        "shapes": shapes,
+        "size": size,
+        "shapes_total": total,
+        "notes": notes,
+    }
+
+
+def _size(coordinates: np.ndarray) -> float:
+    """Diagonal of the bounding box; 1 for a body without extent."""
+    if coordinates.size == 0:
+        return 1.0
+    diagonal = float(np.linalg.norm(coordinates.max(axis=0) - coordinates.min(axis=0)))
+    return diagonal if diagonal > 0 else 1.0
+
+
+def _rounded(values: np.ndarray, scale: float, digits: int) -> list[float]:
+    """``values`` in single precision, rounded to ``digits`` significant digits of ``scale``.
+
+    Rounding to a whole number of decimals (``np.round``) divides by an exact power of ten, so
+    every number prints in its shortest form in JSON.
+    """
+    values = np.asarray(values, dtype=np.float32).astype(float)
+    if not scale > 0 or not math.isfinite(scale):
+        return [0.0] * values.size
+    decimals = digits - 1 - math.floor(math.log10(scale))
+    if decimals > 22:  # 10**d no longer exact; such tiny numbers are zero for a picture
+        return [0.0] * values.size
+    return (np.round(values, decimals) + 0.0).tolist()  # + 0.0: no negative zeros
+
+
+def _shapes(
+    body: ElasticBody,
+    ids: np.ndarray,
+    basis: np.ndarray | None,
+    names: Sequence[str] | None,
+    max_shapes: int | None,
+    max_values: int | None,
+) -> tuple[list[dict[str, Any]], int]:
+    """The shapes (name, translations at the nodes ``ids``) and the number of columns given."""
+    if basis is None:
+        if names:
+            raise UserError("scene: shape names given without a basis")
+        return [], 0
+    basis = np.asarray(basis)
+    if basis.ndim == 1:
+        basis = basis[:, None]
+    if basis.ndim != 2 or basis.shape[0] != body.n_dof:
+        raise UserError(
+            f"scene: the basis has shape {basis.shape}, expected ({body.n_dof}, k) for the "
+            "body's dofs"
+        )
+    total = basis.shape[1]
+    if names is None:
+        names = [f"shape {k + 1}" for k in range(total)]
+    if len(names) != total:
+        raise UserError(f"scene: {len(names)} shape names for {total} shapes")
+    keep = total
+    if max_shapes is not None:
+        keep = min(keep, max(0, int(max_shapes)))
+    if max_values is not None and ids.size:
+        keep = min(keep, max(1, int(max_values) // (3 * ids.size)))
+    rows = body.dofs.positions(ids[:, None], np.arange(3)[None, :]).ravel()  # (3 n,), -1: none
+    present = rows >= 0
+    shapes = []
+    for k in range(keep):
+        values = np.zeros(rows.size)
+        values[present] = np.real(basis[rows[present], k])
+        peak = float(np.max(np.abs(values), initial=0.0))
+        shapes.append({"name": str(names[k]), "values": _rounded(values, peak, SHAPE_DIGITS)})
+    return shapes, total
+
+
+def _frame(body: ElasticBody, frame: FrameLike | None) -> dict[str, list] | None:
+    """Origin and axes (rows) of the frame's triad, or None."""
+    if frame is None:
+        return None
+    if isinstance(frame, Frame):
+        if frame.kind == "none":
+            return None
+        if frame.kind == "tangent":
+            if frame.node is None or int(frame.node) not in body.node_index:
+                raise UserError(f"scene: the frame node {frame.node} is not a node of the body")
+            origin = body.node_position(int(frame.node))
+        elif frame.kind == "buckens":
+            origin = centre_of_gravity(body)
+        else:
+            raise UserError(f"scene: frame kind {frame.kind!r} is unknown")
+        axes = np.eye(3)
+    elif isinstance(frame, Mapping):
+        origin, axes = frame.get("origin"), frame.get("axes", np.eye(3))
+    else:
+        origin, axes = frame
+    origin = np.asarray(origin, dtype=float)
+    axes = np.asarray(np.eye(3) if axes is None else axes, dtype=float)
+    if origin.shape != (3,) or axes.shape != (3, 3) or not np.all(np.isfinite(axes)):
+        raise UserError("scene: the frame needs an origin of 3 numbers and 3 axes of 3 numbers")
+    if not np.all(np.isfinite(origin)):
+        raise UserError("scene: the frame's origin is not finite")
+    lengths = np.linalg.norm(axes, axis=1, keepdims=True)
+    if not np.all(lengths > 0):
+        raise UserError("scene: a frame axis has zero length")
+    return {"origin": origin.tolist(), "axes": (axes / lengths).tolist()}
+
+
+def _interface(body: ElasticBody, item: InterfaceLike) -> tuple[str, int, np.ndarray]:
+    """(name, node id, coupled node ids) of an interface, checked against the body."""
+    if isinstance(item, InterfaceSpec):
+        name, node, coupled = f"interface {item.node} ({item.kind})", item.node, item.coupled
+    elif isinstance(item, Mapping):
+        node, coupled = item["node"], item.get("coupled", ())
+        name = str(item.get("name") or f"interface {node}")
+    else:
+        name, node, coupled = item
+    node = int(node)
+    coupled = np.asarray(coupled, dtype=np.int64).ravel()
+    known = body.node_index
+    for n in (node, *coupled.tolist()):
+        if int(n) not in known:
+            raise UserError(f"scene: interface node {node}: node {n} is not a node of the body")
+    return str(name), node, coupled

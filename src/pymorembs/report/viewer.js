@@ -1,0 +1,910 @@
+/* pymorembs 3D viewer: a body's surface, nodes, frame, interfaces and shape functions.
+ *
+ * Dependency-free WebGL 1. Usage:
+ *   const v = new PymorembsViewer(canvas, scene);   // scene: pymorembs.report.scene.body_scene
+ *   v.setShape(0); v.setAmplitude(0.05); v.animate(true);
+ *
+ * Drawing: the surface triangles flat-shaded (Lambert, a head light), their feature edges
+ * (boundary edges and edges where the surface folds by more than 30 degrees), line elements,
+ * nodes as points where the body has no triangles, the frame as an axis triad, interface nodes
+ * as large points and their coupled nodes as coloured points. A shape is shown as
+ *   x = x0 + s * u,   s = amplitude * size * sin(2 pi t / period)   (animated) or the peak,
+ * with u the shape scaled to a largest translation of 1. The deformed triangles' normals are
+ * exact: n(s) = n0 + s n1 + s^2 n2 (the cross product of the deformed edges), with n0, n1, n2
+ * computed here once per shape; animating changes one uniform, no buffer.
+ *
+ * Mouse: left drag rotates, wheel zooms, right drag (or shift + left drag, middle drag) pans.
+ */
+(function (global) {
+  "use strict";
+
+  const SURFACE_VS = `
+attribute vec3 aBase; attribute vec3 aShape;
+attribute vec3 aN0; attribute vec3 aN1; attribute vec3 aN2;
+uniform mat4 uView; uniform mat4 uProj; uniform mat3 uRot; uniform float uS;
+varying vec3 vNormal; varying float vMag;
+void main() {
+  vec3 p = aBase + uS * aShape;
+  vNormal = uRot * (aN0 + uS * aN1 + uS * uS * aN2);
+  vMag = length(aShape);
+  gl_Position = uProj * uView * vec4(p, 1.0);
+}`;
+  const SURFACE_FS = `
+precision mediump float;
+varying vec3 vNormal; varying float vMag;
+uniform vec3 uColor; uniform float uContour;
+vec3 ramp(float t) {
+  vec3 a = vec3(0.23, 0.30, 0.75), b = vec3(0.87, 0.87, 0.87), c = vec3(0.71, 0.02, 0.15);
+  return t < 0.5 ? mix(a, b, 2.0 * t) : mix(b, c, 2.0 * t - 1.0);
+}
+void main() {
+  vec3 n = normalize(vNormal);
+  if (n.z < 0.0) n = -n;
+  vec3 light = normalize(vec3(0.35, 0.45, 1.0));
+  float diffuse = max(dot(n, light), 0.0);
+  vec3 base = uContour > 0.5 ? ramp(clamp(vMag, 0.0, 1.0)) : uColor;
+  gl_FragColor = vec4(base * (0.35 + 0.65 * diffuse), 1.0);
+}`;
+  const LINE_VS = `
+attribute vec3 aBase; attribute vec3 aShape; attribute vec3 aColor;
+uniform mat4 uView; uniform mat4 uProj; uniform float uS; uniform float uSize;
+varying vec3 vColor;
+void main() {
+  vColor = aColor;
+  gl_Position = uProj * uView * vec4(aBase + uS * aShape, 1.0);
+  gl_PointSize = uSize;
+}`;
+  const LINE_FS = `
+precision mediump float;
+varying vec3 vColor;
+void main() { gl_FragColor = vec4(vColor, 1.0); }`;
+  const POINT_FS = `
+precision mediump float;
+varying vec3 vColor;
+void main() {
+  vec2 d = gl_PointCoord - vec2(0.5);
+  float r = dot(d, d);
+  if (r > 0.25) discard;
+  gl_FragColor = vec4(r > 0.16 ? vColor * 0.45 : vColor, 1.0);
+}`;
+
+  const COLORS = {
+    background: [0.97, 0.975, 0.98],
+    body: [0.50, 0.62, 0.80],
+    edge: [0.16, 0.19, 0.25],
+    line: [0.10, 0.25, 0.55],
+    node: [0.15, 0.30, 0.60],
+    axes: [[0.85, 0.1, 0.1], [0.1, 0.6, 0.1], [0.1, 0.2, 0.9]],
+  };
+  // Interface colours (node and its coupled nodes), cycling.
+  const PALETTE = [
+    [0.90, 0.45, 0.0], [0.75, 0.0, 0.65], [0.0, 0.62, 0.62], [0.85, 0.72, 0.0],
+    [0.45, 0.25, 0.0], [0.95, 0.25, 0.45],
+  ];
+  const FEATURE_COS = Math.cos(30 * Math.PI / 180);
+  const FOV = 30 * Math.PI / 180;
+  const PERIOD_S = 2.0;
+
+  function css(rgb) {
+    return "rgb(" + rgb.map((c) => Math.round(255 * c)).join(",") + ")";
+  }
+
+  function unitColor(rgb) {
+    const c = Array.from(rgb || [1, 0, 0], Number);
+    return c.some((x) => x > 1) ? c.map((x) => x / 255) : c;
+  }
+
+  function compile(gl, vs, fs) {
+    const program = gl.createProgram();
+    for (const [type, text] of [[gl.VERTEX_SHADER, vs], [gl.FRAGMENT_SHADER, fs]]) {
+      const shader = gl.createShader(type);
+      gl.shaderSource(shader, text);
+      gl.compileShader(shader);
+      if (!gl.getShaderParameter(shader, gl.COMPILE_STATUS)) {
+        throw new Error("PymorembsViewer: shader: " + gl.getShaderInfoLog(shader));
+      }
+      gl.attachShader(program, shader);
+    }
+    gl.linkProgram(program);
+    if (!gl.getProgramParameter(program, gl.LINK_STATUS)) {
+      throw new Error("PymorembsViewer: program: " + gl.getProgramInfoLog(program));
+    }
+    const info = { program, attributes: {}, uniforms: {} };
+    const na = gl.getProgramParameter(program, gl.ACTIVE_ATTRIBUTES);
+    for (let i = 0; i < na; i++) {
+      const name = gl.getActiveAttrib(program, i).name;
+      info.attributes[name] = gl.getAttribLocation(program, name);
+    }
+    const nu = gl.getProgramParameter(program, gl.ACTIVE_UNIFORMS);
+    for (let i = 0; i < nu; i++) {
+      const name = gl.getActiveUniform(program, i).name;
+      info.uniforms[name] = gl.getUniformLocation(program, name);
+    }
+    return info;
+  }
+
+  // 3x3 matrices row-major in arrays of 9.
+  function mul3(a, b) {
+    const out = new Array(9);
+    for (let i = 0; i < 3; i++) {
+      for (let j = 0; j < 3; j++) {
+        out[3 * i + j] = a[3 * i] * b[j] + a[3 * i + 1] * b[3 + j] + a[3 * i + 2] * b[6 + j];
+      }
+    }
+    return out;
+  }
+  function rotX(a) {
+    const c = Math.cos(a), s = Math.sin(a);
+    return [1, 0, 0, 0, c, -s, 0, s, c];
+  }
+  function rotY(a) {
+    const c = Math.cos(a), s = Math.sin(a);
+    return [c, 0, s, 0, 1, 0, -s, 0, c];
+  }
+  function orthonormal(r) {
+    // Gram-Schmidt on the rows, so that rounding never shears the view.
+    const x = [r[0], r[1], r[2]], y = [r[3], r[4], r[5]];
+    const nx = Math.hypot(...x);
+    for (let k = 0; k < 3; k++) x[k] /= nx;
+    const d = x[0] * y[0] + x[1] * y[1] + x[2] * y[2];
+    for (let k = 0; k < 3; k++) y[k] -= d * x[k];
+    const ny = Math.hypot(...y);
+    for (let k = 0; k < 3; k++) y[k] /= ny;
+    const z = [x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0]];
+    return [...x, ...y, ...z];
+  }
+
+  class PymorembsViewer {
+    /**
+     * @param {HTMLCanvasElement} canvas
+     * @param {object} scene  the dict of pymorembs.report.scene.body_scene
+     * @param {object} [options]  {legend: true}: draw a legend next to the canvas
+     */
+    constructor(canvas, scene, options) {
+      this.canvas = canvas;
+      this.options = Object.assign({ legend: true }, options || {});
+      const attributes = { antialias: true, preserveDrawingBuffer: true };
+      const gl = canvas.getContext("webgl", attributes) ||
+        canvas.getContext("experimental-webgl", attributes);
+      if (!gl) throw new Error("PymorembsViewer: this browser offers no WebGL");
+      this.gl = gl;
+      this.frames = 0;
+      this._programs = {
+        surface: compile(gl, SURFACE_VS, SURFACE_FS),
+        line: compile(gl, LINE_VS, LINE_FS),
+        point: compile(gl, LINE_VS, POINT_FS),
+      };
+      this._buffers = {};
+      this._shape = null;
+      this._amplitude = 0.05;
+      this._animating = false;
+      this._contour = true;
+      this._start = performance.now();
+      this._highlights = [];
+      this._listeners = [];
+      this._pending = false;
+      this._dpr = global.devicePixelRatio || 1;
+      this._bindMouse();
+      this.setScene(scene);
+    }
+
+    // ------------------------------------------------------------------ public
+    /** Call `listener(viewer)` after every change of scene, shape, amplitude or animation. */
+    onChange(listener) {
+      this._listeners.push(listener);
+    }
+
+    /** Replace the scene (resets shape, highlights and view). */
+    setScene(scene) {
+      this.scene = scene;
+      const P = new Float32Array(scene.positions || []);
+      this._n = P.length / 3;
+      this._P = P;
+      this._tri = Uint32Array.from(scene.triangles || []);
+      this._lin = Uint32Array.from(scene.lines || []);
+      this._size = scene.size > 0 ? scene.size : 1;
+      this._U = new Float32Array(3 * this._n);  // the shown shape, largest translation 1
+      this._shape = null;
+      this._highlights = [];
+      this._bounds();
+      this._buildSurface();
+      this._buildEdges();
+      this._buildPoints();
+      this._buildTriad();
+      this._shapeBuffers();
+      this.resetView();
+      this._changed();
+    }
+
+    /** Show shape k (index into scene.shapes), or the undeformed body for null. */
+    setShape(k) {
+      const shapes = this.scene.shapes || [];
+      if (k === null || k === undefined || k < 0 || k >= shapes.length) {
+        this._shape = null;
+        this._U.fill(0);
+      } else {
+        this._shape = k;
+        const v = shapes[k].values;
+        let peak = 0;
+        for (let i = 0; i < this._n; i++) {
+          peak = Math.max(peak, Math.hypot(v[3 * i], v[3 * i + 1], v[3 * i + 2]));
+        }
+        const f = peak > 0 ? 1 / peak : 0;
+        for (let i = 0; i < 3 * this._n; i++) this._U[i] = f * v[i];
+      }
+      this._shapeBuffers();
+      this._changed();
+      this._requestRender();
+    }
+
+    /** Largest translation of the shown shape as a fraction of the model's size. */
+    setAmplitude(a) {
+      this._amplitude = Math.max(0, Number(a) || 0);
+      this._changed();
+      this._requestRender();
+    }
+
+    /** Colour the surface by the shape's translation (true, default) or plainly. */
+    setContour(on) {
+      this._contour = !!on;
+      this._changed();
+      this._requestRender();
+    }
+
+    /** Run (true) or stop (false) the sin(t) animation of the shown shape. */
+    animate(on) {
+      on = !!on;
+      if (on === this._animating) return;
+      this._animating = on;
+      this._start = performance.now();
+      this._changed();
+      if (on) {
+        const loop = () => {
+          if (!this._animating) return;
+          this.render();
+          global.requestAnimationFrame(loop);
+        };
+        global.requestAnimationFrame(loop);
+      } else {
+        this._requestRender();
+      }
+    }
+
+    /** Mark nodes (indices into the scene's nodes) in a colour [r, g, b] (0..1 or 0..255). */
+    highlight(indices, color) {
+      this._highlights.push({ indices: Array.from(indices || []), color: unitColor(color) });
+      this._buildHighlights();
+      this._requestRender();
+    }
+
+    clearHighlight() {
+      this._highlights = [];
+      this._buildHighlights();
+      this._requestRender();
+    }
+
+    /** The whole body in view, from the default direction. */
+    resetView() {
+      const e = this._extent;
+      const axes = [0, 1, 2].sort((a, b) => e[b] - e[a]);  // longest first
+      const row = (k) => [0, 1, 2].map((j) => (j === k ? 1 : 0));
+      const x = row(axes[0]), z = row(axes[2]);
+      const y = [z[1] * x[2] - z[2] * x[1], z[2] * x[0] - z[0] * x[2], z[0] * x[1] - z[1] * x[0]];
+      this._R = orthonormal(mul3(mul3(rotX(0.4), rotY(-0.5)), [...x, ...y, ...z]));
+      this._center = this._middle.slice();
+      this._distance = this._fitDistance();
+      this._requestRender();
+    }
+
+    /** Index of the node under the cursor (nearest of the triangle hit, else the nearest drawn
+     * node within 10 px), or null. */
+    pickNode(clientX, clientY) {
+      const hit = this._rayHit(clientX, clientY);
+      const X = this._current();
+      if (hit) {
+        let best = null, bestD = Infinity;
+        for (let c = 0; c < 3; c++) {
+          const i = this._tri[3 * hit.triangle + c];
+          const d = Math.hypot(X[3 * i] - hit.point[0], X[3 * i + 1] - hit.point[1],
+            X[3 * i + 2] - hit.point[2]);
+          if (d < bestD) { bestD = d; best = i; }
+        }
+        return best;
+      }
+      const [px, py] = this._canvasPixel(clientX, clientY);
+      const m = this._matrices();
+      const w = this.canvas.width, h = this.canvas.height;
+      const limit = 10 * this._dpr;
+      let best = null, bestD = limit * limit, bestZ = Infinity;
+      for (let i = 0; i < this._n; i++) {
+        const q = project(m.pv, X[3 * i], X[3 * i + 1], X[3 * i + 2]);
+        if (!q) continue;
+        const sx = (q[0] + 1) * 0.5 * w, sy = (1 - q[1]) * 0.5 * h;
+        const d = (sx - px) * (sx - px) + (sy - py) * (sy - py);
+        if (d < bestD - 1e-9 || (d <= bestD && q[2] < bestZ)) { bestD = d; bestZ = q[2]; best = i; }
+      }
+      return best;
+    }
+
+    /** Index of the surface triangle under the cursor (the nearest one hit), or null. */
+    pickTriangle(clientX, clientY) {
+      const hit = this._rayHit(clientX, clientY);
+      return hit ? hit.triangle : null;
+    }
+
+    /** Draw one frame now. */
+    render() {
+      const gl = this.gl;
+      this._resize();
+      const m = this._matrices();
+      const s = this._deflection();
+      const bg = COLORS.background;
+      gl.viewport(0, 0, this.canvas.width, this.canvas.height);
+      gl.clearColor(bg[0], bg[1], bg[2], 1);
+      gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
+      gl.enable(gl.DEPTH_TEST);
+      gl.depthFunc(gl.LEQUAL);
+      const b = this._buffers;
+      if (b.surface && b.surface.count) {
+        const p = this._use("surface", m, s);
+        gl.uniform3fv(p.uniforms.uColor, COLORS.body);
+        gl.uniform1f(p.uniforms.uContour, this._contour && this._shape !== null ? 1 : 0);
+        gl.enable(gl.POLYGON_OFFSET_FILL);
+        gl.polygonOffset(1, 1);
+        this._draw(p, b.surface, gl.TRIANGLES);
+        gl.disable(gl.POLYGON_OFFSET_FILL);
+      }
+      for (const kind of ["edges", "lines"]) {
+        if (b[kind] && b[kind].count) this._draw(this._use("line", m, s), b[kind], gl.LINES);
+      }
+      const dpr = this._dpr;
+      const pointSets = [["nodes", 4], ["coupled", 6], ["highlight", 7]];
+      for (const [kind, size] of pointSets) {
+        if (!b[kind] || !b[kind].count) continue;
+        const p = this._use("point", m, s);
+        gl.uniform1f(p.uniforms.uSize, size * dpr);
+        this._draw(p, b[kind], gl.POINTS);
+      }
+      gl.disable(gl.DEPTH_TEST);  // frame and interface nodes stay visible inside the body
+      if (b.triad && b.triad.count) this._draw(this._use("line", m, 0), b.triad, gl.LINES);
+      if (b.interfaces && b.interfaces.count) {
+        const p = this._use("point", m, s);
+        gl.uniform1f(p.uniforms.uSize, 13 * dpr);
+        this._draw(p, b.interfaces, gl.POINTS);
+      }
+      this.frames += 1;
+    }
+
+    /** Build a shape selector, amplitude slider, animation switch and view reset into
+     * `container`; returns the elements. */
+    static controls(viewer, container) {
+      const doc = container.ownerDocument;
+      const make = (tag, props) => Object.assign(doc.createElement(tag), props || {});
+      const label = (text, element) => {
+        const l = make("label");
+        l.style.marginRight = "1em";
+        l.append(text + " ", element);
+        container.append(l);
+        return element;
+      };
+      const select = make("select");
+      let listed = null;  // the scene whose shapes the selector lists
+      const list = () => {
+        listed = viewer.scene;
+        select.textContent = "";
+        select.append(make("option", { value: "", textContent: "undeformed" }));
+        (listed.shapes || []).forEach((shape, k) => {
+          select.append(make("option", { value: String(k), textContent: shape.name }));
+        });
+      };
+      list();
+      label("shape", select);
+      const amplitude = make("input", { type: "range", min: "0", max: "0.25", step: "0.005",
+        value: String(viewer._amplitude) });
+      label("amplitude", amplitude);
+      const run = make("input", { type: "checkbox", checked: viewer._animating });
+      label("animate", run);
+      const contour = make("input", { type: "checkbox", checked: viewer._contour });
+      label("colour by translation", contour);
+      const reset = make("button", { type: "button", textContent: "reset view" });
+      container.append(reset);
+      select.addEventListener("change", () => {
+        viewer.setShape(select.value === "" ? null : Number(select.value));
+      });
+      amplitude.addEventListener("input", () => viewer.setAmplitude(Number(amplitude.value)));
+      run.addEventListener("change", () => viewer.animate(run.checked));
+      contour.addEventListener("change", () => viewer.setContour(contour.checked));
+      reset.addEventListener("click", () => viewer.resetView());
+      const sync = () => {
+        if (listed !== viewer.scene) list();
+        select.value = viewer._shape === null ? "" : String(viewer._shape);
+        amplitude.value = String(viewer._amplitude);
+        run.checked = viewer._animating;
+        contour.checked = viewer._contour;
+      };
+      viewer.onChange(sync);
+      return { select, amplitude, run, contour, reset, sync };
+    }
+
+    // ------------------------------------------------------------------ geometry
+    _bounds() {
+      const P = this._P, n = this._n;
+      const lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
+      for (let i = 0; i < n; i++) {
+        for (let k = 0; k < 3; k++) {
+          const x = P[3 * i + k];
+          if (x < lo[k]) lo[k] = x;
+          if (x > hi[k]) hi[k] = x;
+        }
+      }
+      if (!n) { lo.fill(-0.5); hi.fill(0.5); }
+      const f = this.scene.frame;
+      if (f) {  // the triad belongs in the view too
+        for (let k = 0; k < 3; k++) {
+          lo[k] = Math.min(lo[k], f.origin[k]);
+          hi[k] = Math.max(hi[k], f.origin[k]);
+        }
+      }
+      this._lo = lo;
+      this._hi = hi;
+      this._middle = [0, 1, 2].map((k) => 0.5 * (lo[k] + hi[k]));
+      this._extent = [0, 1, 2].map((k) => hi[k] - lo[k]);
+    }
+
+    _buildSurface() {
+      const t = this._tri.length / 3, P = this._P, T = this._tri;
+      const base = new Float32Array(9 * t), n0 = new Float32Array(9 * t);
+      this._n0 = new Float32Array(3 * t);  // unit normal per triangle, for the edges
+      for (let j = 0; j < t; j++) {
+        const a = 3 * T[3 * j], b = 3 * T[3 * j + 1], c = 3 * T[3 * j + 2];
+        for (let k = 0; k < 3; k++) {
+          base[9 * j + k] = P[a + k];
+          base[9 * j + 3 + k] = P[b + k];
+          base[9 * j + 6 + k] = P[c + k];
+        }
+        const e1 = [P[b] - P[a], P[b + 1] - P[a + 1], P[b + 2] - P[a + 2]];
+        const e2 = [P[c] - P[a], P[c + 1] - P[a + 1], P[c + 2] - P[a + 2]];
+        const nn = cross(e1, e2);
+        const len = Math.hypot(nn[0], nn[1], nn[2]) || 1;
+        for (let k = 0; k < 3; k++) {
+          const v = nn[k] / len;
+          this._n0[3 * j + k] = v;
+          n0[9 * j + k] = v; n0[9 * j + 3 + k] = v; n0[9 * j + 6 + k] = v;
+        }
+      }
+      const old = this._buffers.surface || {};
+      this._buffers.surface = {
+        count: 3 * t,
+        aBase: this._upload(old.aBase, base),
+        aN0: this._upload(old.aN0, n0),
+        aShape: old.aShape, aN1: old.aN1, aN2: old.aN2,
+      };
+    }
+
+    _buildEdges() {
+      // Feature edges: on the boundary, on a fold of more than 30 degrees, or non-manifold.
+      const T = this._tri, t = T.length / 3, n = this._n;
+      const first = new Map(), edges = [];
+      for (let j = 0; j < t; j++) {
+        for (let c = 0; c < 3; c++) {
+          const a = T[3 * j + c], b = T[3 * j + (c + 1) % 3];
+          const key = a < b ? a * n + b : b * n + a;
+          const seen = first.get(key);
+          if (seen === undefined) first.set(key, j);
+          else if (seen >= 0) {
+            const N = this._n0;
+            const d = N[3 * seen] * N[3 * j] + N[3 * seen + 1] * N[3 * j + 1] +
+              N[3 * seen + 2] * N[3 * j + 2];
+            if (Math.abs(d) < FEATURE_COS) edges.push(a, b);
+            first.set(key, -1);
+          } else edges.push(a, b);  // a third triangle on one edge
+        }
+      }
+      for (const [key, j] of first) {
+        if (j >= 0) edges.push(Math.floor(key / n), key % n);
+      }
+      this._edgeNodes = Uint32Array.from(edges);
+      this._buffers.edges = this._segmentBuffer(this._buffers.edges, this._edgeNodes,
+        COLORS.edge);
+      this._buffers.lines = this._segmentBuffer(this._buffers.lines, this._lin, COLORS.line);
+    }
+
+    _buildPoints() {
+      const s = this.scene;
+      const drawNodes = this._tri.length === 0;
+      const all = [];
+      if (drawNodes) for (let i = 0; i < this._n; i++) all.push(i);
+      this._nodeSet = Uint32Array.from(all);
+      this._buffers.nodes = this._pointBuffer(this._buffers.nodes, this._nodeSet,
+        () => COLORS.node);
+      const coupled = [], coupledColor = [], nodes = [], nodeColor = [];
+      (s.interfaces || []).forEach((f, k) => {
+        const c = PALETTE[k % PALETTE.length];
+        for (const i of f.coupled) { coupled.push(i); coupledColor.push(c); }
+        nodes.push(f.node);
+        nodeColor.push(c);
+      });
+      this._coupledSet = Uint32Array.from(coupled);
+      this._buffers.coupled = this._pointBuffer(this._buffers.coupled, this._coupledSet,
+        (k) => coupledColor[k]);
+      this._interfaceSet = Uint32Array.from(nodes);
+      this._buffers.interfaces = this._pointBuffer(this._buffers.interfaces,
+        this._interfaceSet, (k) => nodeColor[k]);
+      this._buildHighlights();
+    }
+
+    _buildHighlights() {
+      const nodes = [], colors = [];
+      for (const h of this._highlights) {
+        for (const i of h.indices) {
+          if (i >= 0 && i < this._n) { nodes.push(i); colors.push(h.color); }
+        }
+      }
+      this._highlightSet = Uint32Array.from(nodes);
+      this._buffers.highlight = this._pointBuffer(this._buffers.highlight, this._highlightSet,
+        (k) => colors[k]);
+    }
+
+    _buildTriad() {
+      const f = this.scene.frame;
+      if (!f) { this._buffers.triad = { count: 0 }; return; }
+      const L = 0.2 * this._size;
+      const base = [], color = [];
+      f.axes.forEach((axis, k) => {
+        base.push(...f.origin, ...f.origin.map((o, j) => o + L * axis[j]));
+        color.push(...COLORS.axes[k], ...COLORS.axes[k]);
+      });
+      const old = this._buffers.triad || {};
+      this._buffers.triad = {
+        count: 6,
+        aBase: this._upload(old.aBase, new Float32Array(base)),
+        aShape: this._upload(old.aShape, new Float32Array(18)),
+        aColor: this._upload(old.aColor, new Float32Array(color)),
+      };
+    }
+
+    _segmentBuffer(old, nodes, rgb) {
+      const m = nodes.length, base = new Float32Array(3 * m), color = new Float32Array(3 * m);
+      for (let v = 0; v < m; v++) {
+        const i = nodes[v];
+        for (let k = 0; k < 3; k++) {
+          base[3 * v + k] = this._P[3 * i + k];
+          color[3 * v + k] = rgb[k];
+        }
+      }
+      old = old || {};
+      return {
+        count: m, nodes,
+        aBase: this._upload(old.aBase, base),
+        aShape: this._upload(old.aShape, this._gather(nodes)),
+        aColor: this._upload(old.aColor, color),
+      };
+    }
+
+    _pointBuffer(old, nodes, colorOf) {
+      const buffer = this._segmentBuffer(old, nodes, [0, 0, 0]);
+      const color = new Float32Array(3 * nodes.length);
+      for (let v = 0; v < nodes.length; v++) color.set(colorOf(v), 3 * v);
+      this._upload(buffer.aColor, color);
+      return buffer;
+    }
+
+    _gather(nodes) {
+      const out = new Float32Array(3 * nodes.length), U = this._U;
+      for (let v = 0; v < nodes.length; v++) {
+        const i = nodes[v];
+        out[3 * v] = U[3 * i]; out[3 * v + 1] = U[3 * i + 1]; out[3 * v + 2] = U[3 * i + 2];
+      }
+      return out;
+    }
+
+    _shapeBuffers() {
+      // The shape at every drawn vertex and the normal's terms n1, n2 (see the file's head).
+      const T = this._tri, t = T.length / 3, P = this._P, U = this._U;
+      const shape = new Float32Array(9 * t), n1 = new Float32Array(9 * t);
+      const n2 = new Float32Array(9 * t);
+      if (this._shape !== null) {
+        for (let j = 0; j < t; j++) {
+          const a = 3 * T[3 * j], b = 3 * T[3 * j + 1], c = 3 * T[3 * j + 2];
+          const e1 = [P[b] - P[a], P[b + 1] - P[a + 1], P[b + 2] - P[a + 2]];
+          const e2 = [P[c] - P[a], P[c + 1] - P[a + 1], P[c + 2] - P[a + 2]];
+          const d1 = [U[b] - U[a], U[b + 1] - U[a + 1], U[b + 2] - U[a + 2]];
+          const d2 = [U[c] - U[a], U[c + 1] - U[a + 1], U[c + 2] - U[a + 2]];
+          const nn = cross(e1, e2);
+          const len = Math.hypot(nn[0], nn[1], nn[2]) || 1;  // same scale as n0
+          const x = cross(e1, d2), y = cross(d1, e2), z = cross(d1, d2);
+          for (let k = 0; k < 3; k++) {
+            shape[9 * j + k] = U[a + k];
+            shape[9 * j + 3 + k] = U[b + k];
+            shape[9 * j + 6 + k] = U[c + k];
+            const v1 = (x[k] + y[k]) / len, v2 = z[k] / len;
+            n1[9 * j + k] = v1; n1[9 * j + 3 + k] = v1; n1[9 * j + 6 + k] = v1;
+            n2[9 * j + k] = v2; n2[9 * j + 3 + k] = v2; n2[9 * j + 6 + k] = v2;
+          }
+        }
+      }
+      const sb = this._buffers.surface;
+      if (sb) {
+        sb.aShape = this._upload(sb.aShape, shape);
+        sb.aN1 = this._upload(sb.aN1, n1);
+        sb.aN2 = this._upload(sb.aN2, n2);
+      }
+      for (const kind of ["edges", "lines", "nodes", "coupled", "interfaces", "highlight"]) {
+        const b = this._buffers[kind];
+        if (b && b.nodes) this._upload(b.aShape, this._gather(b.nodes));
+      }
+    }
+
+    _upload(buffer, data) {
+      const gl = this.gl;
+      buffer = buffer || gl.createBuffer();
+      gl.bindBuffer(gl.ARRAY_BUFFER, buffer);
+      gl.bufferData(gl.ARRAY_BUFFER, data, gl.STATIC_DRAW);
+      return buffer;
+    }
+
+    // ------------------------------------------------------------------ drawing
+    _deflection() {
+      if (this._shape === null) return 0;
+      const s = this._amplitude * this._size;
+      if (!this._animating) return s;
+      const t = (performance.now() - this._start) / 1000;
+      return s * Math.sin(2 * Math.PI * t / PERIOD_S);
+    }
+
+    _resize() {
+      const c = this.canvas, dpr = this._dpr;
+      const w = Math.max(1, Math.round((c.clientWidth || c.width) * dpr));
+      const h = Math.max(1, Math.round((c.clientHeight || c.height) * dpr));
+      if (c.width !== w || c.height !== h) { c.width = w; c.height = h; }
+    }
+
+    _fitDistance() {
+      const R = this._R, lo = this._lo, hi = this._hi, mid = this._middle;
+      let hw = 0, hh = 0, hd = 0;
+      for (let corner = 0; corner < 8; corner++) {
+        const p = [0, 1, 2].map((k) => ((corner >> k) & 1 ? hi[k] : lo[k]) - mid[k]);
+        hw = Math.max(hw, Math.abs(R[0] * p[0] + R[1] * p[1] + R[2] * p[2]));
+        hh = Math.max(hh, Math.abs(R[3] * p[0] + R[4] * p[1] + R[5] * p[2]));
+        hd = Math.max(hd, Math.abs(R[6] * p[0] + R[7] * p[1] + R[8] * p[2]));
+      }
+      const c = this.canvas;
+      const aspect = (c.clientWidth || c.width) / (c.clientHeight || c.height) || 1;
+      const ty = Math.tan(FOV / 2), tx = ty * aspect;
+      const d = 1.15 * Math.max(hh / ty, hw / tx) + hd;
+      return d > 0 ? d : this._size;
+    }
+
+    _matrices() {
+      const R = this._R, c = this._center, d = this._distance;
+      const view = new Float32Array(16);
+      for (let i = 0; i < 3; i++) {
+        for (let j = 0; j < 3; j++) view[4 * j + i] = R[3 * i + j];
+        view[12 + i] = -(R[3 * i] * c[0] + R[3 * i + 1] * c[1] + R[3 * i + 2] * c[2]);
+      }
+      view[14] -= d;
+      view[15] = 1;
+      const w = this.canvas.width, h = this.canvas.height;
+      const aspect = w / h || 1, f = 1 / Math.tan(FOV / 2);
+      const reach = 2 * this._size + 1e-12;
+      const near = Math.max(d - reach, d * 1e-3), far = d + reach;
+      const proj = new Float32Array(16);
+      proj[0] = f / aspect;
+      proj[5] = f;
+      proj[10] = (far + near) / (near - far);
+      proj[11] = -1;
+      proj[14] = 2 * far * near / (near - far);
+      return { view, proj, pv: mul4(proj, view), aspect };
+    }
+
+    _use(name, m, s) {
+      const gl = this.gl, p = this._programs[name];
+      gl.useProgram(p.program);
+      gl.uniformMatrix4fv(p.uniforms.uView, false, m.view);
+      gl.uniformMatrix4fv(p.uniforms.uProj, false, m.proj);
+      gl.uniform1f(p.uniforms.uS, s);
+      if (p.uniforms.uRot) {
+        const R = this._R;  // column-major of the view's rotation
+        gl.uniformMatrix3fv(p.uniforms.uRot, false,
+          new Float32Array([R[0], R[3], R[6], R[1], R[4], R[7], R[2], R[5], R[8]]));
+      }
+      return p;
+    }
+
+    _draw(p, buffer, mode) {
+      const gl = this.gl;
+      const used = [];
+      for (const name in p.attributes) {
+        const location = p.attributes[name];
+        gl.bindBuffer(gl.ARRAY_BUFFER, buffer[name]);
+        gl.enableVertexAttribArray(location);
+        gl.vertexAttribPointer(location, 3, gl.FLOAT, false, 0, 0);
+        used.push(location);
+      }
+      gl.drawArrays(mode, 0, buffer.count);
+      for (const location of used) gl.disableVertexAttribArray(location);
+    }
+
+    _requestRender() {
+      if (this._animating || this._pending) return;
+      this._pending = true;
+      global.requestAnimationFrame(() => {
+        this._pending = false;
+        if (!this._animating) this.render();
+      });
+    }
+
+    // ------------------------------------------------------------------ picking
+    _current() {
+      const s = this._deflection(), P = this._P, U = this._U;
+      if (s === 0) return P;
+      const X = new Float32Array(P.length);
+      for (let i = 0; i < P.length; i++) X[i] = P[i] + s * U[i];
+      return X;
+    }
+
+    _canvasPixel(clientX, clientY) {
+      const r = this.canvas.getBoundingClientRect();
+      return [(clientX - r.left) / (r.width || 1) * this.canvas.width,
+        (clientY - r.top) / (r.height || 1) * this.canvas.height];
+    }
+
+    _rayHit(clientX, clientY) {
+      const T = this._tri, t = T.length / 3;
+      if (!t) return null;
+      const [px, py] = this._canvasPixel(clientX, clientY);
+      const w = this.canvas.width, h = this.canvas.height;
+      const ty = Math.tan(FOV / 2), aspect = w / h || 1;
+      const vx = ((2 * px) / w - 1) * ty * aspect, vy = (1 - (2 * py) / h) * ty;
+      const R = this._R, c = this._center, d = this._distance;
+      // Eye and ray direction in world coordinates: R^T of the view-space vectors.
+      const eye = [0, 1, 2].map((k) => c[k] + R[6 + k] * d);
+      const dir = [0, 1, 2].map((k) => R[k] * vx + R[3 + k] * vy - R[6 + k]);
+      const X = this._current();
+      let best = Infinity, bestJ = -1;
+      for (let j = 0; j < t; j++) {
+        const a = 3 * T[3 * j], b = 3 * T[3 * j + 1], cc = 3 * T[3 * j + 2];
+        const e1x = X[b] - X[a], e1y = X[b + 1] - X[a + 1], e1z = X[b + 2] - X[a + 2];
+        const e2x = X[cc] - X[a], e2y = X[cc + 1] - X[a + 1], e2z = X[cc + 2] - X[a + 2];
+        const qx = dir[1] * e2z - dir[2] * e2y, qy = dir[2] * e2x - dir[0] * e2z;
+        const qz = dir[0] * e2y - dir[1] * e2x;
+        const det = e1x * qx + e1y * qy + e1z * qz;
+        if (det === 0) continue;
+        const inv = 1 / det;
+        const sx = eye[0] - X[a], sy = eye[1] - X[a + 1], sz = eye[2] - X[a + 2];
+        const u = (sx * qx + sy * qy + sz * qz) * inv;
+        if (u < 0 || u > 1) continue;
+        const rx = sy * e1z - sz * e1y, ry = sz * e1x - sx * e1z, rz = sx * e1y - sy * e1x;
+        const v = (dir[0] * rx + dir[1] * ry + dir[2] * rz) * inv;
+        if (v < 0 || u + v > 1) continue;
+        const along = (e2x * rx + e2y * ry + e2z * rz) * inv;
+        if (along > 0 && along < best) { best = along; bestJ = j; }
+      }
+      if (bestJ < 0) return null;
+      return { triangle: bestJ, point: [0, 1, 2].map((k) => eye[k] + best * dir[k]) };
+    }
+
+    // ------------------------------------------------------------------ mouse
+    _bindMouse() {
+      const c = this.canvas;
+      let last = null, mode = null;
+      c.addEventListener("contextmenu", (e) => e.preventDefault());
+      c.addEventListener("mousedown", (e) => {
+        mode = e.button === 2 || e.button === 1 || e.shiftKey ? "pan" : "rotate";
+        last = [e.clientX, e.clientY];
+        e.preventDefault();
+      });
+      global.addEventListener("mouseup", () => { mode = null; });
+      global.addEventListener("mousemove", (e) => {
+        if (!mode) return;
+        const dx = e.clientX - last[0], dy = e.clientY - last[1];
+        last = [e.clientX, e.clientY];
+        if (mode === "rotate") {
+          this._R = orthonormal(mul3(mul3(rotY(0.01 * dx), rotX(0.01 * dy)), this._R));
+        } else {
+          const r = c.getBoundingClientRect();
+          const scale = 2 * this._distance * Math.tan(FOV / 2) / (r.height || 1);
+          const R = this._R;
+          for (let k = 0; k < 3; k++) this._center[k] -= scale * (dx * R[k] - dy * R[3 + k]);
+        }
+        this._requestRender();
+      });
+      c.addEventListener("wheel", (e) => {
+        e.preventDefault();
+        const step = e.deltaMode === 1 ? 40 * e.deltaY : e.deltaY;
+        this._distance *= Math.exp(Math.max(-1, Math.min(1, 0.0015 * step)));
+        this._requestRender();
+      }, { passive: false });
+    }
+
+    // ------------------------------------------------------------------ legend
+    _changed() {
+      this._legend();
+      for (const listener of this._listeners) listener(this);
+    }
+
+    _legend() {
+      if (!this.options.legend) return;
+      const c = this.canvas, parent = c.parentNode;
+      if (!parent) return;
+      const doc = c.ownerDocument;
+      if (!this._legendBox) {
+        if (global.getComputedStyle(parent).position === "static") {
+          parent.style.position = "relative";
+        }
+        this._legendBox = doc.createElement("div");
+        this._legendBox.className = "pymorembs-legend";
+        Object.assign(this._legendBox.style, {
+          position: "absolute", left: "8px", top: "8px", padding: "4px 8px",
+          background: "rgba(255,255,255,0.85)", font: "12px system-ui, sans-serif",
+          border: "1px solid #ccc", pointerEvents: "none", lineHeight: "1.5",
+        });
+        c.insertAdjacentElement("afterend", this._legendBox);
+      }
+      const box = this._legendBox;
+      box.textContent = "";
+      const item = (rgb, text, round) => {
+        const row = doc.createElement("div");
+        const swatch = doc.createElement("span");
+        Object.assign(swatch.style, {
+          display: "inline-block", width: "10px", height: "10px", marginRight: "6px",
+          background: css(rgb), borderRadius: round ? "50%" : "0", verticalAlign: "middle",
+        });
+        row.append(swatch, text);
+        box.append(row);
+      };
+      const s = this.scene;
+      if (this._tri.length) item(COLORS.body, "surface");
+      if (this._lin.length) item(COLORS.line, "line elements");
+      if (!this._tri.length) item(COLORS.node, "nodes", true);
+      (s.interfaces || []).forEach((f, k) => {
+        item(PALETTE[k % PALETTE.length], f.name + " and its " + f.coupled.length +
+          " coupled nodes", true);
+      });
+      if (s.frame) {
+        const row = doc.createElement("div");
+        row.append("frame: ");
+        ["x", "y", "z"].forEach((name, k) => {
+          const span = doc.createElement("span");
+          span.style.color = css(COLORS.axes[k]);
+          span.style.fontWeight = "bold";
+          span.textContent = name + " ";
+          row.append(span);
+        });
+        box.append(row);
+      }
+      if (this._shape !== null) {
+        const row = doc.createElement("div");
+        row.textContent = s.shapes[this._shape].name + ", largest translation " +
+          (100 * this._amplitude).toFixed(1) + " % of the size";
+        box.append(row);
+      }
+    }
+  }
+
+  function cross(a, b) {
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+  }
+
+  function mul4(a, b) {  // column-major 4x4 product a * b
+    const out = new Float32Array(16);
+    for (let i = 0; i < 4; i++) {
+      for (let j = 0; j < 4; j++) {
+        let sum = 0;
+        for (let k = 0; k < 4; k++) sum += a[4 * k + i] * b[4 * j + k];
+        out[4 * j + i] = sum;
+      }
+    }
+    return out;
+  }
+
+  function project(m, x, y, z) {  // clip -> normalised device coordinates, null behind the eye
+    const w = m[3] * x + m[7] * y + m[11] * z + m[15];
+    if (w <= 0) return null;
+    return [(m[0] * x + m[4] * y + m[8] * z + m[12]) / w,
+      (m[1] * x + m[5] * y + m[9] * z + m[13]) / w,
+      (m[2] * x + m[6] * y + m[10] * z + m[14]) / w];
+  }
+
+  global.PymorembsViewer = PymorembsViewer;
+})(typeof window !== "undefined" ? window : globalThis);
