@@ -54,6 +54,7 @@ from pymorembs.job.app.runner import Run, start_run
 from pymorembs.job.run import load_model
 from pymorembs.job.schema import ModelSpec, load_job
 from pymorembs.methods import METHODS, option_fields
+from pymorembs.report.scene import body_scene
 from pymorembs.surface import smooth_patch
 
 STATIC = Path(__file__).parent / "static"
@@ -68,33 +69,6 @@ RESULT_KEYS = (
 BASIS_KEYS = ("V", "dof_nodes", "dof_directions", "eigenfrequencies_hz")
 #: The model a new page opens when none is given.
 DEFAULT_EXAMPLE = {"example": "rack-solid", "options": {"dofs": 35000, "interface": "none"}}
-
-
-def body_scene(body: ElasticBody) -> dict[str, Any]:
-    """The opened body for the 3D view, in the form of ``pymorembs.report.scene``."""
-    try:
-        from pymorembs.report.scene import body_scene as scene_of
-    except ImportError:  # the shared scene module is not there: the nodes and the surface
-        return _plain_scene(body)
-    return scene_of(body)
-
-
-def _plain_scene(body: ElasticBody) -> dict[str, Any]:
-    rows = body.node_index
-    surface = body.surface
-    triangles = [] if surface is None else [rows[int(n)] for n in surface.triangles.ravel()]
-    lines = [] if surface is None else [rows[int(n)] for n in surface.lines.ravel()]
-    extent = np.ptp(body.coordinates, axis=0)
-    return {
-        "positions": body.coordinates.ravel().tolist(),
-        "node_ids": body.node_ids.tolist(),
-        "triangles": triangles,
-        "lines": lines,
-        "frame": None,
-        "interfaces": [],
-        "shapes": [],
-        "size": float(np.linalg.norm(extent)) or 1.0,
-    }
 
 
 def default_job(model: dict[str, Any]) -> dict[str, Any]:
@@ -126,6 +100,7 @@ class App:
         self.lock = threading.RLock()
         self.body: ElasticBody | None = None
         self.scene: dict[str, Any] | None = None
+        self._scene_ids = np.zeros(0, dtype=np.int64)
         self.job: dict[str, Any] = default_job(DEFAULT_EXAMPLE)
         self.run: Run | None = None
         self.runs = 0
@@ -160,20 +135,30 @@ class App:
                 model = {"file": str(path.resolve())}
         else:
             raise UserError("open: give 'example' or 'path'")
+        scene = body_scene(body)
         with self.lock:
             self.body = body
-            self.scene = None
+            self.scene = scene
+            self._scene_ids = np.asarray(scene["node_ids"], dtype=np.int64)
             self._facts = None
             self._facts_thread = None
             self.job = job if job is not None else default_job(model)
         return self.state()
 
     def scene_json(self) -> dict[str, Any]:
-        body = self._body()
-        with self.lock:
-            if self.scene is None:
-                self.scene = body_scene(body)
-            return self.scene
+        """The opened body for ``viewer.js`` (:func:`pymorembs.report.scene.body_scene`)."""
+        self._body()
+        return self.scene
+
+    def scene_rows(self, ids: np.ndarray) -> np.ndarray:
+        """Indices into the scene's nodes of those of ``ids`` that the scene has."""
+        scene = self._scene_ids
+        if scene.size == 0:
+            return np.zeros(0, dtype=np.int64)
+        order = np.argsort(scene, kind="stable")
+        ids = np.asarray(ids, dtype=np.int64)
+        found = order[np.minimum(np.searchsorted(scene, ids, sorter=order), scene.size - 1)]
+        return found[scene[found] == ids]
 
     def facts(self) -> dict[str, Any]:
         """The facts of ``pymorembs info`` (computed once per model, off the request thread)."""
@@ -219,7 +204,7 @@ class App:
         if request.get("triangle") is not None:
             seed = int(request["triangle"])
         elif request.get("node") is not None:
-            node = int(body.node_ids[int(request["node"])])
+            node = int(self._scene_ids[int(request["node"])])
             touching = np.flatnonzero((surface.triangles == node).any(axis=1))
             if touching.size == 0:
                 raise UserError(f"node {node} is not on the surface")
@@ -248,7 +233,7 @@ class App:
         body = self._body()
         return {
             "count": int(nodes.size),
-            "rows": body.node_rows(nodes).tolist(),
+            "rows": self.scene_rows(nodes).tolist(),
             "ids": [int(n) for n in nodes],
             "free_id": free_node_id(
                 body, [i.get("node", 0) for i in self.job.get("interface", [])]
@@ -385,16 +370,16 @@ class App:
     def shape(self, name: str, k: int) -> dict[str, Any]:
         """Column ``k`` of a reduction's basis as translations of the scene's nodes (largest
         translation 1), with the reduced model's eigenfrequency of that direction."""
-        body = self._body()
+        self._body()
         basis = self._basis(name)
         V = basis["V"]
         if not 0 <= k < V.shape[1]:
             raise UserError(f"reduction '{name}' has shape functions 0..{V.shape[1] - 1}")
-        values = np.zeros((body.n_nodes, 3))
+        ids = self._scene_ids
+        values = np.zeros((ids.size, 3))
         nodes, directions = basis["dof_nodes"], basis["dof_directions"]
-        known = np.isin(nodes, body.node_ids) & (directions < 3)
-        rows = body.node_rows(nodes[known])
-        values[rows, directions[known]] = V[known, k]
+        known = np.isin(nodes, ids) & (directions < 3)
+        values[self.scene_rows(nodes[known]), directions[known]] = V[known, k]
         largest = np.abs(values).max()
         if largest > 0:
             values /= largest

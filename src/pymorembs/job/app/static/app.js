@@ -390,12 +390,10 @@ async function shapeChanged() {
   if (k === "") { app.viewer.setShape(null); app.viewer.render(); return; }
   const shape = await api(`/api/shape?reduction=${encodeURIComponent(name)}&k=${k}`);
   $("shape-hz").textContent = `${shape.frequency_hz.toFixed(2)} Hz`;
-  app.scene = { ...app.scene, shapes: [{ name: `${name} ${Number(k) + 1}`, values: shape.values }] };
-  app.viewer.setScene(app.scene);
+  app.viewer.scene.shapes = [{ name: `${name} ${Number(k) + 1}`, values: shape.values }];
   app.viewer.setShape(0);
   app.viewer.setAmplitude(Number($("shape-amplitude").value));
   app.viewer.animate($("shape-animate").checked);
-  if (app.selection) highlight(app.selection.rows);
   app.viewer.render();
 }
 $("shape-reduction").onchange = () => { shapeReductionChanged(); shapeChanged(); };

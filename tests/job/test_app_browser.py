@@ -1,0 +1,200 @@
+"""``pymorembs app`` driven by a real headless Chromium, as a person would use it (issue #17).
+
+Open the built-in rack, pick the upper hole's wall as a rigid interface, choose the tangent
+frame there, add a Krylov and a modal reduction, run, read the errors off the page, save the
+job, and check that ``pymorembs reduce`` on the saved job gives the same numbers. Screenshots
+of each step go to ``out/test-artifacts/app/`` (kept by CI as artefacts).
+
+Needs Debian's ``chromium`` (or ``PYMOREMBS_CHROMIUM``) and the ``playwright`` package; skipped
+without them. Playwright drives the system browser: no browser download.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pymorembs import example, select_nodes
+from pymorembs.job.app import App, make_server
+from pymorembs.job.cli import main
+
+ARTIFACTS = Path(__file__).resolve().parents[2] / "out" / "test-artifacts" / "app"
+CHROMIUM_ARGS = [
+    "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+    "--disable-component-update", "--disable-sync", "--no-first-run",
+    "--use-gl=swiftshader", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+]  # fmt: skip
+DOFS = 10000  # the rack-solid generator at 10,359 dofs: the same mesh family, a shorter run
+
+
+def chromium() -> str | None:
+    return os.environ.get("PYMOREMBS_CHROMIUM") or shutil.which("chromium")
+
+
+@pytest.fixture
+def browser():
+    sync_api = pytest.importorskip("playwright.sync_api")
+    path = chromium()
+    if path is None:
+        pytest.skip("no chromium on this machine (set PYMOREMBS_CHROMIUM)")
+    with sync_api.sync_playwright() as p:
+        launched = p.chromium.launch(executable_path=path, args=CHROMIUM_ARGS)
+        yield launched
+        launched.close()
+
+
+@pytest.fixture
+def served(tmp_path):
+    app = App(tmp_path / "work")
+    server = make_server(app, 0)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    yield app, f"http://127.0.0.1:{server.server_address[1]}/"
+    if app.run is not None:
+        app.run.cancel()
+    server.shutdown()
+    server.server_close()
+
+
+def hole_nodes() -> np.ndarray:
+    """The wall of the upper plate's hole by the numbers of the rack's drawing (Ø 30 mm,
+    204 <= z <= 221 mm): the reference for what a click on it must select."""
+    body = example("rack-solid", dofs=DOFS, interface="none")
+    return select_nodes(
+        body,
+        cylinder=((0.0, 0.0, 0.2125), (0.0, 0.0, 1.0), 0.015, 1e-6),
+        box=((-0.02, -0.02, 0.2039), (0.02, 0.02, 0.2211)),
+    )
+
+
+#: In the page: a canvas point whose pick is a triangle of the hole's wall (from the scene's
+#: positions), scanning the canvas on a grid; null if none is visible.
+FIND_HOLE = """() => {
+  const v = window.app.viewer, s = window.app.scene, r = v.canvas.getBoundingClientRect();
+  for (let y = r.top + 4; y < r.bottom; y += 4) for (let x = r.left + 4; x < r.right; x += 4) {
+    const t = v.pickTriangle(x, y);
+    if (t === null) continue;
+    let wall = true;
+    for (let c = 0; c < 3; c++) {
+      const i = s.triangles[3 * t + c], p = s.positions.slice(3 * i, 3 * i + 3);
+      if (Math.abs(Math.hypot(p[0], p[1]) - 0.015) > 1e-5 || p[2] < 0.204 - 1e-6) wall = false;
+    }
+    if (wall) return [x, y];
+  }
+  return null;
+}"""
+
+
+@pytest.mark.slow
+def test_pick_run_save_and_reduce_again(browser, served, tmp_path):
+    app, url = served
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    page = browser.new_page(viewport={"width": 1500, "height": 1000})
+    errors: list[str] = []
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    step = iter(range(1, 100))
+
+    def shot(name: str) -> None:
+        page.screenshot(path=str(ARTIFACTS / f"{next(step):02d}-{name}.png"))
+
+    page.goto(url)
+    page.wait_for_selector("body[data-ready='1']")
+    page.select_option("#example-name", "rack-solid")
+    page.fill("#example-dofs", str(DOFS))
+    page.click("#open-example")
+    page.wait_for_function("window.app.viewer && window.app.viewer.frames > 0")
+    page.wait_for_selector("#first-modes", timeout=120_000)
+    shot("opened")
+    assert app.body.n_dof == 10359
+
+    # pick the hole: a click on its wall in pick mode
+    page.click("#pick-mode")
+    point = page.evaluate(FIND_HOLE)
+    assert point is not None, "the hole's wall is not visible in the default view"
+    page.mouse.click(*point)
+    page.wait_for_selector("#selection[data-count]")
+    reference = hole_nodes()
+    assert int(page.get_attribute("#selection", "data-count")) == reference.size
+    assert "round hole, radius 0.015" in page.text_content("#selection")
+    shot("hole-picked")
+    page.select_option("#iface-kind", "rigid")
+    page.fill("#iface-node", "2")
+    page.click("#add-interface")
+    page.click("#pick-mode")  # picking off
+
+    # tangent frame at the new node, forces at node 1 and 2, band 0-1000 Hz
+    page.select_option("#frame-type", "tangent")
+    page.fill("#frame-node", "2")
+    page.dispatch_event("#frame-node", "change")
+    for node in ("1", "2"):
+        page.fill("#port-node", node)
+        page.fill("#port-directions", "ux uy uz")
+        page.click("#add-input")
+    page.wait_for_function("document.getElementById('toml').textContent.includes('[[inputs]]')")
+
+    # a Krylov and a modal reduction, options in the forms made from the registry
+    page.select_option("#method", "krylov")
+    page.click("#add-reduction")
+    card = page.locator(".reduction[data-name='krylov']")
+    card.locator("[data-option='expansion_points_hz']").fill("0, 500")
+    card.locator("[data-option='expansion_points_hz']").dispatch_event("change")
+    card.locator("[data-option='order']").fill("12")
+    card.locator("[data-option='order']").dispatch_event("change")
+    page.select_option("#method", "modal")
+    page.click("#add-reduction")
+    card = page.locator(".reduction[data-name='modal']")
+    card.locator("[data-option='order']").fill("12")
+    card.locator("[data-option='order']").dispatch_event("change")
+    page.wait_for_function(
+        "document.getElementById('toml').textContent.includes('method = \"modal\"') && "
+        "document.getElementById('toml').textContent.includes('order = 12') && "
+        "document.getElementById('job-error').textContent === ''"
+    )
+    text = page.text_content("#toml")
+    assert 'kind = "rigid"' in text and "cylinder = {" in text
+    assert '[frame]\ntype = "tangent"\nnode = 2' in text
+    shot("job-ready")
+
+    # run, with the progress bar, and read the errors off the page
+    page.click("#run")
+    page.wait_for_selector("#stage[data-state='running']")
+    shot("running")
+    page.wait_for_selector("#stage[data-state='done']", timeout=600_000)
+    page.wait_for_selector("#results-table tr[data-name='modal'] td.max-error")
+    page.wait_for_function("document.querySelector('#plot polyline')")
+    shot("results")
+    shown = {
+        name: (
+            int(page.text_content(f"#results-table tr[data-name='{name}'] td.order")),
+            page.text_content(f"#results-table tr[data-name='{name}'] td.max-error"),
+        )
+        for name in ("krylov", "modal")
+    }
+    # a shape function in the 3D view, and the MAC between the bases
+    page.select_option("#shape-reduction", "krylov")
+    page.select_option("#shape-k", "0")
+    page.wait_for_function("document.getElementById('shape-hz').textContent.includes('Hz')")
+    page.wait_for_function("document.getElementById('mac').dataset.diagonal")
+    shot("shape")
+
+    # save the job and reduce it again from the command line
+    saved = tmp_path / "saved.toml"
+    page.fill("#save-path", str(saved))
+    page.click("#save")
+    page.wait_for_selector("#saved[data-path]")
+    assert saved.read_text(encoding="utf-8") == text
+    assert main(["reduce", str(saved), "--out", str(tmp_path / "again"), "--quiet"]) == 0
+    summary = json.loads((tmp_path / "again" / "summary.json").read_text(encoding="utf-8"))
+    again = {r["name"]: (r["order"], f"{r['max_rel_error']:.3e}") for r in summary["reductions"]}
+    for name, (order, error) in shown.items():
+        assert again[name][0] == order
+        assert float(error) == pytest.approx(float(again[name][1]), rel=1e-3)
+    # the Krylov basis reaches far below modal truncation of the same order (paper section 5)
+    assert float(shown["krylov"][1]) < 0.1 * float(shown["modal"][1])
+    assert errors == []
