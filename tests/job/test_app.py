@@ -1,0 +1,308 @@
+"""The server of ``pymorembs app`` without a browser: its JSON API, the job it writes, the
+selections it makes from a picked surface patch, and the command line around it."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import socket
+import threading
+import time
+import tomllib
+import urllib.error
+import urllib.request
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pymorembs import METHODS, example, method_options, select_nodes
+from pymorembs.body import DofTable, ElasticBody
+from pymorembs.job.app import App, make_server
+from pymorembs.job.app.editor import check_job_text, hole_selection, job_text
+from pymorembs.job.cli import main
+from pymorembs.methods import OptionError, option_fields
+from pymorembs.surface import outer_surface, smooth_patch
+
+
+@pytest.fixture(scope="module")
+def rack():
+    return example("rack-solid", dofs=10000, interface="none")
+
+
+@pytest.fixture
+def server(tmp_path):
+    app = App(tmp_path / "work")
+    http = make_server(app, 0)
+    threading.Thread(target=http.serve_forever, daemon=True).start()
+    yield app, f"http://127.0.0.1:{http.server_address[1]}"
+    if app.run is not None:
+        app.run.cancel()
+    http.shutdown()
+    http.server_close()
+
+
+def call(base: str, path: str, body: dict | None = None) -> tuple[int, dict]:
+    data = None if body is None else json.dumps(body).encode()
+    request = urllib.request.Request(
+        base + path, data=data, method="GET" if data is None else "POST"
+    )
+    try:
+        with urllib.request.urlopen(request, timeout=60) as response:
+            return response.status, json.loads(response.read())
+    except urllib.error.HTTPError as exc:
+        return exc.code, json.loads(exc.read())
+
+
+def wall_triangle(body: ElasticBody) -> int:
+    """A surface triangle of the upper hole's wall (Ø 30 mm, 204 <= z <= 221 mm)."""
+    corners = body.coordinates[np.searchsorted(body.node_ids, body.surface.triangles)]
+    radius = np.hypot(corners[..., 0], corners[..., 1])
+    on_wall = (np.abs(radius - 0.015) < 1e-6).all(axis=1) & (corners[..., 2] > 0.2039).all(axis=1)
+    return int(np.flatnonzero(on_wall)[0])
+
+
+def hole(body: ElasticBody) -> np.ndarray:
+    return select_nodes(
+        body,
+        cylinder=((0.0, 0.0, 0.2125), (0.0, 0.0, 1.0), 0.015, 1e-6),
+        box=((-0.02, -0.02, 0.2039), (0.02, 0.02, 0.2211)),
+    )
+
+
+# -- the form of every method comes from the registry ---------------------------------------------
+@pytest.mark.parametrize("method", list(METHODS))
+def test_option_fields_are_the_dataclass_fields(method):
+    fields = option_fields(method)
+    assert sorted(f["name"] for f in fields) == sorted(
+        f.name for f in dataclasses.fields(METHODS[method])
+    )
+    for field in fields:
+        if field["required"]:  # leaving it out must be refused by the options class itself
+            values = {f["name"]: f["default"] for f in fields if f["default"] not in (None, [])}
+            values.pop(field["name"], None)
+            with pytest.raises(OptionError):
+                method_options(method, values)
+
+
+def test_option_kinds_and_choices():
+    modal = {f["name"]: f for f in option_fields("modal")}
+    assert modal["select"]["kind"] == "choice"
+    assert modal["select"]["choices"] == ["lowest", "best"]
+    assert modal["frm_hz"]["kind"] == "floats"
+    assert modal["order"]["kind"] == "int" and modal["order"]["required"]
+    krylov = {f["name"]: f for f in option_fields("krylov")}
+    assert krylov["two_sided"]["kind"] == "bool" and krylov["moments"]["kind"] == "ints"
+    assert (
+        "rational-krylov"
+        in {f["name"]: f for f in option_fields("gramian")}["first_stage"]["choices"]
+    )
+    with pytest.raises(OptionError, match="did you mean 'krylov'"):
+        option_fields("krylow")
+
+
+# -- picking: smooth patches and the selections written for them ---------------------------------
+def cube() -> tuple[ElasticBody, object]:
+    """One hex8 cube: 6 faces of 2 triangles, at right angles to each other."""
+    corners = np.array([[x, y, z] for z in (0, 1) for y in (0, 1) for x in (0, 1)], float)
+    corners = corners[[0, 1, 3, 2, 4, 5, 7, 6]]
+    ids = np.arange(1, 9)
+    surface = outer_surface([("hex8", ids[None, :])], ids, corners)
+    return ids, corners, surface
+
+
+def test_smooth_patch_stops_at_sharp_edges():
+    ids, corners, surface = cube()
+    assert len(smooth_patch(surface, ids, corners, 0, 30.0)) == 2  # one face
+    assert len(smooth_patch(surface, ids, corners, 0, 95.0)) == 12  # the whole cube
+
+
+def test_a_click_on_the_hole_selects_its_wall(rack):
+    seed = wall_triangle(rack)
+    nodes = np.unique(rack.surface.triangles[smooth_patch(rack.surface, rack.node_ids,
+                                                          rack.coordinates, seed)])  # fmt: skip
+    assert np.array_equal(nodes, np.sort(hole(rack)))
+    chosen = hole_selection(rack, nodes)
+    assert chosen["kind"] == "cylinder"
+    assert chosen["position"] == pytest.approx([0.0, 0.0, 0.2125], abs=1e-9)
+    assert chosen["radius"] == pytest.approx(0.015, rel=1e-9)
+    cyl, box = chosen["selection"]["cylinder"], chosen["selection"]["box"]
+    again = select_nodes(
+        rack,
+        cylinder=(cyl["point"], cyl["direction"], cyl["radius"], cyl["tolerance"]),
+        box=(box["min"], box["max"]),
+    )
+    assert np.array_equal(np.sort(again), nodes)
+
+
+def test_a_flat_face_is_written_as_node_ids(rack):
+    top = rack.coordinates[:, 2] > 0.221 - 1e-9
+    chosen = hole_selection(rack, rack.node_ids[top])
+    assert chosen["kind"] == "nodes"
+    assert chosen["selection"]["nodes"] == sorted(rack.node_ids[top].tolist())
+
+
+# -- the job text ---------------------------------------------------------------------------------
+def test_job_text_is_the_job_in_toml():
+    job = {
+        "title": "a \"quoted\" title",
+        "model": {"example": "rack-solid", "dofs": 10000, "interface": "none"},
+        "interface": [{"node": 2, "position": [0.0, 0.0, 0.2125], "kind": "rigid",
+                       "cylinder": {"point": [0, 0, 0.2125], "direction": [0, 0, 1],
+                                    "radius": 0.015, "tolerance": 1e-6}}],
+        "frame": {"type": "tangent", "node": 2},
+        "inputs": [{"node": 1, "directions": "ux uy uz"}],
+        "band": {"f_min_hz": 0, "f_max_hz": 1000.0, "points": 200},
+        "reduction": [{"name": "k", "method": "krylov", "expansion_points_hz": [0, 500],
+                       "order": 12, "two_sided": False}],
+        "export": {"outputs": ["npz", "sid"]},
+    }  # fmt: skip
+    text = job_text(job)
+    assert tomllib.loads(text) == job
+    assert text.index("[model]") < text.index("[[interface]]") < text.index("[frame]")
+    parsed = check_job_text(text, Path("job.toml"))
+    assert parsed.frame.node == 2 and parsed.reductions[0].options["expansion_points_hz"] == [
+        0,
+        500,
+    ]
+
+
+# -- the HTTP API ---------------------------------------------------------------------------------
+def test_api_open_pick_select_and_check(server):
+    app, base = server
+    status, methods = call(base, "/api/methods")
+    assert status == 200 and set(methods) == set(METHODS)
+    opened = {"example": "rack-solid", "options": {"dofs": 10000, "interface": "none"}}
+    status, reply = call(base, "/api/open", opened)
+    assert status == 200 and reply["model"]["n_dof"] == 10359
+    assert reply["error"] == "job.toml: job: missing key 'reduction'"
+    status, scene = call(base, "/api/scene")
+    assert len(scene["triangles"]) == 3 * app.body.surface.triangles.shape[0]
+    reference = hole(app.body)
+    status, picked = call(base, "/api/pick", {"triangle": wall_triangle(app.body)})
+    assert status == 200 and picked["count"] == reference.size and picked["free_id"] == 2
+    ids = np.asarray(scene["node_ids"])[picked["rows"]]
+    assert np.array_equal(np.sort(ids), np.sort(reference))  # the rows index the scene's nodes
+    status, chosen = call(base, "/api/select", {"cylinder": {"point": [0, 0, 0.2125],
+                          "direction": [0, 0, 1], "radius": 0.015, "tolerance": 1e-6},
+                          "box": {"min": [-1, -1, 0.2039], "max": [1, 1, 0.2211]}})  # fmt: skip
+    assert chosen["count"] == reference.size
+    job = reply["job"] | {
+        "frame": {"type": "tangent", "node": 2},
+        "interface": [{"node": 2, "position": picked["position"], "kind": "rigid",
+                       **picked["selection"]}],
+        "inputs": [{"node": 1, "directions": "ux uy uz"}],
+        "reduction": [{"name": "m", "method": "modal", "order": "twelve"}],
+    }  # fmt: skip
+    status, state = call(base, "/api/job", {"job": job})
+    assert (
+        state["error"] == "job.toml: [[reduction]] #1.order: must be a whole number, got 'twelve'"
+    )
+    job["reduction"][0]["order"] = 12
+    status, state = call(base, "/api/job", {"job": job})
+    assert state["error"] == "" and 'kind = "rigid"' in state["toml"]
+
+
+def test_api_refusals_are_one_line(server, tmp_path):
+    _, base = server
+    for path, body, message in [
+        ("/api/open", {"example": "rack"}, "unknown example 'rack'"),
+        ("/api/open", {"path": str(tmp_path / "no.h5")}, "no such file"),
+        ("/api/pick", {"triangle": 0}, "no model is open"),
+        ("/api/run", {}, "the job is not valid yet"),
+        ("/api/save", {"path": "job.txt"}, "not valid yet"),
+        ("/api/results", None, "no finished run yet"),
+    ]:
+        status, reply = call(base, path, body)
+        assert status == 400 and message in reply["error"] and "\n" not in reply["error"]
+    status, _ = call(base, "/api/nothing")
+    assert status == 404
+
+
+@pytest.mark.slow
+def test_run_results_shapes_mac_save_and_cancel(server, tmp_path):
+    app, base = server
+    status, reply = call(base, "/api/open", {"example": "rack-beams"})
+    job = reply["job"] | {
+        "frame": {"type": "tangent", "node": 2},
+        "inputs": [{"node": 1, "directions": "ux uy uz"}, {"node": 2, "directions": "ux uy uz"}],
+        "band": {"f_min_hz": 0, "f_max_hz": 1000, "points": 200},
+        "damping": {"kind": "modal", "ratio": 0.01},
+        "reduction": [{"name": "modal", "method": "modal", "order": 20},
+                      {"name": "krylov", "method": "krylov", "expansion_points_hz": [0, 500],
+                       "order": 24}],
+    }  # fmt: skip
+    assert call(base, "/api/job", {"job": job})[1]["error"] == ""
+    status, run = call(base, "/api/run", {})
+    assert status == 200 and run["state"] == "running"
+    status, busy = call(base, "/api/run", {})
+    assert status == 400 and "cancel it first" in busy["error"]
+    deadline = time.time() + 120
+    while call(base, "/api/status")[1]["state"] == "running" and time.time() < deadline:
+        time.sleep(0.2)
+    status, done = call(base, "/api/status")
+    assert done["state"] == "done" and done["fraction"] == 1.0
+    status, results = call(base, "/api/results")
+    summary = json.loads((Path(done["out"]) / "summary.json").read_text(encoding="utf-8"))
+    for row, entry in zip(results["reductions"], summary["reductions"], strict=True):
+        assert row["max_rel_error"] == entry["max_rel_error"]
+        assert max(row["curve"]["relative"]) == pytest.approx(entry["max_rel_error"], rel=1e-12)
+    # shape 0 on the scene's nodes, from reduced.npz
+    status, shape = call(base, "/api/shape?reduction=modal&k=0")
+    with np.load(Path(done["out"]) / "modal" / "reduced.npz") as data:
+        V, nodes, dirs = data["V"], data["dof_nodes"], data["dof_directions"]
+    scene_ids = np.asarray(call(base, "/api/scene")[1]["node_ids"])
+    values = np.asarray(shape["values"]).reshape(-1, 3)
+    k = np.flatnonzero((nodes == scene_ids[5]) & (dirs == 1))[0]
+    shown = (dirs < 3) & np.isin(nodes, scene_ids)
+    assert values[5, 1] == pytest.approx(V[k, 0] / np.abs(V[shown, 0]).max(), abs=2e-6)
+    # a Krylov eigenfrequency equal to a modal one (the modes the ports see) is the same shape:
+    # MAC 1 there; a basis against itself: 1 on the diagonal, symmetric
+    reply = call(base, "/api/mac?a=modal&b=krylov")[1]
+    mac, fa, fb = (np.asarray(reply[k]) for k in ("matrix", "a_hz", "b_hz"))
+    same = np.abs(fa[:, None] - fb[None, :]) < 1e-6 * fa[:, None]
+    assert same.sum() >= 2 and np.all(mac[same] > 0.999)
+    itself = np.asarray(call(base, "/api/mac?a=modal&b=modal")[1]["matrix"])
+    assert np.allclose(np.diag(itself), 1.0) and np.allclose(itself, itself.T, atol=1e-4)
+    status, saved = call(base, "/api/save", {"path": str(tmp_path / "saved.toml")})
+    assert (tmp_path / "saved.toml").read_text(encoding="utf-8") == saved["toml"]
+    with urllib.request.urlopen(f"{base}/files/modal/reduced.npz", timeout=30) as response:
+        assert response.read() == (Path(done["out"]) / "modal" / "reduced.npz").read_bytes()
+    status, _ = call(base, "/files/../../etc/passwd")
+    assert status == 404
+    # Cancel: the child process ends and writes nothing
+    status, run = call(base, "/api/run", {})
+    call(base, "/api/cancel", {})
+    deadline = time.time() + 30
+    while app.run.process.poll() is None and time.time() < deadline:
+        time.sleep(0.1)
+    time.sleep(0.3)
+    assert call(base, "/api/status")[1]["state"] == "cancelled"
+    assert not Path(run["out"]).exists()
+
+
+def test_cli_app_refuses_a_bad_model_and_a_busy_port(tmp_path, capsys):
+    assert main(["app", str(tmp_path / "missing.h5"), "--no-browser"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "missing.h5: no such file" in err
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        assert main(["app", "--port", str(port), "--no-browser"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"port {port} is in use" in err
+
+
+def test_the_body_without_surface_cannot_be_picked(tmp_path):
+    body = ElasticBody(
+        node_ids=np.array([1, 2]),
+        coordinates=np.array([[0.0, 0, 0], [1.0, 0, 0]]),
+        dofs=DofTable(np.array([1, 2]), np.array([0, 0])),
+        mass=np.eye(2),
+        stiffness=np.array([[1.0, -1.0], [-1.0, 1.0]]),
+    )
+    app = App(tmp_path)
+    app.body = body
+    with pytest.raises(Exception, match="no surface to pick on"):
+        app.pick({"triangle": 0})
