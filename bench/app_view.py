@@ -185,8 +185,8 @@ def main() -> int:
             "'open -> rotating': from the click to the first frame drawn after the drag "
             "began. Frames/s: frames the viewer drew while rotating; mouse events/s: how "
             "many drag events the page handled (Playwright waits for each; the viewer "
-            "draws once per event, so these two are the input rate); one frame: the time of `render()` plus "
-            "a one-pixel read-back (which waits for the drawing), 20 in a row, and the frame "
+            "draws once per event, so these two are the input rate); one frame: the time "
+            "of `render()` plus a one-pixel read-back (which waits for the drawing), 20 in a row, and the frame "
             "rate that allows. Baseline: the "
             "smallest rack-solid in the same page and run. The server computes the model's "
             "eigenfrequencies for the page at the same time (2 cores).\n\n" + table
