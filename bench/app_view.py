@@ -186,9 +186,9 @@ def main() -> int:
             "began. Frames/s: frames the viewer drew while rotating; mouse events/s: how "
             "many drag events the page handled (Playwright waits for each; the viewer "
             "draws once per event, so these two are the input rate); one frame: the time "
-            "of `render()` plus a one-pixel read-back (which waits for the drawing), 20 in a row, and the frame "
-            "rate that allows. Baseline: the "
-            "smallest rack-solid in the same page and run. The server computes the model's "
+            "of `render()` plus a one-pixel read-back (which waits for the drawing), 20 in "
+            "a row, and the frame rate that allows. Baseline: the smallest rack-solid, in a "
+            "new page of a new server like every run. The server computes the model's "
             "eigenfrequencies for the page at the same time (2 cores).\n\n" + table
         )
         print(f"written: {update_results(SECTION, body, machine_facts())}")
