@@ -95,7 +95,7 @@ FIND_HOLE = """() => {
 def test_pick_run_save_and_reduce_again(browser, served, tmp_path):
     app, url = served
     ARTIFACTS.mkdir(parents=True, exist_ok=True)
-    page = browser.new_page(viewport={"width": 1500, "height": 1000})
+    page = browser.new_page(viewport={"width": 1500, "height": 1150})
     errors: list[str] = []
     page.on("pageerror", lambda exc: errors.append(str(exc)))
     step = iter(range(1, 100))

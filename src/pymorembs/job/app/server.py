@@ -462,7 +462,10 @@ class Handler(BaseHTTPRequestHandler):
         self.send_header("Content-Length", str(len(body)))
         self.send_header("Cache-Control", "no-store")
         self.end_headers()
-        self.wfile.write(body)
+        try:
+            self.wfile.write(body)
+        except (BrokenPipeError, ConnectionResetError):  # the page went away meanwhile
+            pass
 
     def _json(self, data: Any, status: int = 200) -> None:
         body = json.dumps(data, allow_nan=False, separators=(",", ":")).encode()

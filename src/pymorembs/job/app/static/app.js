@@ -331,7 +331,7 @@ async function loadResults() {
 }
 const COLORS = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#17becf"];
 function plotErrors(res) {
-  const W = 400, H = 260, L = 50, B = 30, T = 10, R = 10;
+  const W = 400, H = 260, L = 50, B = 30, T = 10, R = 22;
   const curves = [];
   res.reductions.forEach((r, k) => {
     curves.push({ name: r.name, f: r.curve.frequency_hz, e: r.curve.relative, color: COLORS[k % COLORS.length], dash: "" });
