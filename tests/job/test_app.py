@@ -42,10 +42,13 @@ def server(tmp_path):
     http.server_close()
 
 
-def call(base: str, path: str, body: dict | None = None) -> tuple[int, dict]:
+def call(
+    base: str, path: str, body: dict | None = None, headers: dict | None = None
+) -> tuple[int, dict]:
     data = None if body is None else json.dumps(body).encode()
+    headers = {"Content-Type": "application/json", **(headers or {})}
     request = urllib.request.Request(
-        base + path, data=data, method="GET" if data is None else "POST"
+        base + path, data=data, method="GET" if data is None else "POST", headers=headers
     )
     try:
         with urllib.request.urlopen(request, timeout=60) as response:
@@ -217,6 +220,21 @@ def test_api_refusals_are_one_line(server, tmp_path):
         assert status == 400 and message in reply["error"] and "\n" not in reply["error"]
     status, _ = call(base, "/api/nothing")
     assert status == 404
+
+
+def test_other_web_sites_cannot_drive_the_app(server):
+    app, base = server
+    status, reply = call(
+        base, "/api/open", {"example": "rack-beams"}, {"Content-Type": "text/plain"}
+    )
+    assert status == 415 and reply["error"] == "send JSON"
+    assert status == 415 and app.body is None  # a cross-site 'simple' POST
+    status, _ = call(base, "/api/state", None, {"Host": "evil.example:80"})
+    assert status == 403  # DNS rebinding
+    status, reply = call(
+        base, "/api/state", None, {"Host": base.split("//")[1].replace("127.0.0.1", "localhost")}
+    )
+    assert status == 200 and reply["model"] is None
 
 
 @pytest.mark.slow

@@ -5,7 +5,9 @@ framework was chosen by measurement (``docs/app.md``). Long work never runs on a
 thread: a job runs in a child process (:mod:`~pymorembs.job.app.runner`), the eigenfrequencies
 of the opened model in a background thread.
 
-API (JSON in and out; errors are ``{"error": "one line"}`` with status 400):
+API (JSON in and out; errors are ``{"error": "one line"}`` with status 400). Only requests
+addressed to 127.0.0.1 or localhost are answered, and POST bodies must be JSON: another web
+site open in the same browser cannot drive the app.
 
 =======================  ==================================================================
 ``GET  /api/methods``     every method's options, from the method registry (the form)
@@ -479,7 +481,23 @@ class Handler(BaseHTTPRequestHandler):
         except (KeyError, TypeError, ValueError) as exc:
             self._json({"error": f"bad request: {exc}"}, HTTPStatus.BAD_REQUEST)
 
+    def _refused(self, post: bool) -> bool:
+        """Refuse requests another web site could make through the user's browser: a foreign
+        ``Host`` (DNS rebinding), and for POST any body but JSON (a cross-site form or a
+        simple request; JSON needs a CORS preflight, which this server never grants)."""
+        port = self.server.server_address[1]
+        if self.headers.get("Host") not in (f"127.0.0.1:{port}", f"localhost:{port}"):
+            self._json({"error": "requests only from this machine's page"}, HTTPStatus.FORBIDDEN)
+            return True
+        kind = (self.headers.get("Content-Type") or "").split(";")[0].strip()
+        if post and kind != "application/json":
+            self._json({"error": "send JSON"}, HTTPStatus.UNSUPPORTED_MEDIA_TYPE)
+            return True
+        return False
+
     def do_GET(self) -> None:
+        if self._refused(post=False):
+            return
         url = urlparse(self.path)
         query = {k: v[-1] for k, v in parse_qs(url.query).items()}
         route = url.path
@@ -513,6 +531,8 @@ class Handler(BaseHTTPRequestHandler):
         self._handle(actions[route])
 
     def do_POST(self) -> None:
+        if self._refused(post=True):
+            return
         length = int(self.headers.get("Content-Length") or 0)
         try:
             request = json.loads(self.rfile.read(length) or b"{}")
