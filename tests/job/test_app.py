@@ -324,3 +324,21 @@ def test_the_body_without_surface_cannot_be_picked(tmp_path):
     app.body = body
     with pytest.raises(Exception, match="no surface to pick on"):
         app.pick({"triangle": 0})
+
+
+def test_a_job_file_opens_in_the_editor(tmp_path):
+    job = tmp_path / "job.toml"
+    job.write_text(
+        '[model]\nfile = "model.h5"\n[frame]\nnode = 2\n[band]\nf_max_hz = 100\n'
+        '[[reduction]]\nmethod = "modal"\norder = 4\n[export]\noutputs = ["sid"]\n',
+        encoding="utf-8",
+    )
+    assert main(["example", "rack-beams", "--out", str(tmp_path)]) == 0
+    app = App(tmp_path / "work")
+    state = app.open({"path": str(job)})
+    assert state["model"]["n_dof"] == 3996
+    # the model file becomes absolute (the saved job runs from anywhere), npz is added (the
+    # page reads the bases from reduced.npz), the rest is the file's
+    assert state["job"]["model"] == {"file": str(tmp_path / "model.h5")}
+    assert state["job"]["export"] == {"outputs": ["npz", "sid"]}
+    assert state["error"] == "" and 'outputs = ["npz", "sid"]' in state["toml"]

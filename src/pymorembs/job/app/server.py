@@ -132,6 +132,11 @@ class App:
                 body = load_model(parsed.model)
                 job = _job_dict(path)
                 model = job["model"]
+                export = dict(job.get("export", {}))
+                outputs = list(export.get("outputs", ["npz", "mtx"]))
+                if "npz" not in outputs:  # the page reads the bases from reduced.npz
+                    export["outputs"] = ["npz", *outputs]
+                    job["export"] = export
             else:
                 body = pm.read(path)
                 model = {"file": str(path.resolve())}
