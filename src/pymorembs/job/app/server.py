@@ -249,6 +249,7 @@ class App:
 
     # -- the job -------------------------------------------------------------------------------
     def set_job(self, job: dict[str, Any]) -> dict[str, Any]:
+        """Replace the job being edited (the page sends it after every change)."""
         if not isinstance(job, dict):
             raise UserError("job: expected an object")
         with self.lock:
@@ -268,6 +269,7 @@ class App:
         return text, ""
 
     def state(self) -> dict[str, Any]:
+        """The job, its TOML text and check, the opened model's sizes, the run's status."""
         text, error = self.checked()
         body = self.body
         return {
@@ -287,6 +289,7 @@ class App:
         }
 
     def save(self, request: dict[str, Any]) -> dict[str, Any]:
+        """Write the job's TOML text to ``request["path"]`` (a ``.toml`` file), if it is valid."""
         text, error = self.checked()
         if error:
             raise UserError(f"the job is not valid yet: {error}")
@@ -301,6 +304,7 @@ class App:
 
     # -- running -------------------------------------------------------------------------------
     def start(self) -> dict[str, Any]:
+        """Write the job into the work folder and run it (one run at a time)."""
         with self.lock:
             if self.run is not None and self.run.state == "running":
                 raise UserError("a run is going on; cancel it first")
@@ -318,9 +322,11 @@ class App:
             return self.run.as_dict()
 
     def status(self) -> dict[str, Any]:
+        """The run's progress (``{"state": "idle"}`` before the first run)."""
         return {"state": "idle"} if self.run is None else self.run.as_dict()
 
     def cancel(self) -> dict[str, Any]:
+        """End the run going on, if any."""
         if self.run is not None:
             self.run.cancel()
         return self.status()
@@ -411,6 +417,7 @@ class App:
         }
 
     def file(self, name: str) -> Path:
+        """A file of the last finished run's output folder (never outside it)."""
         run = self.run
         if run is None or run.state != "done":
             raise UserError("no finished run yet")
@@ -444,10 +451,12 @@ def _job_dict(path: Path) -> dict[str, Any]:
 
 
 def methods() -> dict[str, Any]:
+    """Every method's options as the page's forms show them (:func:`option_fields`)."""
     return {name: option_fields(name) for name in METHODS}
 
 
 def examples() -> dict[str, Any]:
+    """The built-in models and the options each takes."""
     return {name: list(OPTIONS[name]) for name in EXAMPLES}
 
 
