@@ -288,8 +288,15 @@ def test_run_results_shapes_mac_save_and_cancel(server, tmp_path):
         assert response.read() == (Path(done["out"]) / "modal" / "reduced.npz").read_bytes()
     status, _ = call(base, "/files/../../etc/passwd")
     assert status == 404
-    # Cancel: the child process ends and writes nothing
+    # Cancel in the middle of a reduction (its temporary output folder exists then): the
+    # child process ends, and neither the output nor the temporary folder is left
+    job["reduction"].append({"name": "big", "method": "modal", "order": 400})
+    assert call(base, "/api/job", {"job": job})[1]["error"] == ""
     status, run = call(base, "/api/run", {})
+    deadline = time.time() + 60
+    while "reduction 'big'" not in call(base, "/api/status")[1]["stage"]:
+        assert time.time() < deadline and app.run.state == "running"
+        time.sleep(0.05)
     call(base, "/api/cancel", {})
     deadline = time.time() + 30
     while app.run.process.poll() is None and time.time() < deadline:
@@ -297,6 +304,7 @@ def test_run_results_shapes_mac_save_and_cancel(server, tmp_path):
     time.sleep(0.3)
     assert call(base, "/api/status")[1]["state"] == "cancelled"
     assert not Path(run["out"]).exists()
+    assert not [p.name for p in Path(run["out"]).parent.iterdir() if p.name.startswith(".run-")]
 
 
 def test_cli_app_refuses_a_bad_model_and_a_busy_port(tmp_path, capsys):

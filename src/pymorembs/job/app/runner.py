@@ -73,15 +73,31 @@ class Run:
             "out": str(self.out),
         }
 
-    def cancel(self) -> None:
-        """End the child process and its workers (a cancelled run writes nothing)."""
+    def cancel(self, grace_s: float = 10.0) -> None:
+        """End the child process and its workers (a cancelled run writes nothing).
+
+        SIGINT first, so that the job layer removes its temporary folder on the way out; what
+        still runs after ``grace_s`` seconds is killed.
+        """
         process = self.process
         if self.state == "running" and process is not None and process.poll() is None:
             self.state = "cancelled"
-            try:
-                os.killpg(process.pid, signal.SIGTERM)
-            except ProcessLookupError:
-                pass
+            _signal_group(process.pid, signal.SIGINT)
+            timer = threading.Timer(grace_s, _kill_if_alive, args=(process,))
+            timer.daemon = True
+            timer.start()
+
+
+def _signal_group(pid: int, sig: int) -> None:
+    try:
+        os.killpg(pid, sig)
+    except ProcessLookupError:
+        pass
+
+
+def _kill_if_alive(process: subprocess.Popen) -> None:
+    if process.poll() is None:
+        _signal_group(process.pid, signal.SIGKILL)
 
 
 def start_run(
