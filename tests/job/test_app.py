@@ -311,6 +311,11 @@ def test_cli_app_refuses_a_bad_model_and_a_busy_port(tmp_path, capsys):
     assert main(["app", str(tmp_path / "missing.h5"), "--no-browser"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "missing.h5: no such file" in err
+    text = tmp_path / "notes.txt"
+    text.write_text("no model\n", encoding="utf-8")
+    assert main(["app", str(text), "--format", "native", "--no-browser", "--port", "0"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "notes.txt: not an HDF5 file" in err
     with socket.socket() as busy:
         busy.bind(("127.0.0.1", 0))
         busy.listen()

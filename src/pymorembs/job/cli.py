@@ -155,6 +155,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="model file (.h5, .full, .pch, ...) or job file (.toml); default the built-in "
         "rack-solid",
     )
+    web.add_argument(
+        "--format", choices=MODEL_FORMATS, help="model file format (default: detected)"
+    )
     web.add_argument("--port", type=int, default=8765, help="port on 127.0.0.1 (8765)")
     web.add_argument("--no-browser", action="store_true", help="do not open a browser")
     return parser
@@ -349,7 +352,7 @@ def _app(args: argparse.Namespace) -> int:
 
     if not 0 <= args.port <= 65535:
         raise UserError(f"--port must be 0..65535, got {args.port}")
-    return serve(args.model, args.port, open_browser=not args.no_browser)
+    return serve(args.model, args.port, open_browser=not args.no_browser, format=args.format)
 
 
 def _reduce(args: argparse.Namespace) -> int:

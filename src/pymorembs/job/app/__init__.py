@@ -33,6 +33,7 @@ def serve(
     port: int = DEFAULT_PORT,
     open_browser: bool = True,
     workdir: Path | None = None,
+    format: str | None = None,
 ) -> int:
     """Serve the app on http://127.0.0.1:port until interrupted; return the exit code.
 
@@ -47,6 +48,9 @@ def serve(
         Open the page in the default browser.
     workdir : Path, optional
         Where the runs write their job files and results (default: a temporary folder).
+    format : str, optional
+        The model file's format (``pymorembs.io.formats.FORMATS``); default told from the
+        content.
 
     Raises
     ------
@@ -59,7 +63,7 @@ def serve(
     server = make_server(App(workdir), port)
     try:
         app = server.app  # type: ignore[attr-defined]
-        app.open({"path": str(model)} if model is not None else DEFAULT_EXAMPLE)
+        app.open({"path": str(model), "format": format} if model is not None else DEFAULT_EXAMPLE)
         url = f"http://127.0.0.1:{server.server_address[1]}/"
         print(f"pymorembs app: {url} (runs in {app.workdir}); Ctrl-C ends it", flush=True)
         if open_browser:

@@ -14,6 +14,7 @@ site open in the same browser cannot drive the app.
 ``GET  /api/examples``    the built-in models and their options
 ``GET  /api/state``       the job, its TOML text and check, the model, the run
 ``POST /api/open``        ``{"example": name, "options": {...}}`` or ``{"path": file}``
+                          (with ``"format"``: the reader, default told from the content)
 ``GET  /api/scene``       the opened body for the 3D view (:func:`body_scene`)
 ``GET  /api/facts``       dofs, nodes, the lowest eigenfrequencies (computed once)
 ``POST /api/pick``        ``{"triangle": t}`` or ``{"node": row}``: the smooth surface patch
@@ -138,8 +139,11 @@ class App:
                     export["outputs"] = ["npz", *outputs]
                     job["export"] = export
             else:
-                body = pm.read(path)
+                fmt = request.get("format") or None
+                body = pm.read(path, format=fmt)
                 model = {"file": str(path.resolve())}
+                if fmt is not None:
+                    model["format"] = fmt
         else:
             raise UserError("open: give 'example' or 'path'")
         scene = body_scene(body)
