@@ -136,6 +136,11 @@ tolerance = 1e-6
             "oder: unknown option of krylov; did you mean 'order'",
         ),
         ("krylow", {}, "unknown method 'krylow'; did you mean 'krylov'"),
+        (
+            "soaga",
+            {"order": 10, "tol": 1e-10},
+            "tol: was renamed to 'deflation_tolerance'",
+        ),
         ("modal", {}, "modal reduction needs 'order'"),
         ("modal", {"order": 4, "candidates": 3}, "candidates: must exceed the order 4"),
         ("soaga", {"tolerance": 2.0}, r"tolerance: must lie in \(0, 1\)"),
@@ -159,7 +164,8 @@ def test_the_registry_documents_every_option():
             owner = "every method" if field == "max_frequency_hz" else name
             row = [line for line in table.splitlines() if line.startswith(f"| {owner} | `{field}`")]
             assert len(row) == 1 and not row[0].endswith("|  |"), (name, field)  # a meaning
-    assert "| krylov | `tol` | `1e-10` |" in table and "| pod | `snapshots` | `40` |" in table
+    assert "| krylov | `deflation_tolerance` | `1e-10` |" in table
+    assert "| pod | `snapshots` | `40` |" in table
     assert "| modal | `order` | required |" in table and "``" not in table
 
 

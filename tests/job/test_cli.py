@@ -218,7 +218,8 @@ BAD_JOBS = [
     (None, "missing key 'node'"),
     (None, "unknown direction"),
     (None, "must be a finite number"),
-    (None, "tol: must be >= 1e-15"),
+    (None, "deflation_tolerance: must be >= 1e-15"),
+    (None, "tol: was renamed to 'deflation_tolerance'"),
 ]
 
 
@@ -242,7 +243,8 @@ def mutate(text: str, case: int) -> str:
         12: ("node = 60\n", ""),
         13: ('directions = "uz"', 'directions = "uw"'),
         14: ("f_max_hz = 200", "f_max_hz = inf"),
-        15: ("moments = 2", "moments = 2\ntol = 0"),
+        15: ("moments = 2", "moments = 2\ndeflation_tolerance = 0"),
+        16: ("moments = 2", "moments = 2\ntol = 1e-10"),
     }
     old, new = edits[case]
     assert old in text

@@ -22,7 +22,14 @@ from pymorembs.analysis.reference import DEFAULT_CHECKS, REFERENCE_KINDS
 from pymorembs.body import Damping
 from pymorembs.errors import UserError
 from pymorembs.io.formats import FORMATS
-from pymorembs.methods import METHODS, OptionError, ReductionOptions, method_options
+from pymorembs.methods import (
+    METHODS,
+    RENAMED_OPTIONS,
+    OptionError,
+    ReductionOptions,
+    method_options,
+    renamed_message,
+)
 from pymorembs.prepare import INERTIA_LOAD_CASES, Frame, Port
 
 MODEL_FILE_KEYS = (
@@ -703,6 +710,9 @@ def _reductions(data: Any, path: Path) -> tuple[ReductionSpec, ...]:
             raise table.error("order", "is set by the inputs (boundary dofs) and 'fixed_modes'")
         known = tuple(f.name for f in dataclasses.fields(METHODS[method]) if f.name != "order")
         options = {key: table.get(key) for key in known if key in table.data}
+        for key in table.data:
+            if RENAMED_OPTIONS.get(key) in known:  # a job file written for an older version
+                raise table.error(key, renamed_message(key))
         table.done(known)
         try:
             settings = method_options(
