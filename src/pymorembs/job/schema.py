@@ -83,21 +83,22 @@ class ReductionSpec:
     """One reduction of a job: a unique name, a method, an order and method options.
 
     ``options`` are the ``[[reduction]]`` keys besides ``name``, ``method`` and ``order``
-    (:mod:`pymorembs.methods` lists them per method).
+    (:mod:`pymorembs.methods` lists them per method); ``settings`` is the checked options
+    object of the method built from them once (:func:`~pymorembs.methods.method_options`,
+    which raises :class:`~pymorembs.methods.OptionError` on a bad option).
     """
 
     name: str
     method: str
     order: int | None
     options: dict[str, Any]
+    settings: ReductionOptions = field(init=False, repr=False, compare=False)
 
-    @property
-    def settings(self) -> ReductionOptions:
-        """The checked options object of the method (:func:`~pymorembs.methods.method_options`)."""
+    def __post_init__(self) -> None:
         values = dict(self.options)
         if self.order is not None:
             values["order"] = self.order
-        return method_options(self.method, values)
+        object.__setattr__(self, "settings", method_options(self.method, values))
 
 
 @dataclass(frozen=True)
