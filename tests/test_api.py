@@ -211,3 +211,26 @@ def test_the_job_reference_holds_the_generated_options_table():
     text = (Path(__file__).parents[1] / "docs" / "jobs.md").read_text(encoding="utf-8")
     block = text.split("<!-- options-table:start -->\n")[1].split("<!-- options-table:end -->")[0]
     assert block == options_table(), "regenerate the table in docs/jobs.md (see its section)"
+
+
+def test_max_frequency_keeps_the_model_before_the_removal():
+    """``reduce`` with ``max_frequency_hz`` (the one place the job layer reduces through) keeps
+    the uncut model: it equals the reduction without the limit, and the cut model holds its
+    eigenfrequencies at or below the limit."""
+    from pymorembs.methods import method_options
+
+    prepared = pm.prepare(pm.example("rack-beams"), "tangent", node=2, inputs=[(1, "ux uy uz")])
+    options = {"expansion_points_hz": [0, 500], "order": 24}
+    plain = pm.reduce(prepared, "krylov", **options)
+    assert plain.before_removal is None and plain.eigenfrequencies_hz.max() > 3000.0
+    settings = method_options("krylov", {**options, "max_frequency_hz": 3000.0})
+    cut = pm.reduce(prepared, settings, name="cut")
+    assert cut.options is settings and cut.name == "cut" and cut.method == "krylov"
+    assert cut.eigenfrequencies_hz.max() <= 3000.0 < cut.before_removal.eigenfrequencies_hz.max()
+    np.testing.assert_allclose(
+        cut.before_removal.eigenfrequencies_hz, plain.eigenfrequencies_hz, rtol=1e-9
+    )
+    kept = plain.eigenfrequencies_hz[plain.eigenfrequencies_hz <= 3000.0]
+    np.testing.assert_allclose(cut.eigenfrequencies_hz, kept, rtol=1e-6)
+    with pytest.raises(pm.UserError, match="beside an options object"):
+        pm.reduce(prepared, settings, order=10)

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 import scipy
 
-from pymorembs import __version__
+from pymorembs import __version__, reduce
 from pymorembs.analysis.error import error_blocks, frequency_grid, relative_error
 from pymorembs.analysis.large_motion import large_motion_checks
 from pymorembs.analysis.reference import ReferenceResponse, choose_kind, reference_response
@@ -49,8 +49,6 @@ from pymorembs.reduction.projection import (
     Projection,
     ReducedModel,
     explicit_step_s,
-    reduced_model,
-    without_stiff_directions,
 )
 from pymorembs.report.html_report import write_report
 from pymorembs.report.plots import plot_decay, plot_relative_errors
@@ -689,33 +687,42 @@ def _reduce_one(
     band_hz: tuple[float, float],
     reference: ReferenceResponse,
 ) -> tuple[ReducedModel, np.ndarray, float]:
-    """Reduce; the checked reduced model, its response on the grid and the reduction time (s).
+    """Reduce (:func:`pymorembs.reduce`); the checked reduced model, its response on the grid
+    and the reduction time (s).
 
-    The maximum of its error is checked against the full model at once
-    (:meth:`ReferenceResponse.settle`).
+    With ``max_frequency_hz``, what the removal of the stiff directions costs goes into the
+    projection's parameters: the errors before it. The maximum of the error is checked against
+    the full model at once (:meth:`ReferenceResponse.settle`).
     """
     tick = time.perf_counter()
-    system = prepared.reduction_system
-    projection = run_reduction(system, spec, band_hz)
-    model = reduced_model(system, projection)  # checked before writing
-    limit = spec.settings.max_frequency_hz
-    if limit is not None and model.eigenfrequencies_hz.max() > limit:
-        before = transfer_function(model.system, reference.frequencies_hz)
-        model = without_stiff_directions(system, model, limit)
-        # what the removal costs: the errors before it, to compare with the entry's own
-        ports, inertia = error_blocks(system)
-        frequencies = reference.frequencies_hz
-        for key, block in (("", ports), ("inertia_", inertia)):
-            if block is None:
-                continue
-            eps = relative_error(reference.response, before, block)
-            model.projection.parameters[f"{key}max_rel_error_before_removal"] = float(eps.max())
-            if frequencies[0] == 0.0:
-                model.projection.parameters[f"{key}static_rel_error_before_removal"] = float(eps[0])
+    reduced = reduce(prepared, spec.settings, band_hz=band_hz, name=spec.name)
     elapsed = time.perf_counter() - tick
+    model = reduced.model
+    if reduced.before_removal is not None:
+        _record_removal_cost(prepared, reduced.before_removal, model, reference)
     response = transfer_function(model.system, reference.frequencies_hz)
     _checked_errors(spec, reference, response)
     return model, response, elapsed
+
+
+def _record_removal_cost(
+    prepared: PreparedModel,
+    before: ReducedModel,
+    model: ReducedModel,
+    reference: ReferenceResponse,
+) -> None:
+    """The errors of ``before`` (the model before the removal of its stiff directions) in the
+    parameters of ``model``'s projection, to compare with the entry's own."""
+    response = transfer_function(before.system, reference.frequencies_hz)
+    ports, inertia = error_blocks(prepared.reduction_system)
+    frequencies = reference.frequencies_hz
+    for key, block in (("", ports), ("inertia_", inertia)):
+        if block is None:
+            continue
+        eps = relative_error(reference.response, response, block)
+        model.projection.parameters[f"{key}max_rel_error_before_removal"] = float(eps.max())
+        if frequencies[0] == 0.0:
+            model.projection.parameters[f"{key}static_rel_error_before_removal"] = float(eps[0])
 
 
 def inertia_warning(name: str, eps: np.ndarray, eps_inertia: np.ndarray | None) -> str | None:
