@@ -344,7 +344,7 @@ class ReducedBody:
             raise UserError("error: the prepared model has no inputs or no outputs to compare")
         ref = reference_response(system, frequencies, reference, workers=workers)
         response = transfer_function(self.model.system, frequencies)
-        ref.settle(response)  # the maximum on a frequency checked against the full model
+        ref = ref.settled(response)  # the maximum on a frequency checked against the full model
         ports, inertia = error_blocks(system)
         return ErrorCurve(
             frequencies,

@@ -461,7 +461,10 @@ def _run_job(
         reduced_runs = []
         for spec in job.reductions:
             stage(f"reduction '{spec.name}' ({spec.method})", f"reduction '{spec.name}'")
-            reduced_runs.append(_reduce_one(prepared, spec, job.band_hz, reference))
+            run = _reduce_one(prepared, spec, job.band_hz, reference)
+            reference = _settled(spec, reference, run[1])  # its maximum checked at once
+            reduced_runs.append(run)
+        reference = reference.settled_all([response for _, response, _ in reduced_runs])
         results = _judged(job, prepared, reference, reduced_runs, staging, nodes, warnings, say)
         entries, errors, estimates, decay, models = results
         timings["reference_s"] = reference.seconds
@@ -547,16 +550,18 @@ def _judged(
     warnings: list[str],
     say: Progress,
 ) -> tuple[list[dict[str, Any]], dict, dict, dict, dict[str, ReducedModel]]:
-    """Every reduction's errors against the same reference (after all of its checks), its files
-    written into ``staging`` and its summary entry; the warnings they call for are added.
+    """Every reduction's errors against the same reference (settled for all of them,
+    :meth:`ReferenceResponse.settled_all`), its files written into ``staging`` and its summary
+    entry; the warnings they call for are added.
 
     Returns the entries, the error curves (ports and inertia loads), the estimator curves, the
     singular value decays and the reduced models, by reduction name.
     """
     entries, errors, estimates, decay, models = [], {}, {}, {}, {}
-    all_eps = reference.settle_all([response for _, response, _ in reduced_runs])
-    for spec, eps in zip(job.reductions, all_eps, strict=True):
-        _finite(spec, reference, eps)
+    all_eps = [
+        _finite(spec, reference, reference.errors(response))
+        for spec, (_, response, _) in zip(job.reductions, reduced_runs, strict=True)
+    ]
     ports, inertia = error_blocks(prepared.reduction_system)
     for spec, (model, response, elapsed), eps in zip(
         job.reductions, reduced_runs, all_eps, strict=True
@@ -691,8 +696,7 @@ def _reduce_one(
     and the reduction time (s).
 
     With ``max_frequency_hz``, what the removal of the stiff directions costs goes into the
-    projection's parameters: the errors before it. The maximum of the error is checked against
-    the full model at once (:meth:`ReferenceResponse.settle`).
+    projection's parameters: the errors before it.
     """
     tick = time.perf_counter()
     reduced = reduce(prepared, spec.settings, band_hz=band_hz, name=spec.name)
@@ -701,7 +705,6 @@ def _reduce_one(
     if reduced.before_removal is not None:
         _record_removal_cost(prepared, reduced.before_removal, model, reference)
     response = transfer_function(model.system, reference.frequencies_hz)
-    _checked_errors(spec, reference, response)
     return model, response, elapsed
 
 
@@ -774,11 +777,14 @@ def _inertia_summary(prepared: PreparedModel) -> dict[str, Any] | None:
     }
 
 
-def _checked_errors(
+def _settled(
     spec: ReductionSpec, reference: ReferenceResponse, response: np.ndarray
-) -> np.ndarray:
-    """``eps(f)`` (eq. 27) with its maximum on a frequency checked against the full model."""
-    return _finite(spec, reference, reference.settle(response))
+) -> ReferenceResponse:
+    """The reference with the maximum of the reduction's ``eps(f)`` (eq. 27) on a frequency
+    checked against the full model; a :class:`NumericalError` if ``eps`` is not finite."""
+    settled = reference.settled(response)
+    _finite(spec, settled, settled.errors(response))
+    return settled
 
 
 def _finite(spec: ReductionSpec, reference: ReferenceResponse, eps: np.ndarray) -> np.ndarray:
