@@ -6,6 +6,7 @@ the output folder only when the whole job succeeded: a failed run leaves no part
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import importlib.metadata
 import json
@@ -14,7 +15,7 @@ import platform
 import shutil
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -404,10 +405,74 @@ def _run_job(
     workers: int | None,
     scheduler: str | None,
 ) -> dict[str, Any]:
+    """The steps of :func:`run_job`: prepare, reference, reductions, checks, summary."""
     timings: dict[str, float] = {}
     clock = time.perf_counter()
     check_output_folder(out_dir)  # a file in the way fails now, not after all the work
+    body, prepared, validation = _prepared_for_job(job, say, stage, timings)
+    units = detect_units(body)
+    warnings = [*prepared.warnings, *validation.warnings, *units.warnings]
+    warnings += band_unit_warnings(job.band_hz)
+    for warning in warnings:
+        say(f"warning: {warning}")
+    for note in prepared.notes:  # facts of the setup, no mistake: not warnings
+        say(note)
+    reference = _reference(job, prepared, say, stage, workers, scheduler)
+    with _staging(out_dir) as staging:
+        nodes = export_nodes(job)
+        reference, reduced_runs = _reduce_all(job, prepared, reference, stage)
+        results = _judged(job, prepared, reference, reduced_runs, staging, nodes, warnings, say)
+        entries, errors, estimates, decay, models = results
+        timings["reference_s"] = reference.seconds
+        computed = [f for e in entries for f in e["eigenfrequencies_hz"]]
+        for warning in frequency_warnings(units, job.band_hz, np.asarray(computed)):
+            warnings.append(warning)
+            say(f"warning: {warning}")
+        figures = [_error_figure(job, prepared, reference, errors, estimates, staging)]
+        overview = ["summary.json", "error.png"]
+        if decay:
+            plot_decay(decay, staging / "decay.png")
+            overview.append("decay.png")
+            figures.append((staging / "decay.png", "Decay of singular values (paper Fig. 11)"))
+        checks = {}
+        for key, check in (("time_domain", _time_domain), ("large_motion", _large_motion)):
+            done = check(job, body, prepared, models, nodes, staging, stage, say, timings)
+            if done is not None:
+                checks[key], figure = done
+                overview.append(figure[0].name)
+                figures.append(figure)
+                _attach_rows(entries, key, checks[key])
+        if "report" in job.export.outputs:
+            overview.append("report.html")
+        timings["total_s"] = time.perf_counter() - clock
+        summary = {
+            "pymorembs_version": __version__,
+            "job": str(job.path),
+            "model": _model_summary(job, body, prepared),
+            "units": units.as_dict(),
+            "validation": validation.as_dict(),
+            "band_hz": list(job.band_hz),
+            "n_frequencies": int(reference.frequencies_hz.size),
+            "reference": reference.as_dict(),
+            "reductions": entries,
+            "warnings": warnings,
+            "notes": list(prepared.notes),
+            "timings_s": timings,
+            "files": overview,
+            "provenance": provenance(job, validation),
+            **checks,
+            **({"title": job.title} if job.title else {}),
+        }
+        _write_summary(job, summary, figures, staging)
+    return summary
 
+
+def _prepared_for_job(
+    job: Job, say: Progress, stage: Callable[..., None], timings: dict[str, float]
+) -> tuple[ElasticBody, PreparedModel, ValidationReport]:
+    """The first stage: the checked and prepared model, with the job's inertia loads and
+    geometric stiffening (``timings`` gets the times of these steps)."""
+    clock = time.perf_counter()
     stage(
         "loading the model, interfaces, frame, constraint elimination, inputs and outputs",
         "loading the model",
@@ -425,15 +490,20 @@ def _run_job(
         say(f"geometric stiffening from the {job.stiffening.source} (one static factorization)")
         prepared = _with_stiffening(prepared, job)
         timings["stiffening_s"] = time.perf_counter() - tick
-    system = prepared.reduction_system  # what every reduction and the reference see
-    units = detect_units(body)
-    warnings = [*prepared.warnings, *validation.warnings, *units.warnings]
-    warnings += band_unit_warnings(job.band_hz)
-    for warning in warnings:
-        say(f"warning: {warning}")
-    for note in prepared.notes:  # facts of the setup, no mistake: not warnings
-        say(note)
+    return body, prepared, validation
 
+
+def _reference(
+    job: Job,
+    prepared: PreparedModel,
+    say: Progress,
+    stage: Callable[..., None],
+    workers: int | None,
+    scheduler: str | None,
+) -> ReferenceResponse:
+    """The second stage: the reference response on the job's error grid (the full model's, or
+    a checked reference model's), of the system every reduction sees."""
+    system = prepared.reduction_system
     frequencies = frequency_grid(*job.band_hz, job.points)
     kind = choose_kind(job.reference, system.order)
     stage(
@@ -452,92 +522,98 @@ def _run_job(
             f"the full model at {len(reference.deviation)} checked frequencies "
             f"{reference.accuracy:.1e}"
         )
+    return reference
 
+
+@contextlib.contextmanager
+def _staging(out_dir: Path) -> Iterator[Path]:
+    """A temporary folder next to ``out_dir`` for the files of a run; it replaces the output
+    folder's entries when the block succeeds and is removed when it fails."""
     parent = out_dir.resolve().parent
     parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=parent))
     try:
-        nodes = export_nodes(job)
-        reduced_runs = []
-        for spec in job.reductions:
-            stage(f"reduction '{spec.name}' ({spec.method})", f"reduction '{spec.name}'")
-            run = _reduce_one(prepared, spec, job.band_hz, reference)
-            reference = _settled(spec, reference, run[1])  # its maximum checked at once
-            reduced_runs.append(run)
-        reference = reference.settled_all([response for _, response, _ in reduced_runs])
-        results = _judged(job, prepared, reference, reduced_runs, staging, nodes, warnings, say)
-        entries, errors, estimates, decay, models = results
-        timings["reference_s"] = reference.seconds
-        computed = [f for e in entries for f in e["eigenfrequencies_hz"]]
-        for warning in frequency_warnings(units, job.band_hz, np.asarray(computed)):
-            warnings.append(warning)
-            say(f"warning: {warning}")
-        figures = [_error_figure(job, prepared, reference, errors, estimates, staging)]
-        overview = ["summary.json", "error.png"]
-        if decay:
-            plot_decay(decay, staging / "decay.png")
-            overview.append("decay.png")
-            figures.append((staging / "decay.png", "Decay of singular values (paper Fig. 11)"))
-        time_domain = None
-        if job.time_domain is not None:
-            stage("time domain", "time domain", line=False)  # time_domain_checks says more
-            tick = time.perf_counter()
-            time_domain = time_domain_checks(
-                job.time_domain, body, job.frame, prepared, models, nodes,
-                staging / "time.png", say,
-            )  # fmt: skip
-            timings["time_domain_s"] = time.perf_counter() - tick
-            overview.append("time.png")
-            figures.append((staging / "time.png", "Time responses (paper Fig. 12)"))
-            _attach_rows(entries, "time_domain", time_domain)
-        large_motion = None
-        if job.large_motion is not None:
-            stage("large motion in Exudyn", "large motion", line=False)
-            tick = time.perf_counter()
-            large_motion = large_motion_checks(
-                job.large_motion, job.frame, prepared, one_sided(models), nodes,
-                staging / "large_motion.png", say,
-            )  # fmt: skip
-            timings["large_motion_s"] = time.perf_counter() - tick
-            overview.append("large_motion.png")
-            figures.append(
-                (staging / "large_motion.png", "Large motions in Exudyn: each body against "
-                 f"the modal reference of order {large_motion['reference']['order']}")
-            )  # fmt: skip
-            _attach_rows(entries, "large_motion", large_motion)
-        if "report" in job.export.outputs:
-            overview.append("report.html")
-        timings["total_s"] = time.perf_counter() - clock
-        summary = {
-            "pymorembs_version": __version__,
-            "job": str(job.path),
-            "model": _model_summary(job, body, prepared),
-            "units": units.as_dict(),
-            "validation": validation.as_dict(),
-            "band_hz": list(job.band_hz),
-            "n_frequencies": int(frequencies.size),
-            "reference": reference.as_dict(),
-            "reductions": entries,
-            "warnings": warnings,
-            "notes": list(prepared.notes),
-            "timings_s": timings,
-            "files": overview,
-        }
-        summary["provenance"] = provenance(job, validation)
-        if time_domain is not None:
-            summary["time_domain"] = time_domain
-        if large_motion is not None:
-            summary["large_motion"] = large_motion
-        if job.title:
-            summary["title"] = job.title
-        if "report" in job.export.outputs:
-            write_report(staging / "report.html", summary, figures, _job_text(job.path))
-        write_text(staging / "summary.json", json.dumps(summary, indent=2, allow_nan=False) + "\n")
+        yield staging
         _replace_folder(staging, out_dir)
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise
-    return summary
+
+
+def _reduce_all(
+    job: Job, prepared: PreparedModel, reference: ReferenceResponse, stage: Callable[..., None]
+) -> tuple[ReferenceResponse, list[tuple[ReducedModel, np.ndarray, float]]]:
+    """One stage per reduction; the reference settled for all of them
+    (:meth:`ReferenceResponse.settled_all`) and each reduction's model, response and time."""
+    reduced_runs = []
+    for spec in job.reductions:
+        stage(f"reduction '{spec.name}' ({spec.method})", f"reduction '{spec.name}'")
+        run = _reduce_one(prepared, spec, job.band_hz, reference)
+        reference = _settled(spec, reference, run[1])  # its maximum checked at once
+        reduced_runs.append(run)
+    return reference.settled_all([response for _, response, _ in reduced_runs]), reduced_runs
+
+
+#: A check's summary entry and its figure (file, caption).
+CheckResult = tuple[dict[str, Any], tuple[Path, str]]
+
+
+def _time_domain(
+    job: Job,
+    body: ElasticBody,
+    prepared: PreparedModel,
+    models: dict[str, ReducedModel],
+    nodes: list[int],
+    staging: Path,
+    stage: Callable[..., None],
+    say: Progress,
+    timings: dict[str, float],
+) -> CheckResult | None:
+    """The stage of ``[time_domain]`` (None without it): full and reduced models in time."""
+    if job.time_domain is None:
+        return None
+    stage("time domain", "time domain", line=False)  # time_domain_checks says more
+    tick = time.perf_counter()
+    result = time_domain_checks(
+        job.time_domain, body, job.frame, prepared, models, nodes, staging / "time.png", say
+    )
+    timings["time_domain_s"] = time.perf_counter() - tick
+    return result, (staging / "time.png", "Time responses (paper Fig. 12)")
+
+
+def _large_motion(
+    job: Job,
+    body: ElasticBody,
+    prepared: PreparedModel,
+    models: dict[str, ReducedModel],
+    nodes: list[int],
+    staging: Path,
+    stage: Callable[..., None],
+    say: Progress,
+    timings: dict[str, float],
+) -> CheckResult | None:
+    """The stage of ``[large_motion]`` (None without it): the bodies in Exudyn."""
+    if job.large_motion is None:
+        return None
+    stage("large motion in Exudyn", "large motion", line=False)
+    tick = time.perf_counter()
+    result = large_motion_checks(
+        job.large_motion, job.frame, prepared, one_sided(models), nodes,
+        staging / "large_motion.png", say,
+    )  # fmt: skip
+    timings["large_motion_s"] = time.perf_counter() - tick
+    caption = ("Large motions in Exudyn: each body against the modal reference of order "
+               f"{result['reference']['order']}")  # fmt: skip
+    return result, (staging / "large_motion.png", caption)
+
+
+def _write_summary(
+    job: Job, summary: dict[str, Any], figures: list[tuple[Path, str]], staging: Path
+) -> None:
+    """``report.html`` (if asked for) and ``summary.json`` into ``staging``."""
+    if "report" in job.export.outputs:
+        write_report(staging / "report.html", summary, figures, _job_text(job.path))
+    write_text(staging / "summary.json", json.dumps(summary, indent=2, allow_nan=False) + "\n")
 
 
 def _judged(
