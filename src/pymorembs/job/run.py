@@ -22,38 +22,51 @@ from typing import Any
 import numpy as np
 import scipy
 
-from pymorembs import __version__, reduce
-from pymorembs.analysis.error import error_blocks, frequency_grid, relative_error
-from pymorembs.analysis.large_motion import large_motion_checks
-from pymorembs.analysis.reference import ReferenceResponse, choose_kind, reference_response
-from pymorembs.analysis.time_domain import clamped_full_system
-from pymorembs.analysis.transfer import transfer_function
-from pymorembs.body import DIRECTIONS, ElasticBody
-from pymorembs.errors import NumericalError, PymorembsError, UserError
-from pymorembs.examples import build_example
-from pymorembs.export.outputs import BODY_OUTPUTS, write_outputs
-from pymorembs.io.atomic import atomic_path, check_output_folder, write_text
-from pymorembs.io.formats import read_body
+from pymorembs import (
+    DIRECTIONS,
+    ElasticBody,
+    InterfaceSpec,
+    NumericalError,
+    PreparedModel,
+    PymorembsError,
+    ReducedModel,
+    SecondOrderSystem,
+    UserError,
+    __version__,
+    example,
+    reduce,
+    select_nodes,
+)
+from pymorembs.analysis import (
+    ReferenceResponse,
+    choose_kind,
+    clamped_full_system,
+    error_blocks,
+    frequency_grid,
+    large_motion_checks,
+    reference_response,
+    relative_error,
+    transfer_function,
+)
+from pymorembs.export import BODY_OUTPUTS, write_outputs
+from pymorembs.io import atomic_path, check_output_folder, read_body, write_text
 from pymorembs.job.schema import Job, ModelSpec, ReductionSpec
 from pymorembs.job.time_domain import time_domain_checks
-from pymorembs.linalg.mass_split import mass_split
-from pymorembs.prepare import PreparedModel, prepare, with_inertia_loads
-from pymorembs.prepare.interface import InterfaceSpec, add_interface_node, select_nodes
-from pymorembs.prepare.stiffening import (
+from pymorembs.linalg import default_backend, mass_split
+from pymorembs.prepare import (
+    ValidationReport,
+    add_interface_node,
+    prepare,
     stiffening_from_matrices,
     stiffening_from_mesh,
+    validate_body,
+    validate_prepared,
+    with_inertia_loads,
     with_stiffening,
 )
-from pymorembs.prepare.validation import ValidationReport, validate_body, validate_prepared
 from pymorembs.progress import Progress as ProgressBar
-from pymorembs.reduction.projection import (
-    Projection,
-    ReducedModel,
-    explicit_step_s,
-)
-from pymorembs.report.html_report import write_report
-from pymorembs.report.plots import plot_decay, plot_relative_errors
-from pymorembs.system import SecondOrderSystem
+from pymorembs.reduction import Projection, explicit_step_s
+from pymorembs.report import plot_decay, plot_relative_errors, write_report
 from pymorembs.units import band_unit_warnings, detect_units, frequency_warnings
 
 Progress = Callable[[str], None]
@@ -69,7 +82,7 @@ DECAY_SERIES = (
 def load_model(spec: ModelSpec) -> ElasticBody:
     """The body a job's ``[model]`` names: a built-in example or model files of any format."""
     if spec.example is not None:
-        return build_example(spec.example, **spec.options)
+        return example(spec.example, **spec.options)
     return read_body(spec.format, **spec.files, **spec.names)
 
 
@@ -435,13 +448,12 @@ def _run_job(
             overview.append("decay.png")
             figures.append((staging / "decay.png", "Decay of singular values (paper Fig. 11)"))
         checks = {}
-        for key, check in (("time_domain", _time_domain), ("large_motion", _large_motion)):
-            done = check(job, body, prepared, models, nodes, staging, stage, say, timings)
-            if done is not None:
-                checks[key], figure = done
-                overview.append(figure[0].name)
-                figures.append(figure)
-                _attach_rows(entries, key, checks[key])
+        done = _checks_in_time(job, body, prepared, models, nodes, staging, stage, say, timings)
+        for key, (result, figure) in done.items():
+            checks[key] = result
+            overview.append(figure[0].name)
+            figures.append(figure)
+            _attach_rows(entries, key, result)
         if "report" in job.export.outputs:
             overview.append("report.html")
         timings["total_s"] = time.perf_counter() - clock
@@ -554,11 +566,7 @@ def _reduce_all(
     return reference.settled_all([response for _, response, _ in reduced_runs]), reduced_runs
 
 
-#: A check's summary entry and its figure (file, caption).
-CheckResult = tuple[dict[str, Any], tuple[Path, str]]
-
-
-def _time_domain(
+def _checks_in_time(
     job: Job,
     body: ElasticBody,
     prepared: PreparedModel,
@@ -568,43 +576,32 @@ def _time_domain(
     stage: Callable[..., None],
     say: Progress,
     timings: dict[str, float],
-) -> CheckResult | None:
-    """The stage of ``[time_domain]`` (None without it): full and reduced models in time."""
-    if job.time_domain is None:
-        return None
-    stage("time domain", "time domain", line=False)  # time_domain_checks says more
-    tick = time.perf_counter()
-    result = time_domain_checks(
-        job.time_domain, body, job.frame, prepared, models, nodes, staging / "time.png", say
-    )
-    timings["time_domain_s"] = time.perf_counter() - tick
-    return result, (staging / "time.png", "Time responses (paper Fig. 12)")
-
-
-def _large_motion(
-    job: Job,
-    body: ElasticBody,
-    prepared: PreparedModel,
-    models: dict[str, ReducedModel],
-    nodes: list[int],
-    staging: Path,
-    stage: Callable[..., None],
-    say: Progress,
-    timings: dict[str, float],
-) -> CheckResult | None:
-    """The stage of ``[large_motion]`` (None without it): the bodies in Exudyn."""
-    if job.large_motion is None:
-        return None
-    stage("large motion in Exudyn", "large motion", line=False)
-    tick = time.perf_counter()
-    result = large_motion_checks(
-        job.large_motion, job.frame, prepared, one_sided(models), nodes,
-        staging / "large_motion.png", say,
-    )  # fmt: skip
-    timings["large_motion_s"] = time.perf_counter() - tick
-    caption = ("Large motions in Exudyn: each body against the modal reference of order "
-               f"{result['reference']['order']}")  # fmt: skip
-    return result, (staging / "large_motion.png", caption)
+) -> dict[str, tuple[dict[str, Any], tuple[Path, str]]]:
+    """The stages of ``[time_domain]`` (full and reduced models in time) and ``[large_motion]``
+    (the bodies in Exudyn) the job asks for: by summary key, the check's entry and its figure
+    (file, caption)."""
+    done = {}
+    if job.time_domain is not None:
+        stage("time domain", "time domain", line=False)  # time_domain_checks says more
+        tick = time.perf_counter()
+        figure = staging / "time.png"
+        result = time_domain_checks(
+            job.time_domain, body, job.frame, prepared, models, nodes, figure, say
+        )
+        timings["time_domain_s"] = time.perf_counter() - tick
+        done["time_domain"] = result, (figure, "Time responses (paper Fig. 12)")
+    if job.large_motion is not None:
+        stage("large motion in Exudyn", "large motion", line=False)
+        tick = time.perf_counter()
+        figure = staging / "large_motion.png"
+        result = large_motion_checks(
+            job.large_motion, job.frame, prepared, one_sided(models), nodes, figure, say
+        )
+        timings["large_motion_s"] = time.perf_counter() - tick
+        caption = ("Large motions in Exudyn: each body against the modal reference of order "
+                   f"{result['reference']['order']}")  # fmt: skip
+        done["large_motion"] = result, (figure, caption)
+    return done
 
 
 def _write_summary(
@@ -1022,8 +1019,6 @@ def provenance(job: Job, validation: ValidationReport | None = None) -> dict[str
         ``environment``: the ``PYMOREMBS_*`` variables and ``SOURCE_DATE_EPOCH`` that are set;
         ``settings``: the parsed job.
     """
-    from pymorembs.linalg.backends import default_backend
-
     # a job parsed from a dictionary (parse_job) may name a file that does not exist
     inputs = {str(job.path): sha256_of(Path(job.path))} if Path(job.path).is_file() else {}
     for path in job.model.files.values():

@@ -17,11 +17,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from pymorembs.analysis.large_motion import LARGE_MOTION_CASES, LargeMotionSettings
-from pymorembs.analysis.reference import DEFAULT_CHECKS, REFERENCE_KINDS
-from pymorembs.body import Damping
-from pymorembs.errors import UserError
-from pymorembs.io.formats import FORMATS
+from pymorembs import Damping, Frame, Port, UserError
+from pymorembs.analysis import (
+    DEFAULT_CHECKS,
+    LARGE_MOTION_CASES,
+    REFERENCE_KINDS,
+    LargeMotionSettings,
+)
+from pymorembs.io import FORMATS
 from pymorembs.methods import (
     METHODS,
     RENAMED_OPTIONS,
@@ -30,7 +33,7 @@ from pymorembs.methods import (
     method_options,
     renamed_message,
 )
-from pymorembs.prepare import INERTIA_LOAD_CASES, Frame, Port
+from pymorembs.prepare import INERTIA_LOAD_CASES
 
 MODEL_FILE_KEYS = (
     "file", "stiffness", "mass", "damping", "dofs", "nodes", "constraints", "fixed", "mapping",
