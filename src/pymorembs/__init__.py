@@ -13,14 +13,16 @@ __version__ = "0.1.0"
 
 from pymorembs.analysis.time_domain import LoadCase, TimeResponse
 from pymorembs.api import ErrorCurve, ReducedBody, example, facts, prepare, read, reduce
-from pymorembs.body import ConstraintEquations, Damping, DofTable, ElasticBody
+from pymorembs.body import DIRECTIONS, ConstraintEquations, Damping, DofTable, ElasticBody
 from pymorembs.errors import NumericalError, PymorembsError, UserError
 from pymorembs.methods import METHODS, method_options
 from pymorembs.prepare import Frame, Port, PreparedModel
 from pymorembs.prepare.interface import InterfaceSpec, select_nodes
+from pymorembs.reduction.projection import ReducedModel
 from pymorembs.system import SecondOrderSystem
 
 __all__ = [
+    "DIRECTIONS",
     "METHODS",
     "ConstraintEquations",
     "Damping",
@@ -35,6 +37,7 @@ __all__ = [
     "PreparedModel",
     "PymorembsError",
     "ReducedBody",
+    "ReducedModel",
     "SecondOrderSystem",
     "TimeResponse",
     "UserError",

@@ -275,12 +275,16 @@ class ReducedBody:
         The method and its options.
     name : str
         Used in exported files.
+    before_removal : ReducedModel or None
+        The reduced model before its eigen-directions above ``options.max_frequency_hz`` were
+        removed (None: nothing was removed), to measure what the removal costs.
     """
 
     prepared: PreparedModel
     model: ReducedModel
     options: ReductionOptions
     name: str = "body"
+    before_removal: ReducedModel | None = None
 
     @property
     def method(self) -> str:
@@ -340,7 +344,7 @@ class ReducedBody:
             raise UserError("error: the prepared model has no inputs or no outputs to compare")
         ref = reference_response(system, frequencies, reference, workers=workers)
         response = transfer_function(self.model.system, frequencies)
-        ref.settle(response)  # the maximum on a frequency checked against the full model
+        ref = ref.settled(response)  # the maximum on a frequency checked against the full model
         ports, inertia = error_blocks(system)
         return ErrorCurve(
             frequencies,
@@ -444,7 +448,7 @@ class ReducedBody:
 
 def reduce(
     prepared: PreparedModel,
-    method: str,
+    method: str | ReductionOptions,
     *,
     band_hz: tuple[float, float] | None = None,
     name: str | None = None,
@@ -455,9 +459,10 @@ def reduce(
     Parameters
     ----------
     prepared : PreparedModel
-    method : str
+    method : str or ReductionOptions
         One of :data:`pymorembs.methods.METHODS`: ``modal``, ``craig-bampton``, ``krylov``,
-        ``soaga``, ``gramian``, ``pod``.
+        ``soaga``, ``gramian``, ``pod``; or a checked options object of one
+        (:func:`~pymorembs.methods.method_options`), then without further ``options``.
     band_hz : (f_min, f_max), optional
         The band (Hz) of the band-aware methods (``soaga``, ``gramian``, ``pod``); required
         for them.
@@ -472,15 +477,22 @@ def reduce(
     ReducedBody
         Checked (finite, symmetric, positive reduced matrices) before it is returned.
     """
-    settings = method_options(method, options)
+    if isinstance(method, ReductionOptions):
+        if options:
+            raise UserError(f"reduce: options {sorted(options)} beside an options object")
+        settings = method
+    else:
+        settings = method_options(method, options)
     if band_hz is None:
-        if method in ("soaga", "gramian", "pod"):
-            raise UserError(f"reduce: {method} needs band_hz=(f_min, f_max) in Hz")
+        if settings.method in ("soaga", "gramian", "pod"):
+            raise UserError(f"reduce: {settings.method} needs band_hz=(f_min, f_max) in Hz")
         band_hz = (0.0, 1.0)
     system = prepared.reduction_system
     model = reduced_model(system, settings.reduce(system, (float(band_hz[0]),
                                                            float(band_hz[1]))))  # fmt: skip
+    before = None
     limit = settings.max_frequency_hz
     if limit is not None and model.eigenfrequencies_hz.max() > limit:
-        model = without_stiff_directions(system, model, limit)
-    return ReducedBody(prepared, model, settings, method if name is None else str(name))
+        before, model = model, without_stiff_directions(system, model, limit)
+    name = settings.method if name is None else str(name)
+    return ReducedBody(prepared, model, settings, name, before)

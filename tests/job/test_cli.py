@@ -218,7 +218,8 @@ BAD_JOBS = [
     (None, "missing key 'node'"),
     (None, "unknown direction"),
     (None, "must be a finite number"),
-    (None, "tol: must be >= 1e-15"),
+    (None, "deflation_tolerance: must be >= 1e-15"),
+    (None, "tol: was renamed to 'deflation_tolerance'"),
 ]
 
 
@@ -242,7 +243,8 @@ def mutate(text: str, case: int) -> str:
         12: ("node = 60\n", ""),
         13: ('directions = "uz"', 'directions = "uw"'),
         14: ("f_max_hz = 200", "f_max_hz = inf"),
-        15: ("moments = 2", "moments = 2\ntol = 0"),
+        15: ("moments = 2", "moments = 2\ndeflation_tolerance = 0"),
+        16: ("moments = 2", "moments = 2\ntol = 1e-10"),
     }
     old, new = edits[case]
     assert old in text
@@ -306,16 +308,16 @@ def test_reduced_folder_is_written_only_on_success(tmp_path, lattice_files, caps
     import pymorembs.job.run as pipeline
     from pymorembs.errors import NumericalError
 
-    original = pipeline.run_reduction
+    original = pipeline.reduce  # the job layer reduces through pymorembs.reduce
     calls = []
 
-    def failing(system, spec, band_hz):
-        calls.append(spec.name)
-        if spec.name == "kry":
+    def failing(prepared, method, **options):
+        calls.append(options["name"])
+        if options["name"] == "kry":
             raise NumericalError("the expansion point 100 Hz is an eigenfrequency")
-        return original(system, spec, band_hz)
+        return original(prepared, method, **options)
 
-    monkeypatch.setattr(pipeline, "run_reduction", failing)
+    monkeypatch.setattr(pipeline, "reduce", failing)
     job = write_job(tmp_path)
     code, _, err = run(["reduce", job, "--out", tmp_path / "out"], capsys)
     assert calls == ["modal-6", "kry"]  # the first reduction ran and was staged
@@ -332,10 +334,10 @@ def test_unexpected_exception_exits_1_with_traceback_and_bug_request(
 ):
     import pymorembs.job.run as pipeline
 
-    def broken(system, spec, band_hz):
+    def broken(prepared, method, **options):
         raise ZeroDivisionError("an internal slip")
 
-    monkeypatch.setattr(pipeline, "run_reduction", broken)
+    monkeypatch.setattr(pipeline, "reduce", broken)
     job = write_job(tmp_path)
     code, _, err = run(["reduce", job, "--out", tmp_path / "out", "--quiet"], capsys)
     assert code == 1

@@ -2,14 +2,15 @@
 
 :func:`prepare` turns an :class:`~pymorembs.body.ElasticBody` into the second-order system of its
 independent dofs, ``M* q'' + D* q' + K* q = B* u + f*,  y = C* q`` (eqs. 11-17), and keeps the map
-back to all dofs (eq. 18).
+back to all dofs (eq. 18). A public subpackage (``docs/api.md``, "The public surface"): besides
+:func:`prepare` its ``__all__`` holds the other steps of :func:`pymorembs.prepare` (interface
+nodes, inertia loads, geometric stiffening) and the checks of :mod:`~pymorembs.prepare.validation`.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from functools import cached_property
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -19,27 +20,42 @@ from pymorembs.linalg.mass_split import mass_split
 from pymorembs.prepare.buckens_frame import buckens_frame, centre_of_gravity
 from pymorembs.prepare.elimination import Elimination, eliminate
 from pymorembs.prepare.inertia_loads import INERTIA_LOAD_CASES, InertiaLoads, inertia_loads
+from pymorembs.prepare.interface import InterfaceSpec, add_interface_node, select_nodes
 from pymorembs.prepare.ports import Port, selection_matrix
 from pymorembs.prepare.rigid_modes import free_rigid_body_modes
+from pymorembs.prepare.stiffening import (
+    Stiffening,
+    stiffening_from_matrices,
+    stiffening_from_mesh,
+    with_stiffening,
+)
 from pymorembs.prepare.tangent_frame import tangent_frame
+from pymorembs.prepare.validation import ValidationReport, validate_body, validate_prepared
 from pymorembs.system import SecondOrderSystem
-
-if TYPE_CHECKING:
-    from pymorembs.prepare.stiffening import Stiffening
 
 __all__ = [
     "INERTIA_LOAD_CASES",
     "Frame",
     "InertiaLoads",
+    "InterfaceSpec",
     "Port",
     "PreparedModel",
+    "Stiffening",
+    "ValidationReport",
+    "add_interface_node",
     "buckens_frame",
     "centre_of_gravity",
     "eliminate",
     "prepare",
+    "select_nodes",
+    "stiffening_from_matrices",
+    "stiffening_from_mesh",
     "tangent_frame",
+    "validate_body",
+    "validate_prepared",
     "with_inertia_loads",
     "with_rigid_modes",
+    "with_stiffening",
 ]
 
 
