@@ -9,6 +9,7 @@ The command line and job files are a layer on these functions; a notebook needs 
     reduced = pm.reduce(prepared, "krylov", expansion_points_hz=[0, 500, 1000], order=30)
     error = reduced.error(band_hz=(0, 1000), points=200)
     reduced.to_sid("rack.SID_FEM", nodes=[1, 2])
+    reduced.to_vtu("rack.vtu")                 # the shapes for ParaView
 
 Frequencies are in Hz, lengths, masses and times in the FE model's units.
 """
@@ -375,6 +376,14 @@ class ReducedBody:
 
         check_before_writing(self.model, self.name)
         return write_neweul(path, self.invariants(nodes))
+
+    def to_vtu(self, path: PathLike) -> Path:
+        """Write the surface with every shape function and the static response to every input
+        as a VTU file for ParaView (:mod:`pymorembs.export.vtu`: array names and units)."""
+        from pymorembs.export.vtu import write_reduced_vtu
+
+        check_before_writing(self.model, self.name)
+        return write_reduced_vtu(path, self.model, self.prepared)
 
     def to_matrices(self, folder: PathLike, formats: Sequence[str] = ("npz", "mtx")) -> list[Path]:
         """Write the reduced matrices (``reduced.npz``, ``M K D B C.mtx``, ``reduced.mat``)."""

@@ -9,6 +9,8 @@ output     files (in the reduction's folder)
 ``sid``    ``<name>.SID_FEM``: Standard Input Data for Simpack and other codes
 ``neweul`` ``<name>_neweul.mat``: the SID invariants for Neweul-M²
 ``exudyn`` ``<name>_exudyn.npz``: the data of an Exudyn ``ObjectFFRFreducedOrder``
+``vtu``    ``<name>.vtu``: the surface with every shape function and static response
+           (:mod:`pymorembs.export.vtu`), for ParaView
 =========  ==============================================================================
 
 The body outputs (``sid``, ``neweul``, ``exudyn``) need a one-sided (Galerkin) projection, so that
@@ -112,6 +114,7 @@ def write_outputs(
     from pymorembs.export.exudyn_body import write_exudyn_body
     from pymorembs.export.neweul import write_neweul
     from pymorembs.export.sid import write_sid
+    from pymorembs.export.vtu import write_reduced_vtu
 
     check_before_writing(model, name)
     names: list[str] = []
@@ -127,6 +130,9 @@ def write_outputs(
     if "mat" in outputs:
         write_mat(folder / "reduced.mat", arrays)
         names.append("reduced.mat")
+    if "vtu" in outputs:
+        write_reduced_vtu(folder / f"{name}.vtu", model, prepared)
+        names.append(f"{name}.vtu")
     if any(kind in outputs for kind in BODY_OUTPUTS):
         invariants = body_invariants(model, prepared, nodes, name)
         if "sid" in outputs:
