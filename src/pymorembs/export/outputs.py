@@ -111,7 +111,7 @@ def write_outputs(
     folder: Path,
 ) -> list[str]:
     """Write the ``outputs`` of one reduced model into ``folder``; return the file names."""
-    from pymorembs.export.exudyn_body import write_exudyn_body
+    from pymorembs.export.exudyn_body import surface_mesh, write_exudyn_body
     from pymorembs.export.neweul import write_neweul
     from pymorembs.export.sid import write_sid
     from pymorembs.export.vtu import write_reduced_vtu
@@ -146,7 +146,8 @@ def write_outputs(
             write_neweul(folder / f"{name}_neweul.mat", invariants)
             names.append(f"{name}_neweul.mat")
         if "exudyn" in outputs:
-            write_exudyn_body(folder / f"{name}_exudyn.npz", invariants)
+            surface = surface_mesh(prepared.body, prepared.expand(model.projection.V))
+            write_exudyn_body(folder / f"{name}_exudyn.npz", invariants, surface=surface)
             names.append(f"{name}_exudyn.npz")
     return names
 
