@@ -483,3 +483,21 @@ def test_bad_model_requests_are_user_errors(tangent_body, solid):
     poisoned = build_exudyn_model(arrays, loads=[(1, lambda t: UNIT * (np.nan if t > 0 else 0))])
     with pytest.raises(NumericalError, match="time integration failed"):
         simulate_exudyn(poisoned, 0.01, 1e-3)
+
+
+def test_to_exudyn_writes_the_surface_of_a_solid_and_none_for_beams(tmp_path):
+    import pymorembs as pm
+
+    blade = build_example("blade", elements=8)
+    tip = int(blade.node_ids.max())
+    reduced = pm.reduce(pm.prepare(blade, "none", inputs=[(tip, "uy uz")]), "modal", order=4)
+    arrays = load_exudyn_body(reduced.to_exudyn(tmp_path / "blade.npz"))
+    assert np.array_equal(arrays["meshNodeIds"][arrays["surfaceTriangles"]],
+                          blade.surface.triangles)  # fmt: skip
+    beams = build_example("rack-beams")  # line elements only: nothing for triangleMesh
+    reduced = pm.reduce(pm.prepare(beams, "tangent", node=2, inputs=[(1, "ux")]), "modal", order=4)
+    arrays = load_exudyn_body(reduced.to_exudyn(tmp_path / "rack.npz"))
+    assert "surfaceTriangles" not in arrays and arrays["meshNodeIds"].size == 1 + 6  # node 1
+    arrays["surfaceTriangles"] = np.array([[0, 1, 8]])
+    with pytest.raises(UserError, match="surfaceTriangles point outside the mesh"):
+        write_exudyn_body(tmp_path / "bad.npz", arrays)

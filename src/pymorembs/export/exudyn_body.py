@@ -41,14 +41,27 @@ Mode basis and mesh nodes
 -------------------------
 Exudyn reconstructs node positions from ``referencePositions`` and the translational
 ``modeBasis`` (rows node-major ``[ux0, uy0, uz0, ux1, ...]``); the mass terms above do not depend
-on it. The exported "mesh" therefore holds only the frame nodes of the invariants
-(``inv.nodes``), each followed -- if it has rotational dofs -- by six massless *satellite points*
+on it. The exported "mesh" therefore holds the frame nodes of the invariants (``inv.nodes``),
+each followed -- if it has rotational dofs -- by six massless *satellite points*
 on a rigid cross around it: positions ``c_p ± L e_a`` (order +x, -x, +y, -y, +z, -z) with the
 mode rows ``φ_p + ψ_p × (±L e_a)`` of a linearised rigid link. Their mean is the node itself
 (position and displacement), and a ``MarkerSuperElementRigid`` with equal weights on the six of
 them gives the node's position and its elastic rotation (``ψ_p q`` to first order), so a rigid
 joint can act at the node. ``L`` is the radius of gyration of the body about its centre of
 gravity unless given; it does not enter the dynamics.
+
+Surface
+-------
+With a :class:`SurfaceMesh` (:func:`surface_mesh`: the body's surface triangles,
+:class:`~pymorembs.surface.Surface`) the nodes of the triangles follow, each with its position
+and its translational rows of the basis (a frame node on the surface keeps its one mesh node),
+and ``surfaceTriangles`` holds the triangles as mesh node indices, counter-clockwise seen from
+outside. :func:`build_exudyn_model` hands them to ``VObjectFFRFreducedOrder(triangleMesh=...)``
+-- what Exudyn's FEM route does with ``FEMinterface.GetSurfaceTriangles()``
+(``ObjectFFRFreducedOrderInterface``) -- so Exudyn's renderer draws the deforming body. Only
+triangles are drawn: a beam model (line segments only) shows no surface. Quadratic faces are
+split through their mid-side nodes into flat triangles (Exudyn's route draws a hexahedron face
+by its corners).
 
 Exudyn 1.12.258 renamed ``physicsMass``, ``physicsInertia`` and ``physicsCenterOfMass`` to
 ``mass``, ``inertia`` and ``centerOfMass``; the archive keeps the documented ``physics*`` names
@@ -57,19 +70,20 @@ and :func:`build_exudyn_model` passes them under the new ones.
 File
 ----
 :func:`write_exudyn_body` stores the arrays of :func:`exudyn_arrays` in a ``.npz`` archive (no
-pickled objects; ``numpy.load(..., allow_pickle=False)`` reads it). Besides the Exudyn
-parameters above the archive holds ``format`` (``"pymorembs-exudyn-body"``), ``formatVersion``
-(1), ``bodyName``, ``eigenfrequenciesHz`` (nq,), ``nodeIds`` (p,), ``nodeMeshIndices`` (p,),
-``satelliteMeshIndices`` (p, 6; -1 for a node without rotational dofs), ``meshNodeIds``
-(n_mesh,; the frame node each mesh node belongs to), ``satelliteLength`` () in m and
-``satelliteDirections`` (6, 3). Lengths in m, masses in kg, times in s (those of the FE model).
-A body with geometric stiffening (SID_NOTES §4.6) also holds ``K0`` of the centrifugal load
-cases (``stiffeningOmega``, 6 × nq × nq, wxx wyy wzz wxy wyz wxz), of the frame's translational
-and angular accelerations (``stiffeningAcceleration``, ``stiffeningAngularAcceleration``,
-3 × nq × nq each) and, if any stiffens the body, of unit forces at the frame nodes
-(``stiffeningNodeForces``, p × 3 × nq × nq, body directions x, y, z); Exudyn's
-``ObjectFFRFreducedOrder`` has no input for them, so :func:`build_exudyn_model` applies them
-through the object's ``forceUserFunction``.
+pickled objects; ``numpy.load(..., allow_pickle=False)`` reads it). Besides the Exudyn parameters
+above the archive holds ``format`` (``"pymorembs-exudyn-body"``), ``formatVersion`` (1),
+``bodyName``, ``eigenfrequenciesHz`` (nq,), ``nodeIds`` (p,), ``nodeMeshIndices`` (p,),
+``satelliteMeshIndices`` (p, 6; -1 for a node without rotational dofs), ``meshNodeIds`` (n_mesh,;
+the node each mesh node belongs to: a satellite's frame node), ``satelliteLength`` () in m and
+``satelliteDirections`` (6, 3). Lengths in m, masses in kg, times in s (those of the FE model). A
+body with geometric stiffening (SID_NOTES §4.6) also holds ``K0`` of the centrifugal load cases
+(``stiffeningOmega``, 6 × nq × nq, wxx wyy wzz wxy wyz wxz), of the frame's translational and
+angular accelerations (``stiffeningAcceleration``, ``stiffeningAngularAcceleration``, 3 × nq × nq
+each) and, if any stiffens the body, of unit forces at the frame nodes (``stiffeningNodeForces``, p
+× 3 × nq × nq, body directions x, y, z); Exudyn's ``ObjectFFRFreducedOrder`` has no input for them,
+so :func:`build_exudyn_model` applies them through the object's ``forceUserFunction``. A body with a
+surface holds ``surfaceTriangles`` (n_t × 3, mesh node indices); ``meshNodeIds`` then names each
+surface node's own id.
 
 Simulation
 ----------
