@@ -105,7 +105,7 @@ def static_fields(prepared: PreparedModel) -> dict[str, np.ndarray]:
     -------
     dict of str to ndarray (n_dof,)
         Input label (``"1:ux"``, ``"inertia:ax"``) -> deformation under a unit input: per N
-        (m N m for moments) for a port, per unit of the frame's acceleration for an inertia
+        (per N m for a moment) for a port, per unit of the frame's acceleration for an inertia
         load (the column's scale divided out).
     """
     system = prepared.reduction_system
@@ -153,21 +153,18 @@ def write_vtu(
     """
     import meshio
 
-    if not body.has_coordinates:
-        raise UserError(
-            f"vtu {path}: the model has no node coordinates, which a VTU file needs; give the "
-            "nodes (nodes = nodes.csv or the FE input file)"
-        )
+    _require_coordinates(body, path)
     shapes = np.asarray(shapes, dtype=float)
     if shapes.ndim != 2 or shapes.shape[0] != body.n_dof:
-        raise UserError(f"vtu {path}: shapes have shape {shapes.shape}, expected "
-                        f"({body.n_dof}, k)")  # fmt: skip
+        raise UserError(f"vtu {path}: shapes have shape {shapes.shape}, expected ({body.n_dof}, k)")
     labels = list(static or {})
     columns = [np.asarray(static[label], dtype=float) for label in labels] if static else []
     for label, column in zip(labels, columns, strict=True):
         if column.shape != (body.n_dof,):
-            raise UserError(f"vtu {path}: static response {label!r} has shape {column.shape}, "
-                            f"expected ({body.n_dof},)")  # fmt: skip
+            raise UserError(
+                f"vtu {path}: static response {label!r} has shape {column.shape}, "
+                f"expected ({body.n_dof},)"
+            )
     names = shape_names(shapes.shape[1]) + [array_name(STATIC_PREFIX, label) for label in labels]
     if len(set(names)) != len(names):
         twice = next(name for name in names if names.count(name) > 1)
@@ -192,12 +189,21 @@ def write_reduced_vtu(
 ) -> Path:
     """:func:`write_vtu` of a reduction: its basis ``V`` on all dofs (eq. 18) and the static
     response to every input of the prepared model (:func:`static_fields`)."""
+    _require_coordinates(prepared.body, path)  # before the static solve
     return write_vtu(
         path,
         prepared.body,
         prepared.expand(model.projection.V),
         static=static_fields(prepared),
     )
+
+
+def _require_coordinates(body: ElasticBody, path: str | os.PathLike[str]) -> None:
+    if not body.has_coordinates:
+        raise UserError(
+            f"vtu {path}: the model has no node coordinates, which a VTU file needs; give the "
+            "nodes (nodes = nodes.csv or the FE input file)"
+        )
 
 
 def _cells(body: ElasticBody) -> list[tuple[str, np.ndarray]]:
