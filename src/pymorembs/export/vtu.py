@@ -36,13 +36,13 @@ Shape numbers start at 1 and have at least three digits (``shape_001``; more whe
 digits and ``_ . + -`` replaced by ``_``: ``static_1_ux`` for a force ``1:ux``, ``static_1_rz``
 for a moment, ``static_inertia_ax`` for the inertia load of the frame's acceleration ``ax``.
 
-Units are those of the FE model. The basis is mass-normalised (``V^T M V = I``), so a shape
-is a length per unit modal coordinate (m kg^-1/2 in SI) and a rotation a radian per unit modal
-coordinate. A static response is the deformation under a unit force (m/N) or moment (m/(N m));
-for an inertia load, under a unit frame acceleration: m per m/s² (``ax ay az``), per rad/s²
-(``alx aly alz``), per (rad/s)² (``wxx`` ...). The static solve is the one the reduction used:
-the frame's fixed dofs held, and for a free body in the Buckens frame the deformation
-mass-orthogonal to the rigid-body modes (inertia relief).
+Units are those of the FE model. The basis is mass-normalised (``V^T M V = I``; ``W^T M V = I``
+for a two-sided projection), so a shape is a length per unit modal coordinate (m kg^-1/2 in SI)
+and a rotation a radian per unit modal coordinate. A static response is the deformation under a
+unit force (m/N) or moment (m/(N m)); for an inertia load, under a unit frame acceleration: m
+per m/s² (``ax ay az``), per rad/s² (``alx aly alz``), per (rad/s)² (``wxx`` ...). The static
+solve is the one the reduction used: the frame's fixed dofs held, and for a free body in the
+Buckens frame the deformation mass-orthogonal to the rigid-body modes (inertia relief).
 """
 
 from __future__ import annotations

@@ -121,7 +121,8 @@ class PreparedModel:
     @cached_property
     def static_response(self) -> np.ndarray:
         """``K^+ B`` of :attr:`reduction_system`: the static deformation under each input,
-        shape (n_independent, n_inputs), one factorization (kept with the model).
+        shape (n_independent, n_inputs); solved once (one factorization) and kept with the
+        model, so every reduction of a job reuses it.
 
         ``K^+`` is the solve of the reduction methods: a factorization of ``K`` in a frame that
         holds the body, inertia relief (the deformation mass-orthogonal to the rigid-body
