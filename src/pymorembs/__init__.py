@@ -3,7 +3,7 @@
 The reduction process follows Fig. 1 and Fig. 8 of ``paper.md``::
 
     read / example --> ElasticBody --prepare--> PreparedModel --reduce--> ReducedBody
-        --> .error(band) / .to_sid() / .to_exudyn() / .to_neweul() / .to_matrices()
+        --> .error(band) / .to_sid() / .to_exudyn() / .to_neweul() / .to_vtu() / .to_matrices()
 
 Everything a script needs is here (:mod:`pymorembs.api`); the command line and job files are a
 layer on it.

@@ -697,3 +697,38 @@ def test_a_band_in_rad_per_s_warns_on_the_console_and_in_the_summary(
     assert line.startswith("pymorembs: warning: band f_max_hz = 1256.64 is 2 pi x 200")
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert line.removeprefix("pymorembs: warning: ") in summary["warnings"]
+
+
+def test_outputs_vtu_writes_a_readable_file_per_reduction(tmp_path, lattice_files, capsys):
+    """``[export] outputs = ["vtu"]``: ``<name>.vtu`` per reduction, listed in the summary."""
+    import meshio
+
+    job = write_job(tmp_path, extra='[export]\noutputs = ["vtu"]')
+    out = tmp_path / "out"
+    code, _, err = run(["reduce", job, "--out", out, "--quiet"], capsys)
+    assert code == 0, err
+    summary = json.loads((out / "summary.json").read_text())
+    body = spring_lattice()
+    assert [entry["name"] for entry in summary["reductions"]] == ["modal-6", "kry"]
+    for entry in summary["reductions"]:
+        name = entry["name"]
+        assert sorted(p.name for p in (out / name).glob("*.vtu")) == [f"{name}.vtu"]
+        assert f"{name}/{name}.vtu" in entry["files"]
+        mesh = meshio.read(out / name / f"{name}.vtu")
+        assert np.array_equal(mesh.point_data["node_id"], body.node_ids)
+        assert [block.type for block in mesh.cells] == ["vertex"]  # no elements: the nodes
+        shapes = [key for key in mesh.point_data if key.startswith("shape_")]
+        assert len(shapes) == entry["order"] > 0
+        assert {"static_60_ux", "static_60_uy", "static_120_uz"} <= set(mesh.point_data)
+
+
+def test_outputs_vtu_of_a_model_without_coordinates_exits_2_before_reducing(
+    tmp_path, lattice_files, capsys
+):
+    write_body_h5(replace(spring_lattice(), has_coordinates=False), tmp_path / "bare.h5")
+    job = write_job(tmp_path, model='file = "bare.h5"', extra='[export]\noutputs = ["vtu"]')
+    out = tmp_path / "out"
+    code, _, err = run(["reduce", job, "--out", out, "--quiet"], capsys)
+    assert code == 2 and err.count("\n") == 1
+    assert "no node coordinates" in err and "VTU" in err
+    assert not out.exists()

@@ -285,6 +285,11 @@ def check_requests(job: Job, body: ElasticBody) -> None:
     if job.large_motion is not None:
         _check_large_motion(job, body, dofs_of)
     spec = job.time_domain
+    if "vtu" in job.export.outputs and not body.has_coordinates:
+        raise UserError(
+            f"{job.path}: the model has no node coordinates, which the VTU file ([export] "
+            'outputs = ["vtu"]) needs; give the nodes (nodes = nodes.csv or the FE input file)'
+        )
     if (wants_body or spec is not None) and not body.has_coordinates:
         raise UserError(
             f"{job.path}: the model has no node coordinates, which the "

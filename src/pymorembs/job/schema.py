@@ -42,7 +42,7 @@ MODEL_FILE_KEYS = (
 MODEL_FORMATS = FORMATS
 INTERFACE_KINDS = ("rigid", "distributing", "beams", "springs")
 #: Files a job can write per reduction (``[export] outputs``), and the job's HTML report.
-EXPORT_KINDS = ("npz", "mtx", "mat", "sid", "neweul", "exudyn", "report")
+EXPORT_KINDS = ("npz", "mtx", "mat", "sid", "neweul", "exudyn", "vtu", "report")
 DEFAULT_EXPORTS = ("npz", "mtx")
 #: Exports of a body for a multibody code: inertia loads are inputs by default for these.
 MULTIBODY_EXPORTS = ("sid", "neweul", "exudyn")

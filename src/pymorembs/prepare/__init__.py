@@ -19,7 +19,12 @@ from pymorembs.errors import NumericalError, UserError
 from pymorembs.linalg.mass_split import mass_split
 from pymorembs.prepare.buckens_frame import buckens_frame, centre_of_gravity
 from pymorembs.prepare.elimination import Elimination, eliminate
-from pymorembs.prepare.inertia_loads import INERTIA_LOAD_CASES, InertiaLoads, inertia_loads
+from pymorembs.prepare.inertia_loads import (
+    INERTIA_LOAD_CASES,
+    InertiaLoads,
+    inertia_loads,
+    static_solver,
+)
 from pymorembs.prepare.interface import InterfaceSpec, add_interface_node, select_nodes
 from pymorembs.prepare.ports import Port, selection_matrix
 from pymorembs.prepare.rigid_modes import free_rigid_body_modes
@@ -128,6 +133,22 @@ class PreparedModel:
     def expand(self, basis: np.ndarray) -> np.ndarray:
         """A basis of the independent dofs expanded to all dofs (eq. 18), shape (n_dof, n)."""
         return self.elimination.expand(basis)
+
+    @cached_property
+    def static_response(self) -> np.ndarray:
+        """``K^+ B`` of :attr:`reduction_system`: the static deformation under each input,
+        shape (n_independent, n_inputs); solved once (one factorization) and kept with the
+        model, so every reduction of a job reuses it.
+
+        ``K^+`` is the solve of the reduction methods: a factorization of ``K`` in a frame that
+        holds the body, inertia relief (the deformation mass-orthogonal to the rigid-body
+        modes) for a free body in the Buckens frame. Columns are per unit input, the inertia
+        loads with their scale (:attr:`InertiaLoads.scales`).
+        """
+        system = self.reduction_system
+        if system.n_inputs == 0:
+            return np.zeros((system.order, 0))
+        return static_solver(system, "K (static response to the inputs)").solve(system.input_matrix)
 
 
 def prepare(
