@@ -54,6 +54,7 @@ from pymorembs.reduction.projection import (
 )
 from pymorembs.report.html_report import write_report
 from pymorembs.report.plots import plot_decay, plot_relative_errors
+from pymorembs.report.scene import reductions_scene
 from pymorembs.system import SecondOrderSystem
 from pymorembs.units import band_unit_warnings, detect_units, frequency_warnings
 
@@ -101,6 +102,26 @@ def add_interfaces(body: ElasticBody, job: Job) -> ElasticBody:
         except UserError as exc:
             raise UserError(f"{job.path}: [[interface]] #{k}: {exc}") from None
     return body
+
+
+def job_interfaces(body: ElasticBody, job: Job) -> list[tuple[str, int, np.ndarray]]:
+    """The job's interface nodes and the nodes each is coupled to, for the viewer.
+
+    ``body`` is the model with the interfaces added (:func:`add_interfaces`); the coupled nodes
+    are selected again as :func:`add_interfaces` did, leaving out the interface nodes that were
+    not there yet (the selection tests every node alone, so the result is the same).
+
+    Returns
+    -------
+    list of (name, node id, coupled node ids)
+    """
+    added = np.array([spec.node for spec in job.interfaces], dtype=np.int64)
+    out = []
+    for k, spec in enumerate(job.interfaces):
+        coupled = select_nodes(body, ids=spec.ids, cylinder=spec.cylinder, box=spec.box)
+        coupled = coupled[~np.isin(coupled, added[k:])]
+        out.append((f"interface {spec.node} ({spec.kind})", int(spec.node), coupled))
+    return out
 
 
 def prepare_job(job: Job) -> tuple[ElasticBody, PreparedModel]:
@@ -530,7 +551,10 @@ def _run_job(
         if job.title:
             summary["title"] = job.title
         if "report" in job.export.outputs:
-            write_report(staging / "report.html", summary, figures, _job_text(job.path))
+            scene = reductions_scene(prepared, models, interfaces=job_interfaces(body, job))
+            write_report(
+                staging / "report.html", summary, figures, _job_text(job.path), scene=scene
+            )
         write_text(staging / "summary.json", json.dumps(summary, indent=2, allow_nan=False) + "\n")
         _replace_folder(staging, out_dir)
     except BaseException:

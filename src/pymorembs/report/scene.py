@@ -23,15 +23,30 @@ import numpy as np
 
 from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
-from pymorembs.prepare import Frame, centre_of_gravity
+from pymorembs.prepare import Frame, PreparedModel, centre_of_gravity
 from pymorembs.prepare.interface import InterfaceSpec
+from pymorembs.reduction.projection import ReducedModel
 
-__all__ = ["POSITION_DIGITS", "SHAPE_DIGITS", "body_scene", "viewer_script"]
+__all__ = [
+    "POSITION_DIGITS",
+    "SCENE_SHAPES_EACH",
+    "SCENE_VALUES",
+    "SHAPE_DIGITS",
+    "body_scene",
+    "reductions_scene",
+    "viewer_script",
+]
 
 #: Significant digits of the positions, relative to the model's size.
 POSITION_DIGITS = 6
 #: Significant digits of the shape values, relative to each shape's largest translation.
 SHAPE_DIGITS = 4
+
+#: Shapes of each reduction that :func:`reductions_scene` keeps at most.
+SCENE_SHAPES_EACH = 12
+#: Shape values (3 per node and shape) that :func:`reductions_scene` keeps at most: about 7 MB
+#: of JSON.
+SCENE_VALUES = 1_000_000
 
 InterfaceLike = InterfaceSpec | Mapping[str, Any] | tuple[str, int, Sequence[int]]
 FrameLike = Frame | Mapping[str, Any] | tuple[Any, Any]
@@ -145,6 +160,76 @@ def body_scene(
         "shapes_total": total,
         "notes": notes,
     }
+
+
+def reductions_scene(
+    prepared: PreparedModel,
+    reductions: Mapping[str, ReducedModel],
+    *,
+    interfaces: Sequence[InterfaceLike] | None = None,
+    max_shapes_each: int = SCENE_SHAPES_EACH,
+    max_values: int = SCENE_VALUES,
+) -> dict[str, Any]:
+    """The scene of a prepared body with the shape functions of its reductions.
+
+    The shapes are the columns of each reduction's exported basis ``V`` (in the reduced
+    model's eigenbasis, lowest frequency first), expanded to all dofs (eq. 18), named
+    ``"<reduction> #k: f Hz"``. Each reduction keeps its first ``max_shapes_each`` and all
+    together at most ``max_values`` numbers (3 per node and shape); the scene's ``notes`` say
+    so where that left shapes out.
+
+    Parameters
+    ----------
+    prepared : PreparedModel
+        The body in its reference frame (coordinates measured from the frame's origin) and the
+        map to all dofs; its frame is drawn.
+    reductions : mapping of str to ReducedModel
+        The reductions by name, in the order the selector lists them.
+    interfaces : sequence, optional
+        As for :func:`body_scene`, node ids of ``prepared.body``.
+    max_shapes_each, max_values : int
+        The caps.
+
+    Returns
+    -------
+    dict
+        The scene of :func:`body_scene`.
+    """
+    body = prepared.body
+    frame = prepared.frame
+    plain = body_scene(body, frame=frame, interfaces=interfaces)
+    n_nodes = max(1, len(plain["node_ids"]))
+    count = max(1, len(reductions))
+    fits = max(1, int(max_values) // (3 * n_nodes * count))
+    names: list[str] = []
+    columns: list[np.ndarray] = []
+    total = 0
+    for name, model in reductions.items():
+        order = model.projection.order
+        total += order
+        keep = min(order, max(0, int(max_shapes_each)), fits)
+        if keep == 0:
+            continue
+        columns.append(prepared.expand(model.projection.V[:, :keep]))
+        names += [
+            f"{name} #{k + 1}: {f:.4g} Hz" for k, f in enumerate(model.eigenfrequencies_hz[:keep])
+        ]
+    if not columns:
+        return plain
+    scene = body_scene(
+        body,
+        basis=np.hstack(columns),
+        shape_names=names,
+        frame=frame,
+        interfaces=interfaces,
+    )
+    scene["shapes_total"] = total
+    if len(names) < total:
+        scene["notes"].append(
+            f"{len(names)} of the {total} shape functions shown (at most "
+            f"{min(int(max_shapes_each), fits)} of each reduction), to keep the page small"
+        )
+    return scene
 
 
 def _size(coordinates: np.ndarray) -> float:

@@ -40,10 +40,10 @@ vec3 ramp(float t) {
 void main() {
   vec3 n = normalize(vNormal);
   if (n.z < 0.0) n = -n;
-  vec3 light = normalize(vec3(0.35, 0.45, 1.0));
+  vec3 light = normalize(vec3(0.25, 0.35, 1.0));
   float diffuse = max(dot(n, light), 0.0);
   vec3 base = uContour > 0.5 ? ramp(clamp(vMag, 0.0, 1.0)) : uColor;
-  gl_FragColor = vec4(base * (0.35 + 0.65 * diffuse), 1.0);
+  gl_FragColor = vec4(base * (0.4 + 0.6 * diffuse), 1.0);
 }`;
   const LINE_VS = `
 attribute vec3 aBase; attribute vec3 aShape; attribute vec3 aColor;
@@ -189,6 +189,21 @@ void main() {
     }
 
     // ------------------------------------------------------------------ public
+    /** Index of the shown shape, or null. */
+    get shape() {
+      return this._shape;
+    }
+
+    /** Largest translation of the shown shape as a fraction of the model's size. */
+    get amplitude() {
+      return this._amplitude;
+    }
+
+    /** Whether the shape is animated. */
+    get animating() {
+      return this._animating;
+    }
+
     /** Call `listener(viewer)` after every change of scene, shape, amplitude or animation. */
     onChange(listener) {
       this._listeners.push(listener);
