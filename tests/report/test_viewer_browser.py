@@ -82,6 +82,21 @@ try {
     trianglesOf(v, out.pick.triangle).includes(i);
   const r = canvas.getBoundingClientRect();
   out.miss = [v.pickNode(r.left + 1, r.top + 1), v.pickTriangle(r.left + 1, r.top + 1)];
+  // The mouse: left drag rotates, right drag pans, the wheel zooms.
+  const mouse = (type, x, y, button, target) => (target || canvas).dispatchEvent(
+    new MouseEvent(type, { clientX: x, clientY: y, button, bubbles: true }));
+  const [R0, c0, d0] = [v._R.slice(), v._center.slice(), v._distance];
+  mouse("mousedown", 300, 200, 0); mouse("mousemove", 340, 210, 0, window);
+  mouse("mouseup", 340, 210, 0, window);
+  out.rotated = v._R.some((x, k) => Math.abs(x - R0[k]) > 1e-3) &&
+    v._center.every((x, k) => x === c0[k]);
+  const R1 = v._R.slice();
+  mouse("mousedown", 300, 200, 2); mouse("mousemove", 320, 200, 2, window);
+  mouse("mouseup", 320, 200, 2, window);
+  out.panned = v._center.some((x, k) => x !== c0[k]) && v._R.every((x, k) => x === R1[k]);
+  canvas.dispatchEvent(new WheelEvent("wheel", { deltaY: 100, bubbles: true, cancelable: true }));
+  out.zoomed = v._distance > d0;
+  v.resetView();
   v.setShape(0);
   v.setAmplitude(0.2);
   out.shape = pixels(v);
@@ -151,6 +166,7 @@ def test_viewer_draws_picks_and_animates_in_chromium(tmp_path):
     assert out["pick"]["picked"] == out["pick"]["node"], out
     assert out["pick"]["cornerOf"], out
     assert out["miss"] == [None, None], out
+    assert out["rotated"] and out["panned"] and out["zoomed"], out
     # Deformed (20 % of the size at the tip): coloured by the translation, picked where drawn.
     assert out["shape"]["blue"] + out["shape"]["other"] > 0.03 * out["shape"]["total"], out
     assert out["shape"]["other"] > 0.1 * out["shape"]["blue"], out  # red-grey contour too
