@@ -21,6 +21,11 @@
 (function (global) {
   "use strict";
 
+  const RAMP = `
+vec3 ramp(float t) {  // blue (no translation) - grey - red (the largest)
+  vec3 a = vec3(0.23, 0.30, 0.75), b = vec3(0.87, 0.87, 0.87), c = vec3(0.71, 0.02, 0.15);
+  return t < 0.5 ? mix(a, b, 2.0 * t) : mix(b, c, 2.0 * t - 1.0);
+}`;
   const SURFACE_VS = `
 attribute vec3 aBase; attribute vec3 aShape;
 uniform mat4 uView; uniform mat4 uProj; uniform float uS;
@@ -40,10 +45,7 @@ precision mediump float;
 #endif
 varying vec3 vPos; varying float vMag;
 uniform vec3 uColor; uniform float uContour;
-vec3 ramp(float t) {
-  vec3 a = vec3(0.23, 0.30, 0.75), b = vec3(0.87, 0.87, 0.87), c = vec3(0.71, 0.02, 0.15);
-  return t < 0.5 ? mix(a, b, 2.0 * t) : mix(b, c, 2.0 * t - 1.0);
-}
+${RAMP}
 void main() {
   vec3 n = normalize(cross(dFdx(vPos), dFdy(vPos)));  // the drawn triangle's, towards the eye
   if (n.z < 0.0) n = -n;
@@ -68,19 +70,23 @@ void main() { gl_FragColor = vec4(vColor, 1.0); }`;
   const WIRE_VS = `
 attribute vec3 aBase; attribute vec3 aShape;
 uniform mat4 uView; uniform mat4 uProj; uniform float uS; uniform float uSize;
+varying float vMag;
 void main() {
+  vMag = length(aShape);
   gl_Position = uProj * uView * vec4(aBase + uS * aShape, 1.0);
   gl_PointSize = uSize;
 }`;
   const WIRE_FS = `
 precision mediump float;
-uniform vec3 uColor; uniform float uRound;
+varying float vMag;
+uniform vec3 uColor; uniform float uRound; uniform float uContour;
+${RAMP}
 void main() {
   if (uRound > 0.5) {
     vec2 d = gl_PointCoord - vec2(0.5);
     if (dot(d, d) > 0.25) discard;
   }
-  gl_FragColor = vec4(uColor, 1.0);
+  gl_FragColor = vec4(uContour > 0.5 ? 0.8 * ramp(clamp(vMag, 0.0, 1.0)) : uColor, 1.0);
 }`;
   const POINT_FS = `
 precision mediump float;
@@ -108,6 +114,7 @@ void main() {
   const FEATURE_COS = Math.cos(30 * Math.PI / 180);
   const FOV = 30 * Math.PI / 180;
   const PERIOD_S = 2.0;
+  const TRIAD = 0.2;  // length of the frame's axes, fraction of the size
 
   function css(rgb) {
     return "rgb(" + rgb.map((c) => Math.round(255 * c)).join(",") + ")";
@@ -411,6 +418,8 @@ void main() {
         gl.uniform3fv(p.uniforms.uColor, color);
         gl.uniform1f(p.uniforms.uSize, 4 * dpr);
         gl.uniform1f(p.uniforms.uRound, mode === gl.POINTS ? 1 : 0);
+        const contour = kind !== "edges" && this._contour && this._shape !== null;
+        gl.uniform1f(p.uniforms.uContour, contour ? 1 : 0);
         this._draw(p, b[kind], mode);
       }
       const pointSets = [["coupled", 6], ["highlight", 7]];
@@ -495,9 +504,13 @@ void main() {
       if (!n) { lo.fill(-0.5); hi.fill(0.5); }
       const f = this.scene.frame;
       if (f) {  // the triad belongs in the view too
-        for (let k = 0; k < 3; k++) {
-          lo[k] = Math.min(lo[k], f.origin[k]);
-          hi[k] = Math.max(hi[k], f.origin[k]);
+        const L = TRIAD * this._size;
+        for (const tip of [[0, 0, 0], ...f.axes]) {
+          for (let k = 0; k < 3; k++) {
+            const x = f.origin[k] + L * tip[k];
+            lo[k] = Math.min(lo[k], x);
+            hi[k] = Math.max(hi[k], x);
+          }
         }
       }
       this._lo = lo;
@@ -618,7 +631,7 @@ void main() {
     _buildTriad() {
       const f = this.scene.frame;
       if (!f) { this._buffers.triad = { count: 0 }; return; }
-      const L = 0.2 * this._size;
+      const L = TRIAD * this._size;
       const base = [], color = [];
       f.axes.forEach((axis, k) => {
         base.push(...f.origin, ...f.origin.map((o, j) => o + L * axis[j]));
