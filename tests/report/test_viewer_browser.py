@@ -112,6 +112,12 @@ try {
     v.setScene(JSON.parse(document.getElementById("points").textContent));
     out.points = pixels(v);
     out.pointPick = v.pickNode(...screen(v, 5).slice(0, 2));
+    v.setShape(Number("none"));  // not a shape: the undeformed body
+    out.notShape = v.shape;
+    v.setScene({ positions: [], node_ids: [], triangles: [], lines: [], frame: null,
+      interfaces: [], shapes: [], size: 1 });  // an empty scene draws nothing, and no error
+    v.render();
+    out.empty = v.pickNode(r.left + 100, r.top + 100);
     document.title = "probe " + JSON.stringify(out);
   }, 600);
 } catch (error) {
@@ -175,3 +181,4 @@ def test_viewer_draws_picks_and_animates_in_chromium(tmp_path):
     # Without a surface the nodes are drawn as points, and a node is picked within 10 px.
     assert out["points"]["blue"] > 200, out
     assert out["pointPick"] is not None, out
+    assert out["notShape"] is None and out["empty"] is None, out

@@ -274,7 +274,7 @@ void main() {
     /** Show shape k (index into scene.shapes), or the undeformed body for null. */
     setShape(k) {
       const shapes = this.scene.shapes || [];
-      if (k === null || k === undefined || k < 0 || k >= shapes.length) {
+      if (!Number.isInteger(k) || k < 0 || k >= shapes.length) {
         this._shape = null;
         this._U.fill(0);
       } else {
