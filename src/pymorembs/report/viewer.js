@@ -54,12 +54,15 @@ void main() {
   vec3 base = uContour > 0.5 ? ramp(clamp(vMag, 0.0, 1.0)) : uColor;
   gl_FragColor = vec4(base * (0.4 + 0.6 * diffuse), 1.0);
 }`;
+  // Lines and points: the per-vertex colour (aColor) of the small coloured sets, or the
+  // magnitude of the shape (vMag) for sets drawn from the node buffers in one colour.
   const LINE_VS = `
 attribute vec3 aBase; attribute vec3 aShape; attribute vec3 aColor;
 uniform mat4 uView; uniform mat4 uProj; uniform float uS; uniform float uSize;
-varying vec3 vColor;
+varying vec3 vColor; varying float vMag;
 void main() {
   vColor = aColor;
+  vMag = length(aShape);
   gl_Position = uProj * uView * vec4(aBase + uS * aShape, 1.0);
   gl_PointSize = uSize;
 }`;
@@ -67,15 +70,6 @@ void main() {
 precision mediump float;
 varying vec3 vColor;
 void main() { gl_FragColor = vec4(vColor, 1.0); }`;
-  const WIRE_VS = `
-attribute vec3 aBase; attribute vec3 aShape;
-uniform mat4 uView; uniform mat4 uProj; uniform float uS; uniform float uSize;
-varying float vMag;
-void main() {
-  vMag = length(aShape);
-  gl_Position = uProj * uView * vec4(aBase + uS * aShape, 1.0);
-  gl_PointSize = uSize;
-}`;
   const WIRE_FS = `
 precision mediump float;
 varying float vMag;
@@ -206,7 +200,7 @@ void main() {
       this._uint = !!gl.getExtension("OES_element_index_uint");
       this._programs = {
         surface: compile(gl, SURFACE_VS, SURFACE_FS),
-        wire: compile(gl, WIRE_VS, WIRE_FS),
+        wire: compile(gl, LINE_VS, WIRE_FS),
         line: compile(gl, LINE_VS, LINE_FS),
         point: compile(gl, LINE_VS, POINT_FS),
       };
@@ -767,6 +761,7 @@ void main() {
       const used = [];
       for (const name in p.attributes) {
         const location = p.attributes[name];
+        if (!source[name]) continue;  // e.g. aColor of a one-colour set: a constant
         gl.bindBuffer(gl.ARRAY_BUFFER, source[name]);
         gl.enableVertexAttribArray(location);
         gl.vertexAttribPointer(location, 3, gl.FLOAT, false, 0, 0);
