@@ -8,9 +8,9 @@ import re
 import shutil
 import subprocess
 
+import matplotlib.image
 import numpy as np
 import pytest
-from PIL import Image
 
 from pymorembs.examples import build_example
 from pymorembs.job.cli import main
@@ -92,7 +92,7 @@ def test_report_view_renders_the_body_in_headless_chromium(report, tmp_path):
         capture_output=True, text=True, timeout=120,
     )  # fmt: skip
     assert shot.is_file(), result.stderr[-2000:]
-    image = np.asarray(Image.open(shot).convert("RGB")).astype(int)
+    image = np.round(255 * matplotlib.image.imread(shot)[..., :3]).astype(int)  # PNG: 0..1
     # The canvas is where its clear colour is; the body is drawn inside it.
     canvas = np.all(image == BACKGROUND, axis=2)
     rows, columns = np.nonzero(canvas)
