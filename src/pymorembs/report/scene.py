@@ -98,7 +98,9 @@ def body_scene(
     max_values : int, optional
         Keep at most as many shapes as fit ``3 n`` values each into this many numbers.
     all_nodes : bool
-        Keep every node of the body, not only those a viewer shows.
+        Keep every node of the body. By default the scene's n nodes are those a viewer shows:
+        the surface's, the tangent frame's node and the interface nodes with their coupled
+        nodes (every node for a body without a surface).
 
     Returns
     -------
@@ -125,9 +127,8 @@ def body_scene(
         wanted = [surface.node_ids]
         for _, node, coupled in couplings:
             wanted += [np.array([node]), coupled]
-        if frame is not None and isinstance(frame, Frame) and frame.node is not None:
-            if frame.kind == "tangent":
-                wanted.append(np.array([int(frame.node)]))
+        if isinstance(frame, Frame) and frame.kind == "tangent" and frame.node is not None:
+            wanted.append(np.array([int(frame.node)]))
         rows = np.unique(body.node_rows(np.concatenate(wanted)))
     ids = body.node_ids[rows]
     order = np.argsort(ids, kind="stable")
