@@ -66,7 +66,7 @@ from pymorembs.prepare import (
 )
 from pymorembs.progress import Progress as ProgressBar
 from pymorembs.reduction import Projection, explicit_step_s
-from pymorembs.report import plot_decay, plot_relative_errors, write_report
+from pymorembs.report import plot_decay, plot_relative_errors, reductions_scene, write_report
 from pymorembs.units import band_unit_warnings, detect_units, frequency_warnings
 
 Progress = Callable[[str], None]
@@ -113,6 +113,26 @@ def add_interfaces(body: ElasticBody, job: Job) -> ElasticBody:
         except UserError as exc:
             raise UserError(f"{job.path}: [[interface]] #{k}: {exc}") from None
     return body
+
+
+def job_interfaces(body: ElasticBody, job: Job) -> list[tuple[str, int, np.ndarray]]:
+    """The job's interface nodes and the nodes each is coupled to, for the viewer.
+
+    ``body`` is the model with the interfaces added (:func:`add_interfaces`); the coupled nodes
+    are selected again as :func:`add_interfaces` did, leaving out the interface nodes that were
+    not there yet (the selection tests every node alone, so the result is the same).
+
+    Returns
+    -------
+    list of (name, node id, coupled node ids)
+    """
+    added = np.array([spec.node for spec in job.interfaces], dtype=np.int64)
+    out = []
+    for k, spec in enumerate(job.interfaces):
+        coupled = select_nodes(body, ids=spec.ids, cylinder=spec.cylinder, box=spec.box)
+        coupled = coupled[~np.isin(coupled, added[k:])]
+        out.append((f"interface {spec.node} ({spec.kind})", int(spec.node), coupled))
+    return out
 
 
 def prepare_job(job: Job) -> tuple[ElasticBody, PreparedModel]:
@@ -480,7 +500,10 @@ def _run_job(
             **checks,
             **({"title": job.title} if job.title else {}),
         }
-        _write_summary(job, summary, figures, staging)
+        scene = None
+        if "report" in job.export.outputs:
+            scene = reductions_scene(prepared, models, interfaces=job_interfaces(body, job))
+        _write_summary(job, summary, figures, scene, staging)
     return summary
 
 
@@ -610,11 +633,16 @@ def _checks_in_time(
 
 
 def _write_summary(
-    job: Job, summary: dict[str, Any], figures: list[tuple[Path, str]], staging: Path
+    job: Job,
+    summary: dict[str, Any],
+    figures: list[tuple[Path, str]],
+    scene: dict[str, Any] | None,
+    staging: Path,
 ) -> None:
-    """``report.html`` (if asked for) and ``summary.json`` into ``staging``."""
+    """``report.html`` (if asked for, with the 3D ``scene``) and ``summary.json`` into
+    ``staging``."""
     if "report" in job.export.outputs:
-        write_report(staging / "report.html", summary, figures, _job_text(job.path))
+        write_report(staging / "report.html", summary, figures, _job_text(job.path), scene=scene)
     write_text(staging / "summary.json", json.dumps(summary, indent=2, allow_nan=False) + "\n")
 
 
