@@ -4,7 +4,8 @@ A public subpackage (``docs/api.md``, "The public surface"): the error curves
 (:func:`plot_relative_errors`, paper Fig. 10), the decay of singular values (:func:`plot_decay`,
 Fig. 11), time responses (:func:`plot_time_responses`, Fig. 12) and the job's HTML page
 (:func:`write_report`) with its 3D view of the body (:func:`body_scene`,
-:func:`reductions_scene`, the WebGL code :func:`viewer_script`). Importing it imports matplotlib (``Agg`` backend).
+:func:`reductions_scene`, the WebGL code :func:`viewer_script`).
+Importing it imports matplotlib (``Agg`` backend).
 """
 
 from pymorembs.report.html_report import write_report
