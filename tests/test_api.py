@@ -136,6 +136,11 @@ tolerance = 1e-6
             "oder: unknown option of krylov; did you mean 'order'",
         ),
         ("krylow", {}, "unknown method 'krylow'; did you mean 'krylov'"),
+        (
+            "soaga",
+            {"order": 10, "tol": 1e-10},
+            "tol: was renamed to 'deflation_tolerance'",
+        ),
         ("modal", {}, "modal reduction needs 'order'"),
         ("modal", {"order": 4, "candidates": 3}, "candidates: must exceed the order 4"),
         ("soaga", {"tolerance": 2.0}, r"tolerance: must lie in \(0, 1\)"),
@@ -159,7 +164,8 @@ def test_the_registry_documents_every_option():
             owner = "every method" if field == "max_frequency_hz" else name
             row = [line for line in table.splitlines() if line.startswith(f"| {owner} | `{field}`")]
             assert len(row) == 1 and not row[0].endswith("|  |"), (name, field)  # a meaning
-    assert "| krylov | `tol` | `1e-10` |" in table and "| pod | `snapshots` | `40` |" in table
+    assert "| krylov | `deflation_tolerance` | `1e-10` |" in table
+    assert "| pod | `snapshots` | `40` |" in table
     assert "| modal | `order` | required |" in table and "``" not in table
 
 
@@ -205,3 +211,26 @@ def test_the_job_reference_holds_the_generated_options_table():
     text = (Path(__file__).parents[1] / "docs" / "jobs.md").read_text(encoding="utf-8")
     block = text.split("<!-- options-table:start -->\n")[1].split("<!-- options-table:end -->")[0]
     assert block == options_table(), "regenerate the table in docs/jobs.md (see its section)"
+
+
+def test_max_frequency_keeps_the_model_before_the_removal():
+    """``reduce`` with ``max_frequency_hz`` (the one place the job layer reduces through) keeps
+    the uncut model: it equals the reduction without the limit, and the cut model holds its
+    eigenfrequencies at or below the limit."""
+    from pymorembs.methods import method_options
+
+    prepared = pm.prepare(pm.example("rack-beams"), "tangent", node=2, inputs=[(1, "ux uy uz")])
+    options = {"expansion_points_hz": [0, 500], "order": 24}
+    plain = pm.reduce(prepared, "krylov", **options)
+    assert plain.before_removal is None and plain.eigenfrequencies_hz.max() > 3000.0
+    settings = method_options("krylov", {**options, "max_frequency_hz": 3000.0})
+    cut = pm.reduce(prepared, settings, name="cut")
+    assert cut.options is settings and cut.name == "cut" and cut.method == "krylov"
+    assert cut.eigenfrequencies_hz.max() <= 3000.0 < cut.before_removal.eigenfrequencies_hz.max()
+    np.testing.assert_allclose(
+        cut.before_removal.eigenfrequencies_hz, plain.eigenfrequencies_hz, rtol=1e-9
+    )
+    kept = plain.eigenfrequencies_hz[plain.eigenfrequencies_hz <= 3000.0]
+    np.testing.assert_allclose(cut.eigenfrequencies_hz, kept, rtol=1e-6)
+    with pytest.raises(pm.UserError, match="beside an options object"):
+        pm.reduce(prepared, settings, order=10)

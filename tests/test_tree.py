@@ -60,3 +60,100 @@ def test_nothing_below_the_job_layer_imports_it():
             found += [f"{path.relative_to(source)}: {n}" for n in names
                       if n == "pymorembs.job" or n.startswith("pymorembs.job.")]  # fmt: skip
     assert found == []
+
+
+ROOT = TESTS.parent
+SOURCE = ROOT / "src" / "pymorembs"
+
+
+def public_modules() -> set[str]:
+    """The public surface as ``docs/api.md`` documents it: the modules of the table of its
+    section "The public surface"."""
+    text = (ROOT / "docs" / "api.md").read_text(encoding="utf-8")
+    section = text.split("\n## The public surface\n", 1)[1].split("\n## ", 1)[0]
+    return set(re.findall(r"^\| `(pymorembs(?:\.\w+)?)` \|", section, flags=re.M))
+
+
+def non_public_imports(source: str, public: set[str]) -> list[str]:
+    """The imports of ``source`` (a module of the job layer) that reach past the public surface:
+    a module not in ``public`` (the job layer's own modules aside), or a name not in the
+    ``__all__`` of a public module (nor a public module itself)."""
+    import ast
+    import importlib
+
+    found = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            modules = [alias.name for alias in node.names]
+            found += [
+                m
+                for m in modules
+                if m.startswith("pymorembs")
+                and m not in public
+                and m.split(".")[:2] != ["pymorembs", "job"]
+            ]
+        elif isinstance(node, ast.ImportFrom):
+            module = node.module or ""
+            if node.level > 1:
+                found.append(f"{'.' * node.level}{module} (relative, outside the job layer)")
+                continue
+            if node.level == 1 or module == "pymorembs.job" or module.startswith("pymorembs.job."):
+                continue  # the job layer's own modules
+            if not module.startswith("pymorembs"):
+                continue
+            if module not in public:
+                found.append(module)
+                continue
+            exported = set(getattr(importlib.import_module(module), "__all__", ()))
+            for alias in node.names:
+                name = f"{module}.{alias.name}"
+                if alias.name not in exported and name not in public:
+                    found.append(name)
+    return found
+
+
+def test_the_job_layer_imports_only_the_public_api():
+    """Issue #16: "a job layer on top that imports only the public API" -- the modules and names
+    of docs/api.md's public surface, nothing from the modules behind them."""
+    public = public_modules()
+    found = []
+    for path in sorted((SOURCE / "job").glob("*.py")):
+        found += [f"job/{path.name}: {m}" for m in non_public_imports(path.read_text(), public)]
+    assert found == []
+
+
+def test_the_check_of_the_job_layer_finds_what_it_is_for():
+    public = public_modules()
+    assert {"pymorembs", "pymorembs.analysis", "pymorembs.methods"} <= public
+    assert non_public_imports("from pymorembs.analysis.reference import choose_kind", public) == [
+        "pymorembs.analysis.reference"
+    ]
+    assert non_public_imports("import pymorembs.linalg.backends", public) == [
+        "pymorembs.linalg.backends"
+    ]
+    assert non_public_imports("from pymorembs.analysis import SETTLE_ROUNDS", public) == [
+        "pymorembs.analysis.SETTLE_ROUNDS"  # in the module behind, not in __all__
+    ]
+    assert non_public_imports("from .. import api", public) == [
+        ".. (relative, outside the job layer)"
+    ]
+    fine = (
+        "from pymorembs import reduce, progress\nfrom pymorembs.analysis import choose_kind\n"
+        "from pymorembs.job.schema import Job\nfrom . import run\nimport numpy"
+    )
+    assert non_public_imports(fine, public) == []
+
+
+def test_every_public_module_says_what_it_offers():
+    """Each public module has an ``__all__`` whose names it holds, and docs/api.md's table and
+    the modules agree."""
+    import importlib
+
+    public = public_modules()
+    assert len(public) >= 10
+    for name in sorted(public):
+        module = importlib.import_module(name)
+        exported = getattr(module, "__all__", None)
+        assert exported, f"{name} has no __all__"
+        missing = [item for item in exported if not hasattr(module, item)]
+        assert missing == [], (name, missing)

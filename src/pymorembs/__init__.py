@@ -3,7 +3,7 @@
 The reduction process follows Fig. 1 and Fig. 8 of ``paper.md``::
 
     read / example --> ElasticBody --prepare--> PreparedModel --reduce--> ReducedBody
-        --> .error(band) / .to_sid() / .to_exudyn() / .to_neweul() / .to_matrices()
+        --> .error(band) / .to_sid() / .to_exudyn() / .to_neweul() / .to_vtu() / .to_matrices()
 
 Everything a script needs is here (:mod:`pymorembs.api`); the command line and job files are a
 layer on it.
@@ -13,14 +13,16 @@ __version__ = "0.1.0"
 
 from pymorembs.analysis.time_domain import LoadCase, TimeResponse
 from pymorembs.api import ErrorCurve, ReducedBody, example, facts, prepare, read, reduce
-from pymorembs.body import ConstraintEquations, Damping, DofTable, ElasticBody
+from pymorembs.body import DIRECTIONS, ConstraintEquations, Damping, DofTable, ElasticBody
 from pymorembs.errors import NumericalError, PymorembsError, UserError
 from pymorembs.methods import METHODS, method_options
 from pymorembs.prepare import Frame, Port, PreparedModel
 from pymorembs.prepare.interface import InterfaceSpec, select_nodes
+from pymorembs.reduction.projection import ReducedModel
 from pymorembs.system import SecondOrderSystem
 
 __all__ = [
+    "DIRECTIONS",
     "METHODS",
     "ConstraintEquations",
     "Damping",
@@ -35,6 +37,7 @@ __all__ = [
     "PreparedModel",
     "PymorembsError",
     "ReducedBody",
+    "ReducedModel",
     "SecondOrderSystem",
     "TimeResponse",
     "UserError",

@@ -51,6 +51,7 @@ from pymorembs.system import SecondOrderSystem
 __all__ = [
     "DIRECT_GRAMIAN_LIMIT",
     "METHODS",
+    "RENAMED_OPTIONS",
     "CraigBamptonOptions",
     "GramianOptions",
     "KrylovOptions",
@@ -62,7 +63,11 @@ __all__ = [
     "method_options",
     "option_fields",
     "options_table",
+    "renamed_message",
 ]
+
+#: Old option name -> its name now (one name per idea); the old name is refused with a pointer.
+RENAMED_OPTIONS: dict[str, str] = {"tol": "deflation_tolerance"}
 
 #: Models above this order get a medium model before dense Gramians (``first_stage``).
 DIRECT_GRAMIAN_LIMIT = 2000
@@ -132,10 +137,11 @@ def _relative(key: str, value: Any, meaning: str) -> float | None:
 
 
 def _deflation(value: Any) -> float:
-    tol = _number("tol", value, minimum=1e-15)
-    if tol > 1e-3:
-        raise OptionError("tol", f"must be at most 1e-3 (a deflation tolerance), got {tol!r}")
-    return tol
+    key = "deflation_tolerance"
+    tolerance = _number(key, value, minimum=1e-15)
+    if tolerance > 1e-3:
+        raise OptionError(key, f"must be at most 1e-3 (a deflation tolerance), got {tolerance!r}")
+    return tolerance
 
 
 @dataclass(frozen=True)
@@ -281,7 +287,7 @@ class KrylovOptions(ReductionOptions):
         Moments (blocks) per point: one number for all or one per point.
     two_sided : bool
         ``W`` from the output Krylov spaces (eq. 22): 2r moments for ``C != B^T``.
-    tol : float
+    deflation_tolerance : float
         Deflation tolerance of the block Arnoldi process (relative).
     """
 
@@ -290,7 +296,7 @@ class KrylovOptions(ReductionOptions):
     order: int | None = None
     moments: int | tuple[int, ...] | None = None
     two_sided: bool = False
-    tol: float = 1e-10
+    deflation_tolerance: float = 1e-10
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -314,12 +320,12 @@ class KrylovOptions(ReductionOptions):
                 self._set("moments", tuple(values))
         if not isinstance(self.two_sided, bool):
             raise OptionError("two_sided", f"must be true or false, got {self.two_sided!r}")
-        self._set("tol", _deflation(self.tol))
+        self._set("deflation_tolerance", _deflation(self.deflation_tolerance))
 
     def reduce(self, system: SecondOrderSystem, band_hz: tuple[float, float]) -> Projection:
         moments = list(self.moments) if isinstance(self.moments, tuple) else self.moments
         return krylov_reduction(system, list(self.expansion_points_hz), moments=moments,
-                                order=self.order, tol=self.tol,
+                                order=self.order, tol=self.deflation_tolerance,
                                 two_sided=self.two_sided)  # fmt: skip
 
 
@@ -337,7 +343,7 @@ class SoagaOptions(ReductionOptions):
         Candidate expansion points (Hz); default ``n_candidates`` equidistant over the band.
     n_candidates : int, optional
         Number of equidistant candidates.
-    tol : float
+    deflation_tolerance : float
         Deflation tolerance of the Arnoldi blocks (relative).
     """
 
@@ -346,7 +352,7 @@ class SoagaOptions(ReductionOptions):
     order: int | None = None
     candidates_hz: tuple[float, ...] | None = None
     n_candidates: int | None = None
-    tol: float = 1e-10
+    deflation_tolerance: float = 1e-10
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -362,7 +368,7 @@ class SoagaOptions(ReductionOptions):
                 "soaga needs 'order' (the largest order) or 'tolerance' (estimated max relative "
                 "error), or both",
             )
-        self._set("tol", _deflation(self.tol))
+        self._set("deflation_tolerance", _deflation(self.deflation_tolerance))
 
     def reduce(self, system: SecondOrderSystem, band_hz: tuple[float, float]) -> Projection:
         extra: dict[str, Any] = {}
@@ -371,7 +377,7 @@ class SoagaOptions(ReductionOptions):
         if self.n_candidates is not None:
             extra["n_candidates"] = self.n_candidates
         return soaga_reduction(system, band_hz, tolerance=self.tolerance, max_order=self.order,
-                               tol=self.tol, **extra)  # fmt: skip
+                               tol=self.deflation_tolerance, **extra)  # fmt: skip
 
 
 def _indicator(options: ReductionOptions) -> float | None:
@@ -547,11 +553,19 @@ def method_options(method: str, values: Mapping[str, Any] | None = None) -> Redu
     known = [f.name for f in dataclasses.fields(cls)]
     values = dict(values or {})
     for key in values:
+        if key not in known and RENAMED_OPTIONS.get(key) in known:
+            raise OptionError(key, renamed_message(key))
         if key not in known:
             hint = difflib.get_close_matches(key, known, n=1)
             more = f"; did you mean '{hint[0]}'?" if hint else ""
             raise OptionError(key, f"unknown option of {method}{more}")
     return cls(**values)
+
+
+def renamed_message(key: str) -> str:
+    """What to say about an option given by its old name (:data:`RENAMED_OPTIONS`)."""
+    new = RENAMED_OPTIONS[key]
+    return f"was renamed to '{new}'; write {new} = ... instead"
 
 
 def options_table() -> str:

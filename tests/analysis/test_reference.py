@@ -94,7 +94,16 @@ def test_settle_measures_the_maximum_against_the_full_model(rack, grid, full):
     reduced = transfer_function(krylov.system, grid)
     true = relative_error(full, reduced)
     reference = reference_response(rack, grid, "surrogate", checks=0)
-    eps = reference.settle(reduced)
+    exact_before = reference.exact.copy()
+    settled = reference.settled(reduced)
+    # a new value; the old one is as it was
+    np.testing.assert_array_equal(reference.exact, exact_before)
+    assert np.count_nonzero(settled.exact) > np.count_nonzero(exact_before)
+    assert len(settled.deviation) > len(reference.deviation)
+    with pytest.raises(ValueError, match="read-only"):
+        settled.response[0] = 0.0
+    reference = settled
+    eps = reference.errors(reduced)
     top = int(np.argmax(eps))
     assert reference.exact[top]
     assert eps[top] == pytest.approx(true[top], rel=1e-12)
@@ -105,7 +114,7 @@ def test_settle_measures_the_maximum_against_the_full_model(rack, grid, full):
 def test_a_bad_reference_model_is_exposed_by_its_checks(rack, grid, full):
     """A reference 1e-3 off everywhere: the checks measure 1e-3 and replace it there."""
     bad = ReferenceResponse(grid, full * (1 + 1e-3), "surrogate", np.zeros(grid.size, bool), rack)
-    bad.check([0.0, 500.0])
+    bad = bad.checked([0.0, 500.0])
     assert bad.accuracy == pytest.approx(1e-3, rel=1e-9)  # ||H - 1.001 H|| / ||H||
     assert np.count_nonzero(bad.exact) == 2
     assert not bad.resolved(np.full(grid.size, 5e-3))
@@ -219,7 +228,9 @@ def test_settle_all_judges_every_reduction_against_the_same_checks(rack, grid, f
     modal = reduced_model(rack, run_reduction(rack, ReductionSpec("m", "modal", 8, {}), BAND))
     responses = [transfer_function(m.system, grid) for m in (krylov, modal)]
     reference = reference_response(rack, grid, "surrogate", checks=0)
-    curves = reference.settle_all(responses)
+    reference = reference.settled_all(responses)
+    curves = [reference.errors(response) for response in responses]
+    assert reference.settled_all(responses) is reference  # settled: nothing moves any more
     for eps, response in zip(curves, responses, strict=True):
         assert reference.exact[int(np.argmax(eps))]
         np.testing.assert_array_equal(eps, reference.errors(response))

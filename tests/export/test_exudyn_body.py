@@ -22,6 +22,7 @@ from pymorembs.export.exudyn_body import (
     exudyn_arrays,
     load_exudyn_body,
     simulate_exudyn,
+    surface_mesh,
     write_exudyn_body,
 )
 from pymorembs.export.invariants import BodyInvariants, compute_invariants
@@ -141,8 +142,36 @@ def clamped_reference(rack) -> tuple[np.ndarray, np.ndarray]:
 
 
 # ----------------------------------------------------------------------------- arrays
+def mesh_node_of(arrays) -> dict[int, int]:
+    """Node id -> its own mesh node (the first with that id: satellites follow their node)."""
+    out: dict[int, int] = {}
+    for index, node in enumerate(arrays["meshNodeIds"].tolist()):
+        out.setdefault(node, index)
+    return out
+
+
+def check_drawn_like_exudyns_route(arrays, body, cms) -> np.ndarray:
+    """Every node Exudyn's FEM route draws is in our mesh with its position and mode rows; the
+    surface corners are the same. Returns Exudyn's triangles as node ids."""
+    theirs = body.node_ids[np.array(cms.trigList, dtype=np.int64)]
+    ours = arrays["meshNodeIds"][arrays["surfaceTriangles"]]
+    corners = np.unique(body.mesh.connectivity[:, :8])  # hex20: corners first
+    assert np.array_equal(np.unique(theirs), np.intersect1d(np.unique(ours), corners))
+    index = mesh_node_of(arrays)
+    drawn = np.unique(theirs)
+    ours_rows = np.array([index[int(n)] for n in drawn])
+    their_rows = body.node_rows(drawn)
+    positions = arrays["referencePositions"].reshape(-1, 3)
+    modes = arrays["modeBasis"].reshape(-1, 3, arrays["modeBasis"].shape[1])
+    their_modes = np.asarray(cms.modeBasis).reshape(-1, 3, modes.shape[2])
+    assert np.array_equal(positions[ours_rows], cms.xRef.reshape(-1, 3)[their_rows])
+    assert np.array_equal(modes[ours_rows], their_modes[their_rows])
+    return theirs
+
+
 def test_inertia_matrices_equal_exudyns_own_computation(solid):
-    """Our arrays from the invariants = Exudyn's FEMinterface route with the full M (§5)."""
+    """Our arrays from the invariants = Exudyn's FEMinterface route with the full M (§5), and
+    the surface it draws (its triangles of the same mesh, ``VolumeToSurfaceElements``)."""
     from exudyn.FEM import FEMinterface, ObjectFFRFreducedOrderInterface
 
     prepared, basis, inv = solid
@@ -156,8 +185,15 @@ def test_inertia_matrices_equal_exudyns_own_computation(solid):
     fem.massMatrix = body.mass[order][:, order].tocsr()
     fem.stiffnessMatrix = body.stiffness[order][:, order].tocsr()
     fem.modeBasis = {"matrix": basis[order], "type": "NormalModes"}
+    assert body.mesh.element == "hex20"
+    fem.elements = [{"Name": "rack", "Hex20": body.node_rows(body.mesh.connectivity)}]
+    fem.VolumeToSurfaceElements()
     cms = ObjectFFRFreducedOrderInterface(fem, roundMassMatrix=0.0, roundStiffnessMatrix=0.0)
-    arrays = exudyn_arrays(inv)
+    arrays = exudyn_arrays(inv, surface=surface_mesh(body, basis))
+    # the triangles name the body's surface through the mesh; Exudyn's route draws the same
+    # corners (it splits a hex20 face by its corners only, we through the mid-side nodes too)
+    assert np.array_equal(arrays["meshNodeIds"][arrays["surfaceTriangles"]], body.surface.triangles)
+    check_drawn_like_exudyns_route(arrays, body, cms)
 
     def rel(ours, theirs):
         theirs = np.asarray(theirs, dtype=float)
@@ -204,6 +240,63 @@ def test_satellites_give_the_node_position_and_rotation(tangent_body):
     assert np.allclose(position, frame.position + frame.phi @ q, rtol=0, atol=1e-15)
     skew_part = 0.5 * (rotation - rotation.T)
     assert np.allclose(skew_part[[2, 0, 1], [1, 2, 0]], angle, rtol=1e-6, atol=0)
+
+
+def signed_volume_and_area(points: np.ndarray) -> tuple[float, float]:
+    """Volume inside triangles (n, 3, 3) by the divergence theorem (> 0: outward), their area."""
+    volume = np.einsum("ij,ij->i", points[:, 0], np.cross(points[:, 1], points[:, 2])).sum() / 6
+    normals = np.cross(points[:, 1] - points[:, 0], points[:, 2] - points[:, 0])
+    return float(volume), float(0.5 * np.linalg.norm(normals, axis=1).sum())
+
+
+def test_exudyn_draws_the_blade_surface_where_the_basis_moves_its_nodes():
+    """Blade of 8 hex20 (flat faces): the exported triangles enclose its 1 m x 40 x 10 mm, as
+    Exudyn's route on the same mesh does; in Exudyn, every triangle corner sits at its node's
+    position plus the node's rows of the basis (from the dof table) times q."""
+    import exudyn
+    from exudyn.FEM import FEMinterface, ObjectFFRFreducedOrderInterface
+
+    body = build_example("blade", elements=8)
+    tip = int(body.node_ids.max())
+    ports = [Port.parse(tip, "uy uz")]
+    prepared, basis, inv = reduce_body(body, Frame("none"), ports, [0.0, 200.0], 2, [tip])
+    framed = prepared.body
+    arrays = exudyn_arrays(inv, surface=surface_mesh(framed, basis))
+    triangles = arrays["surfaceTriangles"]
+    positions = arrays["referencePositions"].reshape(-1, 3)
+    volume, area = signed_volume_and_area(positions[triangles])
+    assert volume == pytest.approx(1.0 * 0.04 * 0.01, rel=1e-12)
+
+    fem = FEMinterface()  # Exudyn's route on the same mesh and basis
+    fem.nodes = {"Position": framed.coordinates.copy()}
+    order = np.array([[framed.dofs.index(n, a) for a in range(3)] for n in framed.node_ids])
+    fem.massMatrix = framed.mass[order.ravel()][:, order.ravel()].tocsr()
+    fem.stiffnessMatrix = framed.stiffness[order.ravel()][:, order.ravel()].tocsr()
+    fem.modeBasis = {"matrix": basis[order.ravel()], "type": "NormalModes"}
+    fem.elements = [{"Name": "blade", "Hex20": framed.node_rows(framed.mesh.connectivity)}]
+    fem.VolumeToSurfaceElements()
+    cms = ObjectFFRFreducedOrderInterface(fem, roundMassMatrix=0.0, roundStiffnessMatrix=0.0)
+    theirs = check_drawn_like_exudyns_route(arrays, framed, cms)
+    their_volume, their_area = signed_volume_and_area(framed.coordinates[framed.node_rows(theirs)])
+    assert their_area == pytest.approx(area, rel=1e-12)
+    # Exudyn 1.13.6 winds hexahedron faces inward (its docs ask for counter-clockwise seen
+    # from outside, which ours are)
+    assert their_volume == pytest.approx(-volume, rel=1e-12)
+
+    model = build_exudyn_model(arrays, clamp="frame")
+    item = model.mbs.GetObject(model.object_index)
+    assert item["Vshow"] and np.array_equal(np.asarray(item["VtriangleMesh"]), triangles)
+    q = 1e-3 * np.random.default_rng(7).standard_normal(inv.nq)
+    model.mbs.SetNodeParameter(model.modal_node, "initialCoordinates", list(q))
+    model.mbs.Assemble()
+    position = exudyn.OutputVariableType.Position
+    for index in np.unique(triangles):
+        node = int(arrays["meshNodeIds"][index])
+        rows = [list(zip(framed.dofs.nodes, framed.dofs.directions, strict=True)).index((node, a))
+                for a in range(3)]  # fmt: skip
+        expected = framed.node_position(node) + basis[rows] @ q
+        drawn = model.mbs.GetObjectOutputSuperElement(model.object_index, position, int(index))
+        assert np.allclose(drawn, expected, rtol=0, atol=1e-15), node
 
 
 # ----------------------------------------------------------------------------- simulations
@@ -390,3 +483,21 @@ def test_bad_model_requests_are_user_errors(tangent_body, solid):
     poisoned = build_exudyn_model(arrays, loads=[(1, lambda t: UNIT * (np.nan if t > 0 else 0))])
     with pytest.raises(NumericalError, match="time integration failed"):
         simulate_exudyn(poisoned, 0.01, 1e-3)
+
+
+def test_to_exudyn_writes_the_surface_of_a_solid_and_none_for_beams(tmp_path):
+    import pymorembs as pm
+
+    blade = build_example("blade", elements=8)
+    tip = int(blade.node_ids.max())
+    reduced = pm.reduce(pm.prepare(blade, "none", inputs=[(tip, "uy uz")]), "modal", order=4)
+    arrays = load_exudyn_body(reduced.to_exudyn(tmp_path / "blade.npz"))
+    assert np.array_equal(arrays["meshNodeIds"][arrays["surfaceTriangles"]],
+                          blade.surface.triangles)  # fmt: skip
+    beams = build_example("rack-beams")  # line elements only: nothing for triangleMesh
+    reduced = pm.reduce(pm.prepare(beams, "tangent", node=2, inputs=[(1, "ux")]), "modal", order=4)
+    arrays = load_exudyn_body(reduced.to_exudyn(tmp_path / "rack.npz"))
+    assert "surfaceTriangles" not in arrays and arrays["meshNodeIds"].size == 1 + 6  # node 1
+    arrays["surfaceTriangles"] = np.array([[0, 1, 8]])
+    with pytest.raises(UserError, match="surfaceTriangles point outside the mesh"):
+        write_exudyn_body(tmp_path / "bad.npz", arrays)

@@ -218,7 +218,8 @@ BAD_JOBS = [
     (None, "missing key 'node'"),
     (None, "unknown direction"),
     (None, "must be a finite number"),
-    (None, "tol: must be >= 1e-15"),
+    (None, "deflation_tolerance: must be >= 1e-15"),
+    (None, "tol: was renamed to 'deflation_tolerance'"),
 ]
 
 
@@ -242,7 +243,8 @@ def mutate(text: str, case: int) -> str:
         12: ("node = 60\n", ""),
         13: ('directions = "uz"', 'directions = "uw"'),
         14: ("f_max_hz = 200", "f_max_hz = inf"),
-        15: ("moments = 2", "moments = 2\ntol = 0"),
+        15: ("moments = 2", "moments = 2\ndeflation_tolerance = 0"),
+        16: ("moments = 2", "moments = 2\ntol = 1e-10"),
     }
     old, new = edits[case]
     assert old in text
@@ -306,16 +308,16 @@ def test_reduced_folder_is_written_only_on_success(tmp_path, lattice_files, caps
     import pymorembs.job.run as pipeline
     from pymorembs.errors import NumericalError
 
-    original = pipeline.run_reduction
+    original = pipeline.reduce  # the job layer reduces through pymorembs.reduce
     calls = []
 
-    def failing(system, spec, band_hz):
-        calls.append(spec.name)
-        if spec.name == "kry":
+    def failing(prepared, method, **options):
+        calls.append(options["name"])
+        if options["name"] == "kry":
             raise NumericalError("the expansion point 100 Hz is an eigenfrequency")
-        return original(system, spec, band_hz)
+        return original(prepared, method, **options)
 
-    monkeypatch.setattr(pipeline, "run_reduction", failing)
+    monkeypatch.setattr(pipeline, "reduce", failing)
     job = write_job(tmp_path)
     code, _, err = run(["reduce", job, "--out", tmp_path / "out"], capsys)
     assert calls == ["modal-6", "kry"]  # the first reduction ran and was staged
@@ -332,10 +334,10 @@ def test_unexpected_exception_exits_1_with_traceback_and_bug_request(
 ):
     import pymorembs.job.run as pipeline
 
-    def broken(system, spec, band_hz):
+    def broken(prepared, method, **options):
         raise ZeroDivisionError("an internal slip")
 
-    monkeypatch.setattr(pipeline, "run_reduction", broken)
+    monkeypatch.setattr(pipeline, "reduce", broken)
     job = write_job(tmp_path)
     code, _, err = run(["reduce", job, "--out", tmp_path / "out", "--quiet"], capsys)
     assert code == 1
@@ -695,3 +697,38 @@ def test_a_band_in_rad_per_s_warns_on_the_console_and_in_the_summary(
     assert line.startswith("pymorembs: warning: band f_max_hz = 1256.64 is 2 pi x 200")
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert line.removeprefix("pymorembs: warning: ") in summary["warnings"]
+
+
+def test_outputs_vtu_writes_a_readable_file_per_reduction(tmp_path, lattice_files, capsys):
+    """``[export] outputs = ["vtu"]``: ``<name>.vtu`` per reduction, listed in the summary."""
+    import meshio
+
+    job = write_job(tmp_path, extra='[export]\noutputs = ["vtu"]')
+    out = tmp_path / "out"
+    code, _, err = run(["reduce", job, "--out", out, "--quiet"], capsys)
+    assert code == 0, err
+    summary = json.loads((out / "summary.json").read_text())
+    body = spring_lattice()
+    assert [entry["name"] for entry in summary["reductions"]] == ["modal-6", "kry"]
+    for entry in summary["reductions"]:
+        name = entry["name"]
+        assert sorted(p.name for p in (out / name).glob("*.vtu")) == [f"{name}.vtu"]
+        assert f"{name}/{name}.vtu" in entry["files"]
+        mesh = meshio.read(out / name / f"{name}.vtu")
+        assert np.array_equal(mesh.point_data["node_id"], body.node_ids)
+        assert [block.type for block in mesh.cells] == ["vertex"]  # no elements: the nodes
+        shapes = [key for key in mesh.point_data if key.startswith("shape_")]
+        assert len(shapes) == entry["order"] > 0
+        assert {"static_60_ux", "static_60_uy", "static_120_uz"} <= set(mesh.point_data)
+
+
+def test_outputs_vtu_of_a_model_without_coordinates_exits_2_before_reducing(
+    tmp_path, lattice_files, capsys
+):
+    write_body_h5(replace(spring_lattice(), has_coordinates=False), tmp_path / "bare.h5")
+    job = write_job(tmp_path, model='file = "bare.h5"', extra='[export]\noutputs = ["vtu"]')
+    out = tmp_path / "out"
+    code, _, err = run(["reduce", job, "--out", out, "--quiet"], capsys)
+    assert code == 2 and err.count("\n") == 1
+    assert "no node coordinates" in err and "VTU" in err
+    assert not out.exists()

@@ -52,7 +52,7 @@ duration_s = 0.06
 step_s = 1e-4
 exudyn = true
 """
-ALL = '["sid", "neweul", "exudyn", "npz", "mat", "mtx", "report"]'
+ALL = '["sid", "neweul", "exudyn", "vtu", "npz", "mat", "mtx", "report"]'
 
 
 def run(argv, capsys):
@@ -97,7 +97,7 @@ def test_every_output_is_written_and_listed(mbs_run):
     (entry,) = summary["reductions"]
     names = {name.split("/", 1)[1] for name in entry["files"]}
     expected = {
-        "krylov.SID_FEM", "krylov_neweul.mat", "krylov_exudyn.npz", "reduced.npz",
+        "krylov.SID_FEM", "krylov_neweul.mat", "krylov_exudyn.npz", "krylov.vtu", "reduced.npz",
         "reduced.mat", "M.mtx", "K.mtx", "D.mtx", "B.mtx", "C.mtx",
     }  # fmt: skip
     assert expected <= names

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import base64
+import json
 import re
 
 import html5lib
@@ -90,3 +91,32 @@ def test_report_is_valid_self_contained_html(tmp_path):
     assert "kg/kg.SID_FEM" in text and "1.06e-08" in text and "something to know" in text
     assert not re.search(r"<script", text)  # no scripts, nothing fetched from elsewhere
     assert not re.search(r'src="(?!data:)', text)
+
+
+def test_report_with_a_scene_carries_it_and_the_viewer_inline(tmp_path):
+    """The 3D view: the scene as JSON and viewer.js inside the page, nothing fetched; a name
+    with "</script>" in it cannot end the script early."""
+    scene = {
+        "positions": [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0],
+        "node_ids": [1, 2, 3],
+        "triangles": [0, 1, 2],
+        "lines": [],
+        "frame": {"origin": [0.0, 0.0, 0.0], "axes": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]},
+        "interfaces": [{"name": "pin </script><!--", "node": 0, "coupled": [1, 2]}],
+        "shapes": [{"name": "kg #1: 10 Hz", "values": [0.0] * 6 + [0.0, 0.0, 1.0]}],
+        "size": 1.4142,
+        "shapes_total": 40,
+        "notes": ["1 of the 40 shape functions shown"],
+    }
+    path = write_report(tmp_path / "report.html", SUMMARY, [], scene=scene)
+    text = path.read_text()
+    document = html5lib.HTMLParser(strict=True).parse(text)
+    namespace = "{http://www.w3.org/1999/xhtml}"
+    scripts = document.findall(f".//{namespace}script")
+    assert len(scripts) == 3 and not any(s.get("src") for s in scripts)
+    data = [s for s in scripts if s.get("type") == "application/json"]
+    assert json.loads(data[0].text) == scene
+    assert "PymorembsViewer" in scripts[1].text
+    assert "Body and shapes" in text and "1 of the 40 shape functions shown" in text
+    assert document.find(f".//{namespace}canvas") is not None
+    assert not re.search(r'src="(?!data:)', text) and "http" not in scripts[1].text

@@ -11,8 +11,8 @@ import pytest
 from pymorembs.errors import UserError
 from pymorembs.examples import build_example
 from pymorembs.prepare import Frame
-from pymorembs.prepare.interface import InterfaceSpec
-from pymorembs.report.scene import body_scene, viewer_script
+from pymorembs.prepare.interface import InterfaceSpec, add_interface_node
+from pymorembs.report.scene import attached_nodes, body_scene, viewer_script
 
 
 @pytest.fixture(scope="module")
@@ -140,3 +140,33 @@ def test_bad_arguments(blade, kwargs, message):
 def test_the_viewer_script_is_there():
     script = viewer_script()
     assert "PymorembsViewer" in script and "</script" not in script.lower()
+
+
+def test_the_models_own_interface_nodes_are_found():
+    """rack-beams: the plate nodes 1 and 2, each on the four rod ends of its plate (z = 4 mm
+    and 204 mm); rack-solid: node 2 on the nodes of its hole's wall (radius 15 mm)."""
+    beams = build_example("rack-beams")
+    found = {node: set(coupled.tolist()) for _, node, coupled in attached_nodes(beams)}
+    assert set(found) == {1, 2}
+    for node, z in ((1, 0.004), (2, 0.204)):
+        ends = beams.node_ids[np.isclose(beams.coordinates[:, 2], z)]
+        assert found[node] == set(ends.tolist()) and len(ends) == 4
+    solid = build_example("rack-solid", dofs=8000)
+    ((name, node, coupled),) = attached_nodes(solid)
+    radius = np.hypot(solid.coordinates[:, 0], solid.coordinates[:, 1])
+    wall = (np.abs(radius - 0.015) < 1e-9) & (solid.coordinates[:, 2] >= 0.204 - 1e-9)
+    assert node == 2 and "node 2" in name
+    assert set(coupled.tolist()) == set(solid.node_ids[wall].tolist())
+
+
+@pytest.mark.parametrize("kind", ["rigid", "distributing", "beams", "springs"])
+def test_an_added_interface_node_is_found_with_its_coupled_nodes(blade, kind):
+    tip = blade.node_ids[np.isclose(blade.coordinates[:, 0], 1.0)]
+    spec = InterfaceSpec(
+        node=9, position=(1.01, 0.0, 0.0), coupled=tuple(int(n) for n in tip), kind=kind,
+        stiffness=1e6,
+    )  # fmt: skip
+    body = add_interface_node(blade, spec)
+    assert attached_nodes(blade) == []
+    ((_, node, coupled),) = attached_nodes(body)
+    assert node == 9 and sorted(coupled.tolist()) == sorted(tip.tolist())

@@ -1,1 +1,60 @@
-"""analysis"""
+"""Judging reduced models: frequency responses, the error of eq. 27, time and large motions.
+
+A public subpackage (``docs/api.md``, "The public surface"): the names below are its interface,
+the modules behind them are not.
+
+* frequency responses and errors: :func:`transfer_function`, :func:`frequency_grid`,
+  :func:`relative_error`, :func:`error_blocks`;
+* the reference the errors are measured against (:mod:`~pymorembs.analysis.reference`):
+  :func:`reference_response`, :class:`ReferenceResponse`;
+* the spectrum of a body as read: :func:`model_facts`;
+* time responses (paper section 5.1): :class:`LoadCase`, :func:`simulate`, the clamped full
+  and reduced systems, :func:`compare`;
+* large motions in Exudyn: :class:`LargeMotionSettings`, :func:`large_motion_checks`.
+"""
+
+from pymorembs.analysis.error import error_blocks, frequency_grid, relative_error
+from pymorembs.analysis.large_motion import (
+    LARGE_MOTION_CASES,
+    LargeMotionSettings,
+    large_motion_checks,
+)
+from pymorembs.analysis.reference import (
+    DEFAULT_CHECKS,
+    REFERENCE_KINDS,
+    ReferenceResponse,
+    choose_kind,
+    reference_response,
+)
+from pymorembs.analysis.spectrum import model_facts
+from pymorembs.analysis.time_domain import (
+    LoadCase,
+    TimeResponse,
+    clamped_full_system,
+    clamped_reduced_system,
+    compare,
+    simulate,
+)
+from pymorembs.analysis.transfer import transfer_function
+
+__all__ = [
+    "DEFAULT_CHECKS",
+    "LARGE_MOTION_CASES",
+    "REFERENCE_KINDS",
+    "LargeMotionSettings",
+    "LoadCase",
+    "ReferenceResponse",
+    "TimeResponse",
+    "choose_kind",
+    "clamped_full_system",
+    "clamped_reduced_system",
+    "compare",
+    "error_blocks",
+    "frequency_grid",
+    "large_motion_checks",
+    "model_facts",
+    "reference_response",
+    "relative_error",
+    "simulate",
+    "transfer_function",
+]

@@ -20,7 +20,7 @@ error grid: one complex sparse factorization per frequency. At 35,000 dofs that 
       own estimator, then the grid frequencies farthest from every expansion point and every
       earlier check (greedy max-min distance);
     * for every reduction, at the frequency of its largest error, until that maximum lies on a
-      checked frequency (:meth:`ReferenceResponse.settle`): the reported maximum error of each
+      checked frequency (:meth:`ReferenceResponse.settled`): the reported maximum error of each
       reduction is always measured against the full model.
 
     The relative deviation ``||H - H_ref|| / ||H||`` at the checks is the reference's measured
@@ -35,7 +35,9 @@ curve is the true one to within about the reference's error.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -62,15 +64,18 @@ SURROGATE_DEFLATION = 1e-12
 SURROGATE_MAX_ORDER = 600
 #: Candidate expansion points of the reference model, equidistant over the band.
 SURROGATE_CANDIDATES = 12
-#: At most this many rounds of :meth:`ReferenceResponse.settle` per reduction.
+#: At most this many rounds of :meth:`ReferenceResponse.settled` per reduction.
 SETTLE_ROUNDS = 4
 #: A surrogate whose measured deviation exceeds this gets a warning in the summary.
 DEVIATION_WARNING = 1e-6
 
 
-@dataclass
+@dataclass(frozen=True, eq=False)
 class ReferenceResponse:
-    """Response ``H`` on the error grid, exact or a checked surrogate.
+    """Response ``H`` on the error grid, exact or a checked surrogate (an immutable value).
+
+    Checking more frequencies against the full model gives a new reference
+    (:meth:`checked`, :meth:`settled`, :meth:`settled_all`); the arrays are read-only views.
 
     Attributes
     ----------
@@ -81,9 +86,13 @@ class ReferenceResponse:
     kind : {"full", "surrogate"}
     exact : ndarray of bool, shape (n_f,)
         Where ``response`` is the full model's.
-    deviation : dict of float -> float
+    system : SecondOrderSystem
+        The full model, for the checks.
+    workers, scheduler
+        Parallel processes or Dask scheduler of the checks' sweeps.
+    deviation : mapping of float -> float
         Surrogate only: checked frequency (Hz) -> ``||H - H_ref||_F / ||H||_F`` there.
-    parameters : dict
+    parameters : mapping
         Surrogate only: order, estimated error and expansion points of the reference model.
     seconds : float
         Wall time spent on the reference (model, grid and checks).
@@ -96,9 +105,17 @@ class ReferenceResponse:
     system: SecondOrderSystem
     workers: int | None = 1
     scheduler: str | None = None
-    deviation: dict[float, float] = field(default_factory=dict)
-    parameters: dict[str, Any] = field(default_factory=dict)
+    deviation: Mapping[float, float] = field(default_factory=dict)
+    parameters: Mapping[str, Any] = field(default_factory=dict)
     seconds: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("frequencies_hz", "response", "exact"):
+            view = np.asarray(getattr(self, name)).view()
+            view.flags.writeable = False  # the caller's array stays as it was
+            object.__setattr__(self, name, view)
+        object.__setattr__(self, "deviation", MappingProxyType(dict(self.deviation)))
+        object.__setattr__(self, "parameters", MappingProxyType(dict(self.parameters)))
 
     @property
     def accuracy(self) -> float:
@@ -109,17 +126,18 @@ class ReferenceResponse:
         measured = max(self.deviation.values(), default=0.0)
         return max(measured, SURROGATE_TOLERANCE) if self.kind == "surrogate" else measured
 
-    def check(self, frequencies_hz: np.ndarray | list[float]) -> None:
-        """Replace the surrogate by the full response at these grid frequencies (Hz).
+    def checked(self, frequencies_hz: np.ndarray | list[float]) -> ReferenceResponse:
+        """The reference with the full response at these grid frequencies (Hz) as well.
 
-        Frequencies already exact are skipped; each other one costs one sparse factorization
-        (shared out to the workers). The relative deviation found is recorded.
+        Frequencies already exact are skipped (then ``self`` is returned); each other one
+        costs one sparse factorization (shared out to the workers). The relative deviation
+        found is recorded, and the time spent added to ``seconds``.
         """
         wanted = np.asarray(frequencies_hz, dtype=float).ravel()
         index = np.unique([int(np.argmin(np.abs(self.frequencies_hz - f))) for f in wanted])
         index = index[~self.exact[index]] if index.size else index
         if index.size == 0:
-            return
+            return self
         tick = time.perf_counter()
         full = transfer_function(
             self.system,
@@ -128,47 +146,57 @@ class ReferenceResponse:
             scheduler=self.scheduler,
             label="frequency response (full model, checks)",
         )
-        deviation = relative_error(full, self.response[index])
-        for i, value in zip(index, deviation, strict=True):
-            self.deviation[float(self.frequencies_hz[i])] = float(value)
-        self.response[index] = full
-        self.exact[index] = True
-        self.seconds += time.perf_counter() - tick
+        deviation = dict(self.deviation)
+        for i, value in zip(index, relative_error(full, self.response[index]), strict=True):
+            deviation[float(self.frequencies_hz[i])] = float(value)
+        response, exact = self.response.copy(), self.exact.copy()
+        response[index] = full
+        exact[index] = True
+        return replace(
+            self,
+            response=response,
+            exact=exact,
+            deviation=deviation,
+            seconds=self.seconds + time.perf_counter() - tick,
+        )
 
     def errors(self, reduced: np.ndarray) -> np.ndarray:
         """``eps(f)`` of eq. 27 of a reduced response against this reference, shape (n_f,)."""
         return relative_error(self.response, reduced)
 
-    def settle(self, reduced: np.ndarray) -> np.ndarray:
-        """``eps(f)`` with its maximum measured against the full model.
+    def settled(self, reduced: np.ndarray) -> ReferenceResponse:
+        """The reference on which the maximum of ``eps(f)`` of ``reduced`` is measured against
+        the full model (then ``errors(reduced)`` is the settled curve).
 
-        The frequency of the largest error is checked (:meth:`check`) until the maximum lies on
-        an exact frequency, at most :data:`SETTLE_ROUNDS` times. A full reference returns
-        :meth:`errors` at once.
+        The frequency of the largest error is checked (:meth:`checked`) until the maximum lies
+        on an exact frequency, at most :data:`SETTLE_ROUNDS` times. A full reference is
+        returned as it is.
         """
-        eps = self.errors(reduced)
+        reference = self
         for _ in range(SETTLE_ROUNDS):
-            finite = np.where(np.isfinite(eps), eps, np.inf)
-            top = int(np.argmax(finite))
-            if self.exact[top]:
+            eps = reference.errors(reduced)
+            top = int(np.argmax(np.where(np.isfinite(eps), eps, np.inf)))
+            if reference.exact[top]:
                 break
-            self.check([self.frequencies_hz[top]])
-            eps = self.errors(reduced)
-        return eps
+            reference = reference.checked([reference.frequencies_hz[top]])
+        return reference
 
-    def settle_all(self, responses: list[np.ndarray]) -> list[np.ndarray]:
-        """``eps(f)`` of several reduced responses, all judged against the same reference.
+    def settled_all(self, responses: Sequence[np.ndarray]) -> ReferenceResponse:
+        """The reference that settles several reduced responses at once (all judged against
+        the same reference).
 
-        Each response is settled (:meth:`settle`); as the checks one response asks for change
+        Each response is settled (:meth:`settled`); as the checks one response asks for change
         the reference the others were judged against, the round is repeated until no response
-        asks for a new check. The reference keeps every check (it is the job's cache of
-        full-model frequencies).
+        asks for a new check. The result keeps every check (a job's cache of full-model
+        frequencies).
         """
+        reference = self
         while True:
-            before = int(np.count_nonzero(self.exact))
-            out = [self.settle(response) for response in responses]
-            if int(np.count_nonzero(self.exact)) == before:
-                return out
+            before = int(np.count_nonzero(reference.exact))
+            for response in responses:
+                reference = reference.settled(response)
+            if int(np.count_nonzero(reference.exact)) == before:
+                return reference
 
     def resolved(self, eps: np.ndarray) -> bool:
         """Whether a reduction's maximum error stands 10 times above the reference's accuracy."""
@@ -261,9 +289,8 @@ def reference_response(
         checks,
         np.linalg.norm(response, axis=(1, 2)),
     )
-    reference.check(wanted)
-    reference.seconds = time.perf_counter() - tick
-    return reference
+    reference = reference.checked(wanted)
+    return replace(reference, seconds=time.perf_counter() - tick)
 
 
 def _reference_model(

@@ -15,6 +15,7 @@ from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
 from pymorembs.examples.blade import blade
 from pymorembs.examples.rack_beams import rack_beams
+from pymorembs.examples.rack_solid import INTERFACES as RACK_SOLID_INTERFACES
 from pymorembs.examples.rack_solid import rack_solid
 
 #: Example name -> model generator.
@@ -51,4 +52,12 @@ def build_example(name: str, **options: Any) -> ElasticBody:
     return factory(**options)
 
 
-__all__ = ["EXAMPLES", "OPTIONS", "blade", "build_example", "rack_beams", "rack_solid"]
+__all__ = [
+    "EXAMPLES",
+    "OPTIONS",
+    "RACK_SOLID_INTERFACES",
+    "blade",
+    "build_example",
+    "rack_beams",
+    "rack_solid",
+]

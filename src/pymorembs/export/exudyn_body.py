@@ -41,14 +41,27 @@ Mode basis and mesh nodes
 -------------------------
 Exudyn reconstructs node positions from ``referencePositions`` and the translational
 ``modeBasis`` (rows node-major ``[ux0, uy0, uz0, ux1, ...]``); the mass terms above do not depend
-on it. The exported "mesh" therefore holds only the frame nodes of the invariants
-(``inv.nodes``), each followed -- if it has rotational dofs -- by six massless *satellite points*
+on it. The exported "mesh" therefore holds the frame nodes of the invariants (``inv.nodes``),
+each followed -- if it has rotational dofs -- by six massless *satellite points*
 on a rigid cross around it: positions ``c_p ± L e_a`` (order +x, -x, +y, -y, +z, -z) with the
 mode rows ``φ_p + ψ_p × (±L e_a)`` of a linearised rigid link. Their mean is the node itself
 (position and displacement), and a ``MarkerSuperElementRigid`` with equal weights on the six of
 them gives the node's position and its elastic rotation (``ψ_p q`` to first order), so a rigid
 joint can act at the node. ``L`` is the radius of gyration of the body about its centre of
 gravity unless given; it does not enter the dynamics.
+
+Surface
+-------
+With a :class:`SurfaceMesh` (:func:`surface_mesh`: the body's surface triangles,
+:class:`~pymorembs.surface.Surface`) the nodes of the triangles follow, each with its position
+and its translational rows of the basis (a frame node on the surface keeps its one mesh node),
+and ``surfaceTriangles`` holds the triangles as mesh node indices, counter-clockwise seen from
+outside. :func:`build_exudyn_model` hands them to ``VObjectFFRFreducedOrder(triangleMesh=...)``
+-- what Exudyn's FEM route does with ``FEMinterface.GetSurfaceTriangles()``
+(``ObjectFFRFreducedOrderInterface``) -- so Exudyn's renderer draws the deforming body. Only
+triangles are drawn: a beam model (line segments only) shows no surface. Quadratic faces are
+split through their mid-side nodes into flat triangles (Exudyn's route draws a hexahedron face
+by its corners).
 
 Exudyn 1.12.258 renamed ``physicsMass``, ``physicsInertia`` and ``physicsCenterOfMass`` to
 ``mass``, ``inertia`` and ``centerOfMass``; the archive keeps the documented ``physics*`` names
@@ -57,19 +70,20 @@ and :func:`build_exudyn_model` passes them under the new ones.
 File
 ----
 :func:`write_exudyn_body` stores the arrays of :func:`exudyn_arrays` in a ``.npz`` archive (no
-pickled objects; ``numpy.load(..., allow_pickle=False)`` reads it). Besides the Exudyn
-parameters above the archive holds ``format`` (``"pymorembs-exudyn-body"``), ``formatVersion``
-(1), ``bodyName``, ``eigenfrequenciesHz`` (nq,), ``nodeIds`` (p,), ``nodeMeshIndices`` (p,),
-``satelliteMeshIndices`` (p, 6; -1 for a node without rotational dofs), ``meshNodeIds``
-(n_mesh,; the frame node each mesh node belongs to), ``satelliteLength`` () in m and
-``satelliteDirections`` (6, 3). Lengths in m, masses in kg, times in s (those of the FE model).
-A body with geometric stiffening (SID_NOTES §4.6) also holds ``K0`` of the centrifugal load
-cases (``stiffeningOmega``, 6 × nq × nq, wxx wyy wzz wxy wyz wxz), of the frame's translational
-and angular accelerations (``stiffeningAcceleration``, ``stiffeningAngularAcceleration``,
-3 × nq × nq each) and, if any stiffens the body, of unit forces at the frame nodes
-(``stiffeningNodeForces``, p × 3 × nq × nq, body directions x, y, z); Exudyn's
-``ObjectFFRFreducedOrder`` has no input for them, so :func:`build_exudyn_model` applies them
-through the object's ``forceUserFunction``.
+pickled objects; ``numpy.load(..., allow_pickle=False)`` reads it). Besides the Exudyn parameters
+above the archive holds ``format`` (``"pymorembs-exudyn-body"``), ``formatVersion`` (1),
+``bodyName``, ``eigenfrequenciesHz`` (nq,), ``nodeIds`` (p,), ``nodeMeshIndices`` (p,),
+``satelliteMeshIndices`` (p, 6; -1 for a node without rotational dofs), ``meshNodeIds`` (n_mesh,;
+the node each mesh node belongs to: a satellite's frame node), ``satelliteLength`` () in m and
+``satelliteDirections`` (6, 3). Lengths in m, masses in kg, times in s (those of the FE model). A
+body with geometric stiffening (SID_NOTES §4.6) also holds ``K0`` of the centrifugal load cases
+(``stiffeningOmega``, 6 × nq × nq, wxx wyy wzz wxy wyz wxz), of the frame's translational and
+angular accelerations (``stiffeningAcceleration``, ``stiffeningAngularAcceleration``, 3 × nq × nq
+each) and, if any stiffens the body, of unit forces at the frame nodes (``stiffeningNodeForces``, p
+× 3 × nq × nq, body directions x, y, z); Exudyn's ``ObjectFFRFreducedOrder`` has no input for them,
+so :func:`build_exudyn_model` applies them through the object's ``forceUserFunction``. A body with a
+surface holds ``surfaceTriangles`` (n_t × 3, mesh node indices); ``meshNodeIds`` then names each
+surface node's own id.
 
 Simulation
 ----------
@@ -95,11 +109,14 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
+from pymorembs.arrays import sorted_unique
 from pymorembs.errors import NumericalError, UserError
 from pymorembs.export.deterministic import write_npz
 from pymorembs.export.invariants import StiffeningTerms, levi_civita, skew
+from pymorembs.export.nodal import node_fields
 
 if TYPE_CHECKING:
+    from pymorembs.body import ElasticBody
     from pymorembs.export.invariants import BodyInvariants
 
 __all__ = [
@@ -108,12 +125,14 @@ __all__ = [
     "SATELLITE_DIRECTIONS",
     "ExudynModel",
     "ExudynResult",
+    "SurfaceMesh",
     "build_exudyn_model",
     "exudyn_arrays",
     "ffrf_inertia_matrices",
     "load_exudyn_body",
     "simulate_exudyn",
     "stiffening_force",
+    "surface_mesh",
     "write_exudyn_body",
 ]
 
@@ -156,12 +175,14 @@ _KEYS_NDIM: dict[str, int] = {
 _TEXT_KEYS = ("format", "bodyName")
 #: Optional keys: the geometric stiffening ``K0`` of the centrifugal load cases (6, nq, nq), of
 #: the translational and of the angular acceleration cases (3, nq, nq each) and of unit forces at
-#: the frame nodes (p, 3, nq, nq; node order of ``nodeIds``, body directions x, y, z).
+#: the frame nodes (p, 3, nq, nq; node order of ``nodeIds``, body directions x, y, z); the
+#: surface triangles as mesh node indices (n_t, 3).
 _OPTIONAL_KEYS_NDIM: dict[str, int] = {
     "stiffeningOmega": 3,
     "stiffeningAcceleration": 3,
     "stiffeningAngularAcceleration": 3,
     "stiffeningNodeForces": 4,
+    "surfaceTriangles": 2,
 }
 #: The centrifugal load cases of ``stiffeningOmega``, in the order of the six products of Ω.
 CENTRIFUGAL_CASES = ("wxx", "wyy", "wzz", "wxy", "wyz", "wxz")
@@ -174,6 +195,7 @@ _INTEGER_KEYS = (
     "nodeMeshIndices",
     "satelliteMeshIndices",
     "meshNodeIds",
+    "surfaceTriangles",
 )
 
 
@@ -226,8 +248,57 @@ def _radius_of_gyration(inv: BodyInvariants) -> float:
     return float(np.sqrt(max(np.trace(j_g), 0.0) / (2.0 * mass)))
 
 
+@dataclass(frozen=True, eq=False)
+class SurfaceMesh:
+    """The body's surface triangles with what Exudyn needs to draw them deforming.
+
+    Attributes
+    ----------
+    node_ids : ndarray of int, shape (n_s,)
+        The nodes the triangles use, sorted.
+    positions : ndarray, shape (n_s, 3)
+        Their undeformed positions in the body frame (model length unit).
+    modes : ndarray, shape (n_s, 3, nq)
+        Their translational rows of the basis ``Φ`` (ux, uy, uz; a missing dof gives 0).
+    triangles : ndarray of int, shape (n_t, 3)
+        Node ids of each triangle, counter-clockwise seen from outside
+        (:class:`~pymorembs.surface.Surface`).
+    """
+
+    node_ids: np.ndarray
+    positions: np.ndarray
+    modes: np.ndarray
+    triangles: np.ndarray
+
+
+def surface_mesh(body: ElasticBody, basis: np.ndarray) -> SurfaceMesh | None:
+    """The surface triangles of ``body`` with their nodes' positions and rows of ``basis``.
+
+    Parameters
+    ----------
+    body : ElasticBody
+        The prepared body (coordinates in the reference frame); its ``surface``.
+    basis : ndarray, shape (n_dof, nq)
+        The basis on all dofs of ``body`` (eq. 18), the one of the invariants.
+
+    Returns
+    -------
+    SurfaceMesh or None
+        None for a body without surface triangles (no elements, or line elements only).
+    """
+    if body.surface is None or body.surface.triangles.size == 0:
+        return None
+    triangles = body.surface.triangles
+    ids = sorted_unique(triangles.ravel())
+    fields = node_fields(body, basis, ids)
+    positions = body.coordinates[body.node_rows(ids)]
+    return SurfaceMesh(ids, positions, fields.translations, triangles)
+
+
 def exudyn_arrays(
-    inv: BodyInvariants, satellite_length: float | None = None
+    inv: BodyInvariants,
+    satellite_length: float | None = None,
+    surface: SurfaceMesh | None = None,
 ) -> dict[str, np.ndarray]:
     """Everything ``ObjectFFRFreducedOrder`` needs, from the reduced invariants.
 
@@ -238,6 +309,11 @@ def exudyn_arrays(
     satellite_length : float, optional
         Arm ``L`` (m) of the satellite points of nodes with rotational dofs; default: the radius
         of gyration of the body about its centre of gravity.
+    surface : SurfaceMesh, optional
+        The body's surface (:func:`surface_mesh`, same basis as ``inv``): its nodes join the
+        mesh after the frame nodes and their satellites (a frame node keeps its one mesh
+        node), and ``surfaceTriangles`` holds the triangles as mesh node indices for Exudyn's
+        ``triangleMesh``.
 
     Returns
     -------
@@ -247,8 +323,8 @@ def exudyn_arrays(
     Raises
     ------
     UserError
-        The body has no mass, no elastic coordinates or no frame nodes, or ``satellite_length``
-        is not a positive number.
+        The body has no mass, no elastic coordinates or no frame nodes, ``satellite_length``
+        is not a positive number, or the surface's basis has another number of columns.
     """
     mass = float(inv.mass)
     me = np.asarray(inv.Me, dtype=float)
@@ -284,6 +360,28 @@ def exudyn_arrays(
             positions.append(c_p + arms)
             rows.append(links)
             owners.extend([int(frame.node_id)] * 6)
+    triangles = None
+    if surface is not None:
+        modes = np.asarray(surface.modes, dtype=float)
+        if modes.ndim != 3 or modes.shape[1:] != (3, nq):
+            raise UserError(
+                f"exudyn export: the surface's mode rows have shape {modes.shape}, expected "
+                f"(n, 3, {nq})"
+            )
+        ids = np.asarray(surface.node_ids, dtype=np.int64)  # sorted
+        frame_ids = np.array([int(frame.node_id) for frame in inv.nodes], dtype=np.int64)
+        new = ~np.isin(ids, frame_ids)  # a frame node keeps its one mesh node
+        mesh_index = np.empty(ids.size, dtype=np.int64)
+        mesh_index[new] = len(owners) + np.arange(int(new.sum()))
+        is_frame = np.flatnonzero(~new)
+        order = np.argsort(frame_ids)
+        mesh_index[is_frame] = node_mesh[
+            order[np.searchsorted(frame_ids, ids[is_frame], sorter=order)]
+        ]
+        positions.append(np.asarray(surface.positions, dtype=float)[new])
+        rows.append(modes[new])
+        owners.extend(ids[new].tolist())
+        triangles = mesh_index[np.searchsorted(ids, np.asarray(surface.triangles, np.int64))]
     arrays: dict[str, np.ndarray] = {
         "format": np.array(FORMAT),
         "formatVersion": np.array(FORMAT_VERSION, dtype=np.int64),
@@ -307,6 +405,8 @@ def exudyn_arrays(
     }
     if inv.stiffening is not None:
         arrays.update(_stiffening_arrays(inv.stiffening, arrays["nodeIds"], nq))
+    if triangles is not None:
+        arrays["surfaceTriangles"] = triangles
     _check_arrays(arrays, "exudyn export")
     return arrays
 
@@ -386,6 +486,7 @@ def _check_arrays(arrays: Mapping[str, np.ndarray], where: str) -> None:
         "stiffeningAcceleration": (3, nq, nq),
         "stiffeningAngularAcceleration": (3, nq, nq),
         "stiffeningNodeForces": (p, 3, nq, nq),
+        "surfaceTriangles": (arrays.get("surfaceTriangles", np.zeros((0, 3))).shape[0], 3),
     }
     shapes.update({key: shape for key, shape in optional_shapes.items() if key in arrays})
     for key, shape in shapes.items():
@@ -402,6 +503,13 @@ def _check_arrays(arrays: Mapping[str, np.ndarray], where: str) -> None:
     has = sat[:, 0] >= 0
     if np.any((sat >= 0) != has[:, None]) or (sat.max() >= n_mesh):
         raise UserError(f"{where}: satelliteMeshIndices are inconsistent")
+    triangles = arrays.get("surfaceTriangles")
+    if (
+        triangles is not None
+        and triangles.size
+        and (triangles.min() < 0 or triangles.max() >= n_mesh)
+    ):
+        raise UserError(f"{where}: surfaceTriangles point outside the mesh")
     if float(arrays["physicsMass"]) <= 0 or float(arrays["satelliteLength"]) <= 0:
         raise UserError(f"{where}: physicsMass and satelliteLength must be positive")
 
@@ -411,6 +519,7 @@ def write_exudyn_body(
     path: str | os.PathLike[str],
     inv: BodyInvariants | Mapping[str, np.ndarray],
     satellite_length: float | None = None,
+    surface: SurfaceMesh | None = None,
 ) -> Path:
     """Write the Exudyn body as an ``.npz`` archive, atomically.
 
@@ -422,6 +531,8 @@ def write_exudyn_body(
         The reduced body, or the arrays of :func:`exudyn_arrays`.
     satellite_length : float, optional
         Passed to :func:`exudyn_arrays` when ``inv`` is a :class:`BodyInvariants`.
+    surface : SurfaceMesh, optional
+        Likewise: the surface triangles Exudyn draws (:func:`surface_mesh`).
 
     Returns
     -------
@@ -432,7 +543,7 @@ def write_exudyn_body(
         arrays = {key: np.asarray(value) for key, value in inv.items()}
         _check_arrays(arrays, f"exudyn body {path}")
     else:
-        arrays = exudyn_arrays(inv, satellite_length)
+        arrays = exudyn_arrays(inv, satellite_length, surface)
     target = Path(path)
     return write_npz(target, arrays)
 
@@ -686,6 +797,9 @@ def build_exudyn_model(
     if g is not None and (g.shape != (3,) or not np.all(np.isfinite(g))):
         raise UserError(f"exudyn model: gravity must be 3 finite numbers (m/s²), got {gravity!r}")
     nq = arrays["massMatrixReduced"].shape[0]
+    triangles = arrays.get("surfaceTriangles")
+    if triangles is not None:
+        triangles = np.asarray(triangles, dtype=np.int64).tolist()
 
     with _quiet_exudyn():
         sc = exudyn.SystemContainer()
@@ -737,7 +851,11 @@ def build_exudyn_model(
                 mXRefTildePsi=arrays["mXRefTildePsi"],
                 mXRefTildePsiTilde=arrays["mXRefTildePsiTilde"],
                 computeFFRFterms=True,
-                visualization=eii.VObjectFFRFreducedOrder(show=False),
+                # Exudyn's renderer draws the deforming surface as its FEM route does
+                # (ObjectFFRFreducedOrderInterface: triangleMesh = the surface triangles)
+                visualization=eii.VObjectFFRFreducedOrder(
+                    show=triangles is not None, triangleMesh=[] if triangles is None else triangles
+                ),
                 **extra,
             )
         )

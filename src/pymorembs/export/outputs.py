@@ -9,6 +9,8 @@ output     files (in the reduction's folder)
 ``sid``    ``<name>.SID_FEM``: Standard Input Data for Simpack and other codes
 ``neweul`` ``<name>_neweul.mat``: the SID invariants for Neweul-M²
 ``exudyn`` ``<name>_exudyn.npz``: the data of an Exudyn ``ObjectFFRFreducedOrder``
+``vtu``    ``<name>.vtu``: the surface with every shape function and static response
+           (:mod:`pymorembs.export.vtu`), for ParaView
 =========  ==============================================================================
 
 The body outputs (``sid``, ``neweul``, ``exudyn``) need a one-sided (Galerkin) projection, so that
@@ -109,9 +111,10 @@ def write_outputs(
     folder: Path,
 ) -> list[str]:
     """Write the ``outputs`` of one reduced model into ``folder``; return the file names."""
-    from pymorembs.export.exudyn_body import write_exudyn_body
+    from pymorembs.export.exudyn_body import surface_mesh, write_exudyn_body
     from pymorembs.export.neweul import write_neweul
     from pymorembs.export.sid import write_sid
+    from pymorembs.export.vtu import write_reduced_vtu
 
     check_before_writing(model, name)
     names: list[str] = []
@@ -127,6 +130,9 @@ def write_outputs(
     if "mat" in outputs:
         write_mat(folder / "reduced.mat", arrays)
         names.append("reduced.mat")
+    if "vtu" in outputs:
+        write_reduced_vtu(folder / f"{name}.vtu", model, prepared)
+        names.append(f"{name}.vtu")
     if any(kind in outputs for kind in BODY_OUTPUTS):
         invariants = body_invariants(model, prepared, nodes, name)
         if "sid" in outputs:
@@ -140,7 +146,8 @@ def write_outputs(
             write_neweul(folder / f"{name}_neweul.mat", invariants)
             names.append(f"{name}_neweul.mat")
         if "exudyn" in outputs:
-            write_exudyn_body(folder / f"{name}_exudyn.npz", invariants)
+            surface = surface_mesh(prepared.body, prepared.expand(model.projection.V))
+            write_exudyn_body(folder / f"{name}_exudyn.npz", invariants, surface=surface)
             names.append(f"{name}_exudyn.npz")
     return names
 

@@ -6,5 +6,7 @@
 * :mod:`~pymorembs.job.time_domain` -- the time-domain and multibody checks of a job;
 * :mod:`~pymorembs.job.cli` -- the ``pymorembs`` command.
 
-Nothing below this package knows that a job file exists; a script uses :mod:`pymorembs` itself.
+The job layer imports only the public surface of the library (``docs/api.md``, "The public
+surface": :mod:`pymorembs` and the ``__all__`` of the public subpackages), and nothing below
+this package knows that a job file exists; a script uses :mod:`pymorembs` itself.
 """

@@ -20,20 +20,22 @@ from typing import Any, NoReturn
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from pymorembs import __version__, progress
-from pymorembs.analysis.spectrum import model_facts
-from pymorembs.body import ElasticBody
-from pymorembs.errors import PymorembsError, UserError
-from pymorembs.examples import EXAMPLES, build_example
-from pymorembs.examples.rack_solid import INTERFACES
-from pymorembs.io.formats import read_body
-from pymorembs.io.matrix_market import write_matrix_files
-from pymorembs.io.native import write_body_h5
+from pymorembs import (
+    ElasticBody,
+    Frame,
+    PreparedModel,
+    PymorembsError,
+    UserError,
+    __version__,
+    progress,
+)
+from pymorembs.analysis import model_facts
+from pymorembs.examples import EXAMPLES, RACK_SOLID_INTERFACES, build_example
+from pymorembs.io import read_body, write_body_h5, write_matrix_files
 from pymorembs.job.run import load_job_model, run_job, validate_job_body
 from pymorembs.job.schema import MODEL_FORMATS, load_job
 from pymorembs.parallel import dask_client, usable_cores
-from pymorembs.prepare import Frame, PreparedModel, prepare
-from pymorembs.prepare.validation import validate_body
+from pymorembs.prepare import prepare, validate_body
 from pymorembs.units import detect_units, frequency_warnings
 
 
@@ -89,7 +91,7 @@ def build_parser() -> argparse.ArgumentParser:
     ex.add_argument(
         "--interface",
         help=f"rack-solid: coupling of the interface node 2 to its hole, one of "
-        f"{', '.join(INTERFACES)} (default light-beams)",
+        f"{', '.join(RACK_SOLID_INTERFACES)} (default light-beams)",
     )
     ex.add_argument("--hub-radius", type=float, help="blade: root distance from the axis (m)")
     ex.add_argument("--elements", type=int, help="blade: elements along the length (40)")

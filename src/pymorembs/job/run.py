@@ -6,6 +6,7 @@ the output folder only when the whole job succeeded: a failed run leaves no part
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import importlib.metadata
 import json
@@ -14,47 +15,58 @@ import platform
 import shutil
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import scipy
 
-from pymorembs import __version__
-from pymorembs.analysis.error import error_blocks, frequency_grid, relative_error
-from pymorembs.analysis.large_motion import large_motion_checks
-from pymorembs.analysis.reference import ReferenceResponse, choose_kind, reference_response
-from pymorembs.analysis.time_domain import clamped_full_system
-from pymorembs.analysis.transfer import transfer_function
-from pymorembs.body import DIRECTIONS, ElasticBody
-from pymorembs.errors import NumericalError, PymorembsError, UserError
-from pymorembs.examples import build_example
-from pymorembs.export.outputs import BODY_OUTPUTS, write_outputs
-from pymorembs.io.atomic import atomic_path, check_output_folder, write_text
-from pymorembs.io.formats import read_body
+from pymorembs import (
+    DIRECTIONS,
+    ElasticBody,
+    InterfaceSpec,
+    NumericalError,
+    PreparedModel,
+    PymorembsError,
+    ReducedModel,
+    SecondOrderSystem,
+    UserError,
+    __version__,
+    example,
+    reduce,
+    select_nodes,
+)
+from pymorembs.analysis import (
+    ReferenceResponse,
+    choose_kind,
+    clamped_full_system,
+    error_blocks,
+    frequency_grid,
+    large_motion_checks,
+    reference_response,
+    relative_error,
+    transfer_function,
+)
+from pymorembs.export import BODY_OUTPUTS, write_outputs
+from pymorembs.io import atomic_path, check_output_folder, read_body, write_text
 from pymorembs.job.schema import Job, ModelSpec, ReductionSpec
 from pymorembs.job.time_domain import time_domain_checks
-from pymorembs.linalg.mass_split import mass_split
-from pymorembs.prepare import PreparedModel, prepare, with_inertia_loads
-from pymorembs.prepare.interface import InterfaceSpec, add_interface_node, select_nodes
-from pymorembs.prepare.stiffening import (
+from pymorembs.linalg import default_backend, mass_split
+from pymorembs.prepare import (
+    ValidationReport,
+    add_interface_node,
+    prepare,
     stiffening_from_matrices,
     stiffening_from_mesh,
+    validate_body,
+    validate_prepared,
+    with_inertia_loads,
     with_stiffening,
 )
-from pymorembs.prepare.validation import ValidationReport, validate_body, validate_prepared
 from pymorembs.progress import Progress as ProgressBar
-from pymorembs.reduction.projection import (
-    Projection,
-    ReducedModel,
-    explicit_step_s,
-    reduced_model,
-    without_stiff_directions,
-)
-from pymorembs.report.html_report import write_report
-from pymorembs.report.plots import plot_decay, plot_relative_errors
-from pymorembs.system import SecondOrderSystem
+from pymorembs.reduction import Projection, explicit_step_s
+from pymorembs.report import plot_decay, plot_relative_errors, reductions_scene, write_report
 from pymorembs.units import band_unit_warnings, detect_units, frequency_warnings
 
 Progress = Callable[[str], None]
@@ -70,7 +82,7 @@ DECAY_SERIES = (
 def load_model(spec: ModelSpec) -> ElasticBody:
     """The body a job's ``[model]`` names: a built-in example or model files of any format."""
     if spec.example is not None:
-        return build_example(spec.example, **spec.options)
+        return example(spec.example, **spec.options)
     return read_body(spec.format, **spec.files, **spec.names)
 
 
@@ -101,6 +113,26 @@ def add_interfaces(body: ElasticBody, job: Job) -> ElasticBody:
         except UserError as exc:
             raise UserError(f"{job.path}: [[interface]] #{k}: {exc}") from None
     return body
+
+
+def job_interfaces(body: ElasticBody, job: Job) -> list[tuple[str, int, np.ndarray]]:
+    """The job's interface nodes and the nodes each is coupled to, for the viewer.
+
+    ``body`` is the model with the interfaces added (:func:`add_interfaces`); the coupled nodes
+    are selected again as :func:`add_interfaces` did, leaving out the interface nodes that were
+    not there yet (the selection tests every node alone, so the result is the same).
+
+    Returns
+    -------
+    list of (name, node id, coupled node ids)
+    """
+    added = np.array([spec.node for spec in job.interfaces], dtype=np.int64)
+    out = []
+    for k, spec in enumerate(job.interfaces):
+        coupled = select_nodes(body, ids=spec.ids, cylinder=spec.cylinder, box=spec.box)
+        coupled = coupled[~np.isin(coupled, added[k:])]
+        out.append((f"interface {spec.node} ({spec.kind})", int(spec.node), coupled))
+    return out
 
 
 def prepare_job(job: Job) -> tuple[ElasticBody, PreparedModel]:
@@ -273,6 +305,11 @@ def check_requests(job: Job, body: ElasticBody) -> None:
     if job.large_motion is not None:
         _check_large_motion(job, body, dofs_of)
     spec = job.time_domain
+    if "vtu" in job.export.outputs and not body.has_coordinates:
+        raise UserError(
+            f"{job.path}: the model has no node coordinates, which the VTU file ([export] "
+            'outputs = ["vtu"]) needs; give the nodes (nodes = nodes.csv or the FE input file)'
+        )
     if (wants_body or spec is not None) and not body.has_coordinates:
         raise UserError(
             f"{job.path}: the model has no node coordinates, which the "
@@ -406,10 +443,76 @@ def _run_job(
     workers: int | None,
     scheduler: str | None,
 ) -> dict[str, Any]:
+    """The steps of :func:`run_job`: prepare, reference, reductions, checks, summary."""
     timings: dict[str, float] = {}
     clock = time.perf_counter()
     check_output_folder(out_dir)  # a file in the way fails now, not after all the work
+    body, prepared, validation = _prepared_for_job(job, say, stage, timings)
+    units = detect_units(body)
+    warnings = [*prepared.warnings, *validation.warnings, *units.warnings]
+    warnings += band_unit_warnings(job.band_hz)
+    for warning in warnings:
+        say(f"warning: {warning}")
+    for note in prepared.notes:  # facts of the setup, no mistake: not warnings
+        say(note)
+    reference = _reference(job, prepared, say, stage, workers, scheduler)
+    with _staging(out_dir) as staging:
+        nodes = export_nodes(job)
+        reference, reduced_runs = _reduce_all(job, prepared, reference, stage)
+        results = _judged(job, prepared, reference, reduced_runs, staging, nodes, warnings, say)
+        entries, errors, estimates, decay, models = results
+        timings["reference_s"] = reference.seconds
+        computed = [f for e in entries for f in e["eigenfrequencies_hz"]]
+        for warning in frequency_warnings(units, job.band_hz, np.asarray(computed)):
+            warnings.append(warning)
+            say(f"warning: {warning}")
+        figures = [_error_figure(job, prepared, reference, errors, estimates, staging)]
+        overview = ["summary.json", "error.png"]
+        if decay:
+            plot_decay(decay, staging / "decay.png")
+            overview.append("decay.png")
+            figures.append((staging / "decay.png", "Decay of singular values (paper Fig. 11)"))
+        checks = {}
+        done = _checks_in_time(job, body, prepared, models, nodes, staging, stage, say, timings)
+        for key, (result, figure) in done.items():
+            checks[key] = result
+            overview.append(figure[0].name)
+            figures.append(figure)
+            _attach_rows(entries, key, result)
+        if "report" in job.export.outputs:
+            overview.append("report.html")
+        timings["total_s"] = time.perf_counter() - clock
+        summary = {
+            "pymorembs_version": __version__,
+            "job": str(job.path),
+            "model": _model_summary(job, body, prepared),
+            "units": units.as_dict(),
+            "validation": validation.as_dict(),
+            "band_hz": list(job.band_hz),
+            "n_frequencies": int(reference.frequencies_hz.size),
+            "reference": reference.as_dict(),
+            "reductions": entries,
+            "warnings": warnings,
+            "notes": list(prepared.notes),
+            "timings_s": timings,
+            "files": overview,
+            "provenance": provenance(job, validation),
+            **checks,
+            **({"title": job.title} if job.title else {}),
+        }
+        scene = None
+        if "report" in job.export.outputs:
+            scene = reductions_scene(prepared, models, interfaces=job_interfaces(body, job))
+        _write_summary(job, summary, figures, scene, staging)
+    return summary
 
+
+def _prepared_for_job(
+    job: Job, say: Progress, stage: Callable[..., None], timings: dict[str, float]
+) -> tuple[ElasticBody, PreparedModel, ValidationReport]:
+    """The first stage: the checked and prepared model, with the job's inertia loads and
+    geometric stiffening (``timings`` gets the times of these steps)."""
+    clock = time.perf_counter()
     stage(
         "loading the model, interfaces, frame, constraint elimination, inputs and outputs",
         "loading the model",
@@ -427,15 +530,20 @@ def _run_job(
         say(f"geometric stiffening from the {job.stiffening.source} (one static factorization)")
         prepared = _with_stiffening(prepared, job)
         timings["stiffening_s"] = time.perf_counter() - tick
-    system = prepared.reduction_system  # what every reduction and the reference see
-    units = detect_units(body)
-    warnings = [*prepared.warnings, *validation.warnings, *units.warnings]
-    warnings += band_unit_warnings(job.band_hz)
-    for warning in warnings:
-        say(f"warning: {warning}")
-    for note in prepared.notes:  # facts of the setup, no mistake: not warnings
-        say(note)
+    return body, prepared, validation
 
+
+def _reference(
+    job: Job,
+    prepared: PreparedModel,
+    say: Progress,
+    stage: Callable[..., None],
+    workers: int | None,
+    scheduler: str | None,
+) -> ReferenceResponse:
+    """The second stage: the reference response on the job's error grid (the full model's, or
+    a checked reference model's), of the system every reduction sees."""
+    system = prepared.reduction_system
     frequencies = frequency_grid(*job.band_hz, job.points)
     kind = choose_kind(job.reference, system.order)
     stage(
@@ -454,89 +562,88 @@ def _run_job(
             f"the full model at {len(reference.deviation)} checked frequencies "
             f"{reference.accuracy:.1e}"
         )
+    return reference
 
+
+@contextlib.contextmanager
+def _staging(out_dir: Path) -> Iterator[Path]:
+    """A temporary folder next to ``out_dir`` for the files of a run; it replaces the output
+    folder's entries when the block succeeds and is removed when it fails."""
     parent = out_dir.resolve().parent
     parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=parent))
     try:
-        nodes = export_nodes(job)
-        reduced_runs = []
-        for spec in job.reductions:
-            stage(f"reduction '{spec.name}' ({spec.method})", f"reduction '{spec.name}'")
-            reduced_runs.append(_reduce_one(prepared, spec, job.band_hz, reference))
-        results = _judged(job, prepared, reference, reduced_runs, staging, nodes, warnings, say)
-        entries, errors, estimates, decay, models = results
-        timings["reference_s"] = reference.seconds
-        computed = [f for e in entries for f in e["eigenfrequencies_hz"]]
-        for warning in frequency_warnings(units, job.band_hz, np.asarray(computed)):
-            warnings.append(warning)
-            say(f"warning: {warning}")
-        figures = [_error_figure(job, prepared, reference, errors, estimates, staging)]
-        overview = ["summary.json", "error.png"]
-        if decay:
-            plot_decay(decay, staging / "decay.png")
-            overview.append("decay.png")
-            figures.append((staging / "decay.png", "Decay of singular values (paper Fig. 11)"))
-        time_domain = None
-        if job.time_domain is not None:
-            stage("time domain", "time domain", line=False)  # time_domain_checks says more
-            tick = time.perf_counter()
-            time_domain = time_domain_checks(
-                job.time_domain, body, job.frame, prepared, models, nodes,
-                staging / "time.png", say,
-            )  # fmt: skip
-            timings["time_domain_s"] = time.perf_counter() - tick
-            overview.append("time.png")
-            figures.append((staging / "time.png", "Time responses (paper Fig. 12)"))
-            _attach_rows(entries, "time_domain", time_domain)
-        large_motion = None
-        if job.large_motion is not None:
-            stage("large motion in Exudyn", "large motion", line=False)
-            tick = time.perf_counter()
-            large_motion = large_motion_checks(
-                job.large_motion, job.frame, prepared, one_sided(models), nodes,
-                staging / "large_motion.png", say,
-            )  # fmt: skip
-            timings["large_motion_s"] = time.perf_counter() - tick
-            overview.append("large_motion.png")
-            figures.append(
-                (staging / "large_motion.png", "Large motions in Exudyn: each body against "
-                 f"the modal reference of order {large_motion['reference']['order']}")
-            )  # fmt: skip
-            _attach_rows(entries, "large_motion", large_motion)
-        if "report" in job.export.outputs:
-            overview.append("report.html")
-        timings["total_s"] = time.perf_counter() - clock
-        summary = {
-            "pymorembs_version": __version__,
-            "job": str(job.path),
-            "model": _model_summary(job, body, prepared),
-            "units": units.as_dict(),
-            "validation": validation.as_dict(),
-            "band_hz": list(job.band_hz),
-            "n_frequencies": int(frequencies.size),
-            "reference": reference.as_dict(),
-            "reductions": entries,
-            "warnings": warnings,
-            "notes": list(prepared.notes),
-            "timings_s": timings,
-            "files": overview,
-        }
-        summary["provenance"] = provenance(job, validation)
-        if time_domain is not None:
-            summary["time_domain"] = time_domain
-        if large_motion is not None:
-            summary["large_motion"] = large_motion
-        if job.title:
-            summary["title"] = job.title
-        if "report" in job.export.outputs:
-            write_report(staging / "report.html", summary, figures, _job_text(job.path))
-        write_text(staging / "summary.json", json.dumps(summary, indent=2, allow_nan=False) + "\n")
+        yield staging
         _replace_folder(staging, out_dir)
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise
-    return summary
+
+
+def _reduce_all(
+    job: Job, prepared: PreparedModel, reference: ReferenceResponse, stage: Callable[..., None]
+) -> tuple[ReferenceResponse, list[tuple[ReducedModel, np.ndarray, float]]]:
+    """One stage per reduction; the reference settled for all of them
+    (:meth:`ReferenceResponse.settled_all`) and each reduction's model, response and time."""
+    reduced_runs = []
+    for spec in job.reductions:
+        stage(f"reduction '{spec.name}' ({spec.method})", f"reduction '{spec.name}'")
+        run = _reduce_one(prepared, spec, job.band_hz, reference)
+        reference = _settled(spec, reference, run[1])  # its maximum checked at once
+        reduced_runs.append(run)
+    return reference.settled_all([response for _, response, _ in reduced_runs]), reduced_runs
+
+
+def _checks_in_time(
+    job: Job,
+    body: ElasticBody,
+    prepared: PreparedModel,
+    models: dict[str, ReducedModel],
+    nodes: list[int],
+    staging: Path,
+    stage: Callable[..., None],
+    say: Progress,
+    timings: dict[str, float],
+) -> dict[str, tuple[dict[str, Any], tuple[Path, str]]]:
+    """The stages of ``[time_domain]`` (full and reduced models in time) and ``[large_motion]``
+    (the bodies in Exudyn) the job asks for: by summary key, the check's entry and its figure
+    (file, caption)."""
+    done = {}
+    if job.time_domain is not None:
+        stage("time domain", "time domain", line=False)  # time_domain_checks says more
+        tick = time.perf_counter()
+        figure = staging / "time.png"
+        result = time_domain_checks(
+            job.time_domain, body, job.frame, prepared, models, nodes, figure, say
+        )
+        timings["time_domain_s"] = time.perf_counter() - tick
+        done["time_domain"] = result, (figure, "Time responses (paper Fig. 12)")
+    if job.large_motion is not None:
+        stage("large motion in Exudyn", "large motion", line=False)
+        tick = time.perf_counter()
+        figure = staging / "large_motion.png"
+        result = large_motion_checks(
+            job.large_motion, job.frame, prepared, one_sided(models), nodes, figure, say
+        )
+        timings["large_motion_s"] = time.perf_counter() - tick
+        caption = ("Large motions in Exudyn: each body against the modal reference of order "
+                   f"{result['reference']['order']}")  # fmt: skip
+        done["large_motion"] = result, (figure, caption)
+    return done
+
+
+def _write_summary(
+    job: Job,
+    summary: dict[str, Any],
+    figures: list[tuple[Path, str]],
+    scene: dict[str, Any] | None,
+    staging: Path,
+) -> None:
+    """``report.html`` (if asked for, with the 3D ``scene``) and ``summary.json`` into
+    ``staging``."""
+    if "report" in job.export.outputs:
+        write_report(staging / "report.html", summary, figures, _job_text(job.path), scene=scene)
+    write_text(staging / "summary.json", json.dumps(summary, indent=2, allow_nan=False) + "\n")
 
 
 def _judged(
@@ -549,16 +656,18 @@ def _judged(
     warnings: list[str],
     say: Progress,
 ) -> tuple[list[dict[str, Any]], dict, dict, dict, dict[str, ReducedModel]]:
-    """Every reduction's errors against the same reference (after all of its checks), its files
-    written into ``staging`` and its summary entry; the warnings they call for are added.
+    """Every reduction's errors against the same reference (settled for all of them,
+    :meth:`ReferenceResponse.settled_all`), its files written into ``staging`` and its summary
+    entry; the warnings they call for are added.
 
     Returns the entries, the error curves (ports and inertia loads), the estimator curves, the
     singular value decays and the reduced models, by reduction name.
     """
     entries, errors, estimates, decay, models = [], {}, {}, {}, {}
-    all_eps = reference.settle_all([response for _, response, _ in reduced_runs])
-    for spec, eps in zip(job.reductions, all_eps, strict=True):
-        _finite(spec, reference, eps)
+    all_eps = [
+        _finite(spec, reference, reference.errors(response))
+        for spec, (_, response, _) in zip(job.reductions, reduced_runs, strict=True)
+    ]
     ports, inertia = error_blocks(prepared.reduction_system)
     for spec, (model, response, elapsed), eps in zip(
         job.reductions, reduced_runs, all_eps, strict=True
@@ -689,33 +798,40 @@ def _reduce_one(
     band_hz: tuple[float, float],
     reference: ReferenceResponse,
 ) -> tuple[ReducedModel, np.ndarray, float]:
-    """Reduce; the checked reduced model, its response on the grid and the reduction time (s).
+    """Reduce (:func:`pymorembs.reduce`); the checked reduced model, its response on the grid
+    and the reduction time (s).
 
-    The maximum of its error is checked against the full model at once
-    (:meth:`ReferenceResponse.settle`).
+    With ``max_frequency_hz``, what the removal of the stiff directions costs goes into the
+    projection's parameters: the errors before it.
     """
     tick = time.perf_counter()
-    system = prepared.reduction_system
-    projection = run_reduction(system, spec, band_hz)
-    model = reduced_model(system, projection)  # checked before writing
-    limit = spec.settings.max_frequency_hz
-    if limit is not None and model.eigenfrequencies_hz.max() > limit:
-        before = transfer_function(model.system, reference.frequencies_hz)
-        model = without_stiff_directions(system, model, limit)
-        # what the removal costs: the errors before it, to compare with the entry's own
-        ports, inertia = error_blocks(system)
-        frequencies = reference.frequencies_hz
-        for key, block in (("", ports), ("inertia_", inertia)):
-            if block is None:
-                continue
-            eps = relative_error(reference.response, before, block)
-            model.projection.parameters[f"{key}max_rel_error_before_removal"] = float(eps.max())
-            if frequencies[0] == 0.0:
-                model.projection.parameters[f"{key}static_rel_error_before_removal"] = float(eps[0])
+    reduced = reduce(prepared, spec.settings, band_hz=band_hz, name=spec.name)
     elapsed = time.perf_counter() - tick
+    model = reduced.model
+    if reduced.before_removal is not None:
+        _record_removal_cost(prepared, reduced.before_removal, model, reference)
     response = transfer_function(model.system, reference.frequencies_hz)
-    _checked_errors(spec, reference, response)
     return model, response, elapsed
+
+
+def _record_removal_cost(
+    prepared: PreparedModel,
+    before: ReducedModel,
+    model: ReducedModel,
+    reference: ReferenceResponse,
+) -> None:
+    """The errors of ``before`` (the model before the removal of its stiff directions) in the
+    parameters of ``model``'s projection, to compare with the entry's own."""
+    response = transfer_function(before.system, reference.frequencies_hz)
+    ports, inertia = error_blocks(prepared.reduction_system)
+    frequencies = reference.frequencies_hz
+    for key, block in (("", ports), ("inertia_", inertia)):
+        if block is None:
+            continue
+        eps = relative_error(reference.response, response, block)
+        model.projection.parameters[f"{key}max_rel_error_before_removal"] = float(eps.max())
+        if frequencies[0] == 0.0:
+            model.projection.parameters[f"{key}static_rel_error_before_removal"] = float(eps[0])
 
 
 def inertia_warning(name: str, eps: np.ndarray, eps_inertia: np.ndarray | None) -> str | None:
@@ -767,11 +883,14 @@ def _inertia_summary(prepared: PreparedModel) -> dict[str, Any] | None:
     }
 
 
-def _checked_errors(
+def _settled(
     spec: ReductionSpec, reference: ReferenceResponse, response: np.ndarray
-) -> np.ndarray:
-    """``eps(f)`` (eq. 27) with its maximum on a frequency checked against the full model."""
-    return _finite(spec, reference, reference.settle(response))
+) -> ReferenceResponse:
+    """The reference with the maximum of the reduction's ``eps(f)`` (eq. 27) on a frequency
+    checked against the full model; a :class:`NumericalError` if ``eps`` is not finite."""
+    settled = reference.settled(response)
+    _finite(spec, settled, settled.errors(response))
+    return settled
 
 
 def _finite(spec: ReductionSpec, reference: ReferenceResponse, eps: np.ndarray) -> np.ndarray:
@@ -933,8 +1052,6 @@ def provenance(job: Job, validation: ValidationReport | None = None) -> dict[str
         ``environment``: the ``PYMOREMBS_*`` variables and ``SOURCE_DATE_EPOCH`` that are set;
         ``settings``: the parsed job.
     """
-    from pymorembs.linalg.backends import default_backend
-
     # a job parsed from a dictionary (parse_job) may name a file that does not exist
     inputs = {str(job.path): sha256_of(Path(job.path))} if Path(job.path).is_file() else {}
     for path in job.model.files.values():

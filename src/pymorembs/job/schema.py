@@ -17,13 +17,23 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from pymorembs.analysis.large_motion import LARGE_MOTION_CASES, LargeMotionSettings
-from pymorembs.analysis.reference import DEFAULT_CHECKS, REFERENCE_KINDS
-from pymorembs.body import Damping
-from pymorembs.errors import UserError
-from pymorembs.io.formats import FORMATS
-from pymorembs.methods import METHODS, OptionError, ReductionOptions, method_options
-from pymorembs.prepare import INERTIA_LOAD_CASES, Frame, Port
+from pymorembs import Damping, Frame, Port, UserError
+from pymorembs.analysis import (
+    DEFAULT_CHECKS,
+    LARGE_MOTION_CASES,
+    REFERENCE_KINDS,
+    LargeMotionSettings,
+)
+from pymorembs.io import FORMATS
+from pymorembs.methods import (
+    METHODS,
+    RENAMED_OPTIONS,
+    OptionError,
+    ReductionOptions,
+    method_options,
+    renamed_message,
+)
+from pymorembs.prepare import INERTIA_LOAD_CASES
 
 MODEL_FILE_KEYS = (
     "file", "stiffness", "mass", "damping", "dofs", "nodes", "constraints", "fixed", "mapping",
@@ -32,7 +42,7 @@ MODEL_FILE_KEYS = (
 MODEL_FORMATS = FORMATS
 INTERFACE_KINDS = ("rigid", "distributing", "beams", "springs")
 #: Files a job can write per reduction (``[export] outputs``), and the job's HTML report.
-EXPORT_KINDS = ("npz", "mtx", "mat", "sid", "neweul", "exudyn", "report")
+EXPORT_KINDS = ("npz", "mtx", "mat", "sid", "neweul", "exudyn", "vtu", "report")
 DEFAULT_EXPORTS = ("npz", "mtx")
 #: Exports of a body for a multibody code: inertia loads are inputs by default for these.
 MULTIBODY_EXPORTS = ("sid", "neweul", "exudyn")
@@ -76,21 +86,22 @@ class ReductionSpec:
     """One reduction of a job: a unique name, a method, an order and method options.
 
     ``options`` are the ``[[reduction]]`` keys besides ``name``, ``method`` and ``order``
-    (:mod:`pymorembs.methods` lists them per method).
+    (:mod:`pymorembs.methods` lists them per method); ``settings`` is the checked options
+    object of the method built from them once (:func:`~pymorembs.methods.method_options`,
+    which raises :class:`~pymorembs.methods.OptionError` on a bad option).
     """
 
     name: str
     method: str
     order: int | None
     options: dict[str, Any]
+    settings: ReductionOptions = field(init=False, repr=False, compare=False)
 
-    @property
-    def settings(self) -> ReductionOptions:
-        """The checked options object of the method (:func:`~pymorembs.methods.method_options`)."""
+    def __post_init__(self) -> None:
         values = dict(self.options)
         if self.order is not None:
             values["order"] = self.order
-        return method_options(self.method, values)
+        object.__setattr__(self, "settings", method_options(self.method, values))
 
 
 @dataclass(frozen=True)
@@ -703,6 +714,9 @@ def _reductions(data: Any, path: Path) -> tuple[ReductionSpec, ...]:
             raise table.error("order", "is set by the inputs (boundary dofs) and 'fixed_modes'")
         known = tuple(f.name for f in dataclasses.fields(METHODS[method]) if f.name != "order")
         options = {key: table.get(key) for key in known if key in table.data}
+        for key in table.data:
+            if RENAMED_OPTIONS.get(key) in known:  # a job file written for an older version
+                raise table.error(key, renamed_message(key))
         table.done(known)
         try:
             settings = method_options(

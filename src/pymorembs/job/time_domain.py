@@ -23,21 +23,11 @@ from typing import Any
 
 import numpy as np
 
-from pymorembs.analysis.time_domain import (
-    LoadCase,
-    TimeResponse,
-    clamped_full_system,
-    clamped_reduced_system,
-    compare,
-    simulate,
-)
-from pymorembs.body import ElasticBody
-from pymorembs.export.exudyn_body import build_exudyn_model, exudyn_arrays, simulate_exudyn
-from pymorembs.export.outputs import body_invariants
+from pymorembs import ElasticBody, Frame, LoadCase, PreparedModel, ReducedModel, TimeResponse
+from pymorembs.analysis import clamped_full_system, clamped_reduced_system, compare, simulate
+from pymorembs.export import body_invariants, build_exudyn_model, exudyn_arrays, simulate_exudyn
 from pymorembs.job.schema import TimeDomainSpec
-from pymorembs.prepare import Frame, PreparedModel
-from pymorembs.reduction.projection import ReducedModel
-from pymorembs.report.time_plots import plot_time_responses
+from pymorembs.report import plot_time_responses
 
 #: Load factor of the small-motion Exudyn run.
 SMALL_LOAD = 1e-4

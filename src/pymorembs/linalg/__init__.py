@@ -1,1 +1,11 @@
-"""linalg"""
+"""Sparse linear algebra: factorizations, products, the massless part of a mass matrix.
+
+A public subpackage for the few names below (``docs/api.md``, "The public surface"): the
+massless split of a mass matrix (:func:`mass_split`) and the sparse solver backends
+(:func:`available_backends`, :func:`default_backend`, chosen by ``PYMOREMBS_SOLVER``).
+"""
+
+from pymorembs.linalg.backends import available_backends, default_backend
+from pymorembs.linalg.mass_split import MassSplit, mass_split
+
+__all__ = ["MassSplit", "available_backends", "default_backend", "mass_split"]

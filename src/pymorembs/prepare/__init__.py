@@ -2,14 +2,15 @@
 
 :func:`prepare` turns an :class:`~pymorembs.body.ElasticBody` into the second-order system of its
 independent dofs, ``M* q'' + D* q' + K* q = B* u + f*,  y = C* q`` (eqs. 11-17), and keeps the map
-back to all dofs (eq. 18).
+back to all dofs (eq. 18). A public subpackage (``docs/api.md``, "The public surface"): besides
+:func:`prepare` its ``__all__`` holds the other steps of :func:`pymorembs.prepare` (interface
+nodes, inertia loads, geometric stiffening) and the checks of :mod:`~pymorembs.prepare.validation`.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from functools import cached_property
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -18,28 +19,48 @@ from pymorembs.errors import NumericalError, UserError
 from pymorembs.linalg.mass_split import mass_split
 from pymorembs.prepare.buckens_frame import buckens_frame, centre_of_gravity
 from pymorembs.prepare.elimination import Elimination, eliminate
-from pymorembs.prepare.inertia_loads import INERTIA_LOAD_CASES, InertiaLoads, inertia_loads
+from pymorembs.prepare.inertia_loads import (
+    INERTIA_LOAD_CASES,
+    InertiaLoads,
+    inertia_loads,
+    static_solver,
+)
+from pymorembs.prepare.interface import InterfaceSpec, add_interface_node, select_nodes
 from pymorembs.prepare.ports import Port, selection_matrix
 from pymorembs.prepare.rigid_modes import free_rigid_body_modes
+from pymorembs.prepare.stiffening import (
+    Stiffening,
+    stiffening_from_matrices,
+    stiffening_from_mesh,
+    with_stiffening,
+)
 from pymorembs.prepare.tangent_frame import tangent_frame
+from pymorembs.prepare.validation import ValidationReport, validate_body, validate_prepared
 from pymorembs.system import SecondOrderSystem
-
-if TYPE_CHECKING:
-    from pymorembs.prepare.stiffening import Stiffening
 
 __all__ = [
     "INERTIA_LOAD_CASES",
     "Frame",
     "InertiaLoads",
+    "InterfaceSpec",
     "Port",
     "PreparedModel",
+    "Stiffening",
+    "ValidationReport",
+    "add_interface_node",
     "buckens_frame",
     "centre_of_gravity",
     "eliminate",
     "prepare",
+    "select_nodes",
+    "stiffening_from_matrices",
+    "stiffening_from_mesh",
     "tangent_frame",
+    "validate_body",
+    "validate_prepared",
     "with_inertia_loads",
     "with_rigid_modes",
+    "with_stiffening",
 ]
 
 
@@ -112,6 +133,22 @@ class PreparedModel:
     def expand(self, basis: np.ndarray) -> np.ndarray:
         """A basis of the independent dofs expanded to all dofs (eq. 18), shape (n_dof, n)."""
         return self.elimination.expand(basis)
+
+    @cached_property
+    def static_response(self) -> np.ndarray:
+        """``K^+ B`` of :attr:`reduction_system`: the static deformation under each input,
+        shape (n_independent, n_inputs); solved once (one factorization) and kept with the
+        model, so every reduction of a job reuses it.
+
+        ``K^+`` is the solve of the reduction methods: a factorization of ``K`` in a frame that
+        holds the body, inertia relief (the deformation mass-orthogonal to the rigid-body
+        modes) for a free body in the Buckens frame. Columns are per unit input, the inertia
+        loads with their scale (:attr:`InertiaLoads.scales`).
+        """
+        system = self.reduction_system
+        if system.n_inputs == 0:
+            return np.zeros((system.order, 0))
+        return static_solver(system, "K (static response to the inputs)").solve(system.input_matrix)
 
 
 def prepare(

@@ -30,6 +30,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
@@ -45,8 +46,10 @@ from pymorembs.elements.solid import (
 from pymorembs.errors import UserError
 from pymorembs.io.matrix_market import read_matrix_market
 from pymorembs.io.solid_mesh import mesh_problem
-from pymorembs.prepare import PreparedModel
 from pymorembs.prepare.inertia_loads import INERTIA_LOAD_CASES, acceleration_fields, static_solver
+
+if TYPE_CHECKING:  # pymorembs.prepare re-exports this module's functions
+    from pymorembs.prepare import PreparedModel
 
 __all__ = [
     "STIFFENING_KINDS",
@@ -55,6 +58,7 @@ __all__ = [
     "geometric_stiffness",
     "stiffening_from_matrices",
     "stiffening_from_mesh",
+    "with_stiffening",
 ]
 
 _CHUNK = 4096  # solid elements per batch of the geometric stiffness

@@ -1,18 +1,23 @@
 """One self-contained HTML page per job: facts, settings, plots, the table of methods, files.
 
 The plots are embedded as base64 PNG data URIs, so the page can be mailed or archived alone. The
-page is plain HTML5 with a small inline style sheet and no scripts.
+page is plain HTML5 with a small inline style sheet. With a scene
+(:mod:`pymorembs.report.scene`) it gets the section "Body and shapes": the 3D viewer
+(``viewer.js``) and the scene as JSON, both inline, so the page still needs no other file and
+no network; without one it has no scripts.
 """
 
 from __future__ import annotations
 
 import base64
 import html
+import json
 import math
 from pathlib import Path
 from typing import Any
 
 from pymorembs.io.atomic import write_text
+from pymorembs.report.scene import viewer_script
 
 _STYLE = """
 body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 68em; color: #222; }
@@ -24,6 +29,34 @@ figure { margin: 1em 0; } figcaption { font-size: 0.9em; color: #555; }
 img { max-width: 100%; border: 1px solid #ddd; }
 pre { background: #f6f6f6; padding: 0.8em; overflow-x: auto; font-size: 0.85em; }
 .warning { color: #a40; }
+.viewer { width: 100%; height: 32em; border: 1px solid #ddd; }
+.viewer canvas { width: 100%; height: 100%; display: block; cursor: grab; }
+.controls { margin: 0.4em 0; font-size: 0.9em; } .controls label { margin-right: 1em; }
+"""
+
+# Starts the viewer on the page; the address's fragment may choose what it shows first, e.g.
+# report.html#shape=none or #shape=2&amplitude=0.1&animate=0 (for screenshots).
+_START = """
+(function () {
+  const canvas = document.getElementById("pymorembs-view");
+  try {
+    const scene = JSON.parse(document.getElementById("pymorembs-scene").textContent);
+    const viewer = new PymorembsViewer(canvas, scene);
+    PymorembsViewer.controls(viewer, document.getElementById("pymorembs-controls"));
+    const ask = new URLSearchParams(window.location.hash.slice(1));
+    const shape = ask.has("shape") ? ask.get("shape") : (scene.shapes.length ? "0" : "none");
+    viewer.setShape(shape === "none" ? null : Number(shape));
+    if (ask.has("amplitude")) viewer.setAmplitude(Number(ask.get("amplitude")));
+    viewer.animate(viewer.shape !== null && ask.get("animate") !== "0");
+    viewer.render();
+    window.pymorembsViewer = viewer;
+  } catch (error) {
+    const note = document.createElement("p");
+    note.className = "warning";
+    note.textContent = "The 3D view needs WebGL, which this browser lacks: " + error.message;
+    canvas.replaceWith(note);
+  }
+})();
 """
 
 
@@ -32,6 +65,7 @@ def write_report(
     summary: dict[str, Any],
     figures: list[tuple[Path, str]],
     job_text: str = "",
+    scene: dict[str, Any] | None = None,
 ) -> Path:
     """Write the HTML report of a job.
 
@@ -45,6 +79,9 @@ def write_report(
         PNG files to embed, in order.
     job_text : str
         The job file as given, shown verbatim.
+    scene : dict, optional
+        The body and its shapes for the 3D view (:func:`pymorembs.report.scene.
+        reductions_scene`); None: no view.
     """
     e = html.escape
     model = summary["model"]
@@ -74,6 +111,8 @@ def write_report(
         parts += [f'<li class="warning">{e(w)}</li>' for w in warnings]
         parts.append("</ul>")
     parts += ["<h2>Reductions</h2>", _methods_table(summary["reductions"]), _covers(summary)]
+    if scene is not None:
+        parts += ["<h2>Body and shapes</h2>", *_view(scene)]
     time_domain = summary.get("time_domain")
     if time_domain:
         parts += ["<h2>Time domain (paper section 5.1)</h2>", _time_table(time_domain)]
@@ -92,6 +131,41 @@ def write_report(
         ]
     parts += ["<h2>Files written</h2>", _files_list(summary), "</body>", "</html>"]
     return write_text(path, "\n".join(parts) + "\n")
+
+
+def _view(scene: dict[str, Any]) -> list[str]:
+    """The 3D view: what it shows, the canvas, its controls and the inline scripts."""
+    n_nodes = len(scene["node_ids"])
+    drawn = [f"{n_nodes:,} nodes"]
+    if scene["triangles"]:
+        drawn.append(f"{len(scene['triangles']) // 3:,} surface triangles")
+    if scene["lines"]:
+        drawn.append(f"{len(scene['lines']) // 2:,} line segments")
+    text = "The body as the reductions see it (coordinates from the frame's origin): " + ", ".join(
+        drawn
+    )
+    if scene.get("frame"):
+        text += "; the frame's axes x, y, z in red, green, blue"
+    if scene.get("interfaces"):
+        text += "; interface nodes as large points, their coupled nodes in the same colour"
+    text += (
+        ". A shape function is drawn with its largest translation at the chosen fraction of the "
+        "body's size, coloured by the translation. Drag to rotate, wheel to zoom, right-drag "
+        "or shift-drag to pan."
+    )
+    notes = "".join(f'<p class="warning">{html.escape(n)}.</p>' for n in scene.get("notes", []))
+    # No "<" inside the script element (no "</script>", no "<!--"): JSON's escape of it.
+    data = json.dumps(scene, separators=(",", ":"), allow_nan=False).replace("<", "\\u003c")
+    script = viewer_script()
+    return [
+        f"<p>{html.escape(text)}</p>",
+        notes,
+        '<div class="viewer"><canvas id="pymorembs-view"></canvas></div>',
+        '<div class="controls" id="pymorembs-controls"></div>',
+        f'<script type="application/json" id="pymorembs-scene">{data}</script>',
+        f"<script>{script}</script>",
+        f"<script>{_START}</script>",
+    ]
 
 
 def _row(cells: list[str], header: bool = False, text_columns: int = 1) -> str:

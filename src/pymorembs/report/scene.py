@@ -20,18 +20,37 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import scipy.sparse as sp
 
-from pymorembs.body import ElasticBody
+from pymorembs.body import SCALAR, ElasticBody
 from pymorembs.errors import UserError
-from pymorembs.prepare import Frame, centre_of_gravity
+from pymorembs.prepare import Frame, PreparedModel, centre_of_gravity
 from pymorembs.prepare.interface import InterfaceSpec
+from pymorembs.reduction.projection import ReducedModel
 
-__all__ = ["POSITION_DIGITS", "SHAPE_DIGITS", "body_scene", "viewer_script"]
+__all__ = [
+    "POSITION_DIGITS",
+    "SCENE_SHAPES_EACH",
+    "SCENE_VALUES",
+    "SHAPE_DIGITS",
+    "attached_nodes",
+    "body_scene",
+    "reductions_scene",
+    "viewer_script",
+]
 
 #: Significant digits of the positions, relative to the model's size.
 POSITION_DIGITS = 6
 #: Significant digits of the shape values, relative to each shape's largest translation.
 SHAPE_DIGITS = 4
+
+_CHUNK = 30_000  # rows of K looked at together by attached_nodes
+
+#: Shapes of each reduction that :func:`reductions_scene` keeps at most.
+SCENE_SHAPES_EACH = 12
+#: Shape values (3 per node and shape) that :func:`reductions_scene` keeps at most: about 7 MB
+#: of JSON.
+SCENE_VALUES = 1_000_000
 
 InterfaceLike = InterfaceSpec | Mapping[str, Any] | tuple[str, int, Sequence[int]]
 FrameLike = Frame | Mapping[str, Any] | tuple[Any, Any]
@@ -79,7 +98,9 @@ def body_scene(
     max_values : int, optional
         Keep at most as many shapes as fit ``3 n`` values each into this many numbers.
     all_nodes : bool
-        Keep every node of the body, not only those a viewer shows.
+        Keep every node of the body. By default the scene's n nodes are those a viewer shows:
+        the surface's, the tangent frame's node and the interface nodes with their coupled
+        nodes (every node for a body without a surface).
 
     Returns
     -------
@@ -106,9 +127,8 @@ def body_scene(
         wanted = [surface.node_ids]
         for _, node, coupled in couplings:
             wanted += [np.array([node]), coupled]
-        if frame is not None and isinstance(frame, Frame) and frame.node is not None:
-            if frame.kind == "tangent":
-                wanted.append(np.array([int(frame.node)]))
+        if isinstance(frame, Frame) and frame.kind == "tangent" and frame.node is not None:
+            wanted.append(np.array([int(frame.node)]))
         rows = np.unique(body.node_rows(np.concatenate(wanted)))
     ids = body.node_ids[rows]
     order = np.argsort(ids, kind="stable")
@@ -145,6 +165,146 @@ def body_scene(
         "shapes_total": total,
         "notes": notes,
     }
+
+
+def reductions_scene(
+    prepared: PreparedModel,
+    reductions: Mapping[str, ReducedModel],
+    *,
+    interfaces: Sequence[InterfaceLike] | None = None,
+    max_shapes_each: int = SCENE_SHAPES_EACH,
+    max_values: int = SCENE_VALUES,
+    model_interfaces: bool = True,
+) -> dict[str, Any]:
+    """The scene of a prepared body with the shape functions of its reductions.
+
+    The shapes are the columns of each reduction's exported basis ``V`` (in the reduced
+    model's eigenbasis, lowest frequency first), expanded to all dofs (eq. 18), named
+    ``"<reduction> #k: f Hz"``. Each reduction keeps its first ``max_shapes_each`` and all
+    together at most ``max_values`` numbers (3 per node and shape); the scene's ``notes`` say
+    so where that left shapes out.
+
+    Parameters
+    ----------
+    prepared : PreparedModel
+        The body in its reference frame (coordinates measured from the frame's origin) and the
+        map to all dofs; its frame is drawn.
+    reductions : mapping of str to ReducedModel
+        The reductions by name, in the order the selector lists them.
+    interfaces : sequence, optional
+        As for :func:`body_scene`, node ids of ``prepared.body``.
+    max_shapes_each, max_values : int
+        The caps.
+    model_interfaces : bool
+        Add the interface nodes the model carries (:func:`attached_nodes`) that
+        ``interfaces`` does not name.
+
+    Returns
+    -------
+    dict
+        The scene of :func:`body_scene`.
+    """
+    body = prepared.body
+    frame = prepared.frame
+    interfaces = list(interfaces or ())
+    if model_interfaces:
+        named = {_interface(body, item)[1] for item in interfaces}
+        interfaces += [item for item in attached_nodes(body) if item[1] not in named]
+    plain = body_scene(body, frame=frame, interfaces=interfaces)
+    n_nodes = max(1, len(plain["node_ids"]))
+    count = max(1, len(reductions))
+    fits = max(1, int(max_values) // (3 * n_nodes * count))
+    names: list[str] = []
+    columns: list[np.ndarray] = []
+    total = 0
+    for name, model in reductions.items():
+        order = model.projection.order
+        total += order
+        keep = min(order, max(0, int(max_shapes_each)), fits)
+        if keep == 0:
+            continue
+        columns.append(prepared.expand(model.projection.V[:, :keep]))
+        names += [
+            f"{name} #{k + 1}: {f:.4g} Hz" for k, f in enumerate(model.eigenfrequencies_hz[:keep])
+        ]
+    if not columns:
+        return plain
+    scene = body_scene(
+        body,
+        basis=np.hstack(columns),
+        shape_names=names,
+        frame=frame,
+        interfaces=interfaces,
+    )
+    scene["shapes_total"] = total
+    if len(names) < total:
+        scene["notes"].append(
+            f"{len(names)} of the {total} shape functions shown (at most "
+            f"{min(int(max_shapes_each), fits)} of each reduction), to keep the page small"
+        )
+    return scene
+
+
+def attached_nodes(body: ElasticBody) -> list[tuple[str, int, np.ndarray]]:
+    """Interface nodes the model carries: nodes off the surface coupled only to surface nodes.
+
+    A node the surface does not use (no element face or line element has it) whose every
+    coupling -- a stiffness entry (beams, springs) or a constraint equation (rigid, RBE2- or
+    RBE3-like) with another node's dofs -- goes to nodes of the surface is an interface node
+    of the model, e.g. ``rack-solid``'s node 2 in its hole or a Nastran RBE2's independent
+    node. A node inside a solid couples to other inner nodes and is not one.
+
+    Returns
+    -------
+    list of (name, node id, coupled node ids)
+        In the order of the node ids; empty for a body without a surface.
+    """
+    surface = body.surface
+    if surface is None or body.n_dof == 0:
+        return []
+    n = body.n_nodes
+    drawn = np.zeros(n, dtype=bool)
+    drawn[body.node_rows(surface.node_ids)] = True
+    geometric = body.dofs.directions != SCALAR
+    row_of_dof = np.full(body.n_dof, -1, dtype=np.int64)
+    row_of_dof[geometric] = body.node_rows(body.dofs.nodes[geometric])
+    candidates = np.flatnonzero(geometric & ~drawn[np.maximum(row_of_dof, 0)])
+    if candidates.size == 0:
+        return []
+    # Node pairs (row, other row) coupled by a stiffness entry, rows taken in chunks so that a
+    # large solid's inner nodes never need more than a slice of K at once.
+    pairs = []
+    stiffness = sp.csr_matrix(body.stiffness)
+    for start in range(0, candidates.size, _CHUNK):
+        part = candidates[start : start + _CHUNK]
+        block = stiffness[part].tocoo()
+        pairs.append(_node_pairs(row_of_dof[part[block.row]], row_of_dof[block.col], n))
+    constraints = body.constraints
+    if constraints is not None and len(constraints):  # both ways: either side may be the node
+        g = constraints.matrix.tocoo()
+        a, b = row_of_dof[constraints.dependent[g.row]], row_of_dof[g.col]
+        pairs += [_node_pairs(a, b, n), _node_pairs(b, a, n)]
+    pair = np.unique(np.concatenate(pairs))
+    rows, other = pair // n, pair % n
+    keep = ~drawn[rows]
+    rows, other = rows[keep], other[keep]
+    bad = np.unique(rows[~drawn[other]])  # coupled to a node off the surface: an inner node
+    good = ~np.isin(rows, bad)
+    rows, other = rows[good], other[good]
+    if rows.size == 0:
+        return []
+    starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])  # pairs are sorted by row
+    out = []
+    for first, last in zip(starts, [*starts[1:].tolist(), rows.size], strict=True):
+        node = int(body.node_ids[rows[first]])
+        out.append((f"node {node} (the model's)", node, body.node_ids[other[first:last]]))
+    return sorted(out, key=lambda item: item[1])
+
+
+def _node_pairs(rows: np.ndarray, other: np.ndarray, n: int) -> np.ndarray:
+    """Unique codes ``row * n + other`` of node pairs, without scalar dofs and self pairs."""
+    keep = (rows >= 0) & (other >= 0) & (rows != other)
+    return np.unique(rows[keep] * n + other[keep])
 
 
 def _size(coordinates: np.ndarray) -> float:

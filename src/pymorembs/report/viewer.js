@@ -9,48 +9,60 @@
  * nodes as points where the body has no triangles, the frame as an axis triad, interface nodes
  * as large points and their coupled nodes as coloured points. A shape is shown as
  *   x = x0 + s * u,   s = amplitude * size * sin(2 pi t / period)   (animated) or the peak,
- * with u the shape scaled to a largest translation of 1. The deformed triangles' normals are
- * exact: n(s) = n0 + s n1 + s^2 n2 (the cross product of the deformed edges), with n0, n1, n2
- * computed here once per shape; animating changes one uniform, no buffer.
+ * with u the shape scaled to a largest translation of 1, formed in the vertex shader from two
+ * buffers over the nodes (x0 and u): showing a shape writes u once, animating changes one
+ * uniform. Surface, edges and lines are drawn indexed from those node buffers (one draw call
+ * each); the faces' normals are those of the drawn (deformed) triangles, from the screen-space
+ * derivatives of the position (OES_standard_derivatives), so they need no buffer. Feature edges
+ * come from the undeformed triangles' normals, computed here once per scene.
  *
  * Mouse: left drag rotates, wheel zooms, right drag (or shift + left drag, middle drag) pans.
  */
 (function (global) {
   "use strict";
 
-  const SURFACE_VS = `
-attribute vec3 aBase; attribute vec3 aShape;
-attribute vec3 aN0; attribute vec3 aN1; attribute vec3 aN2;
-uniform mat4 uView; uniform mat4 uProj; uniform mat3 uRot; uniform float uS;
-varying vec3 vNormal; varying float vMag;
-void main() {
-  vec3 p = aBase + uS * aShape;
-  vNormal = uRot * (aN0 + uS * aN1 + uS * uS * aN2);
-  vMag = length(aShape);
-  gl_Position = uProj * uView * vec4(p, 1.0);
-}`;
-  const SURFACE_FS = `
-precision mediump float;
-varying vec3 vNormal; varying float vMag;
-uniform vec3 uColor; uniform float uContour;
-vec3 ramp(float t) {
+  const RAMP = `
+vec3 ramp(float t) {  // blue (no translation) - grey - red (the largest)
   vec3 a = vec3(0.23, 0.30, 0.75), b = vec3(0.87, 0.87, 0.87), c = vec3(0.71, 0.02, 0.15);
   return t < 0.5 ? mix(a, b, 2.0 * t) : mix(b, c, 2.0 * t - 1.0);
-}
+}`;
+  const SURFACE_VS = `
+attribute vec3 aBase; attribute vec3 aShape;
+uniform mat4 uView; uniform mat4 uProj; uniform float uS;
+varying vec3 vPos; varying float vMag;
 void main() {
-  vec3 n = normalize(vNormal);
+  vec4 p = uView * vec4(aBase + uS * aShape, 1.0);
+  vPos = p.xyz;
+  vMag = length(aShape);
+  gl_Position = uProj * p;
+}`;
+  const SURFACE_FS = `
+#extension GL_OES_standard_derivatives : enable
+#ifdef GL_FRAGMENT_PRECISION_HIGH
+precision highp float;
+#else
+precision mediump float;
+#endif
+varying vec3 vPos; varying float vMag;
+uniform vec3 uColor; uniform float uContour;
+${RAMP}
+void main() {
+  vec3 n = normalize(cross(dFdx(vPos), dFdy(vPos)));  // the drawn triangle's, towards the eye
   if (n.z < 0.0) n = -n;
-  vec3 light = normalize(vec3(0.35, 0.45, 1.0));
+  vec3 light = normalize(vec3(0.25, 0.35, 1.0));
   float diffuse = max(dot(n, light), 0.0);
   vec3 base = uContour > 0.5 ? ramp(clamp(vMag, 0.0, 1.0)) : uColor;
-  gl_FragColor = vec4(base * (0.35 + 0.65 * diffuse), 1.0);
+  gl_FragColor = vec4(base * (0.4 + 0.6 * diffuse), 1.0);
 }`;
+  // Lines and points: the per-vertex colour (aColor) of the small coloured sets, or the
+  // magnitude of the shape (vMag) for sets drawn from the node buffers in one colour.
   const LINE_VS = `
 attribute vec3 aBase; attribute vec3 aShape; attribute vec3 aColor;
 uniform mat4 uView; uniform mat4 uProj; uniform float uS; uniform float uSize;
-varying vec3 vColor;
+varying vec3 vColor; varying float vMag;
 void main() {
   vColor = aColor;
+  vMag = length(aShape);
   gl_Position = uProj * uView * vec4(aBase + uS * aShape, 1.0);
   gl_PointSize = uSize;
 }`;
@@ -58,6 +70,18 @@ void main() {
 precision mediump float;
 varying vec3 vColor;
 void main() { gl_FragColor = vec4(vColor, 1.0); }`;
+  const WIRE_FS = `
+precision mediump float;
+varying float vMag;
+uniform vec3 uColor; uniform float uRound; uniform float uContour;
+${RAMP}
+void main() {
+  if (uRound > 0.5) {
+    vec2 d = gl_PointCoord - vec2(0.5);
+    if (dot(d, d) > 0.25) discard;
+  }
+  gl_FragColor = vec4(uContour > 0.5 ? 0.8 * ramp(clamp(vMag, 0.0, 1.0)) : uColor, 1.0);
+}`;
   const POINT_FS = `
 precision mediump float;
 varying vec3 vColor;
@@ -84,6 +108,7 @@ void main() {
   const FEATURE_COS = Math.cos(30 * Math.PI / 180);
   const FOV = 30 * Math.PI / 180;
   const PERIOD_S = 2.0;
+  const TRIAD = 0.2;  // length of the frame's axes, fraction of the size
 
   function css(rgb) {
     return "rgb(" + rgb.map((c) => Math.round(255 * c)).join(",") + ")";
@@ -169,8 +194,13 @@ void main() {
       if (!gl) throw new Error("PymorembsViewer: this browser offers no WebGL");
       this.gl = gl;
       this.frames = 0;
+      if (!gl.getExtension("OES_standard_derivatives")) {
+        throw new Error("PymorembsViewer: this browser's WebGL lacks OES_standard_derivatives");
+      }
+      this._uint = !!gl.getExtension("OES_element_index_uint");
       this._programs = {
         surface: compile(gl, SURFACE_VS, SURFACE_FS),
+        wire: compile(gl, LINE_VS, WIRE_FS),
         line: compile(gl, LINE_VS, LINE_FS),
         point: compile(gl, LINE_VS, POINT_FS),
       };
@@ -189,6 +219,21 @@ void main() {
     }
 
     // ------------------------------------------------------------------ public
+    /** Index of the shown shape, or null. */
+    get shape() {
+      return this._shape;
+    }
+
+    /** Largest translation of the shown shape as a fraction of the model's size. */
+    get amplitude() {
+      return this._amplitude;
+    }
+
+    /** Whether the shape is animated. */
+    get animating() {
+      return this._animating;
+    }
+
     /** Call `listener(viewer)` after every change of scene, shape, amplitude or animation. */
     onChange(listener) {
       this._listeners.push(listener);
@@ -199,6 +244,10 @@ void main() {
       this.scene = scene;
       const P = new Float32Array(scene.positions || []);
       this._n = P.length / 3;
+      if (this._n > 65536 && !this._uint) {
+        throw new Error("PymorembsViewer: this browser's WebGL draws at most 65,536 nodes " +
+          "(no OES_element_index_uint); the scene has " + this._n);
+      }
       this._P = P;
       this._tri = Uint32Array.from(scene.triangles || []);
       this._lin = Uint32Array.from(scene.lines || []);
@@ -219,7 +268,7 @@ void main() {
     /** Show shape k (index into scene.shapes), or the undeformed body for null. */
     setShape(k) {
       const shapes = this.scene.shapes || [];
-      if (k === null || k === undefined || k < 0 || k >= shapes.length) {
+      if (!Number.isInteger(k) || k < 0 || k >= shapes.length) {
         this._shape = null;
         this._U.fill(0);
       } else {
@@ -354,11 +403,20 @@ void main() {
         this._draw(p, b.surface, gl.TRIANGLES);
         gl.disable(gl.POLYGON_OFFSET_FILL);
       }
-      for (const kind of ["edges", "lines"]) {
-        if (b[kind] && b[kind].count) this._draw(this._use("line", m, s), b[kind], gl.LINES);
-      }
       const dpr = this._dpr;
-      const pointSets = [["nodes", 4], ["coupled", 6], ["highlight", 7]];
+      const wires = [["edges", gl.LINES, COLORS.edge], ["lines", gl.LINES, COLORS.line],
+        ["nodes", gl.POINTS, COLORS.node]];
+      for (const [kind, mode, color] of wires) {
+        if (!b[kind] || !b[kind].count) continue;
+        const p = this._use("wire", m, s);
+        gl.uniform3fv(p.uniforms.uColor, color);
+        gl.uniform1f(p.uniforms.uSize, 4 * dpr);
+        gl.uniform1f(p.uniforms.uRound, mode === gl.POINTS ? 1 : 0);
+        const contour = kind !== "edges" && this._contour && this._shape !== null;
+        gl.uniform1f(p.uniforms.uContour, contour ? 1 : 0);
+        this._draw(p, b[kind], mode);
+      }
+      const pointSets = [["coupled", 6], ["highlight", 7]];
       for (const [kind, size] of pointSets) {
         if (!b[kind] || !b[kind].count) continue;
         const p = this._use("point", m, s);
@@ -440,9 +498,13 @@ void main() {
       if (!n) { lo.fill(-0.5); hi.fill(0.5); }
       const f = this.scene.frame;
       if (f) {  // the triad belongs in the view too
-        for (let k = 0; k < 3; k++) {
-          lo[k] = Math.min(lo[k], f.origin[k]);
-          hi[k] = Math.max(hi[k], f.origin[k]);
+        const L = TRIAD * this._size;
+        for (const tip of [[0, 0, 0], ...f.axes]) {
+          for (let k = 0; k < 3; k++) {
+            const x = f.origin[k] + L * tip[k];
+            lo[k] = Math.min(lo[k], x);
+            hi[k] = Math.max(hi[k], x);
+          }
         }
       }
       this._lo = lo;
@@ -452,71 +514,86 @@ void main() {
     }
 
     _buildSurface() {
-      const t = this._tri.length / 3, P = this._P, T = this._tri;
-      const base = new Float32Array(9 * t), n0 = new Float32Array(9 * t);
-      this._n0 = new Float32Array(3 * t);  // unit normal per triangle, for the edges
+      // The node buffers (x0, and u of the shown shape) and the triangles' index buffer.
+      const old = this._buffers.node || {};
+      this._buffers.node = {
+        aBase: this._upload(old.aBase, this._P),
+        aShape: this._upload(old.aShape, this._U),
+      };
+      this._buffers.surface = this._indexBuffer(this._buffers.surface, this._tri);
+    }
+
+    _indexBuffer(old, indices) {
+      const gl = this.gl;
+      const buffer = (old && old.indices) || gl.createBuffer();
+      gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, buffer);
+      const typed = this._uint ? Uint32Array.from(indices) : Uint16Array.from(indices);
+      gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, typed, gl.STATIC_DRAW);
+      return { count: indices.length, indices: buffer };
+    }
+
+    _triangleNormals() {
+      // Unit normal of every undeformed triangle, shape (t, 3) flat.
+      const T = this._tri, t = T.length / 3, P = this._P, N = new Float32Array(3 * t);
       for (let j = 0; j < t; j++) {
         const a = 3 * T[3 * j], b = 3 * T[3 * j + 1], c = 3 * T[3 * j + 2];
-        for (let k = 0; k < 3; k++) {
-          base[9 * j + k] = P[a + k];
-          base[9 * j + 3 + k] = P[b + k];
-          base[9 * j + 6 + k] = P[c + k];
-        }
-        const e1 = [P[b] - P[a], P[b + 1] - P[a + 1], P[b + 2] - P[a + 2]];
-        const e2 = [P[c] - P[a], P[c + 1] - P[a + 1], P[c + 2] - P[a + 2]];
-        const nn = cross(e1, e2);
+        const nn = cross([P[b] - P[a], P[b + 1] - P[a + 1], P[b + 2] - P[a + 2]],
+          [P[c] - P[a], P[c + 1] - P[a + 1], P[c + 2] - P[a + 2]]);
         const len = Math.hypot(nn[0], nn[1], nn[2]) || 1;
-        for (let k = 0; k < 3; k++) {
-          const v = nn[k] / len;
-          this._n0[3 * j + k] = v;
-          n0[9 * j + k] = v; n0[9 * j + 3 + k] = v; n0[9 * j + 6 + k] = v;
-        }
+        N[3 * j] = nn[0] / len; N[3 * j + 1] = nn[1] / len; N[3 * j + 2] = nn[2] / len;
       }
-      const old = this._buffers.surface || {};
-      this._buffers.surface = {
-        count: 3 * t,
-        aBase: this._upload(old.aBase, base),
-        aN0: this._upload(old.aN0, n0),
-        aShape: old.aShape, aN1: old.aN1, aN2: old.aN2,
-      };
+      return N;
     }
 
     _buildEdges() {
-      // Feature edges: on the boundary, on a fold of more than 30 degrees, or non-manifold.
-      const T = this._tri, t = T.length / 3, n = this._n;
-      const first = new Map(), edges = [];
-      for (let j = 0; j < t; j++) {
-        for (let c = 0; c < 3; c++) {
-          const a = T[3 * j + c], b = T[3 * j + (c + 1) % 3];
-          const key = a < b ? a * n + b : b * n + a;
-          const seen = first.get(key);
-          if (seen === undefined) first.set(key, j);
-          else if (seen >= 0) {
-            const N = this._n0;
-            const d = N[3 * seen] * N[3 * j] + N[3 * seen + 1] * N[3 * j + 1] +
-              N[3 * seen + 2] * N[3 * j + 2];
-            if (Math.abs(d) < FEATURE_COS) edges.push(a, b);
-            first.set(key, -1);
-          } else edges.push(a, b);  // a third triangle on one edge
+      // Feature edges: on the boundary, on a fold of more than 30 degrees (either orientation:
+      // shells need not be oriented alike), or with three triangles and more. The triangle
+      // sides are bucketed by their lower node (counting sort), so equal sides meet in a
+      // bucket of a few entries: linear in the number of triangles.
+      const T = this._tri, t = T.length / 3, n = this._n, N = this._triangleNormals();
+      const sides = 3 * t, start = new Uint32Array(n + 1);
+      for (let e = 0; e < sides; e++) {
+        const a = T[e], b = T[e - (e % 3) + ((e % 3) + 1) % 3];
+        start[Math.min(a, b) + 1] += 1;
+      }
+      for (let i = 0; i < n; i++) start[i + 1] += start[i];
+      const fill = start.slice(0, n), upper = new Uint32Array(sides), owner = new Uint32Array(sides);
+      for (let e = 0; e < sides; e++) {
+        const a = T[e], b = T[e - (e % 3) + ((e % 3) + 1) % 3];
+        const at = fill[Math.min(a, b)]++;
+        upper[at] = Math.max(a, b);
+        owner[at] = (e - (e % 3)) / 3;
+      }
+      const edges = [];
+      for (let i = 0; i < n; i++) {
+        for (let x = start[i]; x < start[i + 1]; x++) {
+          const b = upper[x];
+          let count = 0, other = -1, seen = false;
+          for (let y = start[i]; y < start[i + 1]; y++) {
+            if (upper[y] !== b) continue;
+            if (y < x) { seen = true; break; }  // this side was judged at its first entry
+            count += 1;
+            if (y > x && other < 0) other = owner[y];
+          }
+          if (seen) continue;
+          let feature = count !== 2;
+          if (count === 2) {
+            const j = owner[x];
+            const d = N[3 * j] * N[3 * other] + N[3 * j + 1] * N[3 * other + 1] +
+              N[3 * j + 2] * N[3 * other + 2];
+            feature = Math.abs(d) < FEATURE_COS;
+          }
+          if (feature) edges.push(i, b);
         }
       }
-      for (const [key, j] of first) {
-        if (j >= 0) edges.push(Math.floor(key / n), key % n);
-      }
-      this._edgeNodes = Uint32Array.from(edges);
-      this._buffers.edges = this._segmentBuffer(this._buffers.edges, this._edgeNodes,
-        COLORS.edge);
-      this._buffers.lines = this._segmentBuffer(this._buffers.lines, this._lin, COLORS.line);
+      this._buffers.edges = this._indexBuffer(this._buffers.edges, edges);
+      this._buffers.lines = this._indexBuffer(this._buffers.lines, this._lin);
     }
 
     _buildPoints() {
       const s = this.scene;
-      const drawNodes = this._tri.length === 0;
-      const all = [];
-      if (drawNodes) for (let i = 0; i < this._n; i++) all.push(i);
-      this._nodeSet = Uint32Array.from(all);
-      this._buffers.nodes = this._pointBuffer(this._buffers.nodes, this._nodeSet,
-        () => COLORS.node);
+      // Without triangles every node is a point, drawn straight from the node buffers.
+      this._buffers.nodes = { count: this._tri.length === 0 ? this._n : 0, all: true };
       const coupled = [], coupledColor = [], nodes = [], nodeColor = [];
       (s.interfaces || []).forEach((f, k) => {
         const c = PALETTE[k % PALETTE.length];
@@ -548,7 +625,7 @@ void main() {
     _buildTriad() {
       const f = this.scene.frame;
       if (!f) { this._buffers.triad = { count: 0 }; return; }
-      const L = 0.2 * this._size;
+      const L = TRIAD * this._size;
       const base = [], color = [];
       f.axes.forEach((axis, k) => {
         base.push(...f.origin, ...f.origin.map((o, j) => o + L * axis[j]));
@@ -599,37 +676,9 @@ void main() {
     }
 
     _shapeBuffers() {
-      // The shape at every drawn vertex and the normal's terms n1, n2 (see the file's head).
-      const T = this._tri, t = T.length / 3, P = this._P, U = this._U;
-      const shape = new Float32Array(9 * t), n1 = new Float32Array(9 * t);
-      const n2 = new Float32Array(9 * t);
-      if (this._shape !== null) {
-        for (let j = 0; j < t; j++) {
-          const a = 3 * T[3 * j], b = 3 * T[3 * j + 1], c = 3 * T[3 * j + 2];
-          const e1 = [P[b] - P[a], P[b + 1] - P[a + 1], P[b + 2] - P[a + 2]];
-          const e2 = [P[c] - P[a], P[c + 1] - P[a + 1], P[c + 2] - P[a + 2]];
-          const d1 = [U[b] - U[a], U[b + 1] - U[a + 1], U[b + 2] - U[a + 2]];
-          const d2 = [U[c] - U[a], U[c + 1] - U[a + 1], U[c + 2] - U[a + 2]];
-          const nn = cross(e1, e2);
-          const len = Math.hypot(nn[0], nn[1], nn[2]) || 1;  // same scale as n0
-          const x = cross(e1, d2), y = cross(d1, e2), z = cross(d1, d2);
-          for (let k = 0; k < 3; k++) {
-            shape[9 * j + k] = U[a + k];
-            shape[9 * j + 3 + k] = U[b + k];
-            shape[9 * j + 6 + k] = U[c + k];
-            const v1 = (x[k] + y[k]) / len, v2 = z[k] / len;
-            n1[9 * j + k] = v1; n1[9 * j + 3 + k] = v1; n1[9 * j + 6 + k] = v1;
-            n2[9 * j + k] = v2; n2[9 * j + 3 + k] = v2; n2[9 * j + 6 + k] = v2;
-          }
-        }
-      }
-      const sb = this._buffers.surface;
-      if (sb) {
-        sb.aShape = this._upload(sb.aShape, shape);
-        sb.aN1 = this._upload(sb.aN1, n1);
-        sb.aN2 = this._upload(sb.aN2, n2);
-      }
-      for (const kind of ["edges", "lines", "nodes", "coupled", "interfaces", "highlight"]) {
+      // The shown shape into the node buffer, and into the few coloured points' buffers.
+      if (this._buffers.node) this._upload(this._buffers.node.aShape, this._U);
+      for (const kind of ["coupled", "interfaces", "highlight"]) {
         const b = this._buffers[kind];
         if (b && b.nodes) this._upload(b.aShape, this._gather(b.nodes));
       }
@@ -703,25 +752,27 @@ void main() {
       gl.uniformMatrix4fv(p.uniforms.uView, false, m.view);
       gl.uniformMatrix4fv(p.uniforms.uProj, false, m.proj);
       gl.uniform1f(p.uniforms.uS, s);
-      if (p.uniforms.uRot) {
-        const R = this._R;  // column-major of the view's rotation
-        gl.uniformMatrix3fv(p.uniforms.uRot, false,
-          new Float32Array([R[0], R[3], R[6], R[1], R[4], R[7], R[2], R[5], R[8]]));
-      }
       return p;
     }
 
-    _draw(p, buffer, mode) {
-      const gl = this.gl;
+    _draw(p, set, mode) {
+      // A set with `indices` or `all` draws from the node buffers, others from their own.
+      const gl = this.gl, source = set.indices || set.all ? this._buffers.node : set;
       const used = [];
       for (const name in p.attributes) {
         const location = p.attributes[name];
-        gl.bindBuffer(gl.ARRAY_BUFFER, buffer[name]);
+        if (!source[name]) continue;  // e.g. aColor of a one-colour set: a constant
+        gl.bindBuffer(gl.ARRAY_BUFFER, source[name]);
         gl.enableVertexAttribArray(location);
         gl.vertexAttribPointer(location, 3, gl.FLOAT, false, 0, 0);
         used.push(location);
       }
-      gl.drawArrays(mode, 0, buffer.count);
+      if (set.indices) {
+        gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, set.indices);
+        gl.drawElements(mode, set.count, this._uint ? gl.UNSIGNED_INT : gl.UNSIGNED_SHORT, 0);
+      } else {
+        gl.drawArrays(mode, 0, set.count);
+      }
       for (const location of used) gl.disableVertexAttribArray(location);
     }
 

@@ -1,0 +1,184 @@
+"""viewer.js in a real headless Chromium (software WebGL): it draws, picks and animates.
+
+The pages are built here from scenes of built-in bodies; the report's own 3D view is checked
+by a screenshot in tests/job/test_report_view.py.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import subprocess
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from pymorembs.examples import build_example
+from pymorembs.report.scene import body_scene, viewer_script
+
+CHROMIUM = shutil.which("chromium")
+pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="chromium not installed")
+
+# Flags of a headless, offline, software-rendered Chromium (SwiftShader's WebGL).
+FLAGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--use-gl=swiftshader",
+    "--enable-unsafe-swiftshader",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--disable-quic",
+    "--no-first-run",
+]
+
+# Runs in the page: draws, reads the canvas back, picks the node nearest to the eye at its
+# projected place (undeformed and deformed), animates, then shows a points-only scene. The
+# results go to the title as JSON.
+PROBE = """
+const canvas = document.getElementById("view");
+const out = {};
+function pixels(v) {
+  v.render();
+  const gl = v.gl, w = canvas.width, h = canvas.height, data = new Uint8Array(4 * w * h);
+  gl.readPixels(0, 0, w, h, gl.RGBA, gl.UNSIGNED_BYTE, data);
+  let blue = 0, other = 0;
+  for (let i = 0; i < data.length; i += 4) {
+    const [r, g, b] = [data[i], data[i + 1], data[i + 2]];
+    if (r > 240 && g > 240 && b > 240) continue;  // background
+    if (b > r + 25 && b > g) blue++; else other++;
+  }
+  return { blue, other, total: w * h };
+}
+function screen(v, i) {  // client coordinates of node i as drawn
+  const m = v._matrices(), X = v._current();
+  const x = X[3 * i], y = X[3 * i + 1], z = X[3 * i + 2], p = m.pv;
+  const w = p[3] * x + p[7] * y + p[11] * z + p[15];
+  const nx = (p[0] * x + p[4] * y + p[8] * z + p[12]) / w;
+  const ny = (p[1] * x + p[5] * y + p[9] * z + p[13]) / w;
+  const nz = (p[2] * x + p[6] * y + p[10] * z + p[14]) / w;
+  const r = canvas.getBoundingClientRect();
+  return [r.left + (nx + 1) / 2 * r.width, r.top + (1 - ny) / 2 * r.height, nz];
+}
+function front(v) {  // the node nearest to the eye
+  let best = 0, depth = Infinity;
+  for (let i = 0; i < v._n; i++) {
+    const z = screen(v, i)[2];
+    if (z < depth) { depth = z; best = i; }
+  }
+  return best;
+}
+function trianglesOf(v, j) { return Array.from(v._tri.slice(3 * j, 3 * j + 3)); }
+try {
+  const scene = JSON.parse(document.getElementById("scene").textContent);
+  const v = new PymorembsViewer(canvas, scene);
+  out.plain = pixels(v);
+  let i = front(v), [x, y] = screen(v, i);
+  out.pick = { node: i, picked: v.pickNode(x, y), triangle: v.pickTriangle(x, y) };
+  out.pick.cornerOf = out.pick.triangle === null ? false :
+    trianglesOf(v, out.pick.triangle).includes(i);
+  const r = canvas.getBoundingClientRect();
+  out.miss = [v.pickNode(r.left + 1, r.top + 1), v.pickTriangle(r.left + 1, r.top + 1)];
+  // The mouse: left drag rotates, right drag pans, the wheel zooms.
+  const mouse = (type, x, y, button, target) => (target || canvas).dispatchEvent(
+    new MouseEvent(type, { clientX: x, clientY: y, button, bubbles: true }));
+  const [R0, c0, d0] = [v._R.slice(), v._center.slice(), v._distance];
+  mouse("mousedown", 300, 200, 0); mouse("mousemove", 340, 210, 0, window);
+  mouse("mouseup", 340, 210, 0, window);
+  out.rotated = v._R.some((x, k) => Math.abs(x - R0[k]) > 1e-3) &&
+    v._center.every((x, k) => x === c0[k]);
+  const R1 = v._R.slice();
+  mouse("mousedown", 300, 200, 2); mouse("mousemove", 320, 200, 2, window);
+  mouse("mouseup", 320, 200, 2, window);
+  out.panned = v._center.some((x, k) => x !== c0[k]) && v._R.every((x, k) => x === R1[k]);
+  canvas.dispatchEvent(new WheelEvent("wheel", { deltaY: 100, bubbles: true, cancelable: true }));
+  out.zoomed = v._distance > d0;
+  v.resetView();
+  v.setShape(0);
+  v.setAmplitude(0.2);
+  out.shape = pixels(v);
+  i = front(v); [x, y] = screen(v, i);
+  out.deformed = { node: i, picked: v.pickNode(x, y), tip: v._current()[3 * i] };
+  v.highlight([0, 1, 2], [255, 0, 0]);
+  v.clearHighlight();
+  v.animate(true);
+  const before = v.frames;
+  setTimeout(() => {
+    out.animated = v.frames - before;
+    v.animate(false);
+    v.setScene(JSON.parse(document.getElementById("points").textContent));
+    out.points = pixels(v);
+    out.pointPick = v.pickNode(...screen(v, 5).slice(0, 2));
+    v.setShape(Number("none"));  // not a shape: the undeformed body
+    out.notShape = v.shape;
+    v.setScene({ positions: [], node_ids: [], triangles: [], lines: [], frame: null,
+      interfaces: [], shapes: [], size: 1 });  // an empty scene draws nothing, and no error
+    v.render();
+    out.empty = v.pickNode(r.left + 100, r.top + 100);
+    document.title = "probe " + JSON.stringify(out);
+  }, 600);
+} catch (error) {
+  document.title = "probe " + JSON.stringify({ error: String(error) });
+}
+"""
+
+
+def page(scene: dict, points: dict) -> str:
+    data = json.dumps(scene).replace("<", "\\u003c")
+    bare = json.dumps(points).replace("<", "\\u003c")
+    return (
+        '<!DOCTYPE html><html><head><meta charset="utf-8"><title>wait</title><style>'
+        "body{margin:0} div{width:640px;height:400px} canvas{width:100%;height:100%}</style>"
+        '</head><body><div><canvas id="view"></canvas></div>'
+        f'<script type="application/json" id="scene">{data}</script>'
+        f'<script type="application/json" id="points">{bare}</script>'
+        f"<script>{viewer_script()}</script><script>{PROBE}</script></body></html>"
+    )
+
+
+def run_probe(tmp_path, scene: dict, points: dict) -> dict:
+    path = tmp_path / "probe.html"
+    path.write_text(page(scene, points))
+    result = subprocess.run(
+        [CHROMIUM, *FLAGS, f"--user-data-dir={tmp_path / 'profile'}", "--window-size=800,600",
+         "--virtual-time-budget=4000", "--dump-dom", path.as_uri()],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    found = re.search(r"<title>probe (.*)</title>", result.stdout)
+    assert found, result.stderr[-2000:]
+    return json.loads(found.group(1).replace("&quot;", '"').replace("&amp;", "&"))
+
+
+@pytest.mark.slow
+def test_viewer_draws_picks_and_animates_in_chromium(tmp_path):
+    body = build_example("blade", elements=8)
+    # A flapwise bending field by hand: u_z = x^2 on every node (the blade lies along x).
+    basis = np.zeros((body.n_dof, 1))
+    rows = body.node_rows(body.dofs.nodes)
+    uz = body.dofs.directions == 2
+    basis[uz, 0] = body.coordinates[rows[uz], 0] ** 2
+    scene = body_scene(body, basis=basis)
+    points = body_scene(replace(body, surface=None))
+    out = run_probe(tmp_path, scene, points)
+    assert "error" not in out, out
+    # The blade covers a good part of the canvas in its blue, and little else is drawn.
+    assert out["plain"]["blue"] > 0.03 * out["plain"]["total"], out
+    assert out["plain"]["other"] < out["plain"]["blue"], out
+    # The node nearest to the eye is picked where it is drawn, on a triangle it is a corner of;
+    # nothing is picked in the canvas's corner.
+    assert out["pick"]["picked"] == out["pick"]["node"], out
+    assert out["pick"]["cornerOf"], out
+    assert out["miss"] == [None, None], out
+    assert out["rotated"] and out["panned"] and out["zoomed"], out
+    # Deformed (20 % of the size at the tip): coloured by the translation, picked where drawn.
+    assert out["shape"]["blue"] + out["shape"]["other"] > 0.03 * out["shape"]["total"], out
+    assert out["shape"]["other"] > 0.1 * out["shape"]["blue"], out  # red-grey contour too
+    assert out["deformed"]["picked"] == out["deformed"]["node"], out
+    assert out["animated"] >= 2, out
+    # Without a surface the nodes are drawn as points, and a node is picked within 10 px.
+    assert out["points"]["blue"] > 200, out
+    assert out["pointPick"] is not None, out
+    assert out["notShape"] is None and out["empty"] is None, out
