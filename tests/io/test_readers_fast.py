@@ -736,8 +736,10 @@ def test_compiled_parser_leaves_other_numbers_to_the_strict_pass(tmp_path, numbe
     [
         (b"  1\t1  1.0 \r\n", 1),
         (b"1 1 1.0", 1),  # no final line end
-        (b"1 1 1.0\n\n", None),  # a blank line: the general path
-        (b"1 1 1.0\r\r\n", None),
+        (b"1 1 1.0\n\n \r\n\t\n", 1),  # blank lines at the end of the file
+        (b"\n1 1 1.0\n", None),  # a blank line before an entry: the general path
+        (b"1 1 1.0\r\r\n", 1),  # white space at the end of the file
+        (b"1 1 1.0\r\r\n1 1 1.0\n", None),  # a carriage return inside the entries
         (b"0 1 1.0\n", None),  # index outside 1 .. n
         (b"10 1 1.0\n", None),
         (b"1 1.0 1.0\n", None),

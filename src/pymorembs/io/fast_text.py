@@ -744,15 +744,19 @@ def parse_coordinate_lines(
     done, kept = 0, 0
     try:
         with open(path, "rb", buffering=0) as stream:
+            left = os.fstat(stream.fileno()).st_size - offset
             stream.seek(offset)
-            while True:
-                room = min(_PARSE_BLOCK, buffer.size - 1 - kept)
-                got = stream.readinto(memoryview(buffer)[kept : kept + room])
+            while left > 0 or kept:
+                room = min(_PARSE_BLOCK, buffer.size - 1 - kept, max(left, 0))
+                got = stream.readinto(memoryview(buffer)[kept : kept + room]) if room else 0
+                left -= got
                 end = kept + got
-                if got == 0:
-                    if kept == 0:
+                final = got == 0 or left <= 0
+                if final:  # white space at the end of the file (blank lines) holds no entry
+                    end = len(buffer[:end].tobytes().rstrip(b" \t\r\n"))
+                    if end == 0:
                         break
-                    buffer[end] = _NEWLINE  # a last line without its line end
+                    buffer[end] = _NEWLINE  # the last line's end
                     cut = end + 1
                 else:
                     search = buffer[max(kept, end - _LINE_SEARCH) : end].tobytes()
@@ -767,7 +771,7 @@ def parse_coordinate_lines(
                 if lines is None:
                     return None
                 done += lines
-                if got == 0:
+                if final:
                     break
                 kept = end - cut
                 buffer[:kept] = buffer[cut:end]
