@@ -334,6 +334,27 @@ def count_lines(buffer, first, last):  # pragma: no cover - compiled
     return count
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _sign(buffer, i):  # pragma: no cover - compiled
+    """(whether ``buffer[i]`` is a minus sign, the index after an optional sign)."""
+    byte = buffer[i]
+    if byte == 45 or byte == 43:
+        return byte == 45, i + 1
+    return False, i
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _digits(buffer, i, w):  # pragma: no cover - compiled
+    """(``w`` continued by the decimal digits from ``buffer[i]`` on (modulo ``2**64``), the
+    index after them)."""
+    byte = buffer[i]
+    while byte - 48 <= 9 and byte >= 48:
+        w = w * _U64(10) + _U64(byte - 48)
+        i += 1
+        byte = buffer[i]
+    return w, i
+
+
 @numba.njit(cache=True, nogil=True)
 def _long_significand(buffer, start, stop):  # pragma: no cover - compiled
     """(significand, decimal exponent, exact) of the digits and point in ``buffer[start:stop]``
@@ -410,30 +431,19 @@ def coordinate_lines(
         rows[k] = index - 1
         cols[k] = value - 1
         # the number
-        negative = False
-        if byte == 45 or byte == 43:
-            negative = byte == 45
-            i += 1
-            byte = buffer[i]
+        negative, i = _sign(buffer, i)
         # the significand: up to 19 digits in one word (a longer one is read again with care)
         start = i
-        w = _U64(0)
-        while byte - 48 <= 9 and byte >= 48:
-            w = w * _U64(10) + _U64(byte - 48)
-            i += 1
-            byte = buffer[i]
+        w, i = _digits(buffer, i, _U64(0))
         digits = i - start
         exponent = 0
+        byte = buffer[i]
         if byte == 46:
-            i += 1
-            byte = buffer[i]
-            point = i
-            while byte - 48 <= 9 and byte >= 48:
-                w = w * _U64(10) + _U64(byte - 48)
-                i += 1
-                byte = buffer[i]
+            point = i + 1
+            w, i = _digits(buffer, point, w)
             exponent = point - i
             digits += i - point
+            byte = buffer[i]
         if digits == 0:
             return -1
         if digits > 19:
@@ -441,13 +451,8 @@ def coordinate_lines(
             if not exact:
                 return -1
         if byte == 101 or byte == 69:
-            i += 1
+            minus, i = _sign(buffer, i + 1)
             byte = buffer[i]
-            minus = False
-            if byte == 45 or byte == 43:
-                minus = byte == 45
-                i += 1
-                byte = buffer[i]
             start = i
             power = 0
             while byte - 48 <= 9 and byte >= 48:
