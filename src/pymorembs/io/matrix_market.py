@@ -600,18 +600,26 @@ def _read_coordinate_fast(path: Path) -> tuple[sp.csr_matrix, bool] | None:
         parsed = _parse_checked(path, offset, header)
     if parsed is None:
         return None
-    rows, cols, values = parsed
+    matrix = _general_csr(*parsed, n)
     del parsed
-    below = bool(np.any(rows > cols))
-    if header.symmetric and below and np.any(rows < cols):
-        return None  # both triangles: the strict pass names the entry
-    matrix = _general_csr(rows, cols, values, n)
     if matrix is None:
         return None
     if not header.symmetric:
         return matrix, False
-    del rows, cols, values
+    below, above = _sides(matrix)
+    if below and above:
+        return None  # both triangles: the strict pass names the entry
     return _mirrored(matrix, below), True
+
+
+def _sides(matrix: sp.csr_matrix) -> tuple[bool, bool]:
+    """Whether a canonical CSR matrix has entries below and above the diagonal (from the first
+    and last entry of each row: one look per row)."""
+    indptr, indices = matrix.indptr, matrix.indices
+    rows = np.flatnonzero(np.diff(indptr))
+    below = bool(np.any(indices[indptr[rows]] < rows))
+    above = bool(np.any(indices[indptr[rows + 1] - 1] > rows))
+    return below, above
 
 
 def _parse_compiled(
