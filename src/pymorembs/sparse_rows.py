@@ -28,6 +28,22 @@ def abs_row_sums(matrix: sp.spmatrix | sp.sparray) -> np.ndarray:
     out = np.zeros(n)
     if a.nnz == 0 or n == 0:
         return out
+    if not a.has_canonical_format:  # SciPy sums duplicates before it takes the values
+        a = a.copy()
+        a.sum_duplicates()
+    indptr = a.indptr
+    bounds = np.searchsorted(indptr, np.arange(0, a.nnz, _ENTRIES_PER_BLOCK), side="right") - 1
+    edges = np.unique(np.concatenate([bounds, [n]]))
+    scratch = np.empty(min(a.nnz, 2 * _ENTRIES_PER_BLOCK))
+    for first, last in zip(edges[:-1].tolist(), edges[1:].tolist(), strict=True):
+        # the rows' values as SciPy sums them (``np.add.reduceat`` over the non-empty rows)
+        lo, hi = int(indptr[first]), int(indptr[last])
+        if hi == lo:
+            continue
+        values = np.abs(a.data[lo:hi], out=scratch[: hi - lo] if hi - lo <= scratch.size else None)
+        rows = first + np.flatnonzero(np.diff(indptr[first : last + 1]))
+        out[rows] = np.add.reduceat(values, indptr[rows] - lo)
+    return out
     bounds = np.searchsorted(a.indptr, np.arange(0, a.nnz, _ENTRIES_PER_BLOCK), side="right") - 1
     edges = np.unique(np.concatenate([bounds, [n]]))
     for first, last in zip(edges[:-1].tolist(), edges[1:].tolist(), strict=True):

@@ -143,15 +143,25 @@ def check_matrix_file(tmp_path: Path, monkeypatch, text: str | bytes) -> tuple[o
         (GENERAL + "2 2 1\n1 1 1.0\n2 2 2.0\n", False),
         (GENERAL + "2 2 2\n+1 1 1.0\n2 2 +2.0\n", False),  # leading plus: strict pass
         (GENERAL.replace("real", "integer") + "2 2 2\n1 1 1.5\n2 2 2\n", False),
-        (GENERAL.upper() + "2 2 1\n1 1 1.0\n", False),  # an upper-case banner
+        # an upper-case banner: the compiled parser takes it, fast_matrix_market does not
+        (GENERAL.upper() + "2 2 1\n1 1 1.0\n", (True, False)),
         ("\ufeff" + GENERAL + "2 2 1\n1 1 1.0\n", False),  # byte order mark
         (GENERAL + "2 2 2\n1 1 1.0\r2 2 2.0\r", False),  # old Mac line ends
         (GENERAL + "2 2 1\n1 1 1.0\x00\n", False),
         (GENERAL + "2 2 1\n1 1 1.0\u00a0\n", False),  # non-ASCII blank
     ],
 )
-def test_fast_path_equals_the_strict_pass(tmp_path, monkeypatch, text, fast) -> None:
+@pytest.mark.parametrize("route", ["compiled", "fast_matrix_market"])
+def test_fast_path_equals_the_strict_pass(tmp_path, monkeypatch, text, fast, route) -> None:
+    """Both fast routes (the compiled one-pass parser and fast_matrix_market behind the byte
+    checks) give the strict pass's matrix or leave the file to it."""
+    if route == "fast_matrix_market":
+        monkeypatch.setattr(mm, "_parse_compiled", lambda *args: None)
+    elif not fast_text.compiled_checks():
+        pytest.skip("the compiled parser needs Numba")
     result, reference = check_matrix_file(tmp_path, monkeypatch, text)
+    if isinstance(fast, tuple):
+        fast = fast[route != "compiled"]
     assert (result is not None) == fast, reference
 
 
@@ -610,3 +620,157 @@ def test_numpy_paths_give_the_compiled_results(tmp_path, monkeypatch) -> None:
     assert np.array_equal(plain.toarray(), dense + dense.T - np.diag(np.diag(dense)))
     assert same(compiled, plain)
     assert gap == plain_gap == np.max(np.abs(general.toarray() - general.toarray().T))
+
+
+# ============================================================================ compiled parser
+def _parse_lines(tmp_path: Path, numbers: list[str], n: int = 9):
+    """The values of ``numbers`` on lines ``i j number`` by the compiled parser (or None)."""
+    path = tmp_path / "lines.mtx"
+    lines = "".join(f"{k % n + 1} {(k * 5) % n + 1} {x}\n" for k, x in enumerate(numbers))
+    path.write_text(lines)
+    parsed = fast_text.parse_coordinate_lines(path, 0, n, len(numbers))
+    if parsed is not None:
+        rows, cols, _ = parsed
+        k = np.arange(len(numbers))
+        assert np.array_equal(rows, k % n) and np.array_equal(cols, (k * 5) % n)
+    return parsed
+
+
+def _bits(values) -> np.ndarray:
+    return np.asarray(values, dtype=float).view(np.uint64)
+
+
+@needs_numba
+@settings(
+    max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    style=st.sampled_from(["{!r}", "{:.15E}", "{:.16e}", "{:.18e}", "{:.17g}", "{:.6e}", "{:f}"]),
+)
+def test_compiled_parser_rounds_as_python_float(tmp_path, seed, style) -> None:
+    """Random doubles of every binade, written in the styles of FE programs and pymorembs, read
+    to the very doubles Python's correctly rounding ``float`` gives (bit for bit)."""
+    rng = np.random.default_rng(seed)
+    x = rng.integers(0, 2**63, size=2000, dtype=np.int64).view(np.float64)
+    x = x[np.isfinite(x) & (np.abs(x) >= 2.2250738585072014e-308)]
+    x = np.concatenate([x, rng.standard_normal(500) * 10.0 ** rng.integers(-12, 13, 500)])
+    numbers = [style.format(v) for v in np.where(rng.random(x.size) < 0.5, -x, x).tolist()]
+    numbers = [t for t in numbers if len(t.replace("-", "").split("e")[0].split("E")[0]) <= 20]
+    parsed = _parse_lines(tmp_path, numbers)
+    assert parsed is not None
+    assert np.array_equal(_bits(parsed[2]), _bits([float(t) for t in numbers]))
+
+
+@needs_numba
+def test_compiled_parser_hard_cases(tmp_path) -> None:
+    """Ties between two doubles (decimal integers half way, rounded to even), the limits of
+    the normal range, 19 significant digits, zeros and long digit strings."""
+    rng = np.random.default_rng(5)
+    halfway = [
+        str((int(m) * 2 + 1) << (k - 53))
+        for k in range(53, 63)
+        for m in rng.integers(2**52, 2**53, 50, dtype=np.int64)
+    ]
+    numbers = [
+        *halfway,
+        "9007199254740993",
+        "9007199254740995",
+        "1e23",
+        "8.98846567431158e307",
+        "1.7976931348623157e308",
+        "1.7976931348623158e308",
+        "2.2250738585072014e-308",
+        "9999999999999999999",
+        "1.234567890123456789e-200",
+        "0.1",
+        "-0.0",
+        "0e999999",
+        "000000000000000000000000123.456",
+        "0.000000000000000000000000000123456",
+        "123456789012345678900000",
+        "1.",
+        ".5",
+        "+.5e-3",
+        "-7E+0",
+    ]
+    parsed = _parse_lines(tmp_path, numbers)
+    assert parsed is not None
+    assert np.array_equal(_bits(parsed[2]), _bits([float(t) for t in numbers]))
+
+
+@needs_numba
+@pytest.mark.parametrize(
+    "number",
+    [
+        "4.9e-324",  # subnormal
+        "2.2250738585072011e-308",
+        "1.7976931348623159e308",  # overflows
+        "1e309",
+        "12345678901234567891",  # a 20th significant digit
+        "1.2345678901234567891",
+        "1,5",
+        "1.0D+03",
+        "nan",
+        "inf",
+        "1e",
+        "e5",
+        ".e5",
+        ".",
+        "-",
+        "1.0.5",
+        "1e5.0",
+        "0x10",
+        "1.5 %",
+        "1e+",
+        "1.0 2.0",
+    ],
+)
+def test_compiled_parser_leaves_other_numbers_to_the_strict_pass(tmp_path, number) -> None:
+    assert _parse_lines(tmp_path, ["1.0", number, "2.0"]) is None
+
+
+@needs_numba
+@pytest.mark.parametrize(
+    ("text", "entries"),
+    [
+        (b"  1\t1  1.0 \r\n", 1),
+        (b"1 1 1.0", 1),  # no final line end
+        (b"1 1 1.0\n\n \r\n\t\n", 1),  # blank lines at the end of the file
+        (b"\n1 1 1.0\n", None),  # a blank line before an entry: the general path
+        (b"1 1 1.0\r\r\n", 1),  # white space at the end of the file
+        (b"1 1 1.0\r\r\n1 1 1.0\n", None),  # a carriage return inside the entries
+        (b"0 1 1.0\n", None),  # index outside 1 .. n
+        (b"10 1 1.0\n", None),
+        (b"1 1.0 1.0\n", None),
+        (b"+1 1 1.0\n", None),
+        (b"1 1\n", None),
+        (b"1 1 1.0\n2 2 2.0\n", None),  # more lines than announced
+    ],
+)
+def test_compiled_parser_line_forms(tmp_path, text, entries) -> None:
+    path = tmp_path / "a.txt"
+    path.write_bytes(text)
+    parsed = fast_text.parse_coordinate_lines(path, 0, 9, 1)
+    assert (parsed is None) == (entries is None)
+    if parsed is not None:
+        assert parsed[0].tolist() == [0] and parsed[1].tolist() == [0]
+        assert parsed[2].tolist() == [1.0]
+
+
+@needs_numba
+def test_compiled_parser_across_blocks(tmp_path, monkeypatch) -> None:
+    """Lines cut by the block and part boundaries read whole; fewer lines than announced fail."""
+    monkeypatch.setattr(fast_text, "_PARSE_BLOCK", 37)
+    monkeypatch.setattr(fast_text, "_LINE_SEARCH", 64)
+    rng = np.random.default_rng(9)
+    values = rng.standard_normal(300)
+    numbers = [repr(v) for v in values.tolist()]
+    parsed = _parse_lines(tmp_path, numbers)
+    assert parsed is not None
+    assert np.array_equal(parsed[2], values)
+    path = tmp_path / "lines.mtx"
+    assert fast_text.parse_coordinate_lines(path, 0, 9, 301) is None
+    with ThreadPoolExecutor(1) as pool:  # off the main thread: the one-thread kernel
+        again = pool.submit(fast_text.parse_coordinate_lines, path, 0, 9, 300).result()
+    assert np.array_equal(again[2], values)

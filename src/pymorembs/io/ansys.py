@@ -848,8 +848,11 @@ def _lone_diagonals(
 ) -> np.ndarray:
     """Equations with a diagonal stiffness entry, no other stiffness term and no mass/damping."""
     k = sp.csr_matrix(stiffness)
-    diagonal = k.diagonal() != 0
-    alone = diagonal & (np.diff(k.indptr) == 1)
+    k.sum_duplicates()  # (no copy if canonical)
+    alone = np.zeros(k.shape[0], dtype=bool)
+    single = np.flatnonzero(np.diff(k.indptr) == 1)  # rows of one entry: is it the diagonal?
+    first = k.indptr[single]
+    alone[single] = (k.indices[first] == single) & (k.data[first] != 0)
     for matrix in (mass, damping):
         if matrix is not None:
             alone &= np.diff(sp.csr_matrix(matrix).indptr) == 0

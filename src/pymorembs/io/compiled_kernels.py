@@ -225,3 +225,290 @@ def rows_gap(indptr, indices, data, first, last):  # pragma: no cover - compiled
             if difference > gap:
                 gap = difference
     return gap
+
+
+# ---------------------------------------------------------------------------- coordinate lines
+_U64 = np.uint64
+_LOW32 = np.uint64(0xFFFFFFFF)
+_TOP = np.uint64(1) << np.uint64(63)
+_TWO53 = np.uint64(1) << np.uint64(53)
+#: Exact powers of ten as doubles (10**0 .. 10**22: every one of them is a double).
+_EXACT_TENS = np.array([10.0**k for k in range(23)])
+#: Decimal exponents covered by :data:`POWERS_OF_FIVE`.
+SMALLEST_POWER, LARGEST_POWER = -342, 308
+
+
+def _powers_of_five() -> np.ndarray:
+    """The 128 most significant bits of ``5**q`` for ``q`` in ``SMALLEST_POWER ..
+    LARGEST_POWER`` (two words per power, high word first) as the Eisel-Lemire conversion needs
+    them: ``5**q`` scaled into ``[2**127, 2**128)`` and cut for ``q >= 0``; for ``q < 0``
+    ``2**b // 5**-q + 1`` with ``b`` such that it is a 128-bit number (``b`` larger and the
+    result cut for ``q < -27``), an upper bound of the scaled reciprocal."""
+    words = []
+    for q in range(SMALLEST_POWER, LARGEST_POWER + 1):
+        if q < 0:
+            power = 5**-q
+            z = power.bit_length() if power & (power - 1) else power.bit_length() - 1
+            b = z + 127 if q >= -27 else 2 * z + 128
+            c = (1 << b) // power + 1
+            while c >= 1 << 128:
+                c >>= 1
+        else:
+            c = 5**q
+            while c < 1 << 127:
+                c <<= 1
+            while c >= 1 << 128:
+                c >>= 1
+        words += [c >> 64, c & (2**64 - 1)]
+    return np.array(words, dtype=np.uint64)
+
+
+#: :func:`_powers_of_five` (1,302 words).
+POWERS_OF_FIVE = _powers_of_five()
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _product_128(a, b):  # pragma: no cover - compiled
+    """(high, low) words of the 128-bit product of two 64-bit words."""
+    a_lo, a_hi = a & _LOW32, a >> _U64(32)
+    b_lo, b_hi = b & _LOW32, b >> _U64(32)
+    p0, p1, p2, p3 = a_lo * b_lo, a_lo * b_hi, a_hi * b_lo, a_hi * b_hi
+    middle = (p0 >> _U64(32)) + (p1 & _LOW32) + (p2 & _LOW32)
+    low = (middle << _U64(32)) | (p0 & _LOW32)
+    high = p3 + (p1 >> _U64(32)) + (p2 >> _U64(32)) + (middle >> _U64(32))
+    return high, low
+
+
+@numba.njit(cache=True, nogil=True)
+def decimal_to_bits(w, q, powers):  # pragma: no cover - compiled
+    """IEEE bits of the double nearest to ``w * 10**q`` (ties to even), for a decimal
+    significand ``0 < w < 2**64`` (at most 19 digits, so exact) and ``SMALLEST_POWER <= q <=
+    LARGEST_POWER``; 0 when the result would be subnormal or overflow (the caller then leaves
+    the number to a strict parser).
+
+    The Eisel-Lemire method (Lemire, "Number parsing at a gigabyte per second", 2021): the
+    normalised significand times the 128-bit power of five of :data:`POWERS_OF_FIVE` gives the
+    leading 54 bits of the result and the binary exponent from ``q * log2(10)``; the second
+    word of the power is needed only when the low bits of the first product are all ones, and
+    Mushtak and Lemire ("Fast number parsing without fallback", 2023) proved that the two words
+    always decide the rounding for significands of at most 19 digits.
+    """
+    shift = _U64(0)
+    for step in (32, 16, 8, 4, 2, 1):
+        if w < (_U64(1) << _U64(64 - step)):
+            w = w << _U64(step)
+            shift += _U64(step)
+    index = 2 * (q - SMALLEST_POWER)
+    high, low = _product_128(w, powers[index])
+    if (high & _U64(0x1FF)) == _U64(0x1FF):
+        second_high, _ = _product_128(w, powers[index + 1])
+        low = low + second_high
+        if second_high > low:
+            high = high + _U64(1)
+    upper = high >> _U64(63)
+    drop = upper + _U64(9)
+    mantissa = high >> drop
+    power2 = ((217706 * q) >> 16) + 63 + np.int64(upper) - np.int64(shift) + 1023
+    if power2 <= 0:
+        return _U64(0)  # subnormal
+    if low <= _U64(1) and -4 <= q <= 23 and (mantissa & _U64(3)) == _U64(1):
+        if (mantissa << drop) == high:
+            mantissa = mantissa & ~_U64(1)  # exactly half way: round to even
+    mantissa = mantissa + (mantissa & _U64(1))
+    mantissa = mantissa >> _U64(1)
+    if mantissa >= (_U64(2) << _U64(52)):
+        mantissa = _U64(1) << _U64(52)
+        power2 += 1
+    mantissa = mantissa & ~(_U64(1) << _U64(52))
+    if power2 >= 0x7FF:
+        return _U64(0)  # overflow
+    return mantissa | (_U64(power2) << _U64(52))
+
+
+@numba.njit(cache=True, nogil=True)
+def count_lines(buffer, first, last):  # pragma: no cover - compiled
+    """Line feeds in ``buffer[first:last]``."""
+    count = 0
+    for i in range(first, last):
+        count += buffer[i] == 10
+    return count
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _sign(buffer, i):  # pragma: no cover - compiled
+    """(whether ``buffer[i]`` is a minus sign, the index after an optional sign)."""
+    byte = buffer[i]
+    if byte == 45 or byte == 43:
+        return byte == 45, i + 1
+    return False, i
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _digits(buffer, i, w):  # pragma: no cover - compiled
+    """(``w`` continued by the decimal digits from ``buffer[i]`` on (modulo ``2**64``), the
+    index after them)."""
+    byte = buffer[i]
+    while byte - 48 <= 9 and byte >= 48:
+        w = w * _U64(10) + _U64(byte - 48)
+        i += 1
+        byte = buffer[i]
+    return w, i
+
+
+@numba.njit(cache=True, nogil=True)
+def _long_significand(buffer, start, stop):  # pragma: no cover - compiled
+    """(significand, decimal exponent, exact) of the digits and point in ``buffer[start:stop]``
+    without leading zeros and at most 19 significant digits; ``exact`` is false when a
+    non-zero digit beyond the 19th would be dropped."""
+    w = _U64(0)
+    significant = 0
+    exponent = 0
+    after_point = False
+    exact = True
+    for i in range(start, stop):
+        byte = buffer[i]
+        if byte == 46:
+            after_point = True
+            continue
+        if significant < 19:
+            if w != 0 or byte != 48:
+                w = w * _U64(10) + _U64(byte - 48)
+                significant += 1
+            if after_point:
+                exponent -= 1
+        else:
+            if not after_point:
+                exponent += 1
+            exact &= byte == 48
+    return w, exponent, exact
+
+
+@numba.njit(cache=True, nogil=True)
+def coordinate_lines(
+    buffer, first, last, n, rows, cols, values, bits, at, powers
+):  # pragma: no cover - compiled
+    """Parse the lines ``row column value`` of ``buffer[first:last]`` (whole lines, each ending
+    in a line feed) into ``rows``, ``cols`` (from 0), ``values`` from index ``at`` on.
+
+    A line is accepted only in the plain form ``[blanks] digits blanks digits blanks number
+    [blanks] [CR] LF`` (blanks: spaces and tabs; number: ``[sign] digits [. digits]`` or
+    ``[sign] . digits``, then optionally ``e|E [sign] digits``), with indices ``1 .. n`` and at
+    most 19 significant digits in the number whose value is a normal double or zero. Returns
+    the number of lines, or -1 at the first line of any other form (blank, comment, a decimal
+    comma, a Fortran ``D`` exponent, ...), which the caller leaves to its strict pass.
+
+    Values are exactly the doubles a correctly rounding parser (Python's ``float``) gives: the
+    significand times an exact power of ten in one rounding where both are exact doubles
+    (``w <= 2**53``, ``|q| <= 22``), else :func:`decimal_to_bits`. ``bits`` is ``values``
+    viewed as ``uint64``.
+    """
+    i = first
+    k = at
+    while i < last:
+        byte = buffer[i]
+        while byte == 32 or byte == 9:
+            i += 1
+            byte = buffer[i]
+        # the two indices: unsigned digits (at most 10)
+        index = 0
+        for field in range(2):
+            start = i
+            value = 0
+            byte = buffer[i]
+            while byte - 48 <= 9 and byte >= 48:
+                value = value * 10 + (byte - 48)
+                i += 1
+                byte = buffer[i]
+            if i == start or i - start > 10 or value < 1 or value > n:
+                return -1
+            if byte != 32 and byte != 9:
+                return -1
+            while byte == 32 or byte == 9:
+                i += 1
+                byte = buffer[i]
+            if field == 0:
+                index = value
+        rows[k] = index - 1
+        cols[k] = value - 1
+        # the number
+        negative, i = _sign(buffer, i)
+        # the significand: up to 19 digits in one word (a longer one is read again with care)
+        start = i
+        w, i = _digits(buffer, i, _U64(0))
+        digits = i - start
+        exponent = 0
+        byte = buffer[i]
+        if byte == 46:
+            point = i + 1
+            w, i = _digits(buffer, point, w)
+            exponent = point - i
+            digits += i - point
+            byte = buffer[i]
+        if digits == 0:
+            return -1
+        if digits > 19:
+            w, exponent, exact = _long_significand(buffer, start, i)
+            if not exact:
+                return -1
+        if byte == 101 or byte == 69:
+            minus, i = _sign(buffer, i + 1)
+            byte = buffer[i]
+            start = i
+            power = 0
+            while byte - 48 <= 9 and byte >= 48:
+                if power < 100000:
+                    power = power * 10 + (byte - 48)
+                i += 1
+                byte = buffer[i]
+            if i == start:
+                return -1
+            exponent += -power if minus else power
+        while byte == 32 or byte == 9:
+            i += 1
+            byte = buffer[i]
+        if byte == 13:
+            i += 1
+            byte = buffer[i]
+        if byte != 10:
+            return -1
+        i += 1
+        if w == 0:
+            values[k] = -0.0 if negative else 0.0
+        elif w <= _TWO53 and -22 <= exponent <= 22:
+            x = np.float64(w)
+            x = x * _EXACT_TENS[exponent] if exponent >= 0 else x / _EXACT_TENS[-exponent]
+            values[k] = -x if negative else x
+        else:
+            if exponent < SMALLEST_POWER or exponent > LARGEST_POWER:
+                return -1
+            word = decimal_to_bits(w, exponent, powers)
+            if word == 0:
+                return -1
+            bits[k] = word | (_TOP if negative else _U64(0))
+        k += 1
+    return k - at
+
+
+@numba.njit(cache=True, nogil=True, parallel=True)
+def coordinate_lines_parallel(
+    buffer, bounds, starts, n, rows, cols, values, bits, powers
+):  # pragma: no cover - compiled
+    """:func:`coordinate_lines` of the parts ``buffer[bounds[p]:bounds[p + 1]]`` on Numba's
+    threads, part ``p`` from entry ``starts[p]`` on; the lines of each part, or -1."""
+    parts = bounds.size - 1
+    out = np.empty(parts, dtype=np.int64)
+    for p in numba.prange(parts):
+        out[p] = coordinate_lines(
+            buffer, bounds[p], bounds[p + 1], n, rows, cols, values, bits, starts[p], powers
+        )
+    return out
+
+
+@numba.njit(cache=True, nogil=True, parallel=True)
+def count_lines_parallel(buffer, bounds):  # pragma: no cover - compiled
+    """:func:`count_lines` of each part ``buffer[bounds[p]:bounds[p + 1]]`` on Numba's threads."""
+    parts = bounds.size - 1
+    out = np.empty(parts, dtype=np.int64)
+    for p in numba.prange(parts):
+        out[p] = count_lines(buffer, bounds[p], bounds[p + 1])
+    return out

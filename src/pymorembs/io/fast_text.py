@@ -32,9 +32,11 @@ __all__ = [
     "check_chunk",
     "check_chunk_numpy",
     "compiled_checks",
+    "compiled_worthwhile",
     "count_plain_fields",
     "csr_from_sorted_coo",
     "full_from_triangle",
+    "parse_coordinate_lines",
     "transpose_gap",
 ]
 
@@ -210,6 +212,13 @@ def _compiled_module():
     except ImportError:
         return None
     return compiled_kernels
+
+
+def compiled_worthwhile(size: int) -> bool:
+    """Whether the compiled kernels should handle a region of ``size`` bytes: Numba is
+    installed and the region has :data:`COMPILED_FROM_BYTES` or more, or the kernels are loaded
+    already (for a small region, loading them costs more than they save)."""
+    return (size >= COMPILED_FROM_BYTES or _loaded()) and _kernels() is not None
 
 
 def _loaded() -> bool:
@@ -683,6 +692,133 @@ def _on_threads(serial, parallel, rows: int):
         return parallel(parts)
     finally:
         numba.set_num_threads(previous)
+
+
+#: Bytes of a file parsed at a time by :func:`parse_coordinate_lines`.
+_PARSE_BLOCK = 1 << 24
+#: Bytes searched for the last line end of a block (no line of a number file is this long).
+_LINE_SEARCH = 1 << 16
+
+
+def parse_coordinate_lines(
+    path: str | os.PathLike[str], offset: int, n: int, entries: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """The entries of the coordinate lines ``row column value`` of a file from byte ``offset``
+    on, parsed and checked in one pass by the compiled kernel, or None.
+
+    Every line must have the plain form of :func:`~pymorembs.io.compiled_kernels.
+    coordinate_lines` (indices ``1 .. n``), and there must be ``entries`` lines; the values are
+    the correctly rounded doubles of the decimal numbers, as Python's ``float`` reads them.
+    The file is read in blocks of :data:`_PARSE_BLOCK` bytes, each parsed in parts on the
+    solver threads (from the main thread; else on this thread).
+
+    Returns None without Numba, for any line of another form, another number of lines, a
+    number that needs more than 19 significant digits or is subnormal, or a read error: the
+    caller then reads the file by its general path, which names a bad line.
+
+    Parameters
+    ----------
+    path : path-like
+        The file.
+    offset : int
+        Byte offset of the first entry line.
+    n : int
+        Matrix size (indices count from 1 to ``n``).
+    entries : int
+        Entry lines announced by the size line.
+
+    Returns
+    -------
+    rows, cols : ndarray of int32, shape (entries,)
+        Indices counted from 0, in file order.
+    values : ndarray of float64, shape (entries,)
+    """
+    kernels = _kernels()
+    if kernels is None or entries <= 0 or n >= 2**31 - 1:
+        return None
+    rows = np.empty(entries, dtype=np.int32)
+    cols = np.empty(entries, dtype=np.int32)
+    values = np.empty(entries)
+    bits = values.view(np.uint64)
+    buffer = np.empty(_PARSE_BLOCK + _LINE_SEARCH + 1, dtype=np.uint8)
+    done, kept = 0, 0
+    try:
+        with open(path, "rb", buffering=0) as stream:
+            left = os.fstat(stream.fileno()).st_size - offset
+            stream.seek(offset)
+            while left > 0 or kept:
+                room = min(_PARSE_BLOCK, buffer.size - 1 - kept, max(left, 0))
+                got = stream.readinto(memoryview(buffer)[kept : kept + room]) if room else 0
+                left -= got
+                end = kept + got
+                final = got == 0 or left <= 0
+                if final:  # white space at the end of the file (blank lines) holds no entry
+                    end = len(buffer[:end].tobytes().rstrip(b" \t\r\n"))
+                    if end == 0:
+                        break
+                    buffer[end] = _NEWLINE  # the last line's end
+                    cut = end + 1
+                else:
+                    search = buffer[max(kept, end - _LINE_SEARCH) : end].tobytes()
+                    last = search.rfind(b"\n")
+                    if last < 0:  # no line end yet: read on (a line is never this long)
+                        kept = end
+                        if kept > _LINE_SEARCH:
+                            return None
+                        continue
+                    cut = end - len(search) + last + 1
+                lines = _parse_block(kernels, buffer, cut, n, rows, cols, values, bits, done)
+                if lines is None:
+                    return None
+                done += lines
+                if final:
+                    break
+                kept = end - cut
+                buffer[:kept] = buffer[cut:end]
+    except (OSError, ValueError):
+        return None
+    if done != entries:
+        return None
+    return rows, cols, values
+
+
+def _parse_block(kernels, buffer, size, n, rows, cols, values, bits, done) -> int | None:
+    """Lines of ``buffer[:size]`` (whole lines) parsed into the entries from ``done`` on."""
+    powers = kernels.POWERS_OF_FIVE
+
+    def parse(parts: int) -> int | None:
+        bounds = [0]
+        for p in range(1, parts):
+            target = max(size * p // parts, bounds[-1])
+            stop = min(target + _LINE_SEARCH, size)
+            at = buffer[target:stop].tobytes().find(b"\n")
+            bounds.append(bounds[-1] if at < 0 else target + at + 1)
+        bounds.append(size)
+        edges = np.array(bounds, dtype=np.int64)
+        if parts > 1:
+            counts = kernels.count_lines_parallel(buffer, edges)
+        else:
+            counts = np.array([kernels.count_lines(buffer, 0, size)])
+        starts = done + np.concatenate([[0], np.cumsum(counts)[:-1]])
+        if done + int(counts.sum()) > rows.size:
+            return None
+        if parts > 1:
+            lines = kernels.coordinate_lines_parallel(
+                buffer, edges, starts, n, rows, cols, values, bits, powers
+            )
+        else:
+            lines = np.array(
+                [
+                    kernels.coordinate_lines(
+                        buffer, 0, size, n, rows, cols, values, bits, done, powers
+                    )
+                ]
+            )
+        if np.any(lines != counts):
+            return None
+        return int(counts.sum())
+
+    return _on_threads(lambda: parse(1), parse, max(size >> 20, 1))
 
 
 def all_distinct(keys: np.ndarray) -> bool:

@@ -73,8 +73,10 @@ from pymorembs.io.fast_text import (
     CheckedReader,
     PlainNumberScan,
     all_distinct,
+    compiled_worthwhile,
     csr_from_sorted_coo,
     full_from_triangle,
+    parse_coordinate_lines,
     transpose_gap,
 )
 
@@ -593,6 +595,50 @@ def _read_coordinate_fast(path: Path) -> tuple[sp.csr_matrix, bool] | None:
         return None  # the strict pass is quicker than starting the parser's threads
     if entries * _MIN_ENTRY_BYTES > data_bytes + 1 or (n > _MOSTLY_EMPTY_FROM and n > 2 * entries):
         return None
+    parsed = _parse_compiled(path, offset, n, entries, data_bytes)
+    if parsed is None:
+        parsed = _parse_checked(path, offset, header)
+    if parsed is None:
+        return None
+    matrix = _general_csr(*parsed, n)
+    del parsed
+    if matrix is None:
+        return None
+    if not header.symmetric:
+        return matrix, False
+    below, above = _sides(matrix)
+    if below and above:
+        return None  # both triangles: the strict pass names the entry
+    return _mirrored(matrix, below), True
+
+
+def _sides(matrix: sp.csr_matrix) -> tuple[bool, bool]:
+    """Whether a canonical CSR matrix has entries below and above the diagonal (from the first
+    and last entry of each row: one look per row)."""
+    indptr, indices = matrix.indptr, matrix.indices
+    rows = np.flatnonzero(np.diff(indptr))
+    below = bool(np.any(indices[indptr[rows]] < rows))
+    above = bool(np.any(indices[indptr[rows + 1] - 1] > rows))
+    return below, above
+
+
+def _parse_compiled(
+    path: Path, offset: int, n: int, entries: int, data_bytes: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """The entries of a large file parsed and checked in one pass by the compiled kernel
+    (:func:`~pymorembs.io.fast_text.parse_coordinate_lines`), or None (no Numba, a small file
+    while the kernels are not loaded, or a line the kernel does not take)."""
+    if not compiled_worthwhile(data_bytes):
+        return None  # loading the compiled code would cost more than it saves
+    return parse_coordinate_lines(path, offset, n, entries)
+
+
+def _parse_checked(
+    path: Path, offset: int, header: _Header
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """The entries parsed by fast_matrix_market while the bytes pass the checks of
+    :class:`~pymorembs.io.fast_text.PlainNumberScan`, or None."""
+    n, entries = header.n, header.entries
     # a symmetric file is read as stored: scipy.io.mmread mirrors a symmetric file in Python
     # with array copies that take longer than the parse itself (and twice the memory of the
     # result); _mirrored completes the stored triangle in CSR form
@@ -610,20 +656,9 @@ def _read_coordinate_fast(path: Path) -> tuple[sp.csr_matrix, bool] | None:
         return None
     if not sp.issparse(coo) or coo.shape != (n, n) or coo.nnz != entries:
         return None
-    rows, cols, values = coo.row, coo.col, coo.data
-    del coo
-    if not np.all(np.isfinite(values)):
+    if not np.all(np.isfinite(coo.data)):
         return None
-    below = bool(np.any(rows > cols))
-    if header.symmetric and below and np.any(rows < cols):
-        return None  # both triangles: the strict pass names the entry
-    matrix = _general_csr(rows, cols, values, n)
-    if matrix is None:
-        return None
-    if not header.symmetric:
-        return matrix, False
-    del rows, cols, values
-    return _mirrored(matrix, below), True
+    return coo.row, coo.col, coo.data
 
 
 def _mirrored(stored: sp.csr_matrix, lower_stored: bool) -> sp.csr_matrix:
