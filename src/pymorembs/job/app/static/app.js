@@ -38,9 +38,9 @@ function changed() {
     try { show(await api("/api/job", { job: app.job })); } catch (e) { fail(e); }
   }, 120);
 }
-function show(state) {
+function show(state, redraw = true) {  // redraw false: a new scene comes, decorated then
   app.job = state.job;
-  if (state.decorations) { app.decorations = state.decorations; decorate(); }
+  if (state.decorations) { app.decorations = state.decorations; if (redraw) decorate(); }
   $("toml").textContent = state.toml;
   $("job-error").textContent = state.error;
   $("run").disabled = Boolean(state.error) || (state.run && state.run.state === "running");
@@ -77,7 +77,7 @@ async function openModel(request) {
   try {
     const state = await api("/api/open", request);
     $("model-name").textContent = `${state.model.name}: ${state.model.n_dof.toLocaleString()} dofs, ${state.model.n_nodes.toLocaleString()} nodes`;
-    show(state);
+    show(state, false);
     app.selection = null; $("selection").textContent = "Nothing selected."; $("add-interface").disabled = true;
     app.scene = await api("/api/scene");
     startViewer();
