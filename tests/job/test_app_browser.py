@@ -171,8 +171,11 @@ def test_pick_run_save_and_reduce_again(browser, served, tmp_path):
     page.wait_for_function("document.getElementById('toml').textContent.includes('[[inputs]]')")
     # the view draws the new interface node at the hole's centre, its coupled nodes and the
     # tangent frame's triad there, without a new scene (the view stays where it was turned)
-    page.wait_for_selector("#canvas[data-decorations='1,1']")
-    assert page.evaluate("window.app.viewer.scene.frame.origin") == HOLE_CENTRE
+    page.wait_for_selector("#canvas[data-decorations='1,1']")  # the interface, a triad
+    page.wait_for_function(  # the triad moved from the centre of gravity to the tangent frame
+        "(p) => JSON.stringify(window.app.viewer.scene.frame.origin) === JSON.stringify(p)",
+        arg=HOLE_CENTRE,
+    )
     drawn = page.evaluate(PIXELS, HOLE_CENTRE)
     assert drawn["red"] > 10 and drawn["orange"] > 50 and orange(drawn["at"]), drawn
     shot("interface-and-frame")
