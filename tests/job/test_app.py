@@ -206,6 +206,51 @@ def test_api_open_pick_select_and_check(server):
     assert state["error"] == "" and 'kind = "rigid"' in state["toml"]
 
 
+def test_the_view_draws_the_jobs_frame_and_interfaces(server):
+    """The decorations of the 3D view follow the job: Buckens at the centre of gravity, then
+    the picked hole's interface node at the hole's centre with its coupled nodes and the
+    tangent frame there; what cannot be drawn is said in one line."""
+    app, base = server
+    opened = {"example": "rack-solid", "options": {"dofs": 10000, "interface": "none"}}
+    state = call(base, "/api/open", opened)[1]
+    body = app.body
+    # Buckens (the new job's frame): the centre of gravity, independently from the lumped
+    # masses of the x translations (row sums of M, exact for consistent element masses)
+    x = body.dofs.directions == 0
+    lumped = np.asarray(body.mass[x][:, x].sum(axis=1)).ravel()
+    centre = lumped @ body.coordinates[body.node_rows(body.dofs.nodes[x])] / lumped.sum()
+    frame = state["decorations"]["frame"]
+    assert np.allclose(frame["origin"], centre, atol=1e-9) and frame["axes"] == np.eye(3).tolist()
+    assert state["decorations"]["interfaces"] == []
+    picked = call(base, "/api/pick", {"triangle": wall_triangle(body)})[1]
+    job = state["job"] | {
+        "frame": {"type": "tangent", "node": 2},
+        "interface": [{"node": 2, "position": picked["position"], "kind": "rigid",
+                       **picked["selection"]},
+                      {"node": 3, "position": [0, 0, 9], "kind": "rigid",
+                       "box": {"min": [5, 5, 5], "max": [6, 6, 6]}}],
+    }  # fmt: skip
+    state = call(base, "/api/job", {"job": job})[1]
+    drawn = state["decorations"]
+    assert drawn["frame"]["origin"] == picked["position"] == [0.0, 0.0, 0.2125]
+    (interface,) = drawn["interfaces"]
+    assert interface["name"] == "interface 2 (rigid)" and interface["node"] is None
+    assert interface["position"] == picked["position"]
+    assert sorted(interface["coupled"]) == sorted(picked["rows"])
+    ids = np.asarray(call(base, "/api/scene")[1]["node_ids"])[interface["coupled"]]
+    assert np.array_equal(np.sort(ids), hole(body))
+    (note,) = drawn["notes"]
+    assert note.startswith("[[interface]] #2 is not drawn:") and "\n" not in note
+    job["frame"] = {"type": "tangent", "node": 99999}
+    drawn = call(base, "/api/job", {"job": job})[1]["decorations"]
+    assert drawn["frame"] is None and "[frame] node 99999" in drawn["notes"][-1]
+    job["frame"] = {"type": "tangent", "node": int(body.node_ids[7])}
+    drawn = call(base, "/api/job", {"job": job})[1]["decorations"]
+    assert drawn["frame"]["origin"] == body.coordinates[7].tolist()
+    job["frame"] = {"type": "none"}
+    assert call(base, "/api/job", {"job": job})[1]["decorations"]["frame"] is None
+
+
 def test_api_refusals_are_one_line(server, tmp_path):
     _, base = server
     for path, body, message in [
@@ -280,8 +325,14 @@ def test_run_results_shapes_mac_save_and_cancel(server, tmp_path):
     mac, fa, fb = (np.asarray(reply[k]) for k in ("matrix", "a_hz", "b_hz"))
     same = np.abs(fa[:, None] - fb[None, :]) < 1e-6 * fa[:, None]
     assert same.sum() >= 2 and np.all(mac[same] > 0.999)
+    assert reply["weighting"] == "mass"
     itself = np.asarray(call(base, "/api/mac?a=modal&b=modal")[1]["matrix"])
     assert np.allclose(np.diag(itself), 1.0) and np.allclose(itself, itself.T, atol=1e-4)
+    # weighted by the body's M, the modes are orthogonal: the identity (the plain MAC over
+    # all dofs of the same modes is not, translations and rotations weigh alike there)
+    assert np.abs(itself - np.eye(itself.shape[0])).max() <= 1e-4
+    plain = (V.T @ V) ** 2 / np.outer((V * V).sum(axis=0), (V * V).sum(axis=0))
+    assert np.abs(plain - np.eye(V.shape[1])).max() > 1e-2
     status, saved = call(base, "/api/save", {"path": str(tmp_path / "saved.toml")})
     assert (tmp_path / "saved.toml").read_text(encoding="utf-8") == saved["toml"]
     with urllib.request.urlopen(f"{base}/files/modal/reduced.npz", timeout=30) as response:

@@ -91,6 +91,34 @@ FIND_HOLE = """() => {
 }"""
 
 
+#: In the page: pixels of the frame triad's red axis and of the first interface colour
+#: (orange) in the 3D view, and the colour drawn where the world point p projects.
+PIXELS = """(p) => {
+  const v = window.app.viewer, gl = v.gl;
+  v.render();
+  const w = gl.drawingBufferWidth, h = gl.drawingBufferHeight, data = new Uint8Array(4 * w * h);
+  gl.readPixels(0, 0, w, h, gl.RGBA, gl.UNSIGNED_BYTE, data);
+  let red = 0, orange = 0;
+  for (let i = 0; i < data.length; i += 4) {
+    const [r, g, b] = [data[i], data[i + 1], data[i + 2]];
+    if (r > 180 && g < 60 && b < 60) red++;
+    if (r > 200 && g > 90 && g < 140 && b < 40) orange++;
+  }
+  const m = v._matrices().pv, [x, y, z] = p;
+  const q = m[3] * x + m[7] * y + m[11] * z + m[15];
+  const px = Math.round(((m[0] * x + m[4] * y + m[8] * z + m[12]) / q + 1) / 2 * w);
+  const py = Math.round(((m[1] * x + m[5] * y + m[9] * z + m[13]) / q + 1) / 2 * h);
+  const at = Array.from(data.slice(4 * (py * w + px), 4 * (py * w + px) + 3));
+  return { red, orange, at };
+}"""
+HOLE_CENTRE = [0.0, 0.0, 0.2125]  # the upper hole's axis, halfway along the hole
+
+
+def orange(rgb: list[int]) -> bool:
+    r, g, b = rgb
+    return r > 200 and 90 < g < 140 and b < 40
+
+
 @pytest.mark.slow
 def test_pick_run_save_and_reduce_again(browser, served, tmp_path):
     app, url = served
@@ -112,6 +140,10 @@ def test_pick_run_save_and_reduce_again(browser, served, tmp_path):
     page.wait_for_selector("#first-modes", timeout=120_000)
     shot("opened")
     assert app.body.n_dof == 10359
+    # the new job's Buckens frame is drawn at the centre of gravity, no interface yet
+    page.wait_for_selector("#canvas[data-decorations='1,0']")
+    opened = page.evaluate(PIXELS, HOLE_CENTRE)
+    assert opened["red"] > 10 and opened["orange"] == 0 and not orange(opened["at"]), opened
 
     # pick the hole: a click on its wall in pick mode
     page.click("#pick-mode")
@@ -137,6 +169,16 @@ def test_pick_run_save_and_reduce_again(browser, served, tmp_path):
         page.fill("#port-directions", "ux uy uz")
         page.click("#add-input")
     page.wait_for_function("document.getElementById('toml').textContent.includes('[[inputs]]')")
+    # the view draws the new interface node at the hole's centre, its coupled nodes and the
+    # tangent frame's triad there, without a new scene (the view stays where it was turned)
+    page.wait_for_selector("#canvas[data-decorations='1,1']")  # the interface, a triad
+    page.wait_for_function(  # the triad moved from the centre of gravity to the tangent frame
+        "(p) => JSON.stringify(window.app.viewer.scene.frame.origin) === JSON.stringify(p)",
+        arg=HOLE_CENTRE,
+    )
+    drawn = page.evaluate(PIXELS, HOLE_CENTRE)
+    assert drawn["red"] > 10 and drawn["orange"] > 50 and orange(drawn["at"]), drawn
+    shot("interface-and-frame")
 
     # a Krylov and a modal reduction, options in the forms made from the registry
     page.select_option("#method", "krylov")
@@ -181,6 +223,8 @@ def test_pick_run_save_and_reduce_again(browser, served, tmp_path):
     page.select_option("#shape-k", "0")
     page.wait_for_function("document.getElementById('shape-hz').textContent.includes('Hz')")
     page.wait_for_function("document.getElementById('mac').dataset.diagonal")
+    assert page.get_attribute("#mac-note", "data-weighting") == "mass"
+    assert page.text_content("#mac-note").startswith("mass-weighted")
     shot("shape")
 
     # save the job and reduce it again from the command line

@@ -126,7 +126,65 @@ try {
 """
 
 
-def page(scene: dict, points: dict) -> str:
+# Runs in the page: counts the pixels of the frame triad's red and green axes and of the first
+# interface colour (orange) before and after setDecorations, checks that the view and the shape
+# stay, reads the pixel where the marker of a node the scene lacks must be, and takes the
+# decorations away again.
+DECORATIONS = """
+const canvas = document.getElementById("view");
+const out = {};
+function count(v) {
+  v.render();
+  const gl = v.gl, w = canvas.width, h = canvas.height, data = new Uint8Array(4 * w * h);
+  gl.readPixels(0, 0, w, h, gl.RGBA, gl.UNSIGNED_BYTE, data);
+  let red = 0, green = 0, orange = 0;
+  for (let i = 0; i < data.length; i += 4) {
+    const [r, g, b] = [data[i], data[i + 1], data[i + 2]];
+    if (r > 180 && g < 60 && b < 60) red++;
+    if (g > 120 && r < 70 && b < 70) green++;
+    if (r > 200 && g > 90 && g < 140 && b < 40) orange++;
+  }
+  return { red, green, orange };
+}
+function pixelAt(v, p) {  // the colour drawn where the world point p projects
+  const m = v._matrices().pv, [x, y, z] = p;
+  const w = m[3] * x + m[7] * y + m[11] * z + m[15];
+  const nx = (m[0] * x + m[4] * y + m[8] * z + m[12]) / w;
+  const ny = (m[1] * x + m[5] * y + m[9] * z + m[13]) / w;
+  const px = Math.round((nx + 1) / 2 * canvas.width), py = Math.round((ny + 1) / 2 * canvas.height);
+  const data = new Uint8Array(4);
+  v.render();
+  v.gl.readPixels(px, py, 1, 1, v.gl.RGBA, v.gl.UNSIGNED_BYTE, data);
+  return Array.from(data.slice(0, 3));
+}
+try {
+  const scene = JSON.parse(document.getElementById("scene").textContent);
+  const d = JSON.parse(document.getElementById("points").textContent);
+  const v = new PymorembsViewer(canvas, scene);
+  v.setShape(0); v.setContour(false); v.setAmplitude(0.02);
+  const mouse = (type, x, y, target) => (target || canvas).dispatchEvent(
+    new MouseEvent(type, { clientX: x, clientY: y, button: 0, bubbles: true }));
+  mouse("mousedown", 300, 200); mouse("mousemove", 330, 215, window);
+  mouse("mouseup", 330, 215, window);
+  const view = JSON.stringify([v._R, v._center, v._distance]);
+  out.before = count(v);
+  v.setDecorations(d);
+  out.after = count(v);
+  out.sameView = JSON.stringify([v._R, v._center, v._distance]) === view;
+  out.shape = v.shape;
+  out.legend = document.querySelector(".pymorembs-legend").textContent;
+  v.setAmplitude(0);
+  out.marker = pixelAt(v, d.interfaces[0].position);
+  v.setDecorations({ frame: null, interfaces: [] });
+  out.removed = count(v);
+  document.title = "probe " + JSON.stringify(out);
+} catch (error) {
+  document.title = "probe " + JSON.stringify({ error: String(error) });
+}
+"""
+
+
+def page(scene: dict, points: dict, probe: str = PROBE) -> str:
     data = json.dumps(scene).replace("<", "\\u003c")
     bare = json.dumps(points).replace("<", "\\u003c")
     return (
@@ -135,13 +193,13 @@ def page(scene: dict, points: dict) -> str:
         '</head><body><div><canvas id="view"></canvas></div>'
         f'<script type="application/json" id="scene">{data}</script>'
         f'<script type="application/json" id="points">{bare}</script>'
-        f"<script>{viewer_script()}</script><script>{PROBE}</script></body></html>"
+        f"<script>{viewer_script()}</script><script>{probe}</script></body></html>"
     )
 
 
-def run_probe(tmp_path, scene: dict, points: dict) -> dict:
+def run_probe(tmp_path, scene: dict, points: dict, probe: str = PROBE) -> dict:
     path = tmp_path / "probe.html"
-    path.write_text(page(scene, points))
+    path.write_text(page(scene, points, probe))
     result = subprocess.run(
         [CHROMIUM, *FLAGS, f"--user-data-dir={tmp_path / 'profile'}", "--window-size=800,600",
          "--virtual-time-budget=4000", "--dump-dom", path.as_uri()],
@@ -182,3 +240,33 @@ def test_viewer_draws_picks_and_animates_in_chromium(tmp_path):
     assert out["points"]["blue"] > 200, out
     assert out["pointPick"] is not None, out
     assert out["notShape"] is None and out["empty"] is None, out
+
+
+@pytest.mark.slow
+def test_decorations_replace_frame_and_interfaces_and_keep_the_view(tmp_path):
+    body = build_example("blade", elements=8)
+    basis = np.zeros((body.n_dof, 1))
+    basis[body.dofs.directions == 2, 0] = 1.0
+    scene = body_scene(body, basis=basis)
+    assert scene["frame"] is None and scene["interfaces"] == []
+    # A node the scene lacks (an interface node being added) in front of the blade's root,
+    # coupled to the nodes of the root (x smallest), and a triad at the middle of the blade.
+    positions = np.asarray(scene["positions"]).reshape(-1, 3)
+    root = np.flatnonzero(positions[:, 0] < positions[:, 0].min() + 1e-9)
+    middle = 0.5 * (positions.min(axis=0) + positions.max(axis=0))
+    marker = [float(positions[:, 0].min()) - 0.05 * scene["size"], *middle[1:].tolist()]
+    decorations = {
+        "frame": {"origin": middle.tolist(), "axes": np.eye(3).tolist()},
+        "interfaces": [{"name": "interface 9 (rigid)", "node": None, "position": marker,
+                        "coupled": root.tolist()}],
+    }  # fmt: skip
+    out = run_probe(tmp_path, scene, decorations, DECORATIONS)
+    assert "error" not in out, out
+    assert out["before"] == {"red": 0, "green": 0, "orange": 0}, out
+    assert out["after"]["red"] > 30 and out["after"]["green"] > 10, out  # the triad's x and y
+    assert out["after"]["orange"] > 50, out  # the interface marker and its coupled nodes
+    assert out["sameView"] and out["shape"] == 0, out  # camera and shape kept
+    assert "interface 9 (rigid) and its" in out["legend"] and "frame" in out["legend"], out
+    r, g, b = out["marker"]  # the marker is drawn at its position
+    assert r > 200 and 90 < g < 140 and b < 40, out
+    assert out["removed"] == {"red": 0, "green": 0, "orange": 0}, out

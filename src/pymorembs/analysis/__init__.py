@@ -8,6 +8,7 @@ the modules behind them are not.
 * the reference the errors are measured against (:mod:`~pymorembs.analysis.reference`):
   :func:`reference_response`, :class:`ReferenceResponse`;
 * the spectrum of a body as read: :func:`model_facts`;
+* the (mass-weighted) modal assurance criterion between two bases: :func:`mac`;
 * time responses (paper section 5.1): :class:`LoadCase`, :func:`simulate`, the clamped full
   and reduced systems, :func:`compare`;
 * large motions in Exudyn: :class:`LargeMotionSettings`, :func:`large_motion_checks`.
@@ -19,6 +20,7 @@ from pymorembs.analysis.large_motion import (
     LargeMotionSettings,
     large_motion_checks,
 )
+from pymorembs.analysis.mac import mac
 from pymorembs.analysis.reference import (
     DEFAULT_CHECKS,
     REFERENCE_KINDS,
@@ -52,6 +54,7 @@ __all__ = [
     "error_blocks",
     "frequency_grid",
     "large_motion_checks",
+    "mac",
     "model_facts",
     "reference_response",
     "relative_error",

@@ -3,6 +3,7 @@
  * Dependency-free WebGL 1. Usage:
  *   const v = new PymorembsViewer(canvas, scene);   // scene: pymorembs.report.scene.body_scene
  *   v.setShape(0); v.setAmplitude(0.05); v.animate(true);
+ *   v.setDecorations({frame, interfaces});  // new triad and interface markers, same view
  *
  * Drawing: the surface triangles flat-shaded (Lambert, a head light), their feature edges
  * (boundary edges and edges where the surface folds by more than 30 degrees), line elements,
@@ -265,6 +266,22 @@ void main() {
       this._changed();
     }
 
+    /** Replace the frame triad and the interface markers with their coupled nodes, keeping
+     * the view, the shown shape and the highlights. `decorations`: `{frame, interfaces}` as in
+     * the scene (a key left out keeps what is drawn); an interface may give `position` [x, y, z]
+     * (model length unit) where its marker goes, for a node the scene lacks (e.g. one the user
+     * is adding): `{name, node: index | null, position, coupled: [indices]}`. */
+    setDecorations(decorations) {
+      const d = decorations || {};
+      if ("frame" in d) this.scene.frame = d.frame || null;
+      if ("interfaces" in d) this.scene.interfaces = Array.from(d.interfaces || []);
+      this._bounds();  // for the next resetView; the camera stays
+      this._buildPoints();
+      this._buildTriad();
+      this._changed();
+      this._requestRender();
+    }
+
     /** Show shape k (index into scene.shapes), or the undeformed body for null. */
     setShape(k) {
       const shapes = this.scene.shapes || [];
@@ -507,6 +524,13 @@ void main() {
           }
         }
       }
+      for (const f of this.scene.interfaces || []) {  // markers off the scene's nodes
+        if (!f.position) continue;
+        for (let k = 0; k < 3; k++) {
+          lo[k] = Math.min(lo[k], Number(f.position[k]));
+          hi[k] = Math.max(hi[k], Number(f.position[k]));
+        }
+      }
       this._lo = lo;
       this._hi = hi;
       this._middle = [0, 1, 2].map((k) => 0.5 * (lo[k] + hi[k]));
@@ -594,19 +618,27 @@ void main() {
       const s = this.scene;
       // Without triangles every node is a point, drawn straight from the node buffers.
       this._buffers.nodes = { count: this._tri.length === 0 ? this._n : 0, all: true };
-      const coupled = [], coupledColor = [], nodes = [], nodeColor = [];
+      const coupled = [], coupledColor = [], nodes = [], nodeColor = [], where = [];
+      const known = (i) => Number.isInteger(i) && i >= 0 && i < this._n;
       (s.interfaces || []).forEach((f, k) => {
         const c = PALETTE[k % PALETTE.length];
-        for (const i of f.coupled) { coupled.push(i); coupledColor.push(c); }
-        nodes.push(f.node);
+        for (const i of f.coupled || []) {
+          if (known(i)) { coupled.push(i); coupledColor.push(c); }
+        }
+        // The marker: at the given position, else at the node; it follows the node's shape.
+        const i = known(f.node) ? f.node : -1;
+        const p = f.position && f.position.length === 3 ? Array.from(f.position, Number) : null;
+        if (i < 0 && !p) return;
+        nodes.push(i);
+        where.push(p);
         nodeColor.push(c);
       });
       this._coupledSet = Uint32Array.from(coupled);
       this._buffers.coupled = this._pointBuffer(this._buffers.coupled, this._coupledSet,
         (k) => coupledColor[k]);
-      this._interfaceSet = Uint32Array.from(nodes);
+      this._interfaceSet = Int32Array.from(nodes);
       this._buffers.interfaces = this._pointBuffer(this._buffers.interfaces,
-        this._interfaceSet, (k) => nodeColor[k]);
+        this._interfaceSet, (k) => nodeColor[k], where);
       this._buildHighlights();
     }
 
@@ -640,12 +672,13 @@ void main() {
       };
     }
 
-    _segmentBuffer(old, nodes, rgb) {
+    _segmentBuffer(old, nodes, rgb, where) {
+      // where[v]: the position of vertex v instead of its node's (null: the node's).
       const m = nodes.length, base = new Float32Array(3 * m), color = new Float32Array(3 * m);
       for (let v = 0; v < m; v++) {
-        const i = nodes[v];
+        const i = nodes[v], p = where && where[v];
         for (let k = 0; k < 3; k++) {
-          base[3 * v + k] = this._P[3 * i + k];
+          base[3 * v + k] = p ? p[k] : this._P[3 * i + k];
           color[3 * v + k] = rgb[k];
         }
       }
@@ -658,8 +691,8 @@ void main() {
       };
     }
 
-    _pointBuffer(old, nodes, colorOf) {
-      const buffer = this._segmentBuffer(old, nodes, [0, 0, 0]);
+    _pointBuffer(old, nodes, colorOf, where) {
+      const buffer = this._segmentBuffer(old, nodes, [0, 0, 0], where);
       const color = new Float32Array(3 * nodes.length);
       for (let v = 0; v < nodes.length; v++) color.set(colorOf(v), 3 * v);
       this._upload(buffer.aColor, color);
@@ -670,6 +703,7 @@ void main() {
       const out = new Float32Array(3 * nodes.length), U = this._U;
       for (let v = 0; v < nodes.length; v++) {
         const i = nodes[v];
+        if (i < 0) continue;  // a marker off the scene's nodes: it stays where it is
         out[3 * v] = U[3 * i]; out[3 * v + 1] = U[3 * i + 1]; out[3 * v + 2] = U[3 * i + 2];
       }
       return out;
@@ -909,7 +943,7 @@ void main() {
       if (this._lin.length) item(COLORS.line, "line elements");
       if (!this._tri.length) item(COLORS.node, "nodes", true);
       (s.interfaces || []).forEach((f, k) => {
-        item(PALETTE[k % PALETTE.length], f.name + " and its " + f.coupled.length +
+        item(PALETTE[k % PALETTE.length], f.name + " and its " + (f.coupled || []).length +
           " coupled nodes", true);
       });
       if (s.frame) {

@@ -26,7 +26,7 @@ site open in the same browser cannot drive the app.
 ``POST /api/cancel``      end the run
 ``GET  /api/results``     error curves, estimators, eigenfrequencies of every reduction
 ``GET  /api/shape``       ``?reduction=name&k=3``: shape function k on the scene's nodes
-``GET  /api/mac``         ``?a=name&b=name``: MAC between the two bases
+``GET  /api/mac``         ``?a=name&b=name``: mass-weighted MAC between the two bases
 ``POST /api/save``        ``{"path": "job.toml"}``: write the job file
 ``GET  /files/<name>``    a file of the last run's output folder (export)
 =======================  ==================================================================
@@ -48,15 +48,17 @@ from urllib.parse import parse_qs, unquote, urlparse
 import numpy as np
 
 import pymorembs as pm
+from pymorembs.analysis import mac as modal_assurance
 from pymorembs.body import ElasticBody
 from pymorembs.errors import PymorembsError, UserError
 from pymorembs.examples import EXAMPLES, OPTIONS
 from pymorembs.io.atomic import write_text
 from pymorembs.job.app.editor import check_job_text, free_node_id, hole_selection, job_text
 from pymorembs.job.app.runner import Run, start_run
-from pymorembs.job.run import load_model
+from pymorembs.job.run import add_interfaces, load_job_model, load_model
 from pymorembs.job.schema import ModelSpec, load_job
 from pymorembs.methods import METHODS, option_fields
+from pymorembs.prepare import centre_of_gravity
 from pymorembs.report.scene import body_scene
 from pymorembs.surface import smooth_patch
 
@@ -110,6 +112,8 @@ class App:
         self._facts: dict[str, Any] | None = None
         self._facts_thread: threading.Thread | None = None
         self._bases: dict[tuple[str, str], dict[str, np.ndarray]] = {}
+        self._mass: tuple[str, Any] | None = None  # (run folder, mass matrix of its body)
+        self._cog: tuple[ElasticBody, np.ndarray] | None = None
 
     # -- the model ---------------------------------------------------------------------------
     def open(self, request: dict[str, Any]) -> dict[str, Any]:
@@ -228,17 +232,71 @@ class App:
 
     def select(self, request: dict[str, Any]) -> dict[str, Any]:
         """Nodes of a selection given by numbers (as in ``[[interface]]``)."""
-        body = self._body()
-        cylinder = request.get("cylinder")
-        box = request.get("box")
-        ids = request.get("nodes")
-        nodes = pm.select_nodes(
-            body,
-            ids=None if not ids else [int(i) for i in ids],
-            cylinder=None if not cylinder else _cylinder(cylinder),
-            box=None if not box else (box["min"], box["max"]),
-        )
-        return self._selected(nodes)
+        return self._selected(_selection(self._body(), request))
+
+    def decorations(self) -> dict[str, Any]:
+        """What the 3D view draws of the job being edited (``viewer.setDecorations``).
+
+        Returns
+        -------
+        dict
+            ``frame``: ``{"origin": [3], "axes": [[3], [3], [3]]}`` (model length unit, the
+            model's axes) or None: a tangent frame at its node (a node of the model or an
+            interface node of the job, at its ``position``), a Buckens frame at the model's
+            centre of gravity, none for ``type = "none"``; ``interfaces``: per ``[[interface]]``
+            ``{"name", "node": index into the scene's nodes or None, "position": [3],
+            "coupled": [indices into the scene's nodes]}``; ``notes``: what could not be drawn
+            (a selection that gives no nodes, a frame node nobody has), one line each.
+        """
+        body = self.body
+        out: dict[str, Any] = {"frame": None, "interfaces": [], "notes": []}
+        if body is None:
+            return out
+        placed: dict[int, list[float]] = {}
+        for k, item in enumerate(self.job.get("interface") or [], start=1):
+            try:
+                node = int(item["node"])
+                position = [float(x) for x in item["position"]]
+                if len(position) != 3 or not np.all(np.isfinite(position)):
+                    raise ValueError("position must be 3 finite numbers")
+                coupled = _selection(body, item)
+            except (PymorembsError, KeyError, TypeError, ValueError) as exc:
+                out["notes"].append(f"[[interface]] #{k} is not drawn: {_one_line(exc)}")
+                continue
+            row = self.scene_rows(np.array([node]))
+            out["interfaces"].append({
+                "name": f"interface {node} ({item.get('kind', 'rigid')})",
+                "node": int(row[0]) if row.size else None,
+                "position": position,
+                "coupled": self.scene_rows(coupled).tolist(),
+            })  # fmt: skip
+            placed[node] = position
+        frame = self.job.get("frame") or {}
+        kind = frame.get("type")
+        origin = None
+        try:
+            if kind == "tangent":
+                node = int(frame["node"])
+                if node in placed:
+                    origin = placed[node]
+                elif node in body.node_index:
+                    origin = body.node_position(node).tolist()
+                else:
+                    out["notes"].append(f"[frame] node {node} is neither a node of the model "
+                                        "nor an interface node: no triad")  # fmt: skip
+            elif kind == "buckens":
+                origin = self._centre_of_gravity(body).tolist()
+        except (PymorembsError, KeyError, TypeError, ValueError) as exc:
+            out["notes"].append(f"[frame] is not drawn: {_one_line(exc)}")
+        if origin is not None:
+            out["frame"] = {"origin": origin, "axes": np.eye(3).tolist()}
+        return out
+
+    def _centre_of_gravity(self, body: ElasticBody) -> np.ndarray:
+        with self.lock:
+            if self._cog is None or self._cog[0] is not body:
+                self._cog = (body, centre_of_gravity(body))
+            return self._cog[1]
 
     def _selected(self, nodes: np.ndarray) -> dict[str, Any]:
         body = self._body()
@@ -290,6 +348,7 @@ class App:
             },
             "run": None if self.run is None else self.run.as_dict(),
             "workdir": str(self.workdir),
+            "decorations": self.decorations(),
         }
 
     def save(self, request: dict[str, Any]) -> dict[str, Any]:
@@ -407,18 +466,39 @@ class App:
         }
 
     def mac(self, a: str, b: str) -> dict[str, Any]:
-        """The modal assurance criterion between the columns of two bases (on all dofs)."""
+        """The mass-weighted modal assurance criterion between the columns of two bases,
+        ``(v_i^T M w_j)^2 / ((v_i^T M v_i)(w_j^T M w_j))`` with the sparse mass matrix of the
+        run's body (:func:`pymorembs.analysis.mac`)."""
         A, B = self._basis(a), self._basis(b)
-        if not np.array_equal(A["dof_nodes"], B["dof_nodes"]):
+        if not (
+            np.array_equal(A["dof_nodes"], B["dof_nodes"])
+            and np.array_equal(A["dof_directions"], B["dof_directions"])
+        ):
             raise UserError("the two bases are not on the same dofs")
-        va, vb = A["V"], B["V"]
-        cross = va.T @ vb
-        norms = np.outer(np.einsum("ij,ij->j", va, va), np.einsum("ij,ij->j", vb, vb))
+        mass = self._run_mass(A["dof_nodes"], A["dof_directions"])
         return {
-            "matrix": (cross**2 / np.where(norms > 0, norms, 1.0)).round(4).tolist(),
+            "matrix": modal_assurance(A["V"], B["V"], mass).round(4).tolist(),
+            "weighting": "mass",
             "a_hz": A["eigenfrequencies_hz"].tolist(),
             "b_hz": B["eigenfrequencies_hz"].tolist(),
         }
+
+    def _run_mass(self, nodes: np.ndarray, directions: np.ndarray) -> Any:
+        """The sparse mass matrix of the last run's body (the model with the job's interface
+        nodes, on the dofs of its ``reduced.npz``), built once per run."""
+        run, _ = self._summary()
+        if self._mass is not None and self._mass[0] == str(run.out):
+            mass = self._mass[1]
+        else:
+            job = load_job(run.job)
+            body = add_interfaces(self._body(), job)
+            if not _same_dofs(body, nodes, directions):  # another model opened since the run
+                body = load_job_model(job)
+            if not _same_dofs(body, nodes, directions):
+                raise UserError("the run's bases are not on the dofs of its model")
+            mass = body.mass
+            self._mass = (str(run.out), mass)
+        return mass
 
     def file(self, name: str) -> Path:
         """A file of the last finished run's output folder (never outside it)."""
@@ -429,6 +509,31 @@ class App:
         if run.out.resolve() not in path.parents or not path.is_file():
             raise UserError(f"no file {name!r} in the run's output")
         return path
+
+
+def _same_dofs(body: ElasticBody, nodes: np.ndarray, directions: np.ndarray) -> bool:
+    return np.array_equal(body.dofs.nodes, nodes) and np.array_equal(
+        body.dofs.directions, directions
+    )
+
+
+def _selection(body: ElasticBody, request: dict[str, Any]) -> np.ndarray:
+    """Node ids of a selection by numbers: ``cylinder``, ``box`` and/or ``nodes`` (the keys of
+    ``[[interface]]``; all criteria apply)."""
+    cylinder = request.get("cylinder")
+    box = request.get("box")
+    ids = request.get("nodes")
+    return pm.select_nodes(
+        body,
+        ids=None if not ids else [int(i) for i in ids],
+        cylinder=None if not cylinder else _cylinder(cylinder),
+        box=None if not box else (box["min"], box["max"]),
+    )
+
+
+def _one_line(exc: Exception) -> str:
+    text = " ".join(str(exc).split())
+    return f"missing {text}" if isinstance(exc, KeyError) else text
 
 
 def _cylinder(data: dict[str, Any]) -> tuple:

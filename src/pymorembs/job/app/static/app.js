@@ -38,8 +38,9 @@ function changed() {
     try { show(await api("/api/job", { job: app.job })); } catch (e) { fail(e); }
   }, 120);
 }
-function show(state) {
+function show(state, redraw = true) {  // redraw false: a new scene comes, decorated then
   app.job = state.job;
+  if (state.decorations) { app.decorations = state.decorations; if (redraw) decorate(); }
   $("toml").textContent = state.toml;
   $("job-error").textContent = state.error;
   $("run").disabled = Boolean(state.error) || (state.run && state.run.state === "running");
@@ -76,7 +77,7 @@ async function openModel(request) {
   try {
     const state = await api("/api/open", request);
     $("model-name").textContent = `${state.model.name}: ${state.model.n_dof.toLocaleString()} dofs, ${state.model.n_nodes.toLocaleString()} nodes`;
-    show(state);
+    show(state, false);
     app.selection = null; $("selection").textContent = "Nothing selected."; $("add-interface").disabled = true;
     app.scene = await api("/api/scene");
     startViewer();
@@ -108,7 +109,17 @@ function startViewer() {
   }
   if (app.viewer) app.viewer.setScene(app.scene);
   else app.viewer = new window.PymorembsViewer(canvas, app.scene);
+  decorate();
   app.viewer.render();
+}
+// The job's frame triad and interface nodes (with their coupled nodes) in the 3D view, as the
+// server places them (state.decorations); the view, the shape and a selection stay.
+function decorate() {
+  const d = app.decorations;
+  if (!app.viewer || !d) return;
+  app.viewer.setDecorations({ frame: d.frame, interfaces: d.interfaces });
+  $("viewer-note").textContent = (d.notes || []).join(" ");
+  $("canvas").dataset.decorations = `${d.frame ? 1 : 0},${d.interfaces.length}`;
 }
 function highlight(rows) {
   if (!app.viewer) return;
@@ -178,6 +189,9 @@ $("add-interface").onclick = () => {
   app.job.interface = [...(app.job.interface || []), item];
   $("frame-node").value = node; $("port-node").value = node;
   $("iface-node").value = "";
+  // the interface now shows in its own colour, with its node: the selection is done
+  app.selection = null; $("add-interface").disabled = true; highlight([]);
+  $("selection").textContent = `Added interface node ${node}.`;
   changed();
 };
 
@@ -376,6 +390,10 @@ async function drawMac() {
   }
   g.fillStyle = "#000"; g.font = "10px sans-serif"; g.fillText(`${b} →`, 22, 12); g.save(); g.translate(10, 22); g.rotate(Math.PI / 2); g.fillText(`${a} →`, 0, 0); g.restore();
   c.dataset.diagonal = m.map((row, i) => row[i] ?? 0).slice(0, 6).map((v) => v.toFixed(3)).join(",");
+  $("mac-note").textContent = mac.weighting === "mass" ?
+    "mass-weighted: (vᵢᵀM wⱼ)² / ((vᵢᵀM vᵢ)(wⱼᵀM wⱼ)), M the body's mass matrix; white 0, black 1" :
+    "plain: (vᵢᵀwⱼ)² / ((vᵢᵀvᵢ)(wⱼᵀwⱼ)) over all dofs; white 0, black 1";
+  $("mac-note").dataset.weighting = mac.weighting;
 }
 $("mac-a").onchange = drawMac; $("mac-b").onchange = drawMac;
 async function shapeReductionChanged() {
