@@ -38,20 +38,28 @@ FLAGS = [
 # Runs in the page: draws, reads the canvas back, picks the node nearest to the eye at its
 # projected place (undeformed and deformed), animates, then shows a points-only scene. The
 # results go to the title as JSON.
-PROBE = """
+READBACK = """
 const canvas = document.getElementById("view");
 const out = {};
-function pixels(v) {
+function eachPixel(v, visit) {  // draws, reads the canvas back and visits every pixel's rgb
   v.render();
   const gl = v.gl, w = canvas.width, h = canvas.height, data = new Uint8Array(4 * w * h);
   gl.readPixels(0, 0, w, h, gl.RGBA, gl.UNSIGNED_BYTE, data);
+  for (let i = 0; i < data.length; i += 4) visit(data[i], data[i + 1], data[i + 2]);
+  return w * h;
+}
+"""
+
+PROBE = (
+    READBACK
+    + """
+function pixels(v) {
   let blue = 0, other = 0;
-  for (let i = 0; i < data.length; i += 4) {
-    const [r, g, b] = [data[i], data[i + 1], data[i + 2]];
-    if (r > 240 && g > 240 && b > 240) continue;  // background
+  const total = eachPixel(v, (r, g, b) => {
+    if (r > 240 && g > 240 && b > 240) return;  // background
     if (b > r + 25 && b > g) blue++; else other++;
-  }
-  return { blue, other, total: w * h };
+  });
+  return { blue, other, total };
 }
 function screen(v, i) {  // client coordinates of node i as drawn
   const m = v._matrices(), X = v._current();
@@ -124,26 +132,23 @@ try {
   document.title = "probe " + JSON.stringify({ error: String(error) });
 }
 """
+)
 
 
 # Runs in the page: counts the pixels of the frame triad's red and green axes and of the first
 # interface colour (orange) before and after setDecorations, checks that the view and the shape
 # stay, reads the pixel where the marker of a node the scene lacks must be, and takes the
 # decorations away again.
-DECORATIONS = """
-const canvas = document.getElementById("view");
-const out = {};
+DECORATIONS = (
+    READBACK
+    + """
 function count(v) {
-  v.render();
-  const gl = v.gl, w = canvas.width, h = canvas.height, data = new Uint8Array(4 * w * h);
-  gl.readPixels(0, 0, w, h, gl.RGBA, gl.UNSIGNED_BYTE, data);
   let red = 0, green = 0, orange = 0;
-  for (let i = 0; i < data.length; i += 4) {
-    const [r, g, b] = [data[i], data[i + 1], data[i + 2]];
+  eachPixel(v, (r, g, b) => {
     if (r > 180 && g < 60 && b < 60) red++;
     if (g > 120 && r < 70 && b < 70) green++;
     if (r > 200 && g > 90 && g < 140 && b < 40) orange++;
-  }
+  });
   return { red, green, orange };
 }
 function pixelAt(v, p) {  // the colour drawn where the world point p projects
@@ -182,6 +187,7 @@ try {
   document.title = "probe " + JSON.stringify({ error: String(error) });
 }
 """
+)
 
 
 def page(scene: dict, points: dict, probe: str = PROBE) -> str:
