@@ -65,6 +65,7 @@ from pathlib import Path
 import numpy as np
 
 from pymorembs.errors import located_error
+from pymorembs.io.element_surface import SurfaceElements
 from pymorembs.io.line_blocks import UTF8_BOM
 from pymorembs.io.matrix_market import encoding_note
 from pymorembs.io.solid_mesh import SolidBlock
@@ -76,6 +77,7 @@ __all__ = [
     "Card",
     "Frame",
     "bulk_solid_blocks",
+    "bulk_surface_elements",
     "line_fields",
     "parse_int",
     "parse_real",
@@ -138,6 +140,8 @@ _WANTED = {
     "CTETRA",
     "CHEXA",
     "PSOLID",
+    *("CPENTA", "CPYRAM", "CTRIA3", "CTRIA6", "CTRIAR", "CQUAD4", "CQUAD8", "CQUADR"),
+    *("CSHEAR", "CBAR", "CBEAM", "CROD", "CONROD", "CTUBE"),  # the surface's elements
     "MAT1",
     *_SYSTEMS,
     *PAIR_SETS,
@@ -1485,6 +1489,79 @@ def bulk_solid_blocks(bulk: BulkData) -> list[SolidBlock] | str:
             )
         blocks.append(SolidBlock(kind, connectivity, *material, f"{name}: MAT1 {mid}"))
     return blocks
+
+
+# ============================================================================ surface elements
+#: CPENTA with 15 grids lists the edges G1-G4 .. G3-G6 (G10-G12) before those of the face
+#: G4-G6 (G13-G15); :mod:`pymorembs.surface` takes the face first (Abaqus C3D15 order).
+CPENTA15_TO_WEDGE15 = np.r_[0:9, 12:15, 9:12]
+#: Element cards drawn on the body's surface: (first grid field from 0 = EID, number of corner
+#: grids, number of all grids, linear kind, kind with all edge grids, reordering of those).
+_SURFACE_CARDS: dict[str, tuple[int, int, int, str, str, np.ndarray | None]] = {
+    "CTETRA": (2, 4, 10, "tet4", "tet10", None),
+    "CHEXA": (2, 8, 20, "hex8", "hex20", CHEXA20_TO_HEX20),
+    "CPENTA": (2, 6, 15, "wedge6", "wedge15", CPENTA15_TO_WEDGE15),
+    "CPYRAM": (2, 5, 13, "pyramid5", "pyramid13", None),
+    "CTRIA3": (2, 3, 3, "tri3", "tri3", None),
+    "CTRIAR": (2, 3, 3, "tri3", "tri3", None),
+    "CTRIA6": (2, 3, 6, "tri3", "tri6", None),
+    "CQUAD4": (2, 4, 4, "quad4", "quad4", None),
+    "CQUADR": (2, 4, 4, "quad4", "quad4", None),
+    "CSHEAR": (2, 4, 4, "quad4", "quad4", None),
+    "CQUAD8": (2, 4, 8, "quad4", "quad8", None),
+    "CBAR": (2, 2, 2, "line2", "line2", None),
+    "CBEAM": (2, 2, 2, "line2", "line2", None),
+    "CROD": (2, 2, 2, "line2", "line2", None),
+    "CTUBE": (2, 2, 2, "line2", "line2", None),
+    "CONROD": (1, 2, 2, "line2", "line2", None),
+}
+#: Element cards the surface leaves out (counted in its note): springs, dampers, gaps, bushes,
+#: welds, rigid elements, point masses, and elements of kinds :mod:`pymorembs.surface` lacks.
+UNDRAWN_ELEMENT_CARDS = (
+    "CBUSH", "CBUSH1D", "CBUSH2D", "CELAS1", "CELAS2", "CELAS3", "CELAS4", "CDAMP1", "CDAMP2",
+    "CDAMP3", "CDAMP4", "CDAMP5", "CVISC", "CGAP", "CFAST", "CWELD", "CSEAM", "RBE1", "RBE2",
+    "RBE3", "RBAR", "RBAR1", "RROD", "RTRPLT", "RSPLINE", "CONM1", "CONM2", "CMASS1", "CMASS2",
+    "CMASS3", "CMASS4", "CBEAM3", "CBEND", "CQUAD", "CTRIAX", "CTRIAX6", "CQUADX", "CPLSTN3",
+    "CPLSTN4", "CPLSTS3", "CPLSTS4",
+)  # fmt: skip
+
+
+def bulk_surface_elements(bulk: BulkData) -> SurfaceElements:
+    """Every drawn element card of the bulk data for the body's surface, whatever its property.
+
+    Solids (CTETRA, CHEXA, CPENTA, CPYRAM), shells (CTRIA3/6, CTRIAR, CQUAD4/8, CQUADR, CSHEAR)
+    and line elements (CBAR, CBEAM, CROD, CONROD, CTUBE) by their grids; a quadratic card with
+    some edge grids blank (or 0) is drawn through its corners. The cards of
+    :data:`UNDRAWN_ELEMENT_CARDS` are counted as not drawn, as is a card whose corner grids are
+    incomplete.
+
+    Returns
+    -------
+    SurfaceElements
+        Connectivity in grid ids, in the node order of :mod:`pymorembs.surface`.
+    """
+    elements = SurfaceElements()
+    for card_name, (first, corners, full, linear, quadratic, order) in _SURFACE_CARDS.items():
+        rows: dict[str, list[list[int]]] = {linear: [], quadratic: []}
+        for card in bulk.cards.get(card_name, []):
+            fields = [card.field(first + k).strip() for k in range(full)]
+            ids = [parse_int(f, card.path, card.line, f"{card_name} grid") if f else 0
+                   for f in fields]  # fmt: skip
+            if 0 in ids[:corners]:
+                elements.skip(card_name)
+            elif full > corners and 0 not in ids:
+                rows[quadratic].append(ids)
+            else:
+                rows[linear].append(ids[:corners])
+        for kind, listed in rows.items():
+            if listed:
+                connectivity = np.array(listed, dtype=np.int64)
+                if kind == quadratic and order is not None:
+                    connectivity = connectivity[:, order]
+                elements.add(kind, connectivity)
+    for card_name in UNDRAWN_ELEMENT_CARDS:
+        elements.skip(card_name, bulk.counts.get(card_name, 0))
+    return elements
 
 
 def _mat1(card: Card) -> tuple[float, float] | str:
