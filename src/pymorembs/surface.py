@@ -192,16 +192,16 @@ def outer_surface(
 
 
 def _source(counts: dict[str, int]) -> str:
-    """``outer faces of 8 hex8 elements, 4 quad4 shells, 2 line2 lines`` (kinds in turn)."""
+    """``outer faces of 8 hex8 elements; 4 quad4 shell elements; 2 line2 line elements``."""
     parts = []
-    for group, word in ((set(_FACES) - _SHELLS, "elements"), (_SHELLS, "shells"),
-                        (set(_LINES), "lines")):  # fmt: skip
+    for group, word in ((set(_FACES) - _SHELLS, "elements"), (_SHELLS, "shell elements"),
+                        (set(_LINES), "line elements")):  # fmt: skip
         listed = [f"{n:,} {k}" for k, n in counts.items() if k in group]
         if listed:
             parts.append(f"{', '.join(listed)} {word}")
     if not parts:
         return "no elements"
-    return ("outer faces of " if counts.keys() - _SHELLS - set(_LINES) else "") + ", ".join(parts)
+    return ("outer faces of " if counts.keys() - _SHELLS - set(_LINES) else "") + "; ".join(parts)
 
 
 def smooth_patch(
@@ -265,6 +265,10 @@ def smooth_patch(
 
 def _rows(elements: np.ndarray, node_ids: np.ndarray, order: np.ndarray) -> np.ndarray:
     """Rows of the node ids of ``elements`` in ``node_ids``; UserError for an unknown id."""
+    if node_ids.size == 0 and elements.size:
+        raise UserError(
+            f"surface: element node {int(elements.flat[0])} is not a node of the body (it has none)"
+        )
     position = np.searchsorted(node_ids, elements, sorter=order)
     position = np.minimum(position, node_ids.size - 1)
     rows = order[position]

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from pymorembs.arrays import missing_from, sorted_unique
 from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
 from pymorembs.surface import outer_surface
@@ -75,6 +76,14 @@ def attach_surface(body: ElasticBody, elements: SurfaceElements) -> ElasticBody:
         return body
     if not body.has_coordinates:
         return body.with_notes("surface: the file gives no coordinates; nodes cannot be drawn")
+    used = sorted_unique(np.concatenate([c.ravel() for _, c in elements.blocks]))
+    missing = missing_from(used, np.asarray(body.node_ids, dtype=np.int64))
+    if missing.size:
+        return body.with_notes(
+            f"surface: none, {missing.size:,} of the {used.size:,} nodes of the elements are "
+            f"not nodes of the body (first {int(missing[0])}; the matrices hold part of the "
+            "mesh, e.g. a superelement's boundary)"
+        )
     try:
         surface = outer_surface(elements.blocks, body.node_ids, body.coordinates)
     except UserError as err:
