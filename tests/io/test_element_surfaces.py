@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from pymorembs.io.abaqus_inp import read_inp, surface_elements
+from pymorembs.io.ansys import read_ansys_full
 from pymorembs.io.ansys_cdb import cdb_surface_elements, read_cdb
 from pymorembs.io.nastran_bulk import bulk_surface_elements, read_bulk
 from pymorembs.io.nastran_op2 import read_op2
@@ -347,8 +348,10 @@ def test_ansys_shells_beams_and_degenerate_solids(tmp_path):
 
 def test_hexbeam_archive_skin_is_its_box():
     """HexBeam.cdb: 40 SOLID186 (2 x 2 x 10) filling a 1 x 1 x 5 box: 88 outer quadratic faces
-    of 6 triangles each, closed, enclosing the box's volume."""
-    archive = read_cdb(DATA / "pymapdl_reader_hexbeam" / "HexBeam.cdb")
+    of 6 triangles each, closed, enclosing the box's volume; the reader of the .full with the
+    archive as nodes gives the body this surface."""
+    archive_path = DATA / "pymapdl_reader_hexbeam" / "HexBeam.cdb"
+    archive = read_cdb(archive_path)
     found = cdb_surface_elements(archive)
     assert [(k, c.shape) for k, c in found.blocks] == [("hex20", (40, 20))]
     assert found.skipped == {}
@@ -358,3 +361,9 @@ def test_hexbeam_archive_skin_is_its_box():
     xyz = dict(zip(archive.node_ids.tolist(), archive.coordinates, strict=True))
     box = np.prod(np.ptp(archive.coordinates, axis=0))
     assert enclosed_volume(corners(xyz, surface.triangles)) == pytest.approx(box, rel=1e-12)
+    body = read_ansys_full(DATA / "pymapdl_reader_hexbeam" / "file.full", nodes=archive_path)
+    assert np.array_equal(body.surface.triangles, surface.triangles)
+    assert surface_note(body) == (
+        f"surface: outer faces of 40 hex20 elements ({surface.triangles.shape[0]} triangles) "
+        "for viewers"
+    )
