@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from pymorembs.io.abaqus import read_abaqus
 from pymorembs.io.abaqus_inp import read_inp, surface_elements
 from pymorembs.io.ansys import read_ansys_full
 from pymorembs.io.ansys_cdb import cdb_surface_elements, read_cdb
@@ -233,7 +234,7 @@ def test_cpenta15_and_cpyram13_cards_give_closed_skins(tmp_path):
 
 # ============================================================================ Abaqus
 ABAQUS_MODEL = """*HEADING
-shells, beams, a solid, a mass and a spring
+shells, beams, a solid and point masses
 *NODE
 1, 0., 0., 0.
 2, 1., 0., 0.
@@ -263,19 +264,20 @@ shells, beams, a solid, a mass and a spring
 6, 13, 14, 15
 *ELEMENT, TYPE=MASS
 7, 15
-*ELEMENT, TYPE=SPRING1
+*ELEMENT, TYPE=ROTARYI
 8, 12
 """
 
 
 def test_abaqus_shells_beams_and_a_solid(tmp_path):
     """S4R 2 lies on the cube's bottom face (drawn once), S4R 3 and S3 4 beside it; B31 with an
-    orientation node (not drawn), B32 through its middle node; MASS and SPRING1 not drawn."""
+    orientation node (not drawn), B32 through its middle node; MASS and ROTARYI not drawn. Read
+    through the reader with diagonal K and M in the MATRIX INPUT layout."""
     path = tmp_path / "mixed.inp"
     path.write_text(ABAQUS_MODEL)
     model = read_inp(path)
     elements = surface_elements(model)
-    assert elements.skipped == {"MASS": 1, "SPRING1": 1}
+    assert elements.skipped == {"MASS": 1, "ROTARYI": 1}
     xyz = dict(zip(model.node_ids.tolist(), model.coordinates, strict=True))
     surface = outer_surface(elements.blocks, model.node_ids, model.coordinates)
     assert surface.triangles.shape[0] == 12 + 2 + 1  # cube; S4R 3 (2); S3 (1); S4R 2 none
@@ -285,7 +287,17 @@ def test_abaqus_shells_beams_and_a_solid(tmp_path):
     plates = triangle_areas(corners(xyz, surface.triangles[~cube])).sum()
     assert plates == pytest.approx(1.0 + 0.5)
     assert surface.lines.tolist() == [[5, 13], [13, 14], [14, 15]]
-    assert "not drawn" in elements.skipped_text
+    keys = [(n, d) for n in range(1, 16) for d in range(1, 7) if d <= 3 or n not in (6, 7, 8)]
+    diagonal = "".join(f"{n},{d}, {n},{d},  1.0\n" for n, d in keys)
+    for name in ("k.mtx", "m.mtx"):
+        (tmp_path / name).write_text(diagonal)
+    body = read_abaqus(tmp_path / "k.mtx", tmp_path / "m.mtx", inp=path)
+    assert np.array_equal(body.surface.triangles, surface.triangles)
+    assert np.array_equal(body.surface.lines, surface.lines)
+    assert surface_note(body) == (
+        "surface: outer faces of 1 hex8 elements; 2 quad4, 1 tri3 shell elements; 1 line2, "
+        "1 line3 line elements (15 triangles, 3 lines; not drawn: 1 MASS, 1 ROTARYI) for viewers"
+    )
 
 
 # ============================================================================ Ansys
