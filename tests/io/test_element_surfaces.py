@@ -321,12 +321,14 @@ def cdb_text(nodes: dict[int, tuple[float, float, float]], types: dict[int, int]
 
 def test_ansys_shells_beams_and_degenerate_solids(tmp_path):
     """SHELL181 quad and triangle (K = L), BEAM188 with its orientation node, BEAM189 through
-    its middle node K, a SOLID185 prism (K = L, O = P) and tetrahedron, MASS21 not drawn."""
+    its middle node K, a SOLID185 prism (K = L, O = P) and tetrahedron, a SOLID187 without its
+    midside nodes (drawn through its corners), MASS21 not drawn."""
     nodes = {1: (0, 0, 0), 2: (1, 0, 0), 3: (1, 1, 0), 4: (0, 1, 0), 5: (0, 0, 1), 6: (1, 0, 1),
              7: (1, 1, 1), 8: (0, 1, 1), 9: (2, 0, 0), 10: (2, 1, 0), 11: (0, 0, -1),
              12: (0, 0, -2), 13: (0, 0, -1.5), 14: (5, 5, 5), 15: (3, 0, 0), 16: (4, 0, 0),
-             17: (3, 1, 0), 18: (3, 0, 1)}  # fmt: skip
-    types = {1: 181, 2: 188, 3: 189, 4: 185, 5: 21}
+             17: (3, 1, 0), 18: (3, 0, 1), 19: (6, 0, 0), 20: (7, 0, 0), 21: (6, 1, 0),
+             22: (6, 0, 1)}  # fmt: skip
+    types = {1: 181, 2: 188, 3: 189, 4: 185, 5: 21, 6: 187}
     elements = [
         (1, [2, 9, 10, 3]),
         (1, [9, 15, 10, 10]),  # triangle
@@ -335,24 +337,27 @@ def test_ansys_shells_beams_and_degenerate_solids(tmp_path):
         (4, [1, 2, 3, 3, 5, 6, 7, 7]),  # prism
         (4, [15, 16, 17, 17, 18, 18, 18, 18]),  # tetrahedron
         (5, [14]),
+        (6, [19, 20, 21, 22, 0, 0, 0, 0, 0, 0]),  # SOLID187, midside nodes dropped (0)
     ]
     path = tmp_path / "mixed.cdb"
     path.write_text(cdb_text(nodes, types, elements))
     found = cdb_surface_elements(read_cdb(path))
     assert found.skipped == {"MASS21": 1}
-    kinds = {k: c.tolist() for k, c in found.blocks}
+    kinds: dict[str, list[list[int]]] = {}
+    for kind, connectivity in found.blocks:
+        kinds.setdefault(kind, []).extend(connectivity.tolist())
     assert kinds == {
         "quad4": [[2, 9, 10, 3]],
         "tri3": [[9, 15, 10]],
         "line2": [[1, 11]],
         "line3": [[11, 13, 12]],
         "wedge6": [[1, 2, 3, 5, 6, 7]],
-        "tet4": [[15, 16, 17, 18]],
+        "tet4": [[15, 16, 17, 18], [19, 20, 21, 22]],
     }
     ids = np.array(sorted(nodes))
     xyz = {i: np.array(p, float) for i, p in nodes.items()}
     surface = outer_surface(found.blocks, ids, np.array([xyz[i] for i in ids]))
-    assert surface.triangles.shape[0] == 2 + 1 + 8 + 4
+    assert surface.triangles.shape[0] == 2 + 1 + 8 + 4 + 4
     assert surface.lines.tolist() == [[1, 11], [11, 13], [13, 12]]
     solid = np.isin(surface.triangles, [1, 2, 3, 5, 6, 7]).all(axis=1)
     assert enclosed_volume(corners(xyz, surface.triangles[solid])) == pytest.approx(0.5)

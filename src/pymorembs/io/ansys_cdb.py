@@ -578,7 +578,7 @@ def cdb_surface_elements(archive: AnsysArchive) -> SurfaceElements:
 
     The types of :data:`ANSYS_SURFACE_TYPES` are drawn: the 8- and 20-node solids also in their
     degenerate forms (K = L and O = P a wedge, M = N = O = P a pyramid, both a tetrahedron; the
-    midside nodes of the collapsed edges dropped), a 20-node solid or 8-node shell with dropped
+    midside nodes of the collapsed edges dropped), a quadratic solid or shell with dropped
     midside nodes through its corners, SHELL181 with K = L and SHELL281 with K = L = O as
     triangles, BEAM189 through its middle node. Other types (``COMBIN14``, ``MASS21``,
     ``CONTA174`` ...), an element type without an ``ET`` command and elements with fewer nodes
@@ -603,19 +603,20 @@ def cdb_surface_elements(archive: AnsysArchive) -> SurfaceElements:
             elements.skip(label or f"type {itype} (no ET)", int(of_type.sum()))
             continue
         full = {"hex8": 8, "hex20": 20, "tet10": 10, "quad4": 4, "quad8": 8}.get(family)
-        corners = {"hex20": 8, "quad8": 4, "line2": 2, "line3": 2}.get(family, full)
+        corners = {"hex20": 8, "tet10": 4, "quad8": 4, "line2": 2, "line3": 2}.get(family, full)
         need = {"line2": 2, "line3": 3}.get(family, full)
         n = counts[of_type]
         first = starts[of_type]
         complete = n >= need if family.startswith("line") else n == full
-        partial = ~complete & (n >= corners) & (family in ("hex20", "quad8"))
+        partial = ~complete & (n >= corners) & (family in ("hex20", "tet10", "quad8"))
         elements.skip(name, int((~complete & ~partial).sum()))
         if complete.any():
             nodes = archive.element_nodes[first[complete][:, None] + np.arange(need)]
             _add_ansys(elements, name, family, nodes)
         if partial.any():  # midside nodes dropped: the corners come first
             nodes = archive.element_nodes[first[partial][:, None] + np.arange(corners)]
-            _add_ansys(elements, name, "hex8" if family == "hex20" else "quad4", nodes)
+            linear = {"hex20": "hex8", "tet10": "tet4", "quad8": "quad4"}[family]
+            _add_ansys(elements, name, linear, nodes)
     return elements
 
 
@@ -623,7 +624,7 @@ def _add_ansys(elements: SurfaceElements, name: str, family: str, nodes: np.ndar
     """Add elements of an Ansys node layout, their degenerate forms split off."""
     if family == "line3":
         elements.add("line3", nodes[:, [0, 2, 1]])
-    elif family in ("line2", "tet10"):
+    elif family in ("line2", "tet4", "tet10"):
         elements.add(family, nodes)
     elif family in ("quad4", "quad8"):
         triangle = nodes[:, 2] == nodes[:, 3]
