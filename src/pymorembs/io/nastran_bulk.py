@@ -37,8 +37,11 @@ Cards read
     the NX names ``BNDFIX``/``BNDFRE``; ``EXTRN`` (pairs ``ID C``, ``C = 0`` for scalar points);
     ``SECONCT``, ``SEBULK``; ``SEQGP`` and ``PARAM,OLDSEQ`` (resequencing); ``SUPORT``.
     ``CTETRA``, ``CHEXA``, ``PSOLID``, ``MAT1``: the solid elements and their isotropic
-    material (:func:`bulk_solid_blocks`, for geometric stiffening). Every other card is
-    counted (for messages) and skipped without being parsed.
+    material (:func:`bulk_solid_blocks`, for geometric stiffening); ``CPENTA``, ``CPYRAM``, the
+    shells ``CTRIA3/6``, ``CTRIAR``, ``CQUAD4/8``, ``CQUADR``, ``CSHEAR`` and the line elements
+    ``CBAR``, ``CBEAM``, ``CROD``, ``CONROD``, ``CTUBE`` (with the solids: the body's surface,
+    :func:`bulk_surface_elements`). Every other card is counted (for messages and the surface's
+    note) and skipped without being parsed.
 
 Coordinates
     A grid's ``X1 X2 X3`` are in its system ``CP``: rectangular ``(x, y, z)``, cylindrical
