@@ -384,3 +384,28 @@ def test_hexbeam_archive_skin_is_its_box():
         f"surface: outer faces of 40 hex20 elements ({surface.triangles.shape[0]} triangles) "
         "for viewers"
     )
+
+
+def test_attach_surface_notes_without_drawn_elements_or_coordinates():
+    """Only springs and masses: no surface, the note counts them; no coordinates: said so."""
+    from dataclasses import replace
+
+    from pymorembs.io.element_surface import SurfaceElements, attach_surface
+
+    body = read_op2(KELM / "static_solid_shell_bar_kelm.op2", mass="KGG")
+    body = replace(body, surface=None, notes=())
+    only = SurfaceElements(skipped={"CBUSH": 2, "CONM2": 3})
+    bare = attach_surface(body, only)
+    assert bare.surface is None
+    assert bare.notes == (
+        "surface: none, no element of a drawn kind (not drawn: 3 CONM2, 2 CBUSH)",
+    )
+    assert attach_surface(body, SurfaceElements()) is body
+    quad = SurfaceElements()
+    quad.add("quad4", np.array([[1, 2, 3, 4]]))
+    blind = attach_surface(replace(body, has_coordinates=False), quad)
+    assert blind.surface is None
+    assert blind.notes == ("surface: the file gives no coordinates; nodes cannot be drawn",)
+    drawn = attach_surface(body, quad)
+    assert drawn.surface.triangles.shape == (2, 3)
+    assert drawn.notes == ("surface: 1 quad4 shell elements (2 triangles) for viewers",)
