@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from pymorembs.errors import UserError
 from pymorembs.io.abaqus import read_abaqus
 from pymorembs.io.abaqus_inp import read_inp, surface_elements
 from pymorembs.io.ansys import read_ansys_full
@@ -409,3 +410,15 @@ def test_attach_surface_notes_without_drawn_elements_or_coordinates():
     drawn = attach_surface(body, quad)
     assert drawn.surface.triangles.shape == (2, 3)
     assert drawn.notes == ("surface: 1 quad4 shell elements (2 triangles) for viewers",)
+
+
+def test_a_grid_field_that_is_no_integer_is_named(tmp_path):
+    path = tmp_path / "bad.bdf"
+    path.write_text(
+        "GRID    1               0.      0.      0.\nCROD    1       1       1       2.5\n"
+    )
+    with pytest.raises(UserError, match=r"bad.bdf:2: CROD grid '2.5' is not an integer"):
+        bulk_surface_elements(read_bulk(path))
+    path.write_text("CROD    1       1       1       1_0\n")
+    with pytest.raises(UserError, match=r"bad.bdf:1: CROD grid '1_0' is not an integer"):
+        bulk_surface_elements(read_bulk(path))

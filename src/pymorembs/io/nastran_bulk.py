@@ -1545,26 +1545,43 @@ def bulk_surface_elements(bulk: BulkData) -> SurfaceElements:
     """
     elements = SurfaceElements()
     for card_name, (first, corners, full, linear, quadratic, order) in _SURFACE_CARDS.items():
-        rows: dict[str, list[list[int]]] = {linear: [], quadratic: []}
-        for card in bulk.cards.get(card_name, []):
-            fields = [card.field(first + k).strip() for k in range(full)]
-            ids = [parse_int(f, card.path, card.line, f"{card_name} grid") if f else 0
-                   for f in fields]  # fmt: skip
-            if 0 in ids[:corners]:
-                elements.skip(card_name)
-            elif full > corners and 0 not in ids:
-                rows[quadratic].append(ids)
-            else:
-                rows[linear].append(ids[:corners])
-        for kind, listed in rows.items():
-            if listed:
-                connectivity = np.array(listed, dtype=np.int64)
-                if kind == quadratic and order is not None:
-                    connectivity = connectivity[:, order]
-                elements.add(kind, connectivity)
+        cards = bulk.cards.get(card_name, [])
+        if not cards:
+            continue
+        ids = _grid_fields(cards, first, full, card_name)
+        incomplete = (ids[:, :corners] == 0).any(axis=1)
+        elements.skip(card_name, int(incomplete.sum()))
+        every = ~incomplete & (ids != 0).all(axis=1) if full > corners else ~incomplete
+        some = ~incomplete & ~every
+        if full > corners:
+            elements.add(quadratic, ids[every][:, order] if order is not None else ids[every])
+            elements.add(linear, ids[some][:, :corners])
+        else:
+            elements.add(linear, ids[every])
     for card_name in UNDRAWN_ELEMENT_CARDS:
         elements.skip(card_name, bulk.counts.get(card_name, 0))
     return elements
+
+
+def _grid_fields(cards: list[Card], first: int, count: int, name: str) -> np.ndarray:
+    """Integer fields ``first .. first + count - 1`` of the cards (blank: 0), shape (n, count);
+    converted at once, card by card (naming the card) where that fails."""
+    text = np.array(
+        [[card.field(first + k).strip() or "0" for k in range(count)] for card in cards], dtype=str
+    )
+    ids = None
+    if not (np.char.find(text, "_") >= 0).any():  # int() would read 1_000
+        try:
+            ids = text.astype(np.int64)
+        except (ValueError, OverflowError):
+            pass
+    if ids is None or np.abs(ids).max(initial=0) > MAX_ID:
+        ids = np.array(
+            [[parse_int(f, card.path, card.line, f"{name} grid") for f in row]
+             for card, row in zip(cards, text.tolist(), strict=True)],
+            dtype=np.int64,
+        )  # fmt: skip
+    return ids
 
 
 def _mat1(card: Card) -> tuple[float, float] | str:
