@@ -422,3 +422,31 @@ def test_a_grid_field_that_is_no_integer_is_named(tmp_path):
     path.write_text("CROD    1       1       1       1_0\n")
     with pytest.raises(UserError, match=r"bad.bdf:1: CROD grid '1_0' is not an integer"):
         bulk_surface_elements(read_bulk(path))
+
+
+def test_small_large_and_free_field_element_cards_give_the_same_elements(tmp_path):
+    """One-line small-field cards take the reader's numpy path, the others the card path."""
+    grids = "".join(f"GRID    {i:<8}        {i:<8.1f}{i % 2:<8.1f}0.\n" for i in range(1, 7))
+    decks = {
+        "small": "CQUAD4  1       1       1       2       4       3\n"
+        "CTRIA3  2       1       3       4       5\nCROD    3       1       5       6\n",
+        "free": "CQUAD4,1,1,1,2,4,3\nCTRIA3,2,1,3,4,5\nCROD,3,1,5,6\n",
+        "large": f"CQUAD4* {1:<16}{1:<16}{1:<16}{2:<16}\n*       {4:<16}{3:<16}\n"
+        f"CTRIA3* {2:<16}{1:<16}{3:<16}{4:<16}\n*       {5:<16}\n"
+        f"CROD*   {3:<16}{1:<16}{5:<16}{6:<16}\n",
+        "continued": "CQUAD4  1       1       1       2       4       3       0.      0.\n"
+        "                        0.1     0.1     0.1     0.1\n"
+        "CTRIA3  2       1       3       4       5\nCROD    3       1       5       6\n",
+    }
+    found = {}
+    for name, cards in decks.items():
+        path = tmp_path / f"{name}.bdf"
+        path.write_text(grids + cards)
+        bulk = read_bulk(path)
+        assert sorted(bulk.element_grids) == (["CQUAD4", "CROD", "CTRIA3"] if name == "small"
+                                              else ["CROD", "CTRIA3"] if name == "continued"
+                                              else [])  # fmt: skip
+        elements = bulk_surface_elements(bulk)
+        found[name] = {kind: c.tolist() for kind, c in elements.blocks}
+    expected = {"tri3": [[3, 4, 5]], "quad4": [[1, 2, 4, 3]], "line2": [[5, 6]]}
+    assert all(f == expected for f in found.values()), found

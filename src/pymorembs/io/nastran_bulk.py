@@ -129,6 +129,12 @@ LIST_SETS = {
     "BNDFRE1": "c",
 }
 _SYSTEMS = {"CORD1R", "CORD1C", "CORD1S", "CORD2R", "CORD2C", "CORD2S"}
+#: Element cards whose grids lie in the first line (field from 0 = EID, number of grids): in
+#: small field on one line they are converted at once (:attr:`BulkData.element_grids`).
+_FAST_ELEMENTS = {
+    "CTRIA3": (2, 3), "CTRIAR": (2, 3), "CQUAD4": (2, 4), "CQUADR": (2, 4), "CSHEAR": (2, 4),
+    "CBAR": (2, 2), "CBEAM": (2, 2), "CROD": (2, 2), "CTUBE": (2, 2), "CONROD": (1, 2),
+}  # fmt: skip
 _WANTED = {
     "GRID",
     "GRDSET",
@@ -339,8 +345,8 @@ def _ints_of_fields(
     empty = (block == _SPACE).all(axis=1)
     values = np.zeros(m, dtype=np.int64)
     given = np.flatnonzero(~empty)
-    ok = True
-    if given.size:
+    ok = not (block == ord("_")).any()  # numpy, as int(), would read 1_000
+    if given.size and ok:
         try:
             values[given] = (
                 np.ascontiguousarray(block[given]).view(f"S{w}").ravel().astype(np.int64)
@@ -538,6 +544,9 @@ class BulkData:
         self.results: str | None = None  # a results punch: what it holds
         self.counts: Counter[str] = Counter()  # every card name
         self.cards: dict[str, list[Card]] = {}
+        # grid fields of one-line small-field element cards of _FAST_ELEMENTS, converted at
+        # once (blank: 0), shape (n, grids); the other cards of these names are in ``cards``
+        self.element_grids: dict[str, list[np.ndarray]] = {}
         self.paths: list[Path] = []
         self._grids = _Grids()
         self.sections: set[int] = set()
@@ -1172,6 +1181,7 @@ class _Parser:
         grid_code = texts.index("GRID") if "GRID" in texts else -1
         grid_cards = np.flatnonzero(code == grid_code)
         done = self._fast_grids(starts, grid_cards, n_lines, member_rows, first_member)
+        done = np.concatenate([done, self._fast_elements(starts, code, texts, n_lines)])
         wanted_codes = [k for k, text in enumerate(texts) if text in _WANTED]
         wanted = np.flatnonzero(np.isin(code, wanted_codes))
         wanted = wanted[~np.isin(wanted, done)]
@@ -1355,6 +1365,29 @@ class _Parser:
             picked.append(grid_cards[free_ok][ok])
         for block, r in zip(blocks, lines, strict=True):
             self._add_grids(block, r)
+        return np.concatenate(picked) if picked else np.zeros(0, dtype=np.int64)
+
+    def _fast_elements(
+        self, starts: np.ndarray, code: np.ndarray, texts: list[str], n_lines: np.ndarray
+    ) -> np.ndarray:
+        """The grid fields of one-line small-field element cards of :data:`_FAST_ELEMENTS`,
+        converted with numpy into :attr:`BulkData.element_grids`; returns the cards done."""
+        picked = []
+        for name, (first, count) in _FAST_ELEMENTS.items():
+            if name not in texts:
+                continue
+            cards = np.flatnonzero(code == texts.index(name))
+            rows = starts[cards]
+            ok = ~self.free[rows] & ~(self.u[rows, :8] == _STAR).any(axis=1) & (n_lines[cards] == 1)
+            if not ok.any():
+                continue
+            r = rows[ok]
+            block = self.u[r, 8:72].reshape(r.size, 8, 8)
+            numbers = self.numbers[r]
+            ids = [_ints_of_fields(block[:, first + k], numbers, self.path, f"{name} grid")[0]
+                   for k in range(count)]  # fmt: skip
+            self.bulk.element_grids.setdefault(name, []).append(np.column_stack(ids))
+            picked.append(cards[ok])
         return np.concatenate(picked) if picked else np.zeros(0, dtype=np.int64)
 
     def _add_grids(self, block: np.ndarray, at: np.ndarray) -> None:
@@ -1546,9 +1579,12 @@ def bulk_surface_elements(bulk: BulkData) -> SurfaceElements:
     elements = SurfaceElements()
     for card_name, (first, corners, full, linear, quadratic, order) in _SURFACE_CARDS.items():
         cards = bulk.cards.get(card_name, [])
-        if not cards:
+        parts = list(bulk.element_grids.get(card_name, []))
+        if cards:
+            parts.append(_grid_fields(cards, first, full, card_name))
+        if not parts:
             continue
-        ids = _grid_fields(cards, first, full, card_name)
+        ids = np.concatenate(parts)
         incomplete = (ids[:, :corners] == 0).any(axis=1)
         elements.skip(card_name, int(incomplete.sum()))
         every = ~incomplete & (ids != 0).all(axis=1) if full > corners else ~incomplete
