@@ -1,5 +1,10 @@
 """Reading speed of the Nastran text readers: bulk data GRIDs and a DMIG punch.
 
+With ``--plate N`` also a flat N x N plate of CQUAD4 cards (small field): the time to read it
+and to give its surface (:func:`pymorembs.io.nastran_bulk.bulk_surface_elements`, then
+:func:`pymorembs.surface.outer_surface`), the cost of the shells the bulk reader keeps for the
+surface (issue 17).
+
 Writes (to a temporary folder) a bulk data file with ``--grids`` GRID cards in small, large and
 free field, and the DMIG punch (large field, D exponents, as ``PARAM,EXTOUT,DMIGPCH`` writes it)
 of a chain of ``--grids`` / 10 grids x 6 dofs, then times
@@ -38,8 +43,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
-from pymorembs.io.nastran_bulk import read_bulk  # noqa: E402
+from pymorembs.io.nastran_bulk import bulk_surface_elements, read_bulk  # noqa: E402
 from pymorembs.io.nastran_dmig import read_dmig  # noqa: E402
+from pymorembs.surface import outer_surface  # noqa: E402
 
 
 def write_grids(path: Path, xyz: np.ndarray, style: str) -> None:
@@ -71,6 +77,24 @@ def write_punch(path: Path, grids: int) -> int:
     return entries
 
 
+def write_plate(path: Path, n: int) -> None:
+    """GRIDs of an (n + 1) x (n + 1) grid in the plane z = 0 and n x n CQUAD4 between them."""
+    with open(path, "w") as f:
+        for j in range(n + 1):
+            for i in range(n + 1):
+                f.write(
+                    f"GRID    {j * (n + 1) + i + 1:<8}        {i * 0.01:<8.3f}{j * 0.01:<8.3f}\n"
+                )
+        element = 0
+        for j in range(n):
+            for i in range(n):
+                a = j * (n + 1) + i + 1
+                element += 1
+                f.write(
+                    f"CQUAD4  {element:<8}1       {a:<8}{a + 1:<8}{a + n + 2:<8}{a + n + 1:<8}\n"
+                )
+
+
 def baseline(path: Path, width: int, columns: list[slice]) -> float:
     """Seconds to cut the fixed-width columns of every line out and convert them with numpy."""
     start = time.perf_counter()
@@ -96,6 +120,7 @@ def timed(function, *args, **kwargs) -> tuple[float, object]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--grids", type=int, default=1_000_000)
+    parser.add_argument("--plate", type=int, default=0, help="also an N x N CQUAD4 plate")
     args = parser.parse_args()
     rng = np.random.default_rng(0)
     xyz = rng.random((args.grids, 3)) * 100
@@ -121,6 +146,20 @@ def main() -> None:
             f"DMIG punch: {body.n_dof} dofs, {entries} entries, {size:.0f} MiB: read "
             f"{seconds:.2f} s (numpy floor for the values {floor:.2f} s)"
         )
+        if args.plate:
+            plate = folder / "plate.bdf"
+            write_plate(plate, args.plate)
+            seconds, bulk = timed(read_bulk, plate)
+            found, elements = timed(bulk_surface_elements, bulk)
+            ids = bulk.grid["ids"]
+            xyz = bulk.basic_coordinates(bulk.grid_rows(ids))
+            drawn, surface = timed(outer_surface, elements.blocks, ids, xyz)
+            print(
+                f"plate: {ids.size} GRIDs, {args.plate**2} CQUAD4, "
+                f"{plate.stat().st_size / 2**20:.0f} MiB: read {seconds:.2f} s, surface elements "
+                f"{found:.2f} s, outer surface {drawn:.2f} s ({surface.triangles.shape[0]} "
+                "triangles)"
+            )
 
 
 if __name__ == "__main__":

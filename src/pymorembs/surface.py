@@ -2,8 +2,9 @@
 
 A :class:`Surface` holds triangles and line segments over the body's node ids. It is built
 from element connectivity by :func:`outer_surface`: for solids, the faces that belong to one
-element only (the faces inside the body are shared by two); shells are their own faces; beams
-and other line elements are segments. Quadratic faces are split into triangles through their
+element only (the faces inside the body are shared by two); shells are their own faces (one
+set of triangles for both sides; a shell on a solid's face is not drawn twice); beams and other
+line elements are segments. Quadratic faces are split into triangles through their
 mid-side nodes, so that every surface node carries the motion a shape function gives it and a
 curved hole stays round. Triangles are oriented outward (their normal points away from the
 element they belong to), whatever the node order of the elements.
@@ -26,8 +27,10 @@ __all__ = ["SURFACE_ELEMENTS", "Surface", "outer_surface", "smooth_patch"]
 
 # Faces of each element kind as loops of local node numbers (0-based). Quadratic faces list
 # corner, mid-side, corner, ... in turn. Node orders of Abaqus (C3D4, C3D10, C3D8, C3D20, C3D6,
-# C3D15, C3D5, S3, STRI65, S4, S8R), which Nastran (CTETRA, CHEXA, CPENTA, CPYRAM, CTRIA3/6,
-# CQUAD4/8) and Ansys (SOLID185/186/187, SHELL181/281) share for these kinds.
+# C3D15, C3D5, S3, STRI65, S4, S8R); Nastran (CTETRA, CPYRAM, CTRIA3/6, CQUAD4/8) and Ansys
+# (SOLID185/186/187, SHELL181/281) share them, CHEXA and CPENTA with 20 / 15 grids list their
+# edges in another order (the reader reorders them). pyramid13 is Nastran's CPYRAM with all
+# edge grids.
 _FACES: dict[str, tuple[tuple[int, ...], ...]] = {
     "tet4": ((0, 2, 1), (0, 1, 3), (1, 2, 3), (2, 0, 3)),
     "tet10": ((0, 6, 2, 5, 1, 4), (0, 4, 1, 8, 3, 7), (1, 5, 2, 9, 3, 8), (2, 6, 0, 7, 3, 9)),
@@ -49,6 +52,14 @@ _FACES: dict[str, tuple[tuple[int, ...], ...]] = {
         (2, 8, 0, 12, 3, 11, 5, 14),
     ),
     "pyramid5": ((0, 3, 2, 1), (0, 1, 4), (1, 2, 4), (2, 3, 4), (3, 0, 4)),
+    # corners, the base's edges (1-2, 2-3, 3-4, 4-1), the edges to the apex (1-5 .. 4-5)
+    "pyramid13": (
+        (0, 8, 3, 7, 2, 6, 1, 5),
+        (0, 5, 1, 10, 4, 9),
+        (1, 6, 2, 11, 4, 10),
+        (2, 7, 3, 12, 4, 11),
+        (3, 8, 0, 9, 4, 12),
+    ),
     "tri3": ((0, 1, 2),),
     "tri6": ((0, 3, 1, 4, 2, 5),),
     "quad4": ((0, 1, 2, 3),),
@@ -127,7 +138,8 @@ def outer_surface(
     blocks : iterable of (kind, connectivity)
         Element kind (a key of :data:`SURFACE_ELEMENTS`) and the node ids of each element,
         shape (n_el, nodes per element). Solids of all blocks are taken together, so a face
-        shared by elements of two blocks is inside.
+        shared by elements of two blocks is inside; a shell face on the corners of a solid face
+        or of another shell face is drawn once (by the solid, or by the first shell).
     node_ids : ndarray of int, shape (n_nodes,)
         The body's node ids.
     coordinates : ndarray, shape (n_nodes, 3)
@@ -171,12 +183,25 @@ def outer_surface(
                 shell_loops.append(loop)
             else:
                 solid_loops.append((loop, coordinates[rows].mean(axis=1)))
-    triangles = [_triangles(loop, None, coordinates) for loop in shell_loops]
+    shells = _single_shell_faces(shell_loops, solid_loops)
+    triangles = [_triangles(loop, None, coordinates) for loop in shells]
     triangles += _outer_solid_faces(solid_loops, coordinates)
     tri = np.concatenate(triangles) if triangles else np.zeros((0, 3), np.int64)
     seg = np.concatenate(lines) if lines else np.zeros((0, 2), np.int64)
-    source = "outer faces of " + ", ".join(f"{n:,} {k}" for k, n in counts.items()) + " elements"
-    return Surface(node_ids[tri], seg, source if counts else "no elements")
+    return Surface(node_ids[tri], seg, _source(counts))
+
+
+def _source(counts: dict[str, int]) -> str:
+    """``outer faces of 8 hex8 elements; 4 quad4 shell elements; 2 line2 line elements``."""
+    parts = []
+    for group, word in ((set(_FACES) - _SHELLS, "elements"), (_SHELLS, "shell elements"),
+                        (set(_LINES), "line elements")):  # fmt: skip
+        listed = [f"{n:,} {k}" for k, n in counts.items() if k in group]
+        if listed:
+            parts.append(f"{', '.join(listed)} {word}")
+    if not parts:
+        return "no elements"
+    return ("outer faces of " if counts.keys() - _SHELLS - set(_LINES) else "") + "; ".join(parts)
 
 
 def smooth_patch(
@@ -240,6 +265,10 @@ def smooth_patch(
 
 def _rows(elements: np.ndarray, node_ids: np.ndarray, order: np.ndarray) -> np.ndarray:
     """Rows of the node ids of ``elements`` in ``node_ids``; UserError for an unknown id."""
+    if node_ids.size == 0 and elements.size:
+        raise UserError(
+            f"surface: element node {int(elements.flat[0])} is not a node of the body (it has none)"
+        )
     position = np.searchsorted(node_ids, elements, sorter=order)
     position = np.minimum(position, node_ids.size - 1)
     rows = order[position]
@@ -251,6 +280,38 @@ def _rows(elements: np.ndarray, node_ids: np.ndarray, order: np.ndarray) -> np.n
     return rows
 
 
+def _face_keys(loop: np.ndarray) -> np.ndarray:
+    """The name of each face loop: its sorted corner rows (quadratic loops: every other node),
+    padded with -1 to 4, shape (n_faces, 4)."""
+    corners = loop[:, ::2] if loop.shape[1] in (6, 8) else loop
+    key = np.full((loop.shape[0], 4), -1, dtype=np.int64)
+    key[:, : corners.shape[1]] = np.sort(corners, axis=1)
+    return key
+
+
+def _single_shell_faces(
+    shells: list[np.ndarray], solids: list[tuple[np.ndarray, np.ndarray]]
+) -> list[np.ndarray]:
+    """The shell face loops without repeats: a face on the corners of a solid's face (the solid
+    draws it, or it lies inside) or of an earlier shell (a membrane laid over a shell) is left
+    out."""
+    if not shells:
+        return []
+    keys = [_face_keys(loop) for loop in shells]
+    taken = np.concatenate([_face_keys(loop) for loop, _ in solids] or [np.zeros((0, 4), int)])
+    every = np.concatenate([taken, *keys])
+    _, first, inverse = np.unique(every, axis=0, return_index=True, return_inverse=True)
+    inverse = inverse.ravel()
+    keep = (np.arange(every.shape[0]) == first[inverse])[taken.shape[0] :]
+    out, start = [], 0
+    for loop in shells:
+        part = keep[start : start + loop.shape[0]]
+        start += loop.shape[0]
+        if part.any():
+            out.append(loop[part])
+    return out
+
+
 def _outer_solid_faces(
     loops: list[tuple[np.ndarray, np.ndarray]], coordinates: np.ndarray
 ) -> list[np.ndarray]:
@@ -258,12 +319,7 @@ def _outer_solid_faces(
     if not loops:
         return []
     # A face is named by its sorted corner rows (quadratic loops: every other node), padded to 4.
-    keys = []
-    for loop, _ in loops:
-        corners = loop[:, ::2] if loop.shape[1] in (6, 8) else loop
-        key = np.full((loop.shape[0], 4), -1, dtype=np.int64)
-        key[:, : corners.shape[1]] = np.sort(corners, axis=1)
-        keys.append(key)
+    keys = [_face_keys(loop) for loop, _ in loops]
     _, inverse, count = np.unique(
         np.concatenate(keys), axis=0, return_inverse=True, return_counts=True
     )

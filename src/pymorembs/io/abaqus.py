@@ -96,7 +96,9 @@ from pymorembs.io.abaqus_inp import (
     integer_field,
     read_inp,
     solid_blocks,
+    surface_elements,
 )
+from pymorembs.io.element_surface import attach_surface
 from pymorembs.io.matrix_market import SYMMETRY_TOLERANCE, read_dofs_csv, read_nodes_csv
 from pymorembs.io.reader_support import assemble_symmetric, is_nodes_csv, read_text
 from pymorembs.io.solid_mesh import attach_mesh
@@ -368,7 +370,8 @@ def _read(
                 f"no mass matrix: {k_file.path.name} was read alone, the mass is zero",
             ),
         )
-    if nodes is not None and nodes.model is not None:  # the solid elements, for stiffening
+    if nodes is not None and nodes.model is not None:  # every element for the surface, the
+        body = attach_surface(body, surface_elements(nodes.model))  # solids for stiffening
         body = attach_mesh(body, solid_blocks(nodes.model))
     return body
 

@@ -49,8 +49,15 @@ import scipy.sparse as sp
 
 from pymorembs.body import DIRECTIONS, DofTable, ElasticBody
 from pymorembs.errors import UserError, located_error
-from pymorembs.io.ansys_cdb import AnsysArchive, cdb_solid_blocks, looks_like_cdb, read_cdb
+from pymorembs.io.ansys_cdb import (
+    AnsysArchive,
+    cdb_solid_blocks,
+    cdb_surface_elements,
+    looks_like_cdb,
+    read_cdb,
+)
 from pymorembs.io.checks import make_body, reason
+from pymorembs.io.element_surface import attach_surface
 from pymorembs.io.fast_text import all_distinct
 from pymorembs.io.matrix_market import (
     check_symmetric,
@@ -1153,9 +1160,11 @@ def _check_coordinates(body: ElasticBody, geometry: _Geometry) -> str:
 
 
 def _with_mesh(body: ElasticBody, geometry: _Geometry) -> ElasticBody:
-    """The body with the solid elements of its archive (or a note why it has none)."""
+    """The body with the surface of every element of its archive and its solid elements (or a
+    note why it has none)."""
     if geometry.archive is None or geometry.source is None:
         return body
+    body = attach_surface(body, cdb_surface_elements(geometry.archive))
     return attach_mesh(body, cdb_solid_blocks(geometry.archive, geometry.source))
 
 

@@ -45,10 +45,19 @@ from pathlib import Path
 import numpy as np
 
 from pymorembs.errors import located_error
+from pymorembs.io.element_surface import SurfaceElements
 from pymorembs.io.matrix_market import read_text_lines
 from pymorembs.io.solid_mesh import SolidBlock
 
-__all__ = ["ANSYS_SOLID_TYPES", "AnsysArchive", "cdb_solid_blocks", "looks_like_cdb", "read_cdb"]
+__all__ = [
+    "ANSYS_SOLID_TYPES",
+    "ANSYS_SURFACE_TYPES",
+    "AnsysArchive",
+    "cdb_solid_blocks",
+    "cdb_surface_elements",
+    "looks_like_cdb",
+    "read_cdb",
+]
 
 PathLike = str | os.PathLike[str]
 
@@ -520,3 +529,123 @@ def cdb_solid_blocks(archive: AnsysArchive, path: PathLike) -> list[SolidBlock] 
                 )
             )
     return blocks
+
+
+# ============================================================================ surface elements
+#: Ansys element types drawn on the body's surface: number -> (name, family). Families:
+#: ``hex8`` (8 nodes I..P; wedge, pyramid and tetrahedron as repeated nodes), ``hex20`` (20
+#: nodes, the same degenerate forms), ``tet10``, ``quad4`` (4 nodes; K = L a triangle),
+#: ``quad8`` (8 nodes; K = L = O a triangle), ``line2`` (I, J, an orientation node after them)
+#: and ``line3`` (I, J, the middle node K, an orientation node L).
+ANSYS_SURFACE_TYPES: dict[int, tuple[str, str]] = {
+    185: ("SOLID185", "hex8"),
+    45: ("SOLID45", "hex8"),
+    190: ("SOLSH190", "hex8"),
+    186: ("SOLID186", "hex20"),
+    95: ("SOLID95", "hex20"),
+    187: ("SOLID187", "tet10"),
+    92: ("SOLID92", "tet10"),
+    181: ("SHELL181", "quad4"),
+    63: ("SHELL63", "quad4"),
+    281: ("SHELL281", "quad8"),
+    93: ("SHELL93", "quad8"),
+    188: ("BEAM188", "line2"),
+    4: ("BEAM4", "line2"),
+    180: ("LINK180", "line2"),
+    8: ("LINK8", "line2"),
+    288: ("PIPE288", "line2"),
+    189: ("BEAM189", "line3"),
+    289: ("PIPE289", "line3"),
+}
+#: Names of common element types the surface leaves out (springs, masses, constraints, contact).
+_UNDRAWN_NAMES = {
+    14: "COMBIN14", 21: "MASS21", 39: "COMBIN39", 40: "COMBIN40", 170: "TARGE170",
+    173: "CONTA173", 174: "CONTA174", 175: "CONTA175", 184: "MPC184", 250: "COMBIN250",
+    154: "SURF154",
+}  # fmt: skip
+# Degenerate forms of the 8- and 20-node solids: the corner pattern (which corner equals which)
+# and the nodes, in the order of the kind, that make it.
+_WEDGE8 = [0, 1, 2, 4, 5, 6]
+_PYRAMID8 = [0, 1, 2, 3, 4]
+_TET8 = [0, 1, 2, 4]
+_WEDGE20 = [0, 1, 2, 4, 5, 6, 8, 9, 11, 12, 13, 15, 16, 17, 18]
+_PYRAMID20 = [0, 1, 2, 3, 4, 8, 9, 10, 11, 16, 17, 18, 19]
+_TET20 = [0, 1, 2, 4, 8, 9, 11, 16, 17, 18]
+
+
+def cdb_surface_elements(archive: AnsysArchive) -> SurfaceElements:
+    """Every element of the archive for the body's surface, whatever its material.
+
+    The types of :data:`ANSYS_SURFACE_TYPES` are drawn: the 8- and 20-node solids also in their
+    degenerate forms (K = L and O = P a wedge, M = N = O = P a pyramid, both a tetrahedron; the
+    midside nodes of the collapsed edges dropped), a quadratic solid or shell with dropped
+    midside nodes through its corners, SHELL181 with K = L and SHELL281 with K = L = O as
+    triangles, BEAM189 through its middle node. Other types (``COMBIN14``, ``MASS21``,
+    ``CONTA174`` ...), an element type without an ``ET`` command and elements with fewer nodes
+    than their type has corners are counted as not drawn.
+
+    Returns
+    -------
+    SurfaceElements
+        Connectivity in node numbers, in the node order of :mod:`pymorembs.surface`.
+    """
+    elements = SurfaceElements()
+    if not archive.has_elements:
+        return elements
+    counts = np.diff(archive.element_offsets)
+    starts = archive.element_offsets[:-1]
+    for itype in np.unique(archive.element_types).tolist():
+        of_type = archive.element_types == itype
+        number = archive.element_type_names.get(int(itype))
+        name, family = ANSYS_SURFACE_TYPES.get(number, ("", "")) if number is not None else ("", "")
+        if not family:
+            label = _UNDRAWN_NAMES.get(number, f"element type {number}") if number else None
+            elements.skip(label or f"type {itype} (no ET)", int(of_type.sum()))
+            continue
+        full = {"hex8": 8, "hex20": 20, "tet10": 10, "quad4": 4, "quad8": 8}.get(family)
+        corners = {"hex20": 8, "tet10": 4, "quad8": 4, "line2": 2, "line3": 2}.get(family, full)
+        need = {"line2": 2, "line3": 3}.get(family, full)
+        n = counts[of_type]
+        first = starts[of_type]
+        complete = n >= need if family.startswith("line") else n == full
+        partial = ~complete & (n >= corners) & (family in ("hex20", "tet10", "quad8"))
+        elements.skip(name, int((~complete & ~partial).sum()))
+        if complete.any():
+            nodes = archive.element_nodes[first[complete][:, None] + np.arange(need)]
+            _add_ansys(elements, name, family, nodes)
+        if partial.any():  # midside nodes dropped: the corners come first
+            nodes = archive.element_nodes[first[partial][:, None] + np.arange(corners)]
+            linear = {"hex20": "hex8", "tet10": "tet4", "quad8": "quad4"}[family]
+            _add_ansys(elements, name, linear, nodes)
+    return elements
+
+
+def _add_ansys(elements: SurfaceElements, name: str, family: str, nodes: np.ndarray) -> None:
+    """Add elements of an Ansys node layout, their degenerate forms split off."""
+    if family == "line3":
+        elements.add("line3", nodes[:, [0, 2, 1]])
+    elif family in ("line2", "tet4", "tet10"):
+        elements.add(family, nodes)
+    elif family in ("quad4", "quad8"):
+        triangle = nodes[:, 2] == nodes[:, 3]
+        elements.add(family, nodes[~triangle])
+        elements.add(*(("tri3", nodes[triangle][:, :3]) if family == "quad4" else
+                       ("tri6", nodes[triangle][:, [0, 1, 2, 4, 5, 7]])))  # fmt: skip
+    else:  # hex8 or hex20
+        c = nodes[:, :8]
+        wedge = (c[:, 2] == c[:, 3]) & (c[:, 6] == c[:, 7])
+        top = (c[:, 4] == c[:, 5]) & (c[:, 5] == c[:, 6]) & (c[:, 6] == c[:, 7])
+        tet = (c[:, 2] == c[:, 3]) & top
+        pyramid = top & ~tet
+        wedge &= ~top
+        ordered = np.sort(c, axis=1)
+        brick = ~(wedge | top) & np.all(ordered[:, 1:] != ordered[:, :-1], axis=1)
+        elements.skip(name, int((~(wedge | top | brick)).sum()))  # another degenerate form
+        quadratic = family == "hex20"
+        elements.add(family, nodes[brick])
+        elements.add("wedge15" if quadratic else "wedge6",
+                     nodes[wedge][:, _WEDGE20 if quadratic else _WEDGE8])  # fmt: skip
+        elements.add("pyramid13" if quadratic else "pyramid5",
+                     nodes[pyramid][:, _PYRAMID20 if quadratic else _PYRAMID8])  # fmt: skip
+        elements.add("tet10" if quadratic else "tet4",
+                     nodes[tet][:, _TET20 if quadratic else _TET8])  # fmt: skip

@@ -37,8 +37,11 @@ Cards read
     the NX names ``BNDFIX``/``BNDFRE``; ``EXTRN`` (pairs ``ID C``, ``C = 0`` for scalar points);
     ``SECONCT``, ``SEBULK``; ``SEQGP`` and ``PARAM,OLDSEQ`` (resequencing); ``SUPORT``.
     ``CTETRA``, ``CHEXA``, ``PSOLID``, ``MAT1``: the solid elements and their isotropic
-    material (:func:`bulk_solid_blocks`, for geometric stiffening). Every other card is
-    counted (for messages) and skipped without being parsed.
+    material (:func:`bulk_solid_blocks`, for geometric stiffening); ``CPENTA``, ``CPYRAM``, the
+    shells ``CTRIA3/6``, ``CTRIAR``, ``CQUAD4/8``, ``CQUADR``, ``CSHEAR`` and the line elements
+    ``CBAR``, ``CBEAM``, ``CROD``, ``CONROD``, ``CTUBE`` (with the solids: the body's surface,
+    :func:`bulk_surface_elements`). Every other card is counted (for messages and the surface's
+    note) and skipped without being parsed.
 
 Coordinates
     A grid's ``X1 X2 X3`` are in its system ``CP``: rectangular ``(x, y, z)``, cylindrical
@@ -65,6 +68,7 @@ from pathlib import Path
 import numpy as np
 
 from pymorembs.errors import located_error
+from pymorembs.io.element_surface import SurfaceElements
 from pymorembs.io.line_blocks import UTF8_BOM
 from pymorembs.io.matrix_market import encoding_note
 from pymorembs.io.solid_mesh import SolidBlock
@@ -76,6 +80,7 @@ __all__ = [
     "Card",
     "Frame",
     "bulk_solid_blocks",
+    "bulk_surface_elements",
     "line_fields",
     "parse_int",
     "parse_real",
@@ -124,6 +129,12 @@ LIST_SETS = {
     "BNDFRE1": "c",
 }
 _SYSTEMS = {"CORD1R", "CORD1C", "CORD1S", "CORD2R", "CORD2C", "CORD2S"}
+#: Element cards whose grids lie in the first line (field from 0 = EID, number of grids): in
+#: small field on one line they are converted at once (:attr:`BulkData.element_grids`).
+_FAST_ELEMENTS = {
+    "CTRIA3": (2, 3), "CTRIAR": (2, 3), "CQUAD4": (2, 4), "CQUADR": (2, 4), "CSHEAR": (2, 4),
+    "CBAR": (2, 2), "CBEAM": (2, 2), "CROD": (2, 2), "CTUBE": (2, 2), "CONROD": (1, 2),
+}  # fmt: skip
 _WANTED = {
     "GRID",
     "GRDSET",
@@ -138,6 +149,8 @@ _WANTED = {
     "CTETRA",
     "CHEXA",
     "PSOLID",
+    *("CPENTA", "CPYRAM", "CTRIA3", "CTRIA6", "CTRIAR", "CQUAD4", "CQUAD8", "CQUADR"),
+    *("CSHEAR", "CBAR", "CBEAM", "CROD", "CONROD", "CTUBE"),  # the surface's elements
     "MAT1",
     *_SYSTEMS,
     *PAIR_SETS,
@@ -332,8 +345,8 @@ def _ints_of_fields(
     empty = (block == _SPACE).all(axis=1)
     values = np.zeros(m, dtype=np.int64)
     given = np.flatnonzero(~empty)
-    ok = True
-    if given.size:
+    ok = not (block == ord("_")).any()  # numpy, as int(), would read 1_000
+    if given.size and ok:
         try:
             values[given] = (
                 np.ascontiguousarray(block[given]).view(f"S{w}").ravel().astype(np.int64)
@@ -531,6 +544,9 @@ class BulkData:
         self.results: str | None = None  # a results punch: what it holds
         self.counts: Counter[str] = Counter()  # every card name
         self.cards: dict[str, list[Card]] = {}
+        # grid fields of one-line small-field element cards of _FAST_ELEMENTS, converted at
+        # once (blank: 0), shape (n, grids); the other cards of these names are in ``cards``
+        self.element_grids: dict[str, list[np.ndarray]] = {}
         self.paths: list[Path] = []
         self._grids = _Grids()
         self.sections: set[int] = set()
@@ -1165,6 +1181,7 @@ class _Parser:
         grid_code = texts.index("GRID") if "GRID" in texts else -1
         grid_cards = np.flatnonzero(code == grid_code)
         done = self._fast_grids(starts, grid_cards, n_lines, member_rows, first_member)
+        done = np.concatenate([done, self._fast_elements(starts, code, texts, n_lines)])
         wanted_codes = [k for k, text in enumerate(texts) if text in _WANTED]
         wanted = np.flatnonzero(np.isin(code, wanted_codes))
         wanted = wanted[~np.isin(wanted, done)]
@@ -1350,6 +1367,29 @@ class _Parser:
             self._add_grids(block, r)
         return np.concatenate(picked) if picked else np.zeros(0, dtype=np.int64)
 
+    def _fast_elements(
+        self, starts: np.ndarray, code: np.ndarray, texts: list[str], n_lines: np.ndarray
+    ) -> np.ndarray:
+        """The grid fields of one-line small-field element cards of :data:`_FAST_ELEMENTS`,
+        converted with numpy into :attr:`BulkData.element_grids`; returns the cards done."""
+        picked = []
+        for name, (first, count) in _FAST_ELEMENTS.items():
+            if name not in texts:
+                continue
+            cards = np.flatnonzero(code == texts.index(name))
+            rows = starts[cards]
+            ok = ~self.free[rows] & ~(self.u[rows, :8] == _STAR).any(axis=1) & (n_lines[cards] == 1)
+            if not ok.any():
+                continue
+            r = rows[ok]
+            block = self.u[r, 8:72].reshape(r.size, 8, 8)
+            numbers = self.numbers[r]
+            ids = [_ints_of_fields(block[:, first + k], numbers, self.path, f"{name} grid")[0]
+                   for k in range(count)]  # fmt: skip
+            self.bulk.element_grids.setdefault(name, []).append(np.column_stack(ids))
+            picked.append(cards[ok])
+        return np.concatenate(picked) if picked else np.zeros(0, dtype=np.int64)
+
     def _add_grids(self, block: np.ndarray, at: np.ndarray) -> None:
         """Convert the fields (m, 8, w) of GRID cards starting on lines ``at``; add them."""
         numbers = self.numbers[at]
@@ -1485,6 +1525,99 @@ def bulk_solid_blocks(bulk: BulkData) -> list[SolidBlock] | str:
             )
         blocks.append(SolidBlock(kind, connectivity, *material, f"{name}: MAT1 {mid}"))
     return blocks
+
+
+# ============================================================================ surface elements
+#: CPENTA with 15 grids lists the edges G1-G4 .. G3-G6 (G10-G12) before those of the face
+#: G4-G6 (G13-G15); :mod:`pymorembs.surface` takes the face first (Abaqus C3D15 order).
+CPENTA15_TO_WEDGE15 = np.r_[0:9, 12:15, 9:12]
+#: Element cards drawn on the body's surface: (first grid field from 0 = EID, number of corner
+#: grids, number of all grids, linear kind, kind with all edge grids, reordering of those).
+_SURFACE_CARDS: dict[str, tuple[int, int, int, str, str, np.ndarray | None]] = {
+    "CTETRA": (2, 4, 10, "tet4", "tet10", None),
+    "CHEXA": (2, 8, 20, "hex8", "hex20", CHEXA20_TO_HEX20),
+    "CPENTA": (2, 6, 15, "wedge6", "wedge15", CPENTA15_TO_WEDGE15),
+    "CPYRAM": (2, 5, 13, "pyramid5", "pyramid13", None),
+    "CTRIA3": (2, 3, 3, "tri3", "tri3", None),
+    "CTRIAR": (2, 3, 3, "tri3", "tri3", None),
+    "CTRIA6": (2, 3, 6, "tri3", "tri6", None),
+    "CQUAD4": (2, 4, 4, "quad4", "quad4", None),
+    "CQUADR": (2, 4, 4, "quad4", "quad4", None),
+    "CSHEAR": (2, 4, 4, "quad4", "quad4", None),
+    "CQUAD8": (2, 4, 8, "quad4", "quad8", None),
+    "CBAR": (2, 2, 2, "line2", "line2", None),
+    "CBEAM": (2, 2, 2, "line2", "line2", None),
+    "CROD": (2, 2, 2, "line2", "line2", None),
+    "CTUBE": (2, 2, 2, "line2", "line2", None),
+    "CONROD": (1, 2, 2, "line2", "line2", None),
+}
+#: Element cards the surface leaves out (counted in its note): springs, dampers, gaps, bushes,
+#: welds, rigid elements, point masses, and elements of kinds :mod:`pymorembs.surface` lacks.
+UNDRAWN_ELEMENT_CARDS = (
+    "CBUSH", "CBUSH1D", "CBUSH2D", "CELAS1", "CELAS2", "CELAS3", "CELAS4", "CDAMP1", "CDAMP2",
+    "CDAMP3", "CDAMP4", "CDAMP5", "CVISC", "CGAP", "CFAST", "CWELD", "CSEAM", "RBE1", "RBE2",
+    "RBE3", "RBAR", "RBAR1", "RROD", "RTRPLT", "RSPLINE", "CONM1", "CONM2", "CMASS1", "CMASS2",
+    "CMASS3", "CMASS4", "CBEAM3", "CBEND", "CQUAD", "CTRIAX", "CTRIAX6", "CQUADX", "CPLSTN3",
+    "CPLSTN4", "CPLSTS3", "CPLSTS4",
+)  # fmt: skip
+
+
+def bulk_surface_elements(bulk: BulkData) -> SurfaceElements:
+    """Every drawn element card of the bulk data for the body's surface, whatever its property.
+
+    Solids (CTETRA, CHEXA, CPENTA, CPYRAM), shells (CTRIA3/6, CTRIAR, CQUAD4/8, CQUADR, CSHEAR)
+    and line elements (CBAR, CBEAM, CROD, CONROD, CTUBE) by their grids; a quadratic card with
+    some edge grids blank (or 0) is drawn through its corners. The cards of
+    :data:`UNDRAWN_ELEMENT_CARDS` are counted as not drawn, as is a card whose corner grids are
+    incomplete.
+
+    Returns
+    -------
+    SurfaceElements
+        Connectivity in grid ids, in the node order of :mod:`pymorembs.surface`.
+    """
+    elements = SurfaceElements()
+    for card_name, (first, corners, full, linear, quadratic, order) in _SURFACE_CARDS.items():
+        cards = bulk.cards.get(card_name, [])
+        parts = list(bulk.element_grids.get(card_name, []))
+        if cards:
+            parts.append(_grid_fields(cards, first, full, card_name))
+        if not parts:
+            continue
+        ids = np.concatenate(parts)
+        incomplete = (ids[:, :corners] == 0).any(axis=1)
+        elements.skip(card_name, int(incomplete.sum()))
+        every = ~incomplete & (ids != 0).all(axis=1) if full > corners else ~incomplete
+        some = ~incomplete & ~every
+        if full > corners:
+            elements.add(quadratic, ids[every][:, order] if order is not None else ids[every])
+            elements.add(linear, ids[some][:, :corners])
+        else:
+            elements.add(linear, ids[every])
+    for card_name in UNDRAWN_ELEMENT_CARDS:
+        elements.skip(card_name, bulk.counts.get(card_name, 0))
+    return elements
+
+
+def _grid_fields(cards: list[Card], first: int, count: int, name: str) -> np.ndarray:
+    """Integer fields ``first .. first + count - 1`` of the cards (blank: 0), shape (n, count);
+    converted at once, card by card (naming the card) where that fails."""
+    text = np.array(
+        [[card.field(first + k).strip() or "0" for k in range(count)] for card in cards], dtype=str
+    )
+    ids = None
+    if not (np.char.find(text, "_") >= 0).any():  # int() would read 1_000
+        try:
+            ids = text.astype(np.int64)
+        except (ValueError, OverflowError):
+            pass
+    if ids is None or np.abs(ids).max(initial=0) > MAX_ID:
+        ids = np.array(
+            [[parse_int(f, card.path, card.line, f"{name} grid") for f in row]
+             for card, row in zip(cards, text.tolist(), strict=True)],
+            dtype=np.int64,
+        )  # fmt: skip
+    return ids
 
 
 def _mat1(card: Card) -> tuple[float, float] | str:

@@ -36,8 +36,15 @@ import scipy.sparse as sp
 from pymorembs.body import SCALAR, DofTable, ElasticBody
 from pymorembs.errors import UserError, located_error
 from pymorembs.io.checks import make_body
+from pymorembs.io.element_surface import attach_surface
 from pymorembs.io.matrix_market import check_symmetric, read_nodes_csv
-from pymorembs.io.nastran_bulk import AnalysisSet, BulkData, bulk_solid_blocks, read_bulk
+from pymorembs.io.nastran_bulk import (
+    AnalysisSet,
+    BulkData,
+    bulk_solid_blocks,
+    bulk_surface_elements,
+    read_bulk,
+)
 from pymorembs.io.reader_support import is_nodes_csv
 from pymorembs.io.solid_mesh import attach_mesh
 from pymorembs.sparse_rows import abs_row_sums
@@ -466,8 +473,10 @@ def build_body(
 
 
 def _with_solid_mesh(body: ElasticBody, bulk: BulkData) -> ElasticBody:
-    """The body with the CTETRA/CHEXA mesh of its bulk data, when the data has elements; a
-    CHEXA with 20 grids takes the Gauss rule (3 x 3 x 3, else 2 x 2 x 2) that reproduces K."""
+    """The body with the surface of every element of its bulk data and the CTETRA/CHEXA mesh,
+    when the data has solids; a CHEXA with 20 grids takes the Gauss rule (3 x 3 x 3, else
+    2 x 2 x 2) that reproduces K."""
+    body = attach_surface(body, bulk_surface_elements(bulk))
     if not bulk.has("CTETRA", "CHEXA"):
         return body
     blocks = bulk_solid_blocks(bulk)

@@ -6,7 +6,8 @@ Readers that see the elements of a model (the Abaqus ``.inp``, the Nastran bulk 
 elements, an element type without kinematics here, several element kinds). The
 reader keeps the body readable either way: :func:`attach_mesh` puts the mesh on the body, or
 the sentence into its notes, where ``[stiffening] source = "mesh"`` finds it
-(:func:`mesh_problem`).
+(:func:`mesh_problem`). The body's surface for viewers, from every element kind, is
+:mod:`pymorembs.io.element_surface`'s.
 """
 
 from __future__ import annotations
@@ -19,7 +20,6 @@ import scipy.sparse as sp
 from pymorembs.body import ElasticBody, ElementMesh
 from pymorembs.elements.solid import SOLID_KINDS, part, solid_stiffness
 from pymorembs.errors import UserError
-from pymorembs.surface import outer_surface
 
 __all__ = [
     "MESH_TOLERANCE",
@@ -30,7 +30,6 @@ __all__ = [
     "element_mesh",
     "mesh_problem",
     "stiffness_mismatch",
-    "with_surface",
 ]
 
 #: The note of a body whose elements give no mesh starts with this.
@@ -101,28 +100,6 @@ def describe_material(mesh: ElementMesh) -> str:
     return f"{len(pairs)} materials ({listed}{'; ...' if len(pairs) > 4 else ''})"
 
 
-def with_surface(body: ElasticBody, blocks: list[SolidBlock]) -> ElasticBody:
-    """The body with the outer surface of ``blocks`` for viewers (:mod:`pymorembs.surface`).
-
-    Drawing needs node ids and coordinates only, so the surface is kept even where the
-    material does not prove the mesh for stiffening. Without coordinates (or with elements on
-    nodes the body lacks) the body stays as it is, with a note saying why.
-    """
-    if not blocks:
-        return body
-    if not body.has_coordinates:
-        return body.with_notes("surface: the file gives no coordinates; nodes cannot be drawn")
-    try:
-        surface = outer_surface(
-            [(block.kind, block.connectivity) for block in blocks], body.node_ids, body.coordinates
-        )
-    except UserError as err:
-        return body.with_notes(f"surface: none ({err})")
-    return body.with_surface(surface).with_notes(
-        f"surface: {surface.source} ({surface.triangles.shape[0]:,} triangles) for viewers"
-    )
-
-
 def attach_mesh(body: ElasticBody, blocks: list[SolidBlock] | str) -> ElasticBody:
     """The body with the mesh of ``blocks``, or with a note saying why it has none.
 
@@ -137,7 +114,6 @@ def attach_mesh(body: ElasticBody, blocks: list[SolidBlock] | str) -> ElasticBod
     if isinstance(blocks, str):
         problem = blocks
     else:
-        body = with_surface(body, blocks)
         try:
             mesh = element_mesh(blocks)
             with_mesh = replace(body, mesh=mesh)
