@@ -358,6 +358,18 @@ def test_nx_inboard_craig_bampton_superelement() -> None:
         np.testing.assert_array_equal(other.stiffness.toarray(), body.stiffness.toarray())
 
 
+def test_coordinates_without_a_dof_table_are_refused_in_one_line(capsys) -> None:
+    """GRID cards beside an OP4 that has no dof table: no equation belongs to a grid, so the
+    coordinates cannot be used; said before any eigen-analysis (was a crash in info)."""
+    from pymorembs.job.cli import main
+
+    with pytest.raises(UserError, match="no equation of the matrices belongs to a grid"):
+        read_op4(YETI / "inboard.op4", nodes=YETI / "inboard.blk")
+    assert main(["info", str(YETI / "inboard.op4"), "--nodes", str(YETI / "inboard.blk")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "give the dof table as well" in err[0], err
+
+
 def test_nx_outboard_craig_bampton_superelement() -> None:
     body = read_op4(YETI / "outboard.op4", dofs=YETI / "outboard.pch")
     assert body.dofs.describe() == "4 nodes x ux uy uz rx ry rz + 22 scalar coordinates (q)"

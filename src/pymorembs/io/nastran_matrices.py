@@ -441,6 +441,14 @@ def build_body(
             )
         model = _Model(source, node_ids, coordinates, table, matrices, name, fixed)
         return _body(model, notes, False)
+    if not node_ids.size:  # coordinates asked for, but no equation belongs to a grid
+        raise located_error(
+            source,
+            None,
+            f"node coordinates given ({nodes.path.name}), but no equation of the matrices "
+            "belongs to a grid (scalar coordinates only): give the dof table as well (the "
+            "superelement's .pch/.asm or a dofs.csv)",
+        )
     if nodes.csv is not None:
         ids, xyz = nodes.csv
         order = np.argsort(ids, kind="stable")
