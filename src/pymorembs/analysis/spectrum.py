@@ -250,7 +250,11 @@ def _rigid_body_modes(
     computed = _hz(values[:spectral])
     floor = f"|f| <= {np.abs(computed).max():.3g} Hz" if spectral else ""
     body = prepared.body
-    located = body.has_coordinates and bool(np.ptp(body.coordinates, axis=0).max(initial=0.0) > 0)
+    located = (
+        body.has_coordinates
+        and body.n_nodes > 0
+        and bool(np.ptp(body.coordinates, axis=0).max(initial=0.0) > 0)
+    )
     admissible = admissible_rigid_fields(body, prepared.elimination)
     fields = admissible.fields
     if not located:
