@@ -7,6 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from mesh_checks import enclosed_volume, is_closed_and_consistent
 from pymorembs.errors import UserError
 from pymorembs.examples import build_example
 from pymorembs.io.native import read_body_h5, write_body_h5
@@ -26,18 +27,6 @@ def points_of(surface: Surface, node_ids: np.ndarray, coordinates: np.ndarray) -
     """Corner coordinates of every triangle, shape (n, 3, 3)."""
     order = np.argsort(node_ids)
     return coordinates[order[np.searchsorted(node_ids, surface.triangles, sorter=order)]]
-
-
-def enclosed_volume(p: np.ndarray) -> float:
-    """Volume inside closed outward triangles (divergence theorem)."""
-    return float(np.einsum("ij,ij->i", p[:, 0], np.cross(p[:, 1], p[:, 2])).sum() / 6.0)
-
-
-def is_closed_and_consistent(triangles: np.ndarray) -> bool:
-    """Every directed edge once, and its reverse present: a closed, consistently oriented skin."""
-    edges = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
-    directed = set(map(tuple, edges.tolist()))
-    return len(directed) == len(edges) and all((b, a) in directed for a, b in directed)
 
 
 def test_a_hex20_cube_is_36_triangles_over_its_20_nodes_enclosing_volume_one():

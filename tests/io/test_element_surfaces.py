@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mesh_checks import enclosed_volume, is_closed_and_consistent
 from pymorembs.errors import UserError
 from pymorembs.io.abaqus import read_abaqus
 from pymorembs.io.abaqus_inp import read_inp, surface_elements
@@ -53,18 +54,6 @@ def triangle_areas(p: np.ndarray) -> np.ndarray:
 def polygon_area(p: np.ndarray) -> float:
     """Area of a flat polygon (corners in turn), shape (k, 3)."""
     return 0.5 * float(np.linalg.norm(np.cross(p, np.roll(p, -1, axis=0)).sum(axis=0)))
-
-
-def enclosed_volume(p: np.ndarray) -> float:
-    """Volume inside closed outward triangles (divergence theorem)."""
-    return float(np.einsum("ij,ij->i", p[:, 0], np.cross(p[:, 1], p[:, 2])).sum() / 6.0)
-
-
-def is_closed_and_consistent(triangles: np.ndarray) -> bool:
-    """Every directed edge once, and its reverse present."""
-    edges = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
-    directed = set(map(tuple, edges.tolist()))
-    return len(directed) == len(edges) and all((b, a) in directed for a, b in directed)
 
 
 def corners(xyz: dict[int, np.ndarray], ids: np.ndarray) -> np.ndarray:
