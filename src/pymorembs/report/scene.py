@@ -24,6 +24,7 @@ import scipy.sparse as sp
 
 from pymorembs.body import SCALAR, ElasticBody
 from pymorembs.errors import UserError
+from pymorembs.export.nodal import node_fields
 from pymorembs.prepare import Frame, PreparedModel, centre_of_gravity
 from pymorembs.prepare.interface import InterfaceSpec
 from pymorembs.reduction.projection import ReducedModel
@@ -361,12 +362,10 @@ def _shapes(
         keep = min(keep, max(0, int(max_shapes)))
     if max_values is not None and ids.size:
         keep = min(keep, max(1, int(max_values) // (3 * ids.size)))
-    rows = body.dofs.positions(ids[:, None], np.arange(3)[None, :]).ravel()  # (3 n,), -1: none
-    present = rows >= 0
+    translations = node_fields(body, np.real(basis[:, :keep]), nodes=ids).translations
     shapes = []
     for k in range(keep):
-        values = np.zeros(rows.size)
-        values[present] = np.real(basis[rows[present], k])
+        values = translations[:, :, k].ravel()  # ux uy uz of each node in turn, 0 where none
         peak = float(np.max(np.abs(values), initial=0.0))
         shapes.append({"name": str(names[k]), "values": _rounded(values, peak, SHAPE_DIGITS)})
     return shapes, total
