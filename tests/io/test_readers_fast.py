@@ -544,6 +544,73 @@ def _random_triangle(rng, n: int, density: float, lower: bool) -> sp.csr_matrix:
     return a
 
 
+def _check_full_of_triangle(stored: sp.csr_matrix, full: sp.csr_matrix) -> None:
+    """``full`` is the symmetric matrix of the triangle ``stored``: the values of the dense
+    formula, and the pattern (explicit zeros included) of each stored entry and its mirror
+    image, canonical."""
+    dense = stored.toarray()
+    assert np.array_equal(full.toarray(), dense + dense.T - np.diag(np.diag(dense)))
+    pattern = sp.coo_matrix(stored)
+    off = pattern.row != pattern.col
+    expected = set(zip(pattern.row.tolist(), pattern.col.tolist(), strict=True)) | set(
+        zip(pattern.col[off].tolist(), pattern.row[off].tolist(), strict=True)
+    )
+    got = sp.coo_matrix(full)
+    assert set(zip(got.row.tolist(), got.col.tolist(), strict=True)) == expected
+    assert got.nnz == len(expected)
+    assert full.has_canonical_format
+    assert all(np.all(np.diff(full.indices[full.indptr[i] : full.indptr[i + 1]]) > 0)
+               for i in range(full.shape[0]))  # fmt: skip
+
+
+def _in_room(stored: sp.csr_matrix) -> tuple[fast_text.SymmetricRoom, sp.csr_matrix]:
+    """A room filled with the entries of ``stored`` (row by row) and the triangle on its arrays."""
+    room = fast_text.SymmetricRoom(stored.nnz)
+    entries = sp.coo_matrix(stored)
+    room.rows[:], room.cols[:], room.values[:] = entries.row, entries.col, entries.data
+    triangle = fast_text.csr_from_sorted_coo(room.rows, room.cols, room.values, stored.shape[0])
+    return room, triangle
+
+
+@needs_numba
+def test_lower_triangle_completed_in_its_own_arrays() -> None:
+    """The room's in-place completion gives the dense formula's matrix and pattern, for
+    triangles with explicit zeros, empty rows, rows without their diagonal, a diagonal alone and
+    a full lower triangle (the most entries below the diagonal: no room to spare)."""
+    rng = np.random.default_rng(5)
+    cases = [_random_triangle(rng, n, density, True) for n, density in ((1, 1.0), (9, 0.4),
+             (80, 0.1), (80, 0.7), (300, 0.02))]  # fmt: skip
+    cases += [sp.csr_matrix(np.tril(rng.random((12, 12)))), sp.identity(5, format="csr")]
+    no_diagonal = sp.csr_matrix(np.tril(rng.random((6, 6)), -1))
+    cases.append(no_diagonal)
+    for stored in cases:
+        stored.sort_indices()
+        room, triangle = _in_room(stored)
+        full = room.full(triangle)
+        assert full is not None
+        _check_full_of_triangle(stored, full)
+        assert full.indices.ctypes.data == room.rows.ctypes.data  # no second copy
+
+
+@needs_numba
+def test_room_refuses_what_it_cannot_complete_in_place() -> None:
+    """An upper triangle (its mirrored entries would land on entries not yet read) and a matrix
+    that does not hold the room's arrays are left to the caller, untouched."""
+    rng = np.random.default_rng(6)
+    upper = _random_triangle(rng, 30, 0.3, False)
+    room, triangle = _in_room(upper)
+    before = (room.rows.copy(), room.cols.copy(), room.values.copy())
+    assert room.full(triangle) is None
+    assert all(np.array_equal(a, b) for a, b in zip(before, (room.rows, room.cols, room.values),
+                                                     strict=True))  # fmt: skip
+    lower = _random_triangle(rng, 30, 0.3, True)
+    room, _ = _in_room(lower)
+    assert room.full(lower.copy()) is None  # the same numbers in other arrays
+    assert fast_text.SymmetricRoom.fits(1) and not fast_text.SymmetricRoom.fits(2**30)
+    with pytest.raises(ValueError, match="64-bit"):
+        fast_text.SymmetricRoom(2**30)
+
+
 @needs_numba
 @pytest.mark.parametrize("lower", [True, False])
 def test_compiled_mirror_of_a_triangle(monkeypatch, lower) -> None:
@@ -552,20 +619,7 @@ def test_compiled_mirror_of_a_triangle(monkeypatch, lower) -> None:
     for n in (1, 7, 60):
         stored = _random_triangle(rng, n, 0.3, lower)
         full = fast_text.full_from_triangle(stored)
-        dense = stored.toarray()
-        assert np.array_equal(full.toarray(), dense + dense.T - np.diag(np.diag(dense)))
-        # the pattern, explicit zeros included: each stored entry and its mirror image
-        pattern = sp.coo_matrix(stored)
-        off = pattern.row != pattern.col
-        expected = set(zip(pattern.row.tolist(), pattern.col.tolist(), strict=True)) | set(
-            zip(pattern.col[off].tolist(), pattern.row[off].tolist(), strict=True)
-        )
-        got = sp.coo_matrix(full)
-        assert set(zip(got.row.tolist(), got.col.tolist(), strict=True)) == expected
-        assert got.nnz == len(expected)
-        assert full.has_canonical_format
-        assert all(np.all(np.diff(full.indices[full.indptr[i] : full.indptr[i + 1]]) > 0)
-                   for i in range(n))  # fmt: skip
+        _check_full_of_triangle(stored, full)
         with monkeypatch.context() as patch:  # the NumPy path
             patch.setattr(mm, "full_from_triangle", lambda stored: None)
             assert same(mm._mirrored(stored, lower), full)

@@ -9,7 +9,8 @@ accept exactly the same bytes). It holds the GIL for none of its work, so it run
 threads of the parser that reads the same bytes.
 
 :func:`mirror_counts` / :func:`mirror_rows` complete a stored triangle to the full symmetric CSR
-matrix and :func:`rows_gap` finds ``max |A - A^T|``, each in one pass over the entries
+matrix (:func:`mirror_lower_in_place`: a lower triangle in the arrays that hold it) and
+:func:`rows_gap` finds ``max |A - A^T|``, each in one pass over the entries
 (:func:`mirror_parallel`, :func:`transpose_gap_parallel`: the same on several threads).
 """
 
@@ -158,6 +159,40 @@ def mirror_rows(
                 out_indices[p] = i
                 out_data[p] = data[q]
                 position[j - first] = p + 1
+
+
+@numba.njit(cache=True, nogil=True)
+def mirror_lower_in_place(indptr, indices, data, offset, out_indptr):  # pragma: no cover - compiled
+    """Complete a lower triangle to the full symmetric CSR matrix in the arrays that hold it.
+
+    Row ``i`` of the canonical lower triangle is ``indices[offset + indptr[i] : offset +
+    indptr[i + 1]]`` (and the same slice of ``data``); ``out_indptr`` is the full matrix's row
+    pointer (:func:`mirror_counts`). The full matrix is written to the front of the same arrays:
+    row ``i`` is the triangle's row ``i`` followed by the entries ``(j, i)``, ``j > i``, which are
+    placed when row ``j`` is visited (rows in increasing order, so they come out sorted).
+
+    No write reaches an entry not yet read if ``offset`` is at least the number of entries below
+    the diagonal: the full rows before row ``i`` end at ``out_indptr[i] = indptr[i] +`` (entries
+    below the diagonal in the columns before ``i``) ``<= offset + indptr[i]``, where row ``i`` is
+    read, and each entry of row ``i`` moves to the front or stays.
+    """
+    n = indptr.size - 1
+    mirrored = np.empty(n, dtype=out_indptr.dtype)  # the next place of each row's mirrored part
+    for i in range(n):
+        mirrored[i] = out_indptr[i] + indptr[i + 1] - indptr[i]
+    for i in range(n):
+        w = out_indptr[i]
+        for q in range(offset + indptr[i], offset + indptr[i + 1]):
+            j = indices[q]
+            v = data[q]
+            indices[w] = j
+            data[w] = v
+            w += 1
+            if j != i:
+                p = mirrored[j]
+                indices[p] = i
+                data[p] = v
+                mirrored[j] = p + 1
 
 
 @numba.njit(cache=True, nogil=True, parallel=True)

@@ -28,6 +28,7 @@ __all__ = [
     "PLAIN_NUMBER_BYTES",
     "CheckedReader",
     "PlainNumberScan",
+    "SymmetricRoom",
     "all_distinct",
     "check_chunk",
     "check_chunk_numpy",
@@ -38,6 +39,7 @@ __all__ = [
     "full_from_triangle",
     "parse_coordinate_lines",
     "transpose_gap",
+    "triangle_sides",
 ]
 
 #: The bytes of plain decimal numbers (``-1.5e+03``) and of the white space between them.
@@ -647,6 +649,106 @@ def full_from_triangle(stored: sp.csr_matrix) -> sp.csr_matrix | None:
     return full
 
 
+class SymmetricRoom:
+    """Arrays for the ``entries`` stored entries of a lower triangle with room to complete it,
+    in the same memory, to the full symmetric matrix.
+
+    A parser fills :attr:`rows`, :attr:`cols` and :attr:`values` (shape (entries,)); once the
+    triangle is a canonical CSR matrix that holds :attr:`cols` and :attr:`values` as its arrays
+    (:func:`csr_from_sorted_coo`), :meth:`full` completes it where it lies. Reading a large
+    symmetric file then touches the memory of the full matrix and no other of its size: on a
+    virtual machine that returns freed memory to its host, touching memory for the first time
+    costs more than the parse.
+
+    Parameters
+    ----------
+    entries : int
+        Stored entries, fewer than ``(2**31 - 1) // 2`` (:meth:`fits`).
+    """
+
+    def __init__(self, entries: int) -> None:
+        if not self.fits(entries):
+            raise ValueError(f"{entries} entries need 64-bit indices")
+        self._indices = np.empty(2 * entries, dtype=np.int32)
+        self._data = np.empty(2 * entries)
+        #: Row indices from 0, shape (entries,); overwritten by :meth:`full`.
+        self.rows = self._indices[:entries]
+        #: Column indices from 0, shape (entries,).
+        self.cols = self._indices[entries:]
+        #: Values, shape (entries,).
+        self.values = self._data[entries:]
+
+    @staticmethod
+    def fits(entries: int) -> bool:
+        """Whether the full matrix of ``entries`` stored entries has 32-bit indices."""
+        return 0 < entries < (2**31 - 1) // 2
+
+    def full(self, triangle: sp.csr_matrix) -> sp.csr_matrix | None:
+        """The full symmetric matrix of ``triangle``, completed in place (compiled kernel,
+        :func:`~pymorembs.io.compiled_kernels.mirror_lower_in_place`); explicit zeros are kept.
+
+        Returns None, and leaves everything as it was, without Numba, if ``triangle`` is not
+        canonical, holds entries above the diagonal, or does not hold :attr:`cols` and
+        :attr:`values` as its arrays. Afterwards :attr:`rows` holds other numbers and
+        ``triangle`` must not be used.
+
+        Parameters
+        ----------
+        triangle : scipy.sparse.csr_matrix, shape (n, n)
+
+        Returns
+        -------
+        scipy.sparse.csr_matrix or None
+            Canonical, shape (n, n); its arrays are views of this room's memory.
+        """
+        entries = self.cols.size
+        held = (
+            triangle.nnz == entries
+            and triangle.indices.ctypes.data == self.cols.ctypes.data
+            and triangle.data.ctypes.data == self.values.ctypes.data
+            and triangle.indices.dtype == np.int32
+            and triangle.data.dtype == np.float64
+        )
+        if not held or not triangle.has_canonical_format or triangle_sides(triangle)[1]:
+            return None
+        kernels = _kernels()
+        if kernels is None:
+            return None
+        n = triangle.shape[0]
+        counts = np.zeros(n + 1, dtype=np.int64)
+        kernels.mirror_counts(triangle.indptr, triangle.indices, counts)
+        total = int(counts[-1])
+        indptr = counts.astype(np.int32)
+        del counts
+        kernels.mirror_lower_in_place(triangle.indptr, self._indices, self._data, entries, indptr)
+        full = sp.csr_matrix(
+            (self._data[:total], self._indices[:total], indptr), shape=(n, n), copy=False
+        )
+        full.has_sorted_indices = True
+        full.has_canonical_format = True
+        return full
+
+
+def triangle_sides(matrix: sp.csr_matrix) -> tuple[bool, bool]:
+    """Whether a canonical CSR matrix has entries below and above the diagonal (from the first
+    and last entry of each row: one look per row).
+
+    Parameters
+    ----------
+    matrix : scipy.sparse.csr_matrix, shape (n, n)
+        Canonical (sorted, no duplicates).
+
+    Returns
+    -------
+    below, above : bool
+    """
+    indptr, indices = matrix.indptr, matrix.indices
+    rows = np.flatnonzero(np.diff(indptr))
+    below = bool(np.any(indices[indptr[rows]] < rows))
+    above = bool(np.any(indices[indptr[rows + 1] - 1] > rows))
+    return below, above
+
+
 def transpose_gap(a: sp.csr_matrix) -> float | None:
     """``max |A - A^T|`` of a canonical square CSR matrix (NaN if it holds NaN) by the compiled
     kernel, in one pass without forming ``A^T`` (on the solver threads from the main thread).
@@ -701,7 +803,11 @@ _LINE_SEARCH = 1 << 16
 
 
 def parse_coordinate_lines(
-    path: str | os.PathLike[str], offset: int, n: int, entries: int
+    path: str | os.PathLike[str],
+    offset: int,
+    n: int,
+    entries: int,
+    out: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """The entries of the coordinate lines ``row column value`` of a file from byte ``offset``
     on, parsed and checked in one pass by the compiled kernel, or None.
@@ -726,19 +832,23 @@ def parse_coordinate_lines(
         Matrix size (indices count from 1 to ``n``).
     entries : int
         Entry lines announced by the size line.
+    out : tuple of ndarray, optional
+        ``rows``, ``cols`` (int32) and ``values`` (float64) of shape (entries,) to fill, e.g.
+        those of a :class:`SymmetricRoom`; by default new arrays.
 
     Returns
     -------
     rows, cols : ndarray of int32, shape (entries,)
-        Indices counted from 0, in file order.
+        Indices counted from 0, in file order (``out``'s arrays if given).
     values : ndarray of float64, shape (entries,)
     """
     kernels = _kernels()
     if kernels is None or entries <= 0 or n >= 2**31 - 1:
         return None
-    rows = np.empty(entries, dtype=np.int32)
-    cols = np.empty(entries, dtype=np.int32)
-    values = np.empty(entries)
+    if out is None:
+        index = np.int32
+        out = (np.empty(entries, dtype=index), np.empty(entries, dtype=index), np.empty(entries))
+    rows, cols, values = out
     bits = values.view(np.uint64)
     buffer = np.empty(_PARSE_BLOCK + _LINE_SEARCH + 1, dtype=np.uint8)
     done, kept = 0, 0

@@ -72,12 +72,14 @@ from pymorembs.io.atomic import atomic_open, write_text
 from pymorembs.io.fast_text import (
     CheckedReader,
     PlainNumberScan,
+    SymmetricRoom,
     all_distinct,
     compiled_worthwhile,
     csr_from_sorted_coo,
     full_from_triangle,
     parse_coordinate_lines,
     transpose_gap,
+    triangle_sides,
 )
 
 __all__ = [
@@ -595,9 +597,8 @@ def _read_coordinate_fast(path: Path) -> tuple[sp.csr_matrix, bool] | None:
         return None  # the strict pass is quicker than starting the parser's threads
     if entries * _MIN_ENTRY_BYTES > data_bytes + 1 or (n > _MOSTLY_EMPTY_FROM and n > 2 * entries):
         return None
-    parsed = _parse_compiled(path, offset, n, entries, data_bytes)
-    if parsed is None:
-        parsed = _parse_checked(path, offset, header)
+    compiled = _parse_compiled(path, offset, header, data_bytes)
+    parsed, room = (_parse_checked(path, offset, header), None) if compiled is None else compiled
     if parsed is None:
         return None
     matrix = _general_csr(*parsed, n)
@@ -606,31 +607,29 @@ def _read_coordinate_fast(path: Path) -> tuple[sp.csr_matrix, bool] | None:
         return None
     if not header.symmetric:
         return matrix, False
-    below, above = _sides(matrix)
+    below, above = triangle_sides(matrix)
     if below and above:
         return None  # both triangles: the strict pass names the entry
-    return _mirrored(matrix, below), True
-
-
-def _sides(matrix: sp.csr_matrix) -> tuple[bool, bool]:
-    """Whether a canonical CSR matrix has entries below and above the diagonal (from the first
-    and last entry of each row: one look per row)."""
-    indptr, indices = matrix.indptr, matrix.indices
-    rows = np.flatnonzero(np.diff(indptr))
-    below = bool(np.any(indices[indptr[rows]] < rows))
-    above = bool(np.any(indices[indptr[rows + 1] - 1] > rows))
-    return below, above
+    full = None if room is None else room.full(matrix)
+    return (_mirrored(matrix, below) if full is None else full), True
 
 
 def _parse_compiled(
-    path: Path, offset: int, n: int, entries: int, data_bytes: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    path: Path, offset: int, header: _Header, data_bytes: int
+) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], SymmetricRoom | None] | None:
     """The entries of a large file parsed and checked in one pass by the compiled kernel
-    (:func:`~pymorembs.io.fast_text.parse_coordinate_lines`), or None (no Numba, a small file
-    while the kernels are not loaded, or a line the kernel does not take)."""
+    (:func:`~pymorembs.io.fast_text.parse_coordinate_lines`), and the room they were put in,
+    or None (no Numba, a small file while the kernels are not loaded, or a line the kernel does
+    not take). A symmetric file's entries go into a
+    :class:`~pymorembs.io.fast_text.SymmetricRoom`, where the triangle is completed without a
+    second copy of the matrix."""
     if not compiled_worthwhile(data_bytes):
         return None  # loading the compiled code would cost more than it saves
-    return parse_coordinate_lines(path, offset, n, entries)
+    entries = header.entries
+    room = SymmetricRoom(entries) if header.symmetric and SymmetricRoom.fits(entries) else None
+    out = None if room is None else (room.rows, room.cols, room.values)
+    parsed = parse_coordinate_lines(path, offset, header.n, entries, out)
+    return None if parsed is None else (parsed, room)
 
 
 def _parse_checked(
