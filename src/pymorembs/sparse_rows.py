@@ -44,9 +44,3 @@ def abs_row_sums(matrix: sp.spmatrix | sp.sparray) -> np.ndarray:
         rows = first + np.flatnonzero(np.diff(indptr[first : last + 1]))
         out[rows] = np.add.reduceat(values, indptr[rows] - lo)
     return out
-    bounds = np.searchsorted(a.indptr, np.arange(0, a.nnz, _ENTRIES_PER_BLOCK), side="right") - 1
-    edges = np.unique(np.concatenate([bounds, [n]]))
-    for first, last in zip(edges[:-1].tolist(), edges[1:].tolist(), strict=True):
-        block = a[first:last]
-        out[first:last] = np.asarray(abs(block).sum(axis=1)).ravel()
-    return out

@@ -68,6 +68,7 @@ from pymorembs.io.matrix_market import (
 )
 from pymorembs.io.reader_support import is_nodes_csv
 from pymorembs.io.solid_mesh import attach_mesh
+from pymorembs.sparse_rows import abs_row_sums
 
 __all__ = ["ANSYS_DOF_LABELS", "RIGID_BODY_TOLERANCE", "read_ansys_full", "read_ansys_mmf"]
 
@@ -1211,10 +1212,6 @@ def _check_no_empty_dofs(
 
 
 def _rows_with_entries(matrix: sp.csr_matrix) -> np.ndarray:
-    """Which rows of a CSR matrix hold a non-zero (or NaN) value; no copy of the matrix."""
-    a = sp.csr_matrix(matrix)
-    out = np.zeros(a.shape[0], dtype=bool)
-    rows = np.flatnonzero(np.diff(a.indptr))
-    if rows.size:
-        out[rows] = np.logical_or.reduceat(a.data != 0, a.indptr[rows])
-    return out
+    """Which rows of a CSR matrix hold a non-zero (or NaN) value, from the sums of the absolute
+    values (zero only for a row of zeros; no temporary of the matrix's size)."""
+    return ~(abs_row_sums(matrix) == 0)
