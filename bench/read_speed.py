@@ -37,9 +37,22 @@ load on the machine disturbs less), peak memory of the process above its memory 
 (``VmHWM`` after ``clear_refs``), the matrices' own size (CSR bytes of K and M as the body holds
 them) and the ratios. Targets: time ratio <= 2, memory ratio <= 2.
 
+Each pair is measured in two memory conditions (``--memory``), because the first touch of memory
+can cost more than the parse. ``warm``: right before it reads, the child touches and frees twice
+the files' size of memory, so both reader and baseline get pages the machine has just used, as
+on a machine where memory is simply there. ``cold``: the child waits :data:`COLD_WAIT_S` first.
+On a virtual machine that reports freed memory to its host (``virtio_balloon`` free page
+reporting, as on the machines of this project), every page is then new to the host as well, and
+the first touch of 1 GiB takes seconds instead of a tenth of one; a reader that has to build a
+larger result than the baseline keeps (the full symmetric matrix against the stored triangle)
+pays for it in proportion. Without a pause, the condition of a child would depend on what the
+one before it freed, and the baseline, which always ran right after the reader, got the reader's
+pages warm. The results name the first-touch cost measured in the same run.
+
 Usage::
 
     .venv/bin/python bench/read_speed.py --dofs 35000 300000 [--formats ...] [--repeat 2]
+        [--memory warm cold]
     .venv/bin/python bench/read_speed.py --quick      # 7,500 dofs, about a minute
 """
 
@@ -50,6 +63,7 @@ import io
 import itertools
 import json
 import shutil
+import subprocess
 import sys
 import time
 from collections.abc import Callable, Iterable
@@ -59,6 +73,7 @@ import numpy as np
 import scipy.sparse as sp
 from _common import (
     CACHE,
+    available_memory_bytes,
     emit,
     fmt_s,
     machine_facts,
@@ -69,6 +84,8 @@ from _common import (
     update_results,
 )
 
+#: Memory conditions of a measurement (module docstring).
+MEMORY = ("warm", "cold")
 #: Version of the export layouts: bump it when a writer below changes, so old caches are not used.
 LAYOUT = 2
 FORMATS = (
@@ -568,9 +585,15 @@ def _rss_mb() -> float:
     return float("nan")
 
 
-def measure(fmt: str, role: str, d: Path) -> dict:
-    """Time and peak memory of the reader or the baseline of ``fmt`` (in this process)."""
+def measure(fmt: str, role: str, d: Path, memory: str) -> dict:
+    """Time and peak memory of the reader or the baseline of ``fmt`` (in this process); with
+    ``memory == "warm"`` right after :func:`warm_memory`, with ``"cold"`` after a pause of
+    :data:`COLD_WAIT_S`."""
     call = _read(fmt, d) if role == "reader" else _baseline(fmt, d)
+    if memory == "warm":
+        warm_memory(_warm_bytes(fmt, d))
+    else:
+        time.sleep(COLD_WAIT_S)
     reset_peak_memory()
     before = _rss_mb()
     tick, cpu = time.perf_counter(), time.process_time()
@@ -581,6 +604,51 @@ def measure(fmt: str, role: str, d: Path) -> dict:
     if role == "reader":
         out.update(matrix_mb=_matrix_bytes(result) / 2**20, n=result.n_dof)
     return out
+
+
+# =========================================================================== memory conditions
+#: Seconds a child waits before it reads in the ``cold`` condition: longer than the delay after
+#: which a Linux guest reports freed memory to its host (2 s for ``virtio_balloon``).
+COLD_WAIT_S = 5.0
+
+
+def warm_memory(size: int) -> float:
+    """Touch ``size`` bytes of new memory and free them again; the seconds it took.
+
+    Right after this, the pages the process gets from the kernel are pages the machine has
+    just used. On a virtual machine whose guest reports freed memory to its host (free page
+    reporting), a page used for the first time otherwise costs the host a fault as well: there
+    the first touch of 1 GiB can take seconds (see the ``first touch`` facts).
+    """
+    tick = time.perf_counter()
+    block = np.ones(max(size, 8) // 8)
+    del block
+    return time.perf_counter() - tick
+
+
+def _warm_bytes(fmt: str, d: Path) -> int:
+    """Memory warmed before a read: twice the files' size (at least 1 GiB), at most half of
+    the available memory."""
+    files = sum(p.stat().st_size for p in d.iterdir())
+    return int(min(max(2 * files, 2**30), available_memory_bytes() / 2))
+
+
+def first_touch_facts() -> dict[str, str]:
+    """Seconds to touch 1 GiB of new memory in a fresh process after a pause (cold) and once
+    more right after freeing it (warm): how much this machine charges for memory used for the
+    first time."""
+    code = (
+        "import time, numpy as np\n"
+        f"time.sleep({COLD_WAIT_S})\n"
+        "out = []\n"
+        "for _ in range(2):\n"
+        "    t = time.perf_counter(); a = np.ones(2**27); out.append(time.perf_counter() - t)\n"
+        "    del a\n"
+        "print(' '.join(f'{x:.2f}' for x in out))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    cold, warm = [*done.stdout.split(), "?", "?"][:2]
+    return {"first touch of 1 GiB in a fresh process (s)": f"{cold} cold, {warm} warm"}
 
 
 # =========================================================================== driver
@@ -597,17 +665,24 @@ def main() -> None:
         "--repeat", type=int, default=1, help="runs of reader and baseline (best time counts)"
     )
     parser.add_argument("--timeout", type=float, default=3600.0, help="per run, seconds")
+    parser.add_argument(
+        "--memory",
+        nargs="+",
+        choices=MEMORY,
+        default=list(MEMORY),
+        help="memory conditions (module docstring)",
+    )
     parser.add_argument("--no-results", action="store_true", help="do not write RESULTS.md")
     parser.add_argument(
-        "--child", nargs=3, metavar=("ROLE", "FORMAT", "DIR"), help=argparse.SUPPRESS
+        "--child", nargs=4, metavar=("ROLE", "FORMAT", "DIR", "MEMORY"), help=argparse.SUPPRESS
     )
     args = parser.parse_args()
     if args.child:
-        role, fmt, directory = args.child
+        role, fmt, directory, memory = args.child
         if role == "export":
             emit(write_exports(int(fmt), Path(directory)))
         else:
-            emit(measure(fmt, role, Path(directory) / fmt))
+            emit(measure(fmt, role, Path(directory) / fmt, memory))
         return
 
     sizes = [QUICK_DOFS] if args.quick else sorted(args.dofs)
@@ -616,26 +691,27 @@ def main() -> None:
         d = export_dir(dofs)
         if not (d / "export.json").exists():
             print(f"{dofs} dofs: building rack-solid and writing the exports ...", flush=True)
-            r = run_child([__file__, "--child", "export", str(dofs), str(d)], timeout=None)
+            r = run_child([__file__, "--child", "export", str(dofs), str(d), "-"], timeout=None)
             if "failed" in r:
                 print("  " + r["failed"])
                 failed = True
                 continue
         facts = json.loads((d / "export.json").read_text())
         print(f"{dofs} dofs: n = {facts['n']}, nnz K {facts['nnz_k']}, M {facts['nnz_m']}")
-        for fmt in args.formats:
+        for fmt, memory in itertools.product(args.formats, args.memory):
             best: dict[str, dict] = {}
             for _ in range(args.repeat):
                 for role in ("reader", "baseline"):
-                    r = run_child([__file__, "--child", role, fmt, str(d)], timeout=args.timeout)
+                    argv = [__file__, "--child", role, fmt, str(d), memory]
+                    r = run_child(argv, timeout=args.timeout)
                     if "failed" in r or r["seconds"] < best.get(role, {}).get("seconds", np.inf):
                         best[role] = r
             reader, baseline = best["reader"], best["baseline"]
             if "failed" in reader or "failed" in baseline:
                 failed = True
                 reason = reader.get("failed") or baseline.get("failed")
-                print(f"  {fmt}: {reason}")
-                rows.append([facts["n"], fmt, f"{_files_mb(fmt, d):.0f}", "failed", reason])
+                print(f"  {fmt} ({memory}): {reason}")
+                rows.append([facts["n"], fmt, memory, f"{_files_mb(fmt, d):.0f}", "failed", reason])
                 continue
             time_ratio = reader["seconds"] / baseline["seconds"]
             cpu_ratio = reader["cpu_s"] / baseline["cpu_s"]
@@ -644,6 +720,7 @@ def main() -> None:
             row = [
                 facts["n"],
                 fmt,
+                memory,
                 f"{_files_mb(fmt, d):.0f}",
                 fmt_s(reader["seconds"]),
                 fmt_s(baseline["seconds"]),
@@ -660,6 +737,7 @@ def main() -> None:
     headers = [
         "dofs",
         "format",
+        "memory",
         "files [MB]",
         "pymorembs [s]",
         "baseline [s]",
@@ -678,13 +756,18 @@ def main() -> None:
             "rack-solid exports in each text format (layouts: `bench/read_speed.py` docstring); "
             "pymorembs reader against a plain C-speed parse of the same numbers, each in a "
             f"fresh process, best of {args.repeat} (wall time; the CPU time ratio, all threads "
-            "counted, is less sensitive to other load on the machine). Peak memory: `VmHWM` "
+            "counted, is less sensitive to other load on the machine). Memory `warm`: the "
+            "child touches and frees twice the files' size of memory right before it reads; "
+            f"`cold`: it waits {COLD_WAIT_S:g} s first, so that a virtual machine with free page "
+            "reporting has handed its freed memory back to the host (the first-touch facts "
+            "below say what that costs here). Peak memory: `VmHWM` "
             "above the process's memory before the read (interpreter and imports excluded); "
             "memory ratio = reader peak / CSR bytes of K and M as the body holds them. "
             "Targets: both ratios <= 2.\n\n" + table
         )
         name = "Read speed" + (", quick" if args.quick else "")
-        print(f"written: {update_results(name, body, machine_facts())}")
+        facts = machine_facts() | first_touch_facts()
+        print(f"written: {update_results(name, body, facts)}")
     sys.exit(1 if failed else 0)
 
 
