@@ -751,6 +751,8 @@ def main() -> None:
     ]
     table = markdown_table(headers, rows)
     print(table)
+    machine = machine_facts() | first_touch_facts()
+    print("\n".join(f"- {key}: {value}" for key, value in machine.items()))
     if not args.no_results:
         body = (
             "rack-solid exports in each text format (layouts: `bench/read_speed.py` docstring); "
@@ -766,8 +768,7 @@ def main() -> None:
             "Targets: both ratios <= 2.\n\n" + table
         )
         name = "Read speed" + (", quick" if args.quick else "")
-        facts = machine_facts() | first_touch_facts()
-        print(f"written: {update_results(name, body, facts)}")
+        print(f"written: {update_results(name, body, machine)}")
     sys.exit(1 if failed else 0)
 
 
