@@ -56,7 +56,7 @@ from pymorembs.io.atomic import write_text
 from pymorembs.job.app.editor import check_job_text, free_node_id, hole_selection, job_text
 from pymorembs.job.app.runner import Run, start_run
 from pymorembs.job.run import add_interfaces, load_job_model, load_model
-from pymorembs.job.schema import ModelSpec, load_job
+from pymorembs.job.schema import DEFAULT_EXPORTS, MODEL_FILE_KEYS, ModelSpec, load_job
 from pymorembs.methods import METHODS, option_fields
 from pymorembs.prepare import centre_of_gravity
 from pymorembs.report.scene import body_scene
@@ -138,7 +138,7 @@ class App:
                 job = _job_dict(path)
                 model = job["model"]
                 export = dict(job.get("export", {}))
-                outputs = list(export.get("outputs", ["npz", "mtx"]))
+                outputs = list(export.get("outputs", DEFAULT_EXPORTS))
                 if "npz" not in outputs:  # the page reads the bases from reduced.npz
                     export["outputs"] = ["npz", *outputs]
                     job["export"] = export
@@ -551,8 +551,7 @@ def _job_dict(path: Path) -> dict[str, Any]:
     """A job file as the editor's dictionary, its model files made absolute."""
     data = tomllib.loads(path.read_text(encoding="utf-8-sig"))
     model = dict(data.get("model", {}))
-    for key in ("file", "stiffness", "mass", "damping", "dofs", "nodes", "constraints", "fixed",
-                "mapping", "inp"):  # fmt: skip
+    for key in MODEL_FILE_KEYS:
         if isinstance(model.get(key), str):
             model[key] = str((path.parent / model[key]).resolve())
     data["model"] = model
