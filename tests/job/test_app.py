@@ -4,6 +4,7 @@ selections it makes from a picked surface patch, and the command line around it.
 from __future__ import annotations
 
 import dataclasses
+import http.client
 import json
 import socket
 import threading
@@ -280,6 +281,48 @@ def test_other_web_sites_cannot_drive_the_app(server):
         base, "/api/state", None, {"Host": base.split("//")[1].replace("127.0.0.1", "localhost")}
     )
     assert status == 200 and reply["model"] is None
+
+
+def post_raw(base: str, path: str, data: bytes, headers: dict | None = None) -> tuple[int, dict]:
+    """POST ``data`` as it is (not necessarily JSON) with a JSON content type."""
+    connection = http.client.HTTPConnection(*base.split("//")[1].split(":"), timeout=60)
+    try:
+        connection.request(
+            "POST", path, body=data, headers={"Content-Type": "application/json", **(headers or {})}
+        )
+        response = connection.getresponse()
+        return response.status, json.loads(response.read())
+    finally:
+        connection.close()
+
+
+@pytest.mark.parametrize(
+    ("data", "headers", "message"),
+    [
+        (b'"rack-beams"', {}, "bad JSON: expected an object, got str"),
+        (b"[1, 2]", {}, "bad JSON: expected an object, got list"),
+        (b"\xff\xfe{", {}, "bad JSON:"),
+        (b'{"job": {"band": {"f_max_hz": NaN}}}', {}, "bad JSON: NaN is not a number in JSON"),
+        (b"{}", {"Content-Length": "two"}, "Content-Length is not a number"),
+    ],
+)
+def test_a_body_that_is_not_a_json_object_is_refused_in_one_line(server, data, headers, message):
+    _, base = server
+    status, reply = post_raw(base, "/api/job", data, headers)
+    assert status == 400 and message in reply["error"] and "\n" not in reply["error"]
+    assert call(base, "/api/state")[0] == 200  # the job was not replaced (NaN: not sendable)
+
+
+def test_an_unexpected_error_is_answered(server, monkeypatch, capsys):
+    app, base = server
+
+    def broken():
+        raise RuntimeError("a bug\nin two lines")
+
+    monkeypatch.setattr(app, "status", broken)
+    status, reply = call(base, "/api/status")
+    assert status == 500 and reply["error"] == "internal error: a bug in two lines"
+    assert "RuntimeError" in capsys.readouterr().err  # the traceback for the bug report
 
 
 @pytest.mark.slow

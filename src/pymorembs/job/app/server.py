@@ -5,9 +5,9 @@ framework was chosen by measurement (``docs/app.md``). Long work never runs on a
 thread: a job runs in a child process (:mod:`~pymorembs.job.app.runner`), the eigenfrequencies
 of the opened model in a background thread.
 
-API (JSON in and out; errors are ``{"error": "one line"}`` with status 400). Only requests
-addressed to 127.0.0.1 or localhost are answered, and POST bodies must be JSON: another web
-site open in the same browser cannot drive the app.
+API (JSON in and out; errors are ``{"error": "one line"}`` with status 400, 500 for a bug of
+the server). Only requests addressed to 127.0.0.1 or localhost are answered, and POST bodies
+must be JSON objects: another web site open in the same browser cannot drive the app.
 
 =======================  ==================================================================
 ``GET  /api/methods``     every method's options, from the method registry (the form)
@@ -39,6 +39,8 @@ import mimetypes
 import tempfile
 import threading
 import tomllib
+import traceback
+from collections.abc import Callable
 from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
@@ -536,6 +538,10 @@ def _one_line(exc: Exception) -> str:
     return f"missing {text}" if isinstance(exc, KeyError) else text
 
 
+def _not_json(constant: str) -> None:
+    raise ValueError(f"{constant} is not a number in JSON")
+
+
 def _cylinder(data: dict[str, Any]) -> tuple:
     values = (data["point"], data["direction"], float(data["radius"]))
     tolerance = data.get("tolerance")
@@ -595,13 +601,40 @@ class Handler(BaseHTTPRequestHandler):
         body = json.dumps(data, allow_nan=False, separators=(",", ":")).encode()
         self._send(status, body, "application/json")
 
-    def _handle(self, action) -> None:
+    def _handle(self, action: Callable[[], Any]) -> None:
         try:
             self._json(action())
         except PymorembsError as exc:
             self._json({"error": " ".join(str(exc).split())}, HTTPStatus.BAD_REQUEST)
         except (KeyError, TypeError, ValueError) as exc:
             self._json({"error": f"bad request: {exc}"}, HTTPStatus.BAD_REQUEST)
+        except Exception as exc:  # a bug, not the user's mistake: an answer, the traceback here
+            traceback.print_exc()
+            self._json(
+                {"error": f"internal error: {_one_line(exc)}"}, HTTPStatus.INTERNAL_SERVER_ERROR
+            )
+
+    def _request(self) -> dict[str, Any]:
+        """The POST body: a JSON object (an empty body is ``{}``).
+
+        Raises
+        ------
+        UserError
+            A body that is not a JSON object: invalid JSON or UTF-8, ``NaN`` or ``Infinity``
+            (not JSON; the state could not be sent back), an array, a string, a number.
+        """
+        try:
+            length = int(self.headers.get("Content-Length") or 0)
+        except ValueError:
+            raise UserError("bad request: Content-Length is not a number") from None
+        data = self.rfile.read(length) if length > 0 else b""
+        try:
+            request = json.loads(data or b"{}", parse_constant=_not_json)
+        except ValueError as exc:  # JSONDecodeError, UnicodeDecodeError, NaN
+            raise UserError(f"bad JSON: {_one_line(exc)}") from None
+        if not isinstance(request, dict):
+            raise UserError(f"bad JSON: expected an object, got {type(request).__name__}")
+        return request
 
     def _refused(self, post: bool) -> bool:
         """Refuse requests another web site could make through the user's browser: a foreign
@@ -655,11 +688,10 @@ class Handler(BaseHTTPRequestHandler):
     def do_POST(self) -> None:
         if self._refused(post=True):
             return
-        length = int(self.headers.get("Content-Length") or 0)
         try:
-            request = json.loads(self.rfile.read(length) or b"{}")
-        except json.JSONDecodeError as exc:
-            return self._json({"error": f"bad JSON: {exc}"}, HTTPStatus.BAD_REQUEST)
+            request = self._request()
+        except UserError as exc:
+            return self._json({"error": str(exc)}, HTTPStatus.BAD_REQUEST)
         app = self.app
         actions = {
             "/api/open": lambda: app.open(request),
