@@ -268,6 +268,17 @@ def test_api_refusals_are_one_line(server, tmp_path):
     assert status == 404
 
 
+def test_a_pick_outside_the_views_nodes_is_refused(server):
+    app, base = server
+    call(base, "/api/open", {"example": "rack-solid", "options": {"dofs": 10000}})
+    count = len(app.scene["node_ids"])
+    for row in (count, -1):  # past the end; not the last node either
+        status, reply = call(base, "/api/pick", {"node": row})
+        assert status == 400 and reply["error"] == (
+            f"pick: no node {row} in the view (it has {count})"
+        )
+
+
 def test_other_web_sites_cannot_drive_the_app(server):
     app, base = server
     status, reply = call(

@@ -221,7 +221,10 @@ class App:
         if request.get("triangle") is not None:
             seed = int(request["triangle"])
         elif request.get("node") is not None:
-            node = int(self._scene_ids[int(request["node"])])
+            row = int(request["node"])
+            if not 0 <= row < self._scene_ids.size:
+                raise UserError(f"pick: no node {row} in the view (it has {self._scene_ids.size})")
+            node = int(self._scene_ids[row])
             touching = np.flatnonzero((surface.triangles == node).any(axis=1))
             if touching.size == 0:
                 raise UserError(f"node {node} is not on the surface")
