@@ -279,6 +279,21 @@ def test_a_pick_outside_the_views_nodes_is_refused(server):
         )
 
 
+def test_saving_under_a_file_is_refused_in_one_line(server, tmp_path):
+    _, base = server
+    state = call(base, "/api/open", {"example": "rack-beams"})[1]
+    job = state["job"] | {
+        "frame": {"type": "none"},
+        "reduction": [{"name": "m", "method": "modal", "order": 4}],
+    }
+    assert call(base, "/api/job", {"job": job})[1]["error"] == ""
+    (tmp_path / "notes.txt").write_text("a file, not a folder\n", encoding="utf-8")
+    target = tmp_path / "notes.txt" / "job.toml"
+    status, reply = call(base, "/api/save", {"path": str(target)})
+    assert status == 400 and reply["error"].startswith(f"save: {target}: cannot create its folder")
+    assert "\n" not in reply["error"]
+
+
 def test_other_web_sites_cannot_drive_the_app(server):
     app, base = server
     status, reply = call(

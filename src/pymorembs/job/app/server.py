@@ -366,7 +366,10 @@ class App:
             raise UserError(f"save: {path}: a job file ends in .toml")
         if path.is_dir():
             raise UserError(f"save: {path} is a folder")
-        path.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:  # a file in the way, no permission
+            raise UserError(f"save: {path}: cannot create its folder ({exc.strerror})") from None
         write_text(path, text)
         return {"path": str(path.resolve()), "toml": text}
 
