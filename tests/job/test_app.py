@@ -294,6 +294,27 @@ def test_saving_under_a_file_is_refused_in_one_line(server, tmp_path):
     assert "\n" not in reply["error"]
 
 
+def test_a_job_with_tables_of_the_wrong_type_is_shown(server):
+    """The job being edited need not be valid: tables of the wrong type are the parser's
+    message and a note under the view, never a dropped request (the page would stay broken,
+    the server holding that job)."""
+    app, base = server
+    opened = {"example": "rack-solid", "options": {"dofs": 10000, "interface": "none"}}
+    state = call(base, "/api/open", opened)[1]
+    job = state["job"] | {"frame": [1], "interface": 5}
+    status, state = call(base, "/api/job", {"job": job})
+    assert status == 200 and state["error"].startswith("job.toml:")
+    assert state["decorations"]["notes"] == [
+        "[[interface]] is not drawn: expected a list of tables",
+        "[frame] is not drawn: it must be a table",
+    ]
+    assert call(base, "/api/state")[0] == 200
+    job |= {"frame": {"type": "none"}, "interface": ["x", {"node": "two"}, {"node": 1}]}
+    assert call(base, "/api/job", {"job": job})[0] == 200
+    status, picked = call(base, "/api/pick", {"triangle": wall_triangle(app.body)})
+    assert status == 200 and picked["free_id"] == 2  # node 1 taken by the model
+
+
 def test_other_web_sites_cannot_drive_the_app(server):
     app, base = server
     status, reply = call(

@@ -258,7 +258,11 @@ class App:
         if body is None:
             return out
         placed: dict[int, list[float]] = {}
-        for k, item in enumerate(self.job.get("interface") or [], start=1):
+        interfaces = self.job.get("interface") or []
+        if not isinstance(interfaces, list):
+            out["notes"].append("[[interface]] is not drawn: expected a list of tables")
+            interfaces = []
+        for k, item in enumerate(interfaces, start=1):
             try:
                 node = int(item["node"])
                 position = [float(x) for x in item["position"]]
@@ -277,6 +281,9 @@ class App:
             })  # fmt: skip
             placed[node] = position
         frame = self.job.get("frame") or {}
+        if not isinstance(frame, dict):
+            out["notes"].append("[frame] is not drawn: it must be a table")
+            frame = {}
         kind = frame.get("type")
         origin = None
         try:
@@ -309,9 +316,7 @@ class App:
             "count": int(nodes.size),
             "rows": self.scene_rows(nodes).tolist(),
             "ids": [int(n) for n in nodes],
-            "free_id": free_node_id(
-                body, [i.get("node", 0) for i in self.job.get("interface", [])]
-            ),
+            "free_id": free_node_id(body, _interface_ids(self.job)),
         }
 
     # -- the job -------------------------------------------------------------------------------
@@ -542,6 +547,16 @@ def _selection(body: ElasticBody, request: dict[str, Any]) -> np.ndarray:
 def _one_line(exc: Exception) -> str:
     text = " ".join(str(exc).split())
     return f"missing {text}" if isinstance(exc, KeyError) else text
+
+
+def _interface_ids(job: dict[str, Any]) -> list[int]:
+    """The node ids of the edited job's ``[[interface]]`` tables (whole numbers only: the job
+    being edited need not be valid)."""
+    items = job.get("interface")
+    if not isinstance(items, list):
+        return []
+    nodes = [item.get("node") for item in items if isinstance(item, dict)]
+    return [n for n in nodes if isinstance(n, int) and not isinstance(n, bool)]
 
 
 def _not_json(constant: str) -> None:
