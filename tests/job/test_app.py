@@ -6,7 +6,10 @@ from __future__ import annotations
 import dataclasses
 import http.client
 import json
+import os
+import signal
 import socket
+import sys
 import threading
 import time
 import tomllib
@@ -19,8 +22,10 @@ import pytest
 
 from pymorembs import METHODS, example, method_options, select_nodes
 from pymorembs.body import DofTable, ElasticBody
+from pymorembs.errors import UserError
 from pymorembs.job.app import App, make_server
 from pymorembs.job.app.editor import check_job_text, hole_selection, job_text
+from pymorembs.job.app.runner import start_run
 from pymorembs.job.cli import main
 from pymorembs.methods import OptionError, option_fields
 from pymorembs.surface import outer_surface, smooth_patch
@@ -446,6 +451,69 @@ def test_run_results_shapes_mac_save_and_cancel(server, tmp_path):
     assert call(base, "/api/status")[1]["state"] == "cancelled"
     assert not Path(run["out"]).exists()
     assert not [p.name for p in Path(run["out"]).parent.iterdir() if p.name.startswith(".run-")]
+
+
+@pytest.fixture
+def stubborn_child(tmp_path, monkeypatch):
+    """``python -m pymorembs.job.cli reduce JOB --out OUT`` replaced by a child that makes the
+    job layer's temporary folder next to OUT, prints its first stage and ignores SIGINT (a run
+    that does not end within the grace time)."""
+    script = tmp_path / "stubborn-python"
+    script.write_text(
+        "#!/bin/sh\n"
+        "trap '' INT\n"
+        'mkdir -p "$(dirname "$6")/.$(basename "$6").staging"\n'
+        'echo "[   0.01 s] loading the model"\n'
+        "exec sleep 60\n",
+        encoding="utf-8",
+    )
+    script.chmod(0o755)
+    monkeypatch.setattr(sys, "executable", str(script))
+    started = []
+    yield started
+    for run in started:
+        if run.alive:
+            os.killpg(run.process.pid, signal.SIGKILL)
+
+
+def wait_for(condition, seconds: float = 20.0) -> None:
+    deadline = time.time() + seconds
+    while not condition():
+        assert time.time() < deadline
+        time.sleep(0.05)
+
+
+def test_a_run_killed_after_the_grace_time_leaves_no_temporary_folder(stubborn_child, tmp_path):
+    out = tmp_path / "run-1"
+    run = start_run(tmp_path / "job.toml", out, stages=3)
+    stubborn_child.append(run)
+    wait_for(lambda: run.stage == "loading the model")
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".run-1.")]
+    run.cancel(grace_s=0.2)
+    assert run.state == "cancelled"
+    wait_for(lambda: run.ended is not None)
+    assert run.stage == "cancelled" and not out.exists()
+    assert not [p.name for p in tmp_path.iterdir() if p.name.startswith(".run-1.")]
+
+
+def test_no_second_run_while_a_cancelled_one_is_ending(stubborn_child, tmp_path):
+    app = App(tmp_path / "work")
+    state = app.open({"example": "rack-beams"})
+    app.set_job(
+        state["job"]
+        | {"frame": {"type": "none"}, "reduction": [{"name": "m", "method": "modal", "order": 4}]}
+    )
+    first = app.start()
+    stubborn_child.append(app.run)
+    assert first["state"] == "running"
+    wait_for(lambda: app.run.stage == "loading the model")  # SIGINT ignored from here on
+    assert app.cancel()["state"] == "cancelled" and app.run.alive
+    with pytest.raises(UserError, match="the cancelled run is still ending"):
+        app.start()
+    os.killpg(app.run.process.pid, signal.SIGKILL)
+    wait_for(lambda: app.run.ended is not None)
+    assert app.start()["out"].endswith("run-2")  # ended: the next run may start
+    stubborn_child.append(app.run)
 
 
 def test_cli_app_refuses_a_bad_model_and_a_busy_port(tmp_path, capsys):

@@ -10,6 +10,7 @@ and renames it only at the end. Progress comes from the stage lines the command 
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -53,6 +54,13 @@ class Run:
     started: float = field(default_factory=time.time)
     ended: float | None = None
     process: subprocess.Popen | None = None
+    #: Held while the state changes: a Cancel and the end of the process do not cross.
+    lock: threading.Lock = field(default_factory=threading.Lock, repr=False, compare=False)
+
+    @property
+    def alive(self) -> bool:
+        """The child process is still there (a cancelled run's, until it has ended)."""
+        return self.process is not None and self.process.poll() is None
 
     @property
     def fraction(self) -> float:
@@ -80,12 +88,20 @@ class Run:
         still runs after ``grace_s`` seconds is killed.
         """
         process = self.process
-        if self.state == "running" and process is not None and process.poll() is None:
+        with self.lock:
+            if self.state != "running" or process is None or process.poll() is not None:
+                return
             self.state = "cancelled"
-            _signal_group(process.pid, signal.SIGINT)
-            timer = threading.Timer(grace_s, _kill_if_alive, args=(process,))
-            timer.daemon = True
-            timer.start()
+        _signal_group(process.pid, signal.SIGINT)
+        timer = threading.Timer(grace_s, _kill_if_alive, args=(process,))
+        timer.daemon = True
+        timer.start()
+
+    def remove_staging(self) -> None:
+        """Remove the temporary folders of the job layer next to :attr:`out` (``.run-1.*``):
+        a run killed after the grace time could not remove its own."""
+        for folder in self.out.parent.glob(f".{self.out.name}.*"):
+            shutil.rmtree(folder, ignore_errors=True)
 
 
 def _signal_group(pid: int, sig: int) -> None:
@@ -139,15 +155,18 @@ def _follow(run: Run, finished: Callable[[Run], None] | None) -> None:
             run.stage = text
     code = process.wait()
     reader.join(timeout=5)
-    run.ended = time.time()
-    if run.state == "cancelled":
-        run.stage = "cancelled"
-    elif code == 0:
-        run.state, run.stage = "done", "done"
-    else:
-        run.state = "failed"
-        message = [e.strip() for e in errors if e.strip()]
-        run.error = message[-1] if message else f"pymorembs reduce exited with code {code}"
+    ended = time.time()
+    with run.lock:
+        if run.state == "cancelled":
+            run.stage = "cancelled"
+            run.remove_staging()
+        elif code == 0:
+            run.state, run.stage = "done", "done"
+        else:
+            run.state = "failed"
+            message = [e.strip() for e in errors if e.strip()]
+            run.error = message[-1] if message else f"pymorembs reduce exited with code {code}"
+        run.ended = ended  # last: an ended run has nothing left to clean up
     for line in errors:
         if line.startswith("pymorembs: warning"):
             run.lines.append(line.rstrip())

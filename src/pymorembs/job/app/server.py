@@ -384,6 +384,8 @@ class App:
         with self.lock:
             if self.run is not None and self.run.state == "running":
                 raise UserError("a run is going on; cancel it first")
+            if self.run is not None and self.run.alive:
+                raise UserError("the cancelled run is still ending; run again in a moment")
             text, error = self.checked()
             if error:
                 raise UserError(f"the job is not valid yet: {error}")
