@@ -25,7 +25,7 @@ from pymorembs.body import DofTable, ElasticBody
 from pymorembs.errors import UserError
 from pymorembs.job.app import App, make_server
 from pymorembs.job.app.editor import check_job_text, hole_selection, job_text
-from pymorembs.job.app.runner import start_run
+from pymorembs.job.app.runner import Run, start_run
 from pymorembs.job.cli import main
 from pymorembs.methods import OptionError, option_fields
 from pymorembs.surface import outer_surface, smooth_patch
@@ -451,6 +451,31 @@ def test_run_results_shapes_mac_save_and_cancel(server, tmp_path):
     assert call(base, "/api/status")[1]["state"] == "cancelled"
     assert not Path(run["out"]).exists()
     assert not [p.name for p in Path(run["out"]).parent.iterdir() if p.name.startswith(".run-")]
+
+
+def test_the_progress_counts_each_stage_once(tmp_path):
+    """One step per stage of the job (model, reference, two reductions, time domain, large
+    motion): the time domain and large-motion checks print a line per reduction, one stage."""
+    run = Run(job=tmp_path / "job.toml", out=tmp_path / "run-1", stages=6)
+    printed = [
+        "loading the model, interfaces, frame, constraint elimination, inputs and outputs",
+        "frequency response of the full model at 200 frequencies",
+        "reduction 'a' (modal)",
+        "warning: reduction 'a': order 4 instead of 6: the Krylov space is exhausted",
+        "reduction 'b' (krylov)",
+        "time domain: full model (3996 dofs), 2 load case(s), 0.1 s",
+        "time domain: reduction 'a'",
+        "time domain: reduction 'b'",
+        "large motion 'swing' in Exudyn: reference (modal 20) and each body",
+        "large motion 'spin' in Exudyn: reference (modal 20) and each body",
+    ]
+    begun = []
+    for k, text in enumerate(printed):
+        run.read_line(f"[{k:7.2f} s] {text}\n")
+        begun.append(run.done_stages)
+    assert begun == [1, 2, 3, 3, 4, 5, 5, 5, 6, 6]
+    assert run.stage == printed[-1] and len(run.lines) == len(printed)
+    assert run.fraction == pytest.approx(5.5 / 6)
 
 
 @pytest.fixture

@@ -19,12 +19,15 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 #: Lines of ``pymorembs reduce`` that start a stage (after the ``[   1.23 s]`` time stamp).
 STAGE_STARTS = (
     "loading the model", "frequency response", "reference model", "reduction '", "time domain",
     "large motion",
 )  # fmt: skip
+#: Stages whose every line starts alike (``time domain: reduction 'k'``): the first begins it.
+ONE_STAGE = ("time domain", "large motion")
 
 
 @dataclass
@@ -69,7 +72,22 @@ class Run:
             return 1.0
         return min(0.99, max(0.0, (self.done_stages - 0.5) / max(self.stages, 1)))
 
-    def as_dict(self) -> dict:
+    def read_line(self, line: str) -> None:
+        """Take one line the command printed: into the log, and the stage it begins, if any."""
+        line = line.rstrip()
+        if not line:
+            return
+        self.lines.append(line)
+        text = line.split("] ", 1)[-1]
+        start = next((s for s in STAGE_STARTS if text.startswith(s)), None)
+        if start is None:
+            return
+        if not (start in ONE_STAGE and self.stage.startswith(start)):
+            self.done_stages += 1
+        self.stage = text
+
+    def as_dict(self) -> dict[str, Any]:
+        """The run for the page: state, share done, stage, the last lines of its log."""
         return {
             "state": self.state,
             "fraction": self.fraction,
@@ -145,14 +163,7 @@ def _follow(run: Run, finished: Callable[[Run], None] | None) -> None:
     reader = threading.Thread(target=lambda: errors.extend(process.stderr), daemon=True)
     reader.start()
     for line in process.stdout:
-        line = line.rstrip()
-        if not line:
-            continue
-        run.lines.append(line)
-        text = line.split("] ", 1)[-1]
-        if text.startswith(STAGE_STARTS):
-            run.done_stages += 1
-            run.stage = text
+        run.read_line(line)
     code = process.wait()
     reader.join(timeout=5)
     ended = time.time()
