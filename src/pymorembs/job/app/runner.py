@@ -16,7 +16,6 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -134,10 +133,23 @@ def _kill_if_alive(process: subprocess.Popen) -> None:
         _signal_group(process.pid, signal.SIGKILL)
 
 
-def start_run(
-    job: Path, out: Path, stages: int, finished: Callable[[Run], None] | None = None
-) -> Run:
-    """Start ``pymorembs reduce job --out out`` in a child process and follow it in a thread."""
+def start_run(job: Path, out: Path, stages: int) -> Run:
+    """Start ``pymorembs reduce job --out out`` in a child process and follow it in a thread.
+
+    Parameters
+    ----------
+    job : Path
+        The job file.
+    out : Path
+        The output folder of the run.
+    stages : int
+        The stages the job has (:attr:`Run.stages`).
+
+    Returns
+    -------
+    Run
+        The run, ``"running"``; its state changes when the process ends.
+    """
     run = Run(job=job, out=out, stages=stages)
     env = dict(os.environ)
     source = str(Path(__file__).resolve().parents[3])  # the folder holding the package
@@ -152,11 +164,11 @@ def start_run(
         env=env,
         start_new_session=True,  # its own process group: Cancel ends its workers too
     )
-    threading.Thread(target=_follow, args=(run, finished), daemon=True).start()
+    threading.Thread(target=_follow, args=(run,), daemon=True).start()
     return run
 
 
-def _follow(run: Run, finished: Callable[[Run], None] | None) -> None:
+def _follow(run: Run) -> None:
     process = run.process
     assert process is not None and process.stdout is not None and process.stderr is not None
     errors: list[str] = []
@@ -181,5 +193,3 @@ def _follow(run: Run, finished: Callable[[Run], None] | None) -> None:
     for line in errors:
         if line.startswith("pymorembs: warning"):
             run.lines.append(line.rstrip())
-    if finished is not None:
-        finished(run)
