@@ -27,6 +27,7 @@ from pymorembs.job.app import App, make_server
 from pymorembs.job.app.editor import check_job_text, hole_selection, job_text
 from pymorembs.job.app.runner import Run, start_run
 from pymorembs.job.cli import main
+from pymorembs.job.schema import DEFAULT_EXPORTS, EXPORT_KINDS
 from pymorembs.methods import OptionError, option_fields
 from pymorembs.surface import outer_surface, smooth_patch
 
@@ -255,6 +256,14 @@ def test_the_view_draws_the_jobs_frame_and_interfaces(server):
     assert drawn["frame"]["origin"] == body.coordinates[7].tolist()
     job["frame"] = {"type": "none"}
     assert call(base, "/api/job", {"job": job})[1]["decorations"]["frame"] is None
+
+
+def test_the_export_kinds_are_the_job_parsers(server):
+    _, base = server
+    status, reply = call(base, "/api/exports")
+    assert status == 200
+    assert reply == {"kinds": list(EXPORT_KINDS), "default": list(DEFAULT_EXPORTS)}
+    assert "vtu" in reply["kinds"]  # the page's own list had no vtu
 
 
 def test_api_refusals_are_one_line(server, tmp_path):

@@ -23,6 +23,7 @@ import pytest
 from pymorembs import example, select_nodes
 from pymorembs.job.app import App, make_server
 from pymorembs.job.cli import main
+from pymorembs.job.schema import EXPORT_KINDS
 
 ARTIFACTS = Path(__file__).resolve().parents[2] / "out" / "test-artifacts" / "app"
 CHROMIUM_ARGS = [
@@ -241,4 +242,30 @@ def test_pick_run_save_and_reduce_again(browser, served, tmp_path):
         assert float(error) == pytest.approx(float(again[name][1]), rel=1e-3)
     # the Krylov basis reaches far below modal truncation of the same order (paper section 5)
     assert float(shown["krylov"][1]) < 0.1 * float(shown["modal"][1])
+    assert errors == []
+
+
+@pytest.mark.slow
+def test_the_export_boxes_are_the_job_parsers_and_keep_the_jobs_outputs(browser, served, tmp_path):
+    """A job file that writes VTU files keeps them when another box is ticked (the page's own
+    list of exports had no ``vtu`` and dropped it)."""
+    app, url = served
+    job = tmp_path / "job.toml"
+    job.write_text(
+        '[model]\nexample = "rack-beams"\n[frame]\ntype = "none"\n[band]\nf_max_hz = 100\n'
+        '[[reduction]]\nmethod = "modal"\norder = 4\n[export]\noutputs = ["sid", "vtu"]\n',
+        encoding="utf-8",
+    )
+    app.open({"path": str(job)})
+    page = browser.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    page.goto(url)
+    page.wait_for_selector("body[data-ready='1']")
+    boxes = page.eval_on_selector_all("[data-export]", "(els) => els.map((e) => e.dataset.export)")
+    assert boxes == list(EXPORT_KINDS)
+    assert page.is_checked("[data-export='vtu']") and not page.is_checked("[data-export='mtx']")
+    page.check("[data-export='mtx']")
+    page.wait_for_function("document.getElementById('toml').textContent.includes('\"mtx\"')")
+    assert app.job["export"]["outputs"] == ["npz", "mtx", "sid", "vtu"]
     assert errors == []

@@ -12,6 +12,7 @@ must be JSON objects: another web site open in the same browser cannot drive the
 =======================  ==================================================================
 ``GET  /api/methods``     every method's options, from the method registry (the form)
 ``GET  /api/examples``    the built-in models and their options
+``GET  /api/exports``     the files a job can write, and the default ones (``[export]``)
 ``GET  /api/state``       the job, its TOML text and check, the model, the run
 ``POST /api/open``        ``{"example": name, "options": {...}}`` or ``{"path": file}``
                           (with ``"format"``: the reader, default told from the content)
@@ -58,7 +59,13 @@ from pymorembs.io.atomic import write_text
 from pymorembs.job.app.editor import check_job_text, free_node_id, hole_selection, job_text
 from pymorembs.job.app.runner import Run, start_run
 from pymorembs.job.run import add_interfaces, load_job_model, load_model
-from pymorembs.job.schema import DEFAULT_EXPORTS, MODEL_FILE_KEYS, ModelSpec, load_job
+from pymorembs.job.schema import (
+    DEFAULT_EXPORTS,
+    EXPORT_KINDS,
+    MODEL_FILE_KEYS,
+    ModelSpec,
+    load_job,
+)
 from pymorembs.methods import METHODS, option_fields
 from pymorembs.prepare import centre_of_gravity
 from pymorembs.report.scene import body_scene
@@ -592,6 +599,12 @@ def methods() -> dict[str, Any]:
     return {name: option_fields(name) for name in METHODS}
 
 
+def exports() -> dict[str, list[str]]:
+    """The files a job can write (``[export] outputs``: ``kinds``) and those it writes when
+    it does not say (``default``), as the job parser knows them."""
+    return {"kinds": list(EXPORT_KINDS), "default": list(DEFAULT_EXPORTS)}
+
+
 def examples() -> dict[str, Any]:
     """The built-in models and the options each takes."""
     return {name: list(OPTIONS[name]) for name in EXAMPLES}
@@ -696,6 +709,7 @@ class Handler(BaseHTTPRequestHandler):
         actions = {
             "/api/methods": methods,
             "/api/examples": examples,
+            "/api/exports": exports,
             "/api/state": app.state,
             "/api/scene": app.scene_json,
             "/api/facts": app.facts,

@@ -3,8 +3,8 @@
 // checks it with the job parser of `pymorembs reduce`.
 "use strict";
 const $ = (id) => document.getElementById(id);
-const app = { job: null, methods: {}, scene: null, viewer: null, picking: false,
-  selection: null, results: null, shapeCache: {} };
+const app = { job: null, methods: {}, exports: { kinds: [], default: [] }, scene: null,
+  viewer: null, picking: false, selection: null, results: null, shapeCache: {} };
 window.app = app;
 
 async function api(path, body) {
@@ -281,16 +281,16 @@ $("add-reduction").onclick = () => {
   app.job.reduction = [...(app.job.reduction || []), { name, method }];
   changed();
 };
-const EXPORTS = ["npz", "mtx", "mat", "sid", "neweul", "exudyn", "report"];
+// the files a job can write and its default ones: the job parser's (GET /api/exports)
 function renderExports() {
   const box = $("exports"); box.replaceChildren("export ");
-  const outputs = new Set(((app.job.export || {}).outputs) || ["npz", "mtx"]);
-  for (const kind of EXPORTS) {
+  const outputs = new Set(((app.job.export || {}).outputs) || app.exports.default);
+  for (const kind of app.exports.kinds) {
     const input = el("input", { type: "checkbox", "data-export": kind });
     input.checked = outputs.has(kind);
     if (kind === "npz") { input.checked = true; input.disabled = true; } // the page reads reduced.npz
     input.onchange = () => {
-      const next = EXPORTS.filter((k) => k === "npz" || box.querySelector(`[data-export=${k}]`).checked);
+      const next = app.exports.kinds.filter((k) => k === "npz" || box.querySelector(`[data-export=${k}]`).checked);
       app.job.export = { ...(app.job.export || {}), outputs: next }; changed();
     };
     box.append(el("label", {}, input, kind), " ");
@@ -430,6 +430,7 @@ $("open-path").onclick = () => openModel({ path: $("model-path").value });
 (async function start() {
   app.methods = await api("/api/methods");
   $("method").replaceChildren(...Object.keys(app.methods).map((m) => el("option", { value: m, text: m })));
+  app.exports = await api("/api/exports");
   const examples = await api("/api/examples");
   $("example-name").replaceChildren(...Object.keys(examples).map((m) => el("option", { value: m, text: m })));
   $("example-name").value = "rack-solid";
