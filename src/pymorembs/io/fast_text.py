@@ -30,6 +30,7 @@ __all__ = [
     "PlainNumberScan",
     "SymmetricRoom",
     "all_distinct",
+    "canonical_csr",
     "check_chunk",
     "check_chunk_numpy",
     "compiled_checks",
@@ -601,6 +602,28 @@ class CheckedReader(io.RawIOBase):
 _PENDING_CHUNKS = 16
 
 
+def canonical_csr(
+    data: np.ndarray, indices: np.ndarray, indptr: np.ndarray, shape: tuple[int, int]
+) -> sp.csr_matrix:
+    """A CSR matrix on the given arrays (no copy), marked canonical: the caller built them
+    sorted and without duplicates, so SciPy need not look again.
+
+    Parameters
+    ----------
+    data, indices : ndarray, shape (nnz,)
+    indptr : ndarray, shape (shape[0] + 1,)
+    shape : tuple of int
+
+    Returns
+    -------
+    scipy.sparse.csr_matrix
+    """
+    matrix = sp.csr_matrix((data, indices, indptr), shape=shape, copy=False)
+    matrix.has_sorted_indices = True
+    matrix.has_canonical_format = True
+    return matrix
+
+
 #: Stored entries from which :func:`full_from_triangle` and :func:`transpose_gap` use the
 #: compiled kernels (for fewer, loading them costs more than they save).
 COMPILED_FROM_ENTRIES = 1 << 23
@@ -643,10 +666,7 @@ def full_from_triangle(stored: sp.csr_matrix) -> sp.csr_matrix | None:
         lambda parts: kernels.mirror_parallel(*arrays, indptr, indices, data, lower, parts),
         n,
     )
-    full = sp.csr_matrix((data, indices, indptr), shape=(n, n), copy=False)
-    full.has_sorted_indices = True
-    full.has_canonical_format = True
-    return full
+    return canonical_csr(data, indices, indptr, (n, n))
 
 
 class SymmetricRoom:
@@ -721,12 +741,7 @@ class SymmetricRoom:
         indptr = counts.astype(np.int32)
         del counts
         kernels.mirror_lower_in_place(triangle.indptr, self._indices, self._data, entries, indptr)
-        full = sp.csr_matrix(
-            (self._data[:total], self._indices[:total], indptr), shape=(n, n), copy=False
-        )
-        full.has_sorted_indices = True
-        full.has_canonical_format = True
-        return full
+        return canonical_csr(self._data[:total], self._indices[:total], indptr, (n, n))
 
 
 def triangle_sides(matrix: sp.csr_matrix) -> tuple[bool, bool]:
@@ -979,9 +994,4 @@ def csr_from_sorted_coo(
         if not np.all(step | ((r[1:] == r[:-1]) & (c[1:] > c[:-1]))):
             return None
     indptr = np.searchsorted(rows, np.arange(n + 1, dtype=rows.dtype)).astype(index)
-    matrix = sp.csr_matrix(
-        (values, cols.astype(index, copy=False), indptr), shape=(n, n), copy=False
-    )
-    matrix.has_sorted_indices = True
-    matrix.has_canonical_format = True
-    return matrix
+    return canonical_csr(values, cols.astype(index, copy=False), indptr, (n, n))

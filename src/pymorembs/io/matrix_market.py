@@ -74,6 +74,7 @@ from pymorembs.io.fast_text import (
     PlainNumberScan,
     SymmetricRoom,
     all_distinct,
+    canonical_csr,
     compiled_worthwhile,
     csr_from_sorted_coo,
     full_from_triangle,
@@ -704,10 +705,7 @@ def _mirrored(stored: sp.csr_matrix, lower_stored: bool) -> sp.csr_matrix:
             segment = out[target]
             segment[from_lower] = a[low]
             segment[from_upper] = b[up][keep]
-    full = sp.csr_matrix((data, indices, indptr), shape=(n, n), copy=False)
-    full.has_sorted_indices = True
-    full.has_canonical_format = True
-    return full
+    return canonical_csr(data, indices, indptr, (n, n))
 
 
 def _fast_head(path: Path) -> tuple[_Header, int] | None:
@@ -824,14 +822,9 @@ def _transpose_gap(a: sp.csr_matrix) -> float | None:
 def _row_block(a: sp.csr_matrix, first: int, last: int) -> sp.csr_matrix:
     """Rows ``first:last`` of a canonical CSR matrix, sharing its index and value arrays."""
     lo, hi = a.indptr[first], a.indptr[last]
-    block = sp.csr_matrix(
-        (a.data[lo:hi], a.indices[lo:hi], a.indptr[first : last + 1] - lo),
-        shape=(last - first, a.shape[1]),
-        copy=False,
+    return canonical_csr(
+        a.data[lo:hi], a.indices[lo:hi], a.indptr[first : last + 1] - lo, (last - first, a.shape[1])
     )
-    block.has_sorted_indices = True
-    block.has_canonical_format = True
-    return block
 
 
 #: Entries compared at a time by :func:`_transpose_gap`.

@@ -19,6 +19,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from pymorembs.io.fast_text import canonical_csr
+
 __all__ = ["assemble_symmetric_triangle", "half_of_entries", "symmetric_from_half"]
 
 #: Entries handled at a time (the temporary arrays of a block stay in the caches).
@@ -234,8 +236,6 @@ def _sorted_half(
         indices -= base
     indptr = np.zeros(n + 1, dtype=np.int32 if kept < 2**31 - 1 else np.int64)
     np.cumsum(counts, out=indptr[1:])
-    half = sp.csr_matrix((data, indices, indptr), shape=(n, n), copy=False)
-    half.has_sorted_indices = True
-    half.has_canonical_format = True
+    half = canonical_csr(data, indices, indptr, (n, n))
     half.eliminate_zeros()
     return half
