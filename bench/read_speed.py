@@ -591,7 +591,7 @@ def measure(fmt: str, role: str, d: Path, memory: str) -> dict:
     :data:`COLD_WAIT_S`."""
     call = _read(fmt, d) if role == "reader" else _baseline(fmt, d)
     if memory == "warm":
-        warm_memory(_warm_bytes(fmt, d))
+        warm_memory(_warm_bytes(d))
     else:
         time.sleep(COLD_WAIT_S)
     reset_peak_memory()
@@ -612,21 +612,19 @@ def measure(fmt: str, role: str, d: Path, memory: str) -> dict:
 COLD_WAIT_S = 5.0
 
 
-def warm_memory(size: int) -> float:
-    """Touch ``size`` bytes of new memory and free them again; the seconds it took.
+def warm_memory(size: int) -> None:
+    """Touch ``size`` bytes of new memory and free them again.
 
     Right after this, the pages the process gets from the kernel are pages the machine has
     just used. On a virtual machine whose guest reports freed memory to its host (free page
     reporting), a page used for the first time otherwise costs the host a fault as well: there
     the first touch of 1 GiB can take seconds (see the ``first touch`` facts).
     """
-    tick = time.perf_counter()
     block = np.ones(max(size, 8) // 8)
     del block
-    return time.perf_counter() - tick
 
 
-def _warm_bytes(fmt: str, d: Path) -> int:
+def _warm_bytes(d: Path) -> int:
     """Memory warmed before a read: twice the files' size (at least 1 GiB), at most half of
     the available memory."""
     files = sum(p.stat().st_size for p in d.iterdir())
