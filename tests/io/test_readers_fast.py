@@ -592,6 +592,66 @@ def test_lower_triangle_completed_in_its_own_arrays() -> None:
         assert full.indices.ctypes.data == room.rows.ctypes.data  # no second copy
 
 
+def _banded_triangle(rng, n: int, band: int, diagonal: bool) -> sp.csr_matrix:
+    """The lower triangle of a random symmetric band matrix, as an FE matrix in a good order
+    stores it (with or without its diagonal)."""
+    a = sp.random(n, n, density=0.5, random_state=rng, format="coo")
+    keep = (a.row >= a.col) & (a.row - a.col <= band) & (diagonal | (a.row != a.col))
+    a = sp.csr_matrix((a.data[keep], (a.row[keep], a.col[keep])), shape=(n, n))
+    if diagonal:
+        a = sp.csr_matrix(a + sp.identity(n))
+    a.sort_indices()
+    return a
+
+
+@needs_numba
+def test_two_thread_completion_equals_the_one_thread_one() -> None:
+    """The two-thread completion in blocks writes exactly the arrays of the one-thread pass: for
+    band matrices of many blocks, a triangle without diagonal entries (no block fits: every
+    row on one thread), a full lower triangle and a diagonal alone; the result is the dense
+    formula's."""
+    from pymorembs.io import compiled_kernels as kernels
+
+    rng = np.random.default_rng(12)
+    cases = [_banded_triangle(rng, n, band, diagonal) for n, band, diagonal in
+             ((2000, 12, True), (3000, 40, True), (500, 30, False), (1, 0, True))]  # fmt: skip
+    cases += [sp.csr_matrix(np.tril(rng.random((40, 40)))), sp.identity(50, format="csr")]
+    for stored in cases:
+        stored.sort_indices()
+        outcome = []
+        for complete in (kernels.mirror_lower_in_place, kernels.mirror_lower_in_place_parallel):
+            room, triangle = _in_room(stored)
+            counts = np.zeros(stored.shape[0] + 1, dtype=np.int64)
+            kernels.mirror_counts(triangle.indptr, triangle.indices, counts)
+            total = int(counts[-1])
+            indptr = counts.astype(np.int32)
+            complete(triangle.indptr, room._indices, room._data, stored.nnz, indptr)
+            outcome.append((room._indices[:total].copy(), room._data[:total].copy(), indptr))
+        (indices, data, indptr), (indices_2, data_2, _) = outcome
+        assert np.array_equal(indices, indices_2) and np.array_equal(data, data_2)
+        n = stored.shape[0]
+        _check_full_of_triangle(stored, fast_text.canonical_csr(data_2, indices_2, indptr, (n, n)))
+
+
+@needs_numba
+def test_compiled_line_count() -> None:
+    """Line feeds counted eight bytes at a time: any start and end (not multiples of eight),
+    bytes that differ from a line feed in one bit or have the high bit set, more than 255 words
+    and more than 2,040 line feeds in one run of lanes; against NumPy's count."""
+    from pymorembs.io import compiled_kernels as kernels
+
+    rng = np.random.default_rng(13)
+    alphabet = np.array([10, 10, 32, 48, 0, 255, 0x8A, 0x0B, 0x0E, 0x2A], dtype=np.uint8)
+    buffers = [rng.choice(alphabet, size) for size in (0, 5, 8, 17, 999, 5000)]
+    buffers += [np.full(20000, 10, dtype=np.uint8)]
+    for buffer in buffers:
+        for _ in range(20):
+            first, last = np.sort(rng.integers(0, buffer.size + 1, 2))
+            expected = int(np.count_nonzero(buffer[first:last] == 10))
+            assert kernels.count_lines(buffer, first, last) == expected
+        assert kernels.count_lines(buffer, 0, buffer.size) == np.count_nonzero(buffer == 10)
+
+
 @needs_numba
 def test_room_refuses_what_it_cannot_complete_in_place() -> None:
     """An upper triangle (its mirrored entries would land on entries not yet read) and a matrix

@@ -176,11 +176,29 @@ def mirror_lower_in_place(indptr, indices, data, offset, out_indptr):  # pragma:
     below the diagonal in the columns before ``i``) ``<= offset + indptr[i]``, where row ``i`` is
     read, and each entry of row ``i`` moves to the front or stays.
     """
+    slots = _mirror_slots(indptr, out_indptr)
+    _lower_rows_in_place(indptr, indices, data, offset, out_indptr, slots, 0, indptr.size - 1)
+
+
+@numba.njit(cache=True, nogil=True)
+def _mirror_slots(indptr, out_indptr):  # pragma: no cover - compiled
+    """The place of the first mirrored entry of each row of the full matrix (after the row's
+    own entries of the lower triangle)."""
     n = indptr.size - 1
-    mirrored = np.empty(n, dtype=out_indptr.dtype)  # the next place of each row's mirrored part
+    slots = np.empty(n, dtype=out_indptr.dtype)
     for i in range(n):
-        mirrored[i] = out_indptr[i] + indptr[i + 1] - indptr[i]
-    for i in range(n):
+        slots[i] = out_indptr[i] + indptr[i + 1] - indptr[i]
+    return slots
+
+
+@numba.njit(cache=True, nogil=True)
+def _lower_rows_in_place(
+    indptr, indices, data, offset, out_indptr, slots, first, last
+):  # pragma: no cover - compiled
+    """Rows ``first .. last - 1`` of :func:`mirror_lower_in_place`: each entry read, then
+    written to its own place and, off the diagonal, to the next mirrored place of its column's
+    row (``slots``, advanced)."""
+    for i in range(first, last):
         w = out_indptr[i]
         for q in range(offset + indptr[i], offset + indptr[i + 1]):
             j = indices[q]
@@ -189,10 +207,67 @@ def mirror_lower_in_place(indptr, indices, data, offset, out_indptr):  # pragma:
             data[w] = v
             w += 1
             if j != i:
-                p = mirrored[j]
+                p = slots[j]
                 indices[p] = i
                 data[p] = v
-                mirrored[j] = p + 1
+                slots[j] = p + 1
+
+
+@numba.njit(cache=True, nogil=True)
+def _own_rows(indptr, indices, data, offset, out_indptr, first, last):  # pragma: no cover
+    """The lower triangle's own entries of rows ``first .. last - 1`` moved to their places."""
+    for i in range(first, last):
+        w = out_indptr[i]
+        for q in range(offset + indptr[i], offset + indptr[i + 1]):
+            indices[w] = indices[q]
+            data[w] = data[q]
+            w += 1
+
+
+@numba.njit(cache=True, nogil=True)
+def _mirrored_rows(indptr, indices, data, offset, slots, first, last):  # pragma: no cover
+    """The mirror images ``(j, i)`` of the entries off the diagonal of rows ``first .. last -
+    1``, each at the next mirrored place of row ``j`` (``slots``, advanced)."""
+    for i in range(first, last):
+        for q in range(offset + indptr[i], offset + indptr[i + 1]):
+            j = indices[q]
+            if j != i:
+                p = slots[j]
+                indices[p] = i
+                data[p] = data[q]
+                slots[j] = p + 1
+
+
+@numba.njit(cache=True, nogil=True, parallel=True)
+def mirror_lower_in_place_parallel(
+    indptr, indices, data, offset, out_indptr
+):  # pragma: no cover - compiled
+    """:func:`mirror_lower_in_place` on two of Numba's threads: one moves the triangle's own
+    entries, the other writes their mirror images.
+
+    The rows are taken in blocks ``a .. b - 1`` whose full rows end before the block's first
+    entry is read (``out_indptr[b] <= offset + indptr[a]``): then no write of the block reaches
+    an entry of the block, so both threads read all of it while they write, and between blocks
+    they wait for each other. Each write goes to its own place, so the two never write the same
+    entry. Near the end of the triangle a block holds about half as many entries as there are
+    diagonal entries (the room left between the full rows and the entries still to be read); a
+    row that fits in no block is done on one thread, as in :func:`mirror_lower_in_place`.
+    """
+    n = indptr.size - 1
+    slots = _mirror_slots(indptr, out_indptr)
+    a = 0
+    while a < n:
+        b = np.searchsorted(out_indptr, offset + indptr[a], side="right") - 1
+        if b <= a + 1:
+            _lower_rows_in_place(indptr, indices, data, offset, out_indptr, slots, a, a + 1)
+            a += 1
+            continue
+        for role in numba.prange(2):
+            if role == 0:
+                _own_rows(indptr, indices, data, offset, out_indptr, a, b)
+            else:
+                _mirrored_rows(indptr, indices, data, offset, slots, a, b)
+        a = b
 
 
 @numba.njit(cache=True, nogil=True, parallel=True)
@@ -360,12 +435,49 @@ def decimal_to_bits(w, q, powers):  # pragma: no cover - compiled
     return mantissa | (_U64(power2) << _U64(52))
 
 
+#: Every byte of a word: 1, 0x7F, 0x80, the line feed; every other byte; every 16-bit 1.
+_ONES = np.uint64(0x0101010101010101)
+_SEVENS = np.uint64(0x7F7F7F7F7F7F7F7F)
+_HIGHS = np.uint64(0x8080808080808080)
+_LINE_FEEDS = np.uint64(0x0A0A0A0A0A0A0A0A)
+_EVEN_BYTES = np.uint64(0x00FF00FF00FF00FF)
+_ONES_16 = np.uint64(0x0001000100010001)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _word(buffer, i):  # pragma: no cover - compiled
+    """The bytes ``buffer[i : i + 8]`` as one little-endian word (one load: the unsigned index
+    has no wraparound of negative values, so the byte loads combine)."""
+    u = np.uintp(i)
+    word = _U64(0)
+    for k in range(8):
+        word |= _U64(buffer[u + np.uintp(k)]) << _U64(8 * k)
+    return word
+
+
 @numba.njit(cache=True, nogil=True)
 def count_lines(buffer, first, last):  # pragma: no cover - compiled
-    """Line feeds in ``buffer[first:last]``."""
+    """Line feeds in ``buffer[first:last]``, eight bytes at a time.
+
+    A byte of ``word ^ 0x0A..0A`` is zero exactly at a line feed; ``((x & 0x7F..7F) + 0x7F..7F)
+    | x`` has the high bit of every non-zero byte set (no carry crosses a byte), so the line
+    feeds are the clear high bits. They are added up in the bytes of ``lanes`` (at most 255 words
+    at a time, so that no byte overflows), the bytes in pairs, and the four pair sums (at most
+    2,040) by one multiplication.
+    """
     count = 0
-    for i in range(first, last):
-        count += buffer[i] == 10
+    i = first
+    while i + 8 <= last:
+        lanes = _U64(0)
+        stop = min(last - 8, i + 8 * 254)
+        while i <= stop:
+            x = _word(buffer, i) ^ _LINE_FEEDS
+            lanes += (~(((x & _SEVENS) + _SEVENS) | x) & _HIGHS) >> _U64(7)
+            i += 8
+        pairs = (lanes & _EVEN_BYTES) + ((lanes >> _U64(8)) & _EVEN_BYTES)  # 16-bit lanes
+        count += np.int64((pairs * _ONES_16) >> _U64(48))
+    for k in range(i, last):
+        count += buffer[k] == 10
     return count
 
 

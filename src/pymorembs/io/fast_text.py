@@ -705,7 +705,8 @@ class SymmetricRoom:
 
     def full(self, triangle: sp.csr_matrix) -> sp.csr_matrix | None:
         """The full symmetric matrix of ``triangle``, completed in place (compiled kernel,
-        :func:`~pymorembs.io.compiled_kernels.mirror_lower_in_place`); explicit zeros are kept.
+        :func:`~pymorembs.io.compiled_kernels.mirror_lower_in_place`, on two of the solver
+        threads from the main thread); explicit zeros are kept.
 
         Returns None, and leaves everything as it was, without Numba, if ``triangle`` is not
         canonical, holds entries above the diagonal, or does not hold :attr:`cols` and
@@ -740,7 +741,12 @@ class SymmetricRoom:
         total = int(counts[-1])
         indptr = counts.astype(np.int32)
         del counts
-        kernels.mirror_lower_in_place(triangle.indptr, self._indices, self._data, entries, indptr)
+        arrays = (triangle.indptr, self._indices, self._data, entries, indptr)
+        _on_threads(
+            lambda: kernels.mirror_lower_in_place(*arrays),
+            lambda parts: kernels.mirror_lower_in_place_parallel(*arrays),
+            n,
+        )
         return canonical_csr(self._data[:total], self._indices[:total], indptr, (n, n))
 
 
