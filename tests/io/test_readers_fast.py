@@ -860,6 +860,10 @@ def test_compiled_parser_leaves_other_numbers_to_the_strict_pass(tmp_path, numbe
         (b"+1 1 1.0\n", None),
         (b"1 1\n", None),
         (b"1 1 1.0\n2 2 2.0\n", None),  # more lines than announced
+        (b"1 1 1.0\n2 2 2.0", None),  # and the last without its line end
+        (b"", None),  # an empty file (nothing to map)
+        (b" \r\n\n\t", None),  # white space only
+        (b"1 1 " + b"0" * 70000 + b"1.0", None),  # a last line longer than any line of numbers
     ],
 )
 def test_compiled_parser_line_forms(tmp_path, text, entries) -> None:
@@ -888,3 +892,12 @@ def test_compiled_parser_across_blocks(tmp_path, monkeypatch) -> None:
     with ThreadPoolExecutor(1) as pool:  # off the main thread: the one-thread kernel
         again = pool.submit(fast_text.parse_coordinate_lines, path, 0, 9, 300).result()
     assert np.array_equal(again[2], values)
+    # after a header; with blank lines at the end, or the last line without its line end
+    head = b"%%MatrixMarket matrix coordinate real general\n9 9 300\n"
+    body = path.read_bytes().rstrip(b"\n")
+    k = np.arange(300)
+    for end in (b"\r\n\n  \n\t", b""):
+        path.write_bytes(head + body + end)
+        rows, cols, parsed_values = fast_text.parse_coordinate_lines(path, len(head), 9, 300)
+        assert np.array_equal(rows, k % 9) and np.array_equal(cols, (k * 5) % 9)
+        assert np.array_equal(parsed_values, values)

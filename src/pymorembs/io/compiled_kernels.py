@@ -11,7 +11,11 @@ threads of the parser that reads the same bytes.
 :func:`mirror_counts` / :func:`mirror_rows` complete a stored triangle to the full symmetric CSR
 matrix (:func:`mirror_lower_in_place`: a lower triangle in the arrays that hold it) and
 :func:`rows_gap` finds ``max |A - A^T|``, each in one pass over the entries
-(:func:`mirror_parallel`, :func:`transpose_gap_parallel`: the same on several threads).
+(:func:`mirror_parallel`, :func:`mirror_lower_in_place_parallel`, :func:`transpose_gap_parallel`:
+the same on several threads).
+
+:func:`coordinate_lines` parses the entry lines of a Matrix Market file and :func:`count_lines`
+counts lines eight bytes at a time.
 """
 
 from __future__ import annotations

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import functools
 import io
+import mmap
 import os
 import threading
 from collections import deque
@@ -821,6 +822,8 @@ def _on_threads(serial, parallel, rows: int):
 _PARSE_BLOCK = 1 << 24
 #: Bytes searched for the last line end of a block (no line of a number file is this long).
 _LINE_SEARCH = 1 << 16
+#: ``madvise`` advice that drops parsed pages of a mapped file from the process (Linux).
+_UNMAP = getattr(mmap, "MADV_DONTNEED", None)
 
 
 def parse_coordinate_lines(
@@ -836,8 +839,8 @@ def parse_coordinate_lines(
     Every line must have the plain form of :func:`~pymorembs.io.compiled_kernels.
     coordinate_lines` (indices ``1 .. n``), and there must be ``entries`` lines; the values are
     the correctly rounded doubles of the decimal numbers, as Python's ``float`` reads them.
-    The file is read in blocks of :data:`_PARSE_BLOCK` bytes, each parsed in parts on the
-    solver threads (from the main thread; else on this thread).
+    The file is mapped into memory and parsed in blocks of :data:`_PARSE_BLOCK` bytes, each in
+    parts on the solver threads (from the main thread; else on this thread).
 
     Returns None without Numba, for any line of another form, another number of lines, a
     number that needs more than 19 significant digits or is subnormal, or a read error: the
@@ -871,46 +874,69 @@ def parse_coordinate_lines(
         out = (np.empty(entries, dtype=index), np.empty(entries, dtype=index), np.empty(entries))
     rows, cols, values = out
     bits = values.view(np.uint64)
-    buffer = np.empty(_PARSE_BLOCK + _LINE_SEARCH + 1, dtype=np.uint8)
-    done, kept = 0, 0
     try:
-        with open(path, "rb", buffering=0) as stream:
-            left = os.fstat(stream.fileno()).st_size - offset
-            stream.seek(offset)
-            while left > 0 or kept:
-                room = min(_PARSE_BLOCK, buffer.size - 1 - kept, max(left, 0))
-                got = stream.readinto(memoryview(buffer)[kept : kept + room]) if room else 0
-                left -= got
-                end = kept + got
-                final = got == 0 or left <= 0
-                if final:  # white space at the end of the file (blank lines) holds no entry
-                    end = len(buffer[:end].tobytes().rstrip(b" \t\r\n"))
-                    if end == 0:
-                        break
-                    buffer[end] = _NEWLINE  # the last line's end
-                    cut = end + 1
-                else:
-                    search = buffer[max(kept, end - _LINE_SEARCH) : end].tobytes()
-                    last = search.rfind(b"\n")
-                    if last < 0:  # no line end yet: read on (a line is never this long)
-                        kept = end
-                        if kept > _LINE_SEARCH:
-                            return None
-                        continue
-                    cut = end - len(search) + last + 1
-                lines = _parse_block(kernels, buffer, cut, n, rows, cols, values, bits, done)
-                if lines is None:
-                    return None
-                done += lines
-                if final:
-                    break
-                kept = end - cut
-                buffer[:kept] = buffer[cut:end]
-    except (OSError, ValueError):
+        with (
+            open(path, "rb") as stream,
+            mmap.mmap(stream.fileno(), 0, access=mmap.ACCESS_READ) as mapped,
+        ):
+            done = _parse_mapped(kernels, mapped, offset, n, rows, cols, values, bits)
+    except (OSError, ValueError):  # unreadable, or empty (nothing to map)
         return None
     if done != entries:
         return None
     return rows, cols, values
+
+
+def _parse_mapped(kernels, mapped: mmap.mmap, offset: int, n, rows, cols, values, bits) -> int:
+    """Entries parsed from the mapped file's bytes ``offset ..`` (see
+    :func:`parse_coordinate_lines`), or -1.
+
+    The kernels read the page cache through the mapping, without a copy. Blocks of
+    :data:`_PARSE_BLOCK` bytes end at a line end; each block's pages are unmapped again once it
+    is parsed, so that the file never counts in the process's memory by more than a block.
+    White space at the end of the file (blank lines) holds no entry; the last line, which then
+    has no line end, is parsed from a copy with one.
+    """
+    data = np.frombuffer(mapped, dtype=np.uint8)
+    try:
+        end = data.size
+        while end > offset:  # the end of the last line
+            tail = data[max(offset, end - _LINE_SEARCH) : end].tobytes()
+            kept = tail.rstrip(b" \t\r\n")
+            end -= len(tail) - len(kept)
+            if kept:
+                break
+        before = data[max(offset, end - _LINE_SEARCH) : end].tobytes().rfind(b"\n")
+        last_start = offset if before < 0 else max(offset, end - _LINE_SEARCH) + before + 1
+        if end > offset and before < 0 and end - offset > _LINE_SEARCH:
+            return -1  # a last line longer than any line of numbers
+        done, start, unmapped = 0, offset, 0
+        while start < last_start:
+            stop = min(start + _PARSE_BLOCK, last_start)
+            search = data[max(start, stop - _LINE_SEARCH) : stop].tobytes()
+            at = search.rfind(b"\n")
+            if at < 0:
+                return -1  # no line end in the search window: not a file of number lines
+            cut = stop - len(search) + at + 1
+            block = data[start:cut]
+            lines = _parse_block(kernels, block, block.size, n, rows, cols, values, bits, done)
+            if lines is None:
+                return -1
+            done += lines
+            start = cut
+            page = start - start % mmap.PAGESIZE
+            if page > unmapped and _UNMAP is not None:
+                mapped.madvise(_UNMAP, unmapped, page - unmapped)
+                unmapped = page
+        if last_start < end:
+            line = np.append(data[last_start:end], np.uint8(_NEWLINE))
+            lines = _parse_block(kernels, line, line.size, n, rows, cols, values, bits, done)
+            if lines is None:
+                return -1
+            done += lines
+        return done
+    finally:
+        del data  # the mapping closes only without exports of its buffer
 
 
 def _parse_block(kernels, buffer, size, n, rows, cols, values, bits, done) -> int | None:
