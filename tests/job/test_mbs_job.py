@@ -61,6 +61,11 @@ def run(argv, capsys):
     return code, captured.out, captured.err
 
 
+#: The tests on the output of the whole job with every output (about 17 s on 2 cores) are in
+#: the slow set (`make test-slow`, which CI runs too).
+whole_job = pytest.mark.slow
+
+
 @pytest.fixture(scope="module")
 def mbs_run(tmp_path_factory):
     folder = tmp_path_factory.mktemp("mbs")
@@ -92,6 +97,7 @@ def direct_mass_properties():
     return m, cg, inertia
 
 
+@whole_job
 def test_every_output_is_written_and_listed(mbs_run):
     out, summary = mbs_run
     (entry,) = summary["reductions"]
@@ -106,6 +112,7 @@ def test_every_output_is_written_and_listed(mbs_run):
     assert {"summary.json", "error.png", "time.png", "report.html"} <= set(summary["files"])
 
 
+@whole_job
 def test_sid_has_the_mass_properties_of_the_fe_model(mbs_run):
     out, _ = mbs_run
     sid = read_sid(out / "krylov" / "krylov.SID_FEM")
@@ -128,6 +135,7 @@ def test_sid_has_the_mass_properties_of_the_fe_model(mbs_run):
     assert all("E+" not in line and "E-" not in line for line in text)  # D exponents
 
 
+@whole_job
 def test_neweul_and_exudyn_files_hold_the_same_body(mbs_run):
     out, _ = mbs_run
     sid = sid_invariants(read_sid(out / "krylov" / "krylov.SID_FEM"))
@@ -139,6 +147,7 @@ def test_neweul_and_exudyn_files_hold_the_same_body(mbs_run):
     np.testing.assert_allclose(exudyn["physicsInertia"], sid["inertia"], rtol=1e-10, atol=1e-12)
 
 
+@whole_job
 def test_time_domain_entries(mbs_run):
     _, summary = mbs_run
     cases = {case["name"]: case for case in summary["time_domain"]["cases"]}
@@ -154,6 +163,7 @@ def test_time_domain_entries(mbs_run):
     assert set(entry["time_domain"]) == {"step", "harmonic"}
 
 
+@whole_job
 def test_report_is_valid_html_with_all_plots(mbs_run):
     out, summary = mbs_run
     text = (out / "report.html").read_text()
@@ -165,6 +175,7 @@ def test_report_is_valid_html_with_all_plots(mbs_run):
 
 
 @pytest.mark.skipif(shutil.which("chromium") is None, reason="chromium not installed")
+@whole_job
 def test_report_renders_in_headless_chromium(mbs_run, tmp_path):
     """Every embedded image decodes in a real browser (naturalWidth > 0)."""
     out, _ = mbs_run

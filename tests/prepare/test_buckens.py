@@ -75,7 +75,8 @@ def test_modal_reduction_of_the_free_rack_gives_its_elastic_modes(rack):
     # factors the ill-conditioned M and spreads the 5-fold 460 Hz eigenvalue by 3e-7)
     shift = 1e3
     k, m = system.stiffness.toarray(), system.mass.toarray()
-    mu = sla.eigh(m, k + shift * m, eigvals_only=True)[::-1][:12]
+    n = k.shape[0]
+    mu = sla.eigh(m, k + shift * m, eigvals_only=True, subset_by_index=[n - 12, n - 1])[::-1]
     elastic = np.sqrt(1.0 / mu[6:] - shift) / (2 * np.pi)
     assert np.allclose(model.eigenfrequencies_hz, elastic, rtol=1e-8)
     assert model.eigenfrequencies_hz[0] == pytest.approx(105.34, abs=0.01)
