@@ -207,6 +207,11 @@ def test_mesh_source_needs_elements(tmp_path, capsys):
     assert not (tmp_path / "out").exists()
 
 
+#: The simulations of the reduced blade in Exudyn (5-7 s each on 2 cores) are in the slow set
+#: (`make test-slow`, which CI runs too).
+exudyn_run = pytest.mark.slow
+
+
 def exudyn_models(elements: int = ELEMENTS, order: int = 8):
     from pymorembs.export.outputs import body_invariants
     from pymorembs.prepare import Frame, Port, prepare
@@ -225,6 +230,7 @@ def exudyn_models(elements: int = ELEMENTS, order: int = 8):
     }
 
 
+@exudyn_run
 def test_exudyn_body_spinning_at_its_flap_frequency_vibrates_stiffened():
     """Steady spin about z at Omega = omega_1 with a small flap deflection: the flap vibration in
     Exudyn at the reduced body's stiffened frequency (linear (Ke + Omega² Oe.M1) prediction)."""
@@ -272,6 +278,7 @@ def flap_hz(result, step: float) -> float:
     return float(np.fft.rfftfreq(32 * x.size, step)[np.argmax(spectrum)])
 
 
+@exudyn_run
 @pytest.mark.parametrize("load", ["gravity", "tip force"])
 def test_exudyn_body_under_an_axial_load_vibrates_stiffened(load):
     """Gravity along the blade (the acceleration load case ax, weighted by A^T (r'' - g)) and a
@@ -353,6 +360,7 @@ def test_the_stiffening_force_takes_every_input_in_body_coordinates():
     assert not np.any(out[:7])
 
 
+@exudyn_run
 def test_exudyn_spin_up_above_the_edgewise_frequency_is_stable_only_when_stiffened():
     pytest.importorskip("exudyn")
     model, arrays = exudyn_models()

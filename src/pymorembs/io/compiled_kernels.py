@@ -439,8 +439,7 @@ def decimal_to_bits(w, q, powers):  # pragma: no cover - compiled
     return mantissa | (_U64(power2) << _U64(52))
 
 
-#: Every byte of a word: 1, 0x7F, 0x80, the line feed; every other byte; every 16-bit 1.
-_ONES = np.uint64(0x0101010101010101)
+#: Every byte of a word: 0x7F, 0x80, the line feed; every other byte; every 16-bit 1.
 _SEVENS = np.uint64(0x7F7F7F7F7F7F7F7F)
 _HIGHS = np.uint64(0x8080808080808080)
 _LINE_FEEDS = np.uint64(0x0A0A0A0A0A0A0A0A)
