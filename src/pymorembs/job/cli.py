@@ -229,7 +229,7 @@ def _sigterm_raises() -> Iterator[None]:
     try:
         yield
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
 
 
 def _ended_by_signal(what: str, code: int) -> int:
@@ -281,7 +281,7 @@ def _example(args: argparse.Namespace) -> int:
     out: Path = args.out
     if out.exists() and not out.is_dir():
         raise UserError(f"{out}: exists and is not a folder")
-    with output_errors(out):
+    with output_errors(out, outcome="the files written before are complete"):
         out.mkdir(parents=True, exist_ok=True)
         write_body_h5(body, out / "model.h5")
         written = write_matrix_files(body, out)

@@ -749,24 +749,30 @@ def _signals_held() -> Iterator[None]:
             signal.raise_signal(number)
 
 
-_ELSEWHERE = "; nothing of this run was written (write elsewhere with --out)"
-_FREE = "; nothing of this run was written (free some space, or write elsewhere with --out)"
-#: What an ``OSError`` of the output device means, by ``errno`` (the line names the folder).
+_ELSEWHERE = "write elsewhere with --out"
+_FREE = "free some space, or write elsewhere with --out"
+#: What an ``OSError`` of the output device means, by ``errno``: the problem (naming the
+#: folder) and the remedy.
 OUTPUT_DEVICE_ERRORS = {
-    errno.ENOSPC: "no space left on the device of {folder}" + _FREE,
-    errno.EDQUOT: "the disk quota is exceeded on the device of {folder}" + _FREE,
-    errno.EROFS: "{folder} lies on a read-only file system" + _ELSEWHERE,
-    errno.EACCES: "no permission to write into {folder}" + _ELSEWHERE,
-    errno.EPERM: "no permission to write into {folder}" + _ELSEWHERE,
+    errno.ENOSPC: ("no space left on the device of {folder}", _FREE),
+    errno.EDQUOT: ("the disk quota is exceeded on the device of {folder}", _FREE),
+    errno.EROFS: ("{folder} lies on a read-only file system", _ELSEWHERE),
+    errno.EACCES: ("no permission to write into {folder}", _ELSEWHERE),
+    errno.EPERM: ("no permission to write into {folder}", _ELSEWHERE),
 }
+#: What a job's run left when its output device failed (the staging folder is removed).
+NOTHING_WRITTEN = "nothing of this run was written"
 #: Of these, the errors that count only where they name a file of the output (a full device
 #: is the output's; a refused permission may be an input's).
 _NAMED_ONLY = (errno.EACCES, errno.EPERM)
 
 
-def output_device_error(exc: BaseException, folder: Path) -> UserError | None:
+def output_device_error(
+    exc: BaseException, folder: Path, outcome: str = NOTHING_WRITTEN
+) -> UserError | None:
     """The one-line error for an output device that is full, over its quota, read-only or
-    refuses the writing, or None when ``exc`` is something else.
+    refuses the writing, or None when ``exc`` is something else; ``outcome`` says what was left
+    (empty: nothing said).
 
     ``exc`` or an exception it was raised from or while handling (a writer's own error that
     wraps the ``OSError``) is an ``OSError`` of :data:`OUTPUT_DEVICE_ERRORS`. The line names
@@ -783,7 +789,9 @@ def output_device_error(exc: BaseException, folder: Path) -> UserError | None:
             ours = named is None or _is_output(named, folder)
             if ours or current.errno not in _NAMED_ONLY:
                 where = folder if ours else named.parent
-                return UserError(OUTPUT_DEVICE_ERRORS[current.errno].format(folder=where))
+                problem, remedy = OUTPUT_DEVICE_ERRORS[current.errno]
+                left = f"; {outcome}" if outcome else ""
+                return UserError(f"{problem.format(folder=where)}{left} ({remedy})")
         current = current.__cause__ or current.__context__
     return None
 
@@ -799,13 +807,13 @@ def _is_output(path: Path, folder: Path) -> bool:
 
 
 @contextlib.contextmanager
-def output_errors(folder: Path) -> Iterator[None]:
+def output_errors(folder: Path, outcome: str = NOTHING_WRITTEN) -> Iterator[None]:
     """Turn an error of a full, over-quota or read-only output device inside the block into
     the one-line :class:`UserError` of :func:`output_device_error` (exit 2)."""
     try:
         yield
     except (OSError, PymorembsError) as exc:
-        error = output_device_error(exc, folder)
+        error = output_device_error(exc, folder, outcome)
         if error is None:
             raise
         raise error from None
