@@ -178,6 +178,11 @@ def test_one_block_is_counted_as_the_method_sees_it(beam):
     # no body for a multibody code: no inertia loads, and no mention of them
     with pytest.raises(UserError, match=r"is below one block of the 3 inputs, .*krylov basis; "):
         check(KRYLOV_12.replace("order = 12", "order = 2"), outputs='["npz"]')
+    gramian = '[[reduction]]\nmethod = "gramian"\norder = 2\nexpansion_points_hz = [0]\n'
+    with pytest.raises(UserError, match=r"#1\.first_order: 5 is below one block of the 13 in"):
+        check(gramian + 'first_stage = "krylov"\nfirst_order = 5\n')  # its medium model
+    check(gramian + 'first_stage = "krylov"\nfirst_order = 13\n')
+    check(gramian.replace("order = 2", "order = 2\nfirst_order = 5"))  # 126 dofs: no first stage
     soaga = '[[reduction]]\nmethod = "soaga"\ntolerance = 1e-6\norder = 12\n'
     with pytest.raises(UserError, match=r"give 'tolerance' without 'order' \(the order chosen by"):
         check(soaga)
