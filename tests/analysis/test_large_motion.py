@@ -168,6 +168,7 @@ name = "krylov-30"
 method = "krylov"
 expansion_points_hz = [0, 500]
 order = 30
+export_inaccurate = true  # 0.27 under the inertia loads up to 1000 Hz; the spin-up is slow
 
 [[reduction]]
 name = "soaga"
