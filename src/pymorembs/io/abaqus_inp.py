@@ -60,6 +60,7 @@ import numpy as np
 from pymorembs.arrays import sorted_unique
 from pymorembs.body import DofTable
 from pymorembs.errors import located_error
+from pymorembs.io.compressed import original_path
 from pymorembs.io.element_surface import SurfaceElements
 from pymorembs.io.reader_support import read_text
 from pymorembs.io.solid_mesh import SolidBlock
@@ -516,7 +517,7 @@ class _Reader:
         elif keyword == "INCLUDE":
             if "INPUT" not in params:
                 raise located_error(path, line, "*INCLUDE without INPUT=file")
-            self.scan(path.parent / params["INPUT"], stack)
+            self.scan(original_path(path).parent / params["INPUT"], stack)
 
     def _expect(self, path: Path, line: int, word: str, where: str) -> None:
         if self.where != where:
@@ -588,7 +589,7 @@ class _Reader:
                 f"*NODE, SYSTEM={system}: only rectangular coordinates (SYSTEM=R) are supported",
             )
         if "INPUT" in params:
-            path = path.parent / params["INPUT"]
+            path = original_path(path).parent / params["INPUT"]
             data, data_line = read_text(path, "a file of *NODE data lines"), 1
         labels, xyz = _parse_nodes(path, data, data_line)
         if labels.size:
@@ -604,7 +605,7 @@ class _Reader:
         if not kind:
             raise located_error(path, line, "*ELEMENT without TYPE=")
         if "INPUT" in params:
-            path = path.parent / params["INPUT"]
+            path = original_path(path).parent / params["INPUT"]
             data, data_line = read_text(path, "a file of *ELEMENT data lines"), 1
         elset = params.get("ELSET") or None
         self.context.elements.append((kind, path, line, data, data_line, elset))
