@@ -576,8 +576,9 @@ def read_body(
     if extra:
         plural = "s" if len(extra) > 1 else ""
         verb = "do" if len(extra) > 1 else "does"
+        detected = f"{source}: the content looks like {fmt}: " if format is None else ""
         raise UserError(
-            f"option{plural} {', '.join(extra)} {verb} not apply to format {fmt}; "
+            f"{detected}option{plural} {', '.join(extra)} {verb} not apply to format {fmt}; "
             f"it takes {', '.join(sorted(_OPTIONS[fmt]))}"
         )
     _check_distinct_matrices(given)
