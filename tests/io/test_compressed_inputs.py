@@ -85,6 +85,19 @@ def test_a_compressed_matrix_market_file_reads_like_the_plain_one(tmp_path, temp
     assert not any(temporary.iterdir())
 
 
+def test_a_folder_of_compressed_files_reads_like_the_plain_folder(tmp_path, temporary):
+    body = read_body(file=CALCULIX / "fixed.sti")
+    write_matrix_files(body, tmp_path / "block")
+    reference = read_body(file=tmp_path / "block")
+    for path in sorted((tmp_path / "block").iterdir()):
+        compress(path, ".xz")
+        path.unlink()
+    assert detect_format(tmp_path / "block") == "matrix-market"
+    same_body(read_body(file=tmp_path / "block"), reference)
+    assert reference.name == "block" and reference.fixed.size == 11
+    assert not any(temporary.iterdir())
+
+
 @pytest.mark.parametrize("suffix", sorted(OPENERS))
 def test_a_compressed_calculix_export_reads_like_the_plain_one(tmp_path, temporary, suffix):
     reference = read_body(file=CALCULIX / "fixed.sti")

@@ -255,6 +255,7 @@ _EXTENSION_HINTS = {
     ".dof": "calculix",
 }
 _CALCULIX_MATRIX = (".sti", ".mas")
+_COMPRESSION_SUFFIXES = ("", ".gz", ".bz2", ".xz")
 _CALCULIX_DOF = re.compile(r"\s*\d+\.\d+\s*")
 
 
@@ -283,7 +284,7 @@ def detect_format(path: PathLike) -> str:
     """
     path = Path(path)
     if path.is_dir():
-        if (path / "K.mtx").is_file():
+        if any((path / f"K.mtx{suffix}").is_file() for suffix in _COMPRESSION_SUFFIXES):
             return "matrix-market"
         raise UserError(
             f"{path}: a directory without K.mtx; cannot tell the file format; "
@@ -584,6 +585,8 @@ def read_body(
     _check_distinct_matrices(given)
     if fmt == "calculix":
         given = _calculix_files(given)
+    if fmt == "matrix-market" and "file" in given and Path(given["file"]).is_dir():
+        given = _directory_files(given)  # (its files may be compressed)
     files = [key for key in (*_FILE_OPTIONS, "inp") if key in given]
     if "damping" in given and fmt in _DAMPING_FILES:
         files.append("damping")
@@ -594,6 +597,23 @@ def read_body(
         if copies.compressed:
             body = replace(body, notes=tuple(copies.named(note) for note in body.notes))
     return body
+
+
+def _directory_files(given: dict[str, Any]) -> dict[str, Any]:
+    """The options of a Matrix Market directory (``file``) as its single files (plain or
+    compressed), the body named after the directory."""
+    from pymorembs.io.matrix_market import directory_files
+
+    clash = sorted({"stiffness", "mass", "damping", "dofs", "nodes"} & set(given))
+    if clash:
+        raise UserError(
+            f"format matrix-market: give either a directory (file) or the single files, "
+            f"not both (file and {', '.join(clash)})"
+        )
+    given = dict(given)
+    directory = Path(given.pop("file"))
+    given.setdefault("name", directory.resolve().name or "body")
+    return {**given, **directory_files(directory)}
 
 
 def _calculix_files(given: dict[str, Any]) -> dict[str, Any]:
@@ -649,22 +669,13 @@ def _dispatch(fmt: str, given: dict[str, Any]) -> tuple[ElasticBody, set[str]]:
 
         return read_body_h5(g("file")), set()
     if fmt == "matrix-market":
-        from pymorembs.io.matrix_market import read_matrix_directory, read_matrix_files
+        from pymorembs.io.matrix_market import read_matrix_files
 
-        if "file" in given:
-            path = Path(g("file"))
-            clash = sorted({"stiffness", "mass", "damping", "dofs", "nodes"} & set(given))
-            if clash:
-                raise UserError(
-                    f"format matrix-market: give either a directory (file) or the single files, "
-                    f"not both (file and {', '.join(clash)})"
-                )
-            if not path.is_dir():
-                raise UserError(
-                    f"{path}: format matrix-market reads a directory (file) or the files "
-                    "stiffness and mass, not a single file"
-                )
-            return read_matrix_directory(path, name=g("name")), {"name"}
+        if "file" in given:  # (read_body turned a directory into its files)
+            raise UserError(
+                f"{g('file')}: format matrix-market reads a directory (file) or the files "
+                "stiffness and mass, not a single file"
+            )
         _require(fmt, given, "stiffness")
         if "mass" not in given:
             raise UserError(

@@ -69,6 +69,7 @@ import scipy.sparse as sp
 from pymorembs.body import DIRECTIONS, ConstraintEquations, DofTable, ElasticBody, direction_code
 from pymorembs.errors import UserError, located_error
 from pymorembs.io.atomic import atomic_open, write_text
+from pymorembs.io.compressed import COMPRESSIONS
 from pymorembs.io.fast_text import (
     CheckedReader,
     PlainNumberScan,
@@ -89,6 +90,7 @@ __all__ = [
     "SYMMETRY_TOLERANCE",
     "DataLines",
     "check_symmetric",
+    "directory_files",
     "encoding_note",
     "read_matrix_directory",
     "read_matrix_files",
@@ -320,16 +322,38 @@ def read_matrix_directory(directory: PathLike, name: str | None = None) -> Elast
     ``constraints.csv`` and ``fixed.csv`` are read when present (see :func:`read_matrix_files`
     for what their absence means). ``name`` defaults to the directory name.
     """
+    paths = directory_files(directory)
+    return read_matrix_files(name=name, **paths)
+
+
+def directory_files(directory: PathLike) -> dict[str, Path]:
+    """The files of a body in ``directory`` (:data:`FILE_NAMES`), each plain or compressed.
+
+    Returns
+    -------
+    dict of str -> Path
+        Keyed like the arguments of :func:`read_matrix_files`: ``stiffness`` and ``mass``
+        always (``K.mtx``, ``M.mtx`` or a compressed ``K.mtx.gz``, ``.bz2``, ``.xz``; the plain
+        name when neither exists, so that the reader says it is missing), the others when
+        present.
+
+    Raises
+    ------
+    UserError
+        ``directory`` is not a directory.
+    """
     directory = Path(directory)
     if not directory.is_dir():
         raise UserError(f"{directory}: not a directory of Matrix Market and CSV files")
-    paths = {key: directory / file for key, file in FILE_NAMES.items()}
-    optional = {
-        key: path
-        for key, path in paths.items()
-        if key not in ("stiffness", "mass") and path.exists()
-    }
-    return read_matrix_files(paths["stiffness"], paths["mass"], name=name, **optional)
+    found = {}
+    for key, file in FILE_NAMES.items():
+        candidates = [directory / file] + [
+            directory / f"{file}{suffix}" for suffix, _ in COMPRESSIONS.values()
+        ]
+        path = next((c for c in candidates if c.is_file()), None)
+        if path is not None or key in ("stiffness", "mass"):
+            found[key] = path if path is not None else candidates[0]
+    return found
 
 
 # ============================================================================ Matrix Market
