@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 import scipy.io
 
+from abaqus_models import genuine
 from pymorembs.io import read_body, write_matrix_files
 from pymorembs.io.node_files import node_file_kind, read_node_file
 from pymorembs.job.cli import main
@@ -176,3 +177,13 @@ def test_a_node_file_of_no_known_kind_is_one_line(tmp_path, capsys):
     assert code == 2 and len(err) == 1
     expected = r"pymorembs: error: .*notes\.txt: no node coordinates: neither a nodes\.csv"
     assert re.match(expected, err[0]), err
+
+
+def test_an_abaqus_substructure_takes_nodes_as_inp(tmp_path):
+    """``nodes`` is the ``inp`` option of the Abaqus formats: a deck, bulk data, an archive."""
+    path = genuine("abaqus_mtx_parser/symmetric/inner.mtx", tmp_path)
+    files = write_node_files(tmp_path, {k: [k / 10, 0.0, 0.0] for k in range(1, 9)})
+    for kind in ("abaqus", "nastran", "ansys"):
+        body = read_body(file=path, nodes=files[kind])
+        assert body.has_coordinates
+        np.testing.assert_array_equal(body.node_position(7), [0.7, 0.0, 0.0])
