@@ -13,7 +13,7 @@ of the body as it will be reduced, usually none)::
 ``job.sti``, ``job.mas``
     The stiffness and the mass matrix, one entry per line ``row column value`` (equations from
     1, blank separated, the value with 14 significant digits): the upper triangle column by
-    column (``row <= column``), every diagonal entry included, also a zero one.
+    column (``row <= column``), every diagonal entry included.
 ``job.dof``
     One line ``node.direction`` per equation, in the order of the equations (``103.2`` is uy of
     node 103; directions 1-3 for the nodes of solid elements). The dofs that ``*BOUNDARY`` fixes
