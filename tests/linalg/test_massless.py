@@ -392,27 +392,35 @@ FEMAP = Path(__file__).parents[1] / "data" / "qinterfly_pchconverter_femap"
 BAR = {"E": 2e11, "rho": 7850.0, "A": 3.1416e-6, "I": 7.854e-13, "L": np.sqrt(0.875)}
 
 
-def femap_reference_hz() -> np.ndarray:
-    """All finite frequencies (Hz) of the genuine Femap punch, dense and written here.
+def projected_reference_hz(body: ElasticBody) -> np.ndarray:
+    """All finite frequencies (Hz) of a body whose massless rows hold one direction without
+    mass and stiffness, dense and written here.
 
-    The massive dofs after static condensation of the massless ones, with the direction
-    without mass and stiffness projected out of the massless space by hand: the complement of
-    the null singular vector of ``K_00``.
+    The massive dofs after static condensation of the massless ones, with that direction
+    projected out of the massless space by hand: the complement of the null singular vector of
+    ``K_00``.
     """
-    from pymorembs.io import read_body
-
-    body = read_body(None, file=FEMAP / "beam.pch", nodes=FEMAP / "beam.dat")
     k, m = body.stiffness.toarray(), body.mass.toarray()
     massless = np.flatnonzero(np.abs(m).sum(axis=1) == 0.0)
     massive = np.setdiff1d(np.arange(k.shape[0]), massless)
     k00 = k[np.ix_(massless, massless)]
     u, s, _ = np.linalg.svd(k00)
-    assert s[-1] < 1e-9 * s[0] < s[-2]  # exactly one null direction, 33 rotations
+    assert s[-1] < 1e-9 * s[0] < s[-2]  # exactly one null direction
     z = u[:, :-1]  # the massless space without it
     k_zm = z.T @ k[np.ix_(massless, massive)]
     condensed = k[np.ix_(massive, massive)] - k_zm.T @ np.linalg.solve(z.T @ k00 @ z, k_zm)
     values = sla.eigh(condensed, m[np.ix_(massive, massive)], eigvals_only=True)
-    return np.sqrt(values) / (2 * np.pi)
+    return np.sign(values) * np.sqrt(np.abs(values)) / (2 * np.pi)
+
+
+def femap_reference_hz() -> np.ndarray:
+    """All finite frequencies (Hz) of the genuine Femap punch (:func:`projected_reference_hz`:
+    its null direction lies in the 33 rotations)."""
+    from pymorembs.io import read_body
+
+    return projected_reference_hz(
+        read_body(None, file=FEMAP / "beam.pch", nodes=FEMAP / "beam.dat")
+    )
 
 
 def test_the_genuine_femap_beam_with_a_massless_mechanism_gives_its_frequencies(capsys):
@@ -490,6 +498,30 @@ def test_pymorembs_reduce_on_the_femap_beam(tmp_path, capsys):
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert any("removed by fixing node" in note for note in summary["notes"])
     assert summary["reductions"][0]["max_rel_error"] < 1e-6
+
+
+def test_a_free_straight_beam_without_rotary_inertia_has_five_rigid_body_modes(capsys, tmp_path):
+    """Turning about its own axis moves only massless rotations: no rigid-body mode but a
+    massless mechanism (before: exit 3). The Buckens frame, which needs six, says why."""
+    body = beam_body(10, clamped=False)
+    write_matrix_files(body, tmp_path)
+    code = main(["info", str(tmp_path), "--modes", "6", "--json"])
+    facts = json.loads(capsys.readouterr().out)
+    assert code == 0
+    assert facts["rigid_body_modes"] == 5 and facts["mechanisms"] == 0
+    assert [n for n in facts["notes"] if re.fullmatch(
+        r"a massless mechanism of 11 dofs \(nodes 1, 2, 3, 4, 5, 6, \.\.\. \(11 nodes\) rx\) "
+        r"with no mass and no stiffness, decoupled from every massive dof \(residual .*\): "
+        r"removed by fixing node \d+ rx \(like Nastran's AUTOSPC\)", n)]  # fmt: skip
+    reference = projected_reference_hz(body)
+    assert np.all(np.abs(reference[:5]) < 1e-4 * reference[5])
+    assert np.allclose(facts["eigenfrequencies_hz"][5:], reference[5:11], rtol=1e-8)
+    ports = [Port.parse(3, "uz")]
+    why = (
+        r"; removed as massless mechanisms before: nodes 1, 2, 3, 4, 5, 6, \.\.\. \(11 nodes\) rx$"
+    )
+    with pytest.raises(UserError, match=r"six rigid-body modes; this one has 5 .*" + why):
+        prepare(body, Frame("buckens"), ports, ports)
 
 
 def chain_body(extra: str = "", n: int = 12) -> ElasticBody:

@@ -242,13 +242,15 @@ def prepare(
     )
     warnings += _massless_ports(system)
     if frame.kind == "buckens":
+        try:
+            elastic = _elastic_system(framed, elimination, system)
+        except UserError as exc:
+            if not removal.count:
+                raise
+            removed = "; ".join(removal.descriptions)
+            raise UserError(f"{exc}; removed as massless mechanisms before: {removed}") from None
         return PreparedModel(
-            framed,
-            elimination,
-            _elastic_system(framed, elimination, system),
-            tuple(warnings),
-            frame=frame,
-            notes=tuple(notes),
+            framed, elimination, elastic, tuple(warnings), frame=frame, notes=tuple(notes)
         )
     if not allow_rigid_body_modes:
         free = free_rigid_body_modes(framed, elimination, system)
