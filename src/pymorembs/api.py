@@ -34,6 +34,15 @@ from pymorembs.analysis.time_domain import (
     simulate,
 )
 from pymorembs.analysis.transfer import transfer_function
+from pymorembs.arguments import (
+    OptionError,
+    described,
+    node_ids,
+    number,
+    number_list,
+    plain,
+    whole,
+)
 from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
 from pymorembs.examples import build_example
@@ -148,17 +157,52 @@ def facts(body: ElasticBody, modes: int = 10) -> dict[str, Any]:
     eigenfrequencies (Hz), massless directions condensed exactly.
     """
     prepared = prepare_body(body, Frame("none"), allow_rigid_body_modes=True)
-    out = model_facts(body, prepared, int(modes))
+    out = model_facts(body, prepared, whole("modes", modes, minimum=0))
     out["units"] = detect_units(body).as_dict()
     return out
 
 
-def _port(port: PortLike, what: str) -> Port:
-    if isinstance(port, Port):
-        return port
-    if isinstance(port, tuple | list) and len(port) == 2:
-        return Port.parse(int(port[0]), port[1])
-    raise UserError(f"{what}: {port!r} is neither a Port nor a (node, directions) pair")
+def _ports(ports: Sequence[PortLike] | None, what: str) -> list[Port] | None:
+    """Ports from a list, tuple or array of :class:`Port` or (node, directions) pairs."""
+    if ports is None:
+        return None
+    if isinstance(ports, Port) or (
+        isinstance(ports, tuple | list) and len(ports) == 2 and isinstance(plain(ports[1]), str)
+    ):
+        raise OptionError(what, f"give a list of ports, e.g. {what}=[(1, 'ux uy uz')]")
+    if isinstance(ports, np.ndarray) and ports.ndim != 2:
+        raise OptionError(what, f"must be a list of (node, directions) pairs, got "
+                                f"{described(ports)}")  # fmt: skip
+    if not isinstance(ports, tuple | list | np.ndarray):
+        raise OptionError(what, f"must be a list of Port or (node, directions) pairs, got "
+                                f"{described(ports)}")  # fmt: skip
+    out = []
+    for port in ports:
+        if isinstance(port, Port):
+            out.append(port)
+        elif isinstance(port, tuple | list | np.ndarray) and len(port) == 2:
+            directions = plain(port[1])
+            if isinstance(directions, np.ndarray):
+                directions = [str(d) for d in directions.ravel()]
+            out.append(Port.parse(whole(f"{what} node", port[0], minimum=None), directions))
+        else:
+            raise OptionError(what, f"{described(port)} is neither a Port nor a (node, "
+                                    "directions) pair")  # fmt: skip
+    return out
+
+
+def _band(key: str, band_hz: Any) -> tuple[float, float]:
+    """A band ``(f_min, f_max)`` in Hz with ``0 <= f_min < f_max``."""
+    what = "(f_min, f_max) in Hz"
+    f_min, f_max = number_list(key, band_hz, what, length=2, minimum=0.0)
+    if not f_max > f_min:
+        raise OptionError(key, f"must be {what} with f_min < f_max, got ({f_min:g}, {f_max:g})")
+    return f_min, f_max
+
+
+def _frame_nodes(nodes: Any) -> list[int] | None:
+    """The frame nodes of an exported body (None: the port nodes)."""
+    return None if plain(nodes) is None else node_ids("nodes", nodes)
 
 
 def prepare(
@@ -204,23 +248,34 @@ def prepare(
     PreparedModel
         Carries its frame (``prepared.frame``).
     """
+    node = whole("node", node, minimum=None)
     if isinstance(frame, str):
         frame = Frame(frame, node)
+    elif not isinstance(frame, Frame):
+        raise OptionError("frame", f"must be a Frame or 'tangent', 'buckens' or 'none', got "
+                                   f"{described(frame)}")  # fmt: skip
     elif node is not None:
         raise UserError("prepare: give node only with a frame given by name")
+    if isinstance(interfaces, InterfaceSpec) or not all(
+        isinstance(spec, InterfaceSpec) for spec in interfaces
+    ):
+        raise OptionError("interfaces", "must be a list of InterfaceSpec")
+    nodes = (
+        [] if plain(stiffening_nodes) is None else node_ids("stiffening_nodes", stiffening_nodes)
+    )
     for spec in interfaces:
         body = add_interface_node(body, spec)
-    ins = None if inputs is None else [_port(p, "inputs") for p in inputs]
-    outs = ins if outputs is None else [_port(p, "outputs") for p in outputs]
+    ins = _ports(inputs, "inputs")
+    outs = ins if outputs is None else _ports(outputs, "outputs")
+    cases = _inertia_cases(inertia_loads)
     prepared = prepare_body(body, frame, ins, outs)
-    if inertia_loads:
-        cases = None if inertia_loads is True else tuple(inertia_loads)
+    if cases is not None:
         prepared = (
-            with_inertia_loads(prepared) if cases is None else with_inertia_loads(prepared, cases)
+            with_inertia_loads(prepared) if cases == () else with_inertia_loads(prepared, cases)
         )
     if stiffening is not None:
         if stiffening == "mesh":
-            terms = stiffening_from_mesh(prepared, nodes=list(stiffening_nodes))
+            terms = stiffening_from_mesh(prepared, nodes=nodes)
         elif isinstance(stiffening, Mapping):
             terms = stiffening_from_matrices(prepared, dict(stiffening))
         else:
@@ -230,6 +285,21 @@ def prepare(
             )
         prepared = with_stiffening(prepared, terms)
     return prepared
+
+
+def _inertia_cases(value: Any) -> tuple[str, ...] | None:
+    """``inertia_loads``: None (none), ``()`` (all twelve cases) or the named cases."""
+    single = plain(value)
+    if isinstance(single, bool):
+        return () if single else None
+    if isinstance(single, str):
+        raise OptionError("inertia_loads", f"give a list of load cases, e.g. ['{single}']")
+    if isinstance(value, np.ndarray) and value.ndim == 1:
+        value = value.tolist()
+    if not isinstance(value, list | tuple) or not all(isinstance(c, str) for c in value):
+        raise OptionError("inertia_loads", f"must be true, false or a list of load cases "
+                                           f"(ax ay az ...), got {described(value)}")  # fmt: skip
+    return tuple(value) if value else None
 
 
 @dataclass(frozen=True, eq=False)
@@ -333,13 +403,13 @@ class ReducedBody:
         workers : int, optional
             Processes for the full model's frequency sweep.
         """
+        reference = plain(reference)
         if reference not in ("full", "surrogate", "auto"):
             raise UserError(f"error: reference must be 'full', 'surrogate' or 'auto', got "
-                            f"{reference!r}")  # fmt: skip
-        try:
-            frequencies = frequency_grid(float(band_hz[0]), float(band_hz[1]), int(points))
-        except (TypeError, ValueError, IndexError) as exc:
-            raise UserError(f"error: band_hz must be (f_min, f_max) in Hz: {exc}") from None
+                            f"{described(reference)}")  # fmt: skip
+        f_min, f_max = _band("band_hz", band_hz)
+        frequencies = frequency_grid(f_min, f_max, whole("points", points, minimum=2))
+        workers = whole("workers", workers)
         system = self.prepared.reduction_system
         if system.input_matrix.shape[1] == 0 or system.output_matrix.shape[0] == 0:
             raise UserError("error: the prepared model has no inputs or no outputs to compare")
@@ -357,7 +427,9 @@ class ReducedBody:
     def invariants(self, nodes: Sequence[int] | None = None) -> BodyInvariants:
         """The mass invariants (SID_NOTES section 4) with these frame nodes (default: the port
         nodes)."""
-        return body_invariants(self.model, self.prepared, self._nodes(nodes), self.name)
+        return body_invariants(
+            self.model, self.prepared, self._nodes(_frame_nodes(nodes)), self.name
+        )
 
     def to_sid(self, path: PathLike, nodes: Sequence[int] | None = None) -> Path:
         """Write the body as a SID file (Simpack, ``.SID_FEM``), checked before it is written."""
@@ -393,6 +465,13 @@ class ReducedBody:
 
     def to_matrices(self, folder: PathLike, formats: Sequence[str] = ("npz", "mtx")) -> list[Path]:
         """Write the reduced matrices (``reduced.npz``, ``M K D B C.mtx``, ``reduced.mat``)."""
+        given = formats
+        formats = [formats] if isinstance(plain(formats), str) else formats
+        if isinstance(formats, np.ndarray) and formats.ndim == 1:
+            formats = [plain(f) for f in formats]
+        if not isinstance(formats, list | tuple) or not all(isinstance(f, str) for f in formats):
+            raise OptionError("formats", f"must be a list of 'npz', 'mtx', 'mat', got "
+                                         f"{described(given)}")  # fmt: skip
         unknown = sorted(set(formats) - {"npz", "mtx", "mat"})
         if unknown:
             raise UserError(f"to_matrices: unknown formats {unknown} (npz, mtx, mat)")
@@ -436,12 +515,20 @@ class ReducedBody:
         TimeResponse
             Displacements of ``load_node`` (m) per load case.
         """
+        if isinstance(load_cases, LoadCase) or not all(
+            isinstance(case, LoadCase) for case in load_cases
+        ):
+            raise OptionError("load_cases", "must be a list of LoadCase")
+        clamp = whole("clamp_node", clamp_node, minimum=None)
+        load = whole("load_node", load_node, minimum=None)
+        duration, step = number("duration_s", duration_s), number("step_s", step_s)
+        if not 0 < step <= duration:
+            raise OptionError("step_s", f"must lie in (0, duration_s], got {step!r}")
         system = clamped_reduced_system(
             self.prepared.body, self.basis, np.asarray(self.system.mass),
-            np.asarray(self.system.stiffness), self.model.damping_matrix, int(clamp_node),
-            int(load_node),
+            np.asarray(self.system.stiffness), self.model.damping_matrix, clamp, load,
         )  # fmt: skip
-        return simulate(system, list(load_cases), duration_s, step_s, rho_inf)
+        return simulate(system, list(load_cases), duration, step, number("rho_inf", rho_inf))
 
     def _nodes(self, nodes: Sequence[int] | None) -> list[int]:
         if nodes is not None:
@@ -498,9 +585,9 @@ def reduce(
         if settings.method in ("soaga", "gramian", "pod"):
             raise UserError(f"reduce: {settings.method} needs band_hz=(f_min, f_max) in Hz")
         band_hz = (0.0, 1.0)
+    band = _band("band_hz", band_hz)
     system = prepared.reduction_system
-    model = reduced_model(system, settings.reduce(system, (float(band_hz[0]),
-                                                           float(band_hz[1]))))  # fmt: skip
+    model = reduced_model(system, settings.reduce(system, band))
     before = None
     limit = settings.max_frequency_hz
     if limit is not None and model.eigenfrequencies_hz.max() > limit:
