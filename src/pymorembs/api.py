@@ -18,11 +18,12 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import scipy.sparse as sp
 
 from pymorembs.analysis.error import error_blocks, frequency_grid, relative_error
 from pymorembs.analysis.reference import reference_response
@@ -43,7 +44,7 @@ from pymorembs.arguments import (
     plain,
     whole,
 )
-from pymorembs.body import ElasticBody
+from pymorembs.body import DAMPING_KEYS, Damping, ElasticBody
 from pymorembs.errors import UserError
 from pymorembs.examples import build_example
 from pymorembs.export.invariants import BodyInvariants
@@ -79,6 +80,7 @@ __all__ = [
 
 PathLike = str | os.PathLike[str]
 PortLike = Port | tuple[int, str]
+DampingLike = Damping | Mapping[str, Any] | np.ndarray | sp.spmatrix | sp.sparray
 
 
 def read(
@@ -216,6 +218,7 @@ def prepare(
     inertia_loads: bool | Sequence[str] = False,
     stiffening: str | Mapping[str, PathLike] | None = None,
     stiffening_nodes: Sequence[int] = (),
+    damping: DampingLike | None = None,
 ) -> PreparedModel:
     """The body in its reference frame with its inputs and outputs (paper sections 2.1-2.3).
 
@@ -242,6 +245,16 @@ def prepare(
         load case.
     stiffening_nodes : sequence of int
         Frame nodes whose unit forces also get their stiffening (``"mesh"`` only).
+    damping : Damping, mapping or matrix, optional
+        The damping of the body (default: what it carries, undamped for a model read without
+        one). A :class:`~pymorembs.body.Damping` -- ``Damping("modal", ratio=0.02)`` (the
+        damping ratio of every mode), ``Damping("rayleigh", alpha=2.0, beta=1e-5)``
+        (``D = alpha M + beta K``, alpha in 1/s, beta in s) or ``Damping("none")`` -- or the
+        same as a mapping with the keys of a job's ``[damping]`` table
+        (``{"kind": "modal", "ratio": 0.02}``) replaces the body's damping model; a damping
+        matrix read with the model stays and is added. A matrix, sparse or dense, shape
+        (n_dof, n_dof), in the body's dof order (force x time / length), replaces the body's
+        explicit damping matrix; the damping model stays.
 
     Returns
     -------
@@ -263,6 +276,8 @@ def prepare(
     nodes = (
         [] if plain(stiffening_nodes) is None else node_ids("stiffening_nodes", stiffening_nodes)
     )
+    if damping is not None:
+        body = _with_damping(body, damping)
     for spec in interfaces:
         body = add_interface_node(body, spec)
     ins = _ports(inputs, "inputs")
@@ -285,6 +300,45 @@ def prepare(
             )
         prepared = with_stiffening(prepared, terms)
     return prepared
+
+
+def _with_damping(body: ElasticBody, damping: DampingLike) -> ElasticBody:
+    """The body with the damping of :func:`prepare`'s ``damping`` argument."""
+    if isinstance(damping, Damping):
+        return body.with_damping(damping)
+    if isinstance(damping, Mapping):
+        values = dict(damping)
+        kind = plain(values.pop("kind", None))
+        if kind is None:
+            raise OptionError("damping", "a mapping needs 'kind' ('modal', 'rayleigh' or 'none')")
+        if not isinstance(kind, str) or kind not in DAMPING_KEYS:
+            raise OptionError("damping", f"kind must be 'none', 'rayleigh' or 'modal', got "
+                                         f"{described(kind)}")  # fmt: skip
+        for key in values:
+            if key not in DAMPING_KEYS[kind]:
+                takes = ", ".join(DAMPING_KEYS[kind]) or "nothing"
+                raise OptionError("damping", f"unknown key {key!r} for kind {kind!r} (it takes "
+                                             f"{takes})")  # fmt: skip
+        if kind == "modal" and "ratio" not in values:
+            raise OptionError("damping", "kind 'modal' needs 'ratio' (e.g. 0.02)")
+        try:
+            return body.with_damping(Damping(kind, **values))
+        except UserError as exc:
+            raise OptionError("damping", str(exc)) from None
+    if sp.issparse(damping) or isinstance(damping, np.ndarray):
+        n = body.n_dof
+        if damping.shape != (n, n):
+            raise OptionError("damping", f"a damping matrix must have the shape (n_dof, n_dof) = "
+                                         f"({n}, {n}), got {damping.shape}")  # fmt: skip
+        if damping.dtype.kind not in "iuf":
+            raise OptionError("damping", f"a damping matrix must hold real numbers, got "
+                                         f"{described(damping)}")  # fmt: skip
+        try:
+            return replace(body, damping_matrix=sp.csr_matrix(damping, dtype=float))
+        except UserError as exc:
+            raise OptionError("damping", str(exc)) from None
+    raise OptionError("damping", f"must be a Damping, a mapping like {{'kind': 'modal', 'ratio': "
+                                 f"0.02}} or a matrix, got {described(damping)}")  # fmt: skip
 
 
 def _inertia_cases(value: Any) -> tuple[str, ...] | None:

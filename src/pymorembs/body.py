@@ -27,6 +27,7 @@ from typing import Literal
 import numpy as np
 import scipy.sparse as sp
 
+from pymorembs.arguments import described, plain
 from pymorembs.arrays import first_duplicate, missing_from, sorted_unique
 from pymorembs.elements.beam import BeamSection
 from pymorembs.errors import UserError
@@ -243,6 +244,14 @@ class ConstraintEquations:
         return int(self.dependent.size)
 
 
+#: The values each damping kind takes (the keys of a job's ``[damping]`` table besides ``kind``).
+DAMPING_KEYS: dict[str, tuple[str, ...]] = {
+    "none": (),
+    "rayleigh": ("alpha", "beta"),
+    "modal": ("ratio",),
+}
+
+
 @dataclass(frozen=True)
 class Damping:
     """Damping model of the body.
@@ -264,14 +273,25 @@ class Damping:
     ratio: float = 0.0
 
     def __post_init__(self) -> None:
-        if self.kind not in ("none", "rayleigh", "modal"):
+        object.__setattr__(self, "kind", plain(self.kind))
+        if not isinstance(self.kind, str) or self.kind not in DAMPING_KEYS:
             raise UserError(
-                f"damping kind {self.kind!r} is unknown; use 'none', 'rayleigh' or 'modal'"
+                f"damping kind {described(self.kind)} is unknown; use 'none', 'rayleigh' or 'modal'"
             )
         for name in ("alpha", "beta", "ratio"):
-            value = getattr(self, name)
+            value = plain(getattr(self, name))
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise UserError(f"damping {name} must be a number, got {described(value)}")
             if not np.isfinite(value) or value < 0:
                 raise UserError(f"damping {name} must be a finite number >= 0, got {value!r}")
+            object.__setattr__(self, name, float(value))
+        unused = [key for key in ("alpha", "beta", "ratio")
+                  if getattr(self, key) and key not in DAMPING_KEYS[self.kind]]  # fmt: skip
+        if unused:
+            takes = " and ".join(DAMPING_KEYS[self.kind]) or "no values"
+            raise UserError(
+                f"damping {unused[0]} does not belong to kind {self.kind!r}, which takes {takes}"
+            )
         if self.kind == "modal" and not 0 < self.ratio < 1:
             raise UserError(f"modal damping ratio must lie in (0, 1), got {self.ratio!r}")
 
