@@ -45,6 +45,7 @@ from pymorembs.arguments import (
     whole,
 )
 from pymorembs.body import DAMPING_KEYS, Damping, ElasticBody
+from pymorembs.display import html_table, one_line
 from pymorembs.errors import UserError
 from pymorembs.examples import build_example
 from pymorembs.export.invariants import BodyInvariants
@@ -381,6 +382,26 @@ class ErrorCurve:
         """The largest error over the ports."""
         return float(np.max(self.relative))
 
+    def summary(self) -> list[tuple[str, str]]:
+        """The facts ``repr`` and a notebook show, as (label, text) rows: the band, the largest
+        error and where, over the inertia loads, the reference."""
+        f = self.frequencies_hz
+        worst = int(np.argmax(self.relative))
+        rows = [
+            ("band", f"{f.min():g} ... {f.max():g} Hz, {f.size} frequencies"),
+            ("max", f"{self.max:.3e} at {f[worst]:.4g} Hz"),
+        ]
+        if self.inertia is not None:
+            rows.append(("max inertia loads", f"{self.max_inertia:.3e}"))
+        rows.append(("reference", self.reference))
+        return rows
+
+    def __repr__(self) -> str:
+        return one_line("ErrorCurve", self.summary())
+
+    def _repr_html_(self) -> str:
+        return html_table("ErrorCurve", self.summary())
+
     @property
     def max_inertia(self) -> float | None:
         """The largest error over the inertia loads, or None."""
@@ -414,6 +435,29 @@ class ReducedBody:
     @property
     def method(self) -> str:
         return self.options.method
+
+    def summary(self) -> list[tuple[str, str]]:
+        """The facts ``repr`` and a notebook show, as (label, text) rows: method and options,
+        order, eigenfrequencies, the body, frame, inputs and outputs, damping."""
+        given = self.options.given()
+        options = ", ".join(f"{key}={value}" for key, value in given.items())
+        rows = [("method", f"{self.method}" + (f" ({options})" if options else "")),
+                ("body", f"{self.prepared.body.name!r}")]  # fmt: skip
+        model = self.model.summary()
+        rows += [row for row in model if row[0] in ("order", "eigenfrequencies")]
+        if self.before_removal is not None:
+            removed = self.before_removal.projection.order - self.order
+            rows.append(("removed", f"{removed} directions above {self.options.max_frequency_hz:g}"
+                                    " Hz"))  # fmt: skip
+        rows += [row for row in self.prepared.summary() if row[0] == "frame"]
+        rows += [row for row in model if row[0].startswith(("inputs", "outputs", "damping"))]
+        return rows
+
+    def __repr__(self) -> str:
+        return one_line(f"ReducedBody {self.name!r}", self.summary())
+
+    def _repr_html_(self) -> str:
+        return html_table(f"ReducedBody {self.name!r}", self.summary())
 
     @property
     def projection(self) -> Projection:
