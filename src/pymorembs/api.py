@@ -51,6 +51,7 @@ from pymorembs.examples import build_example
 from pymorembs.export.invariants import BodyInvariants
 from pymorembs.export.outputs import body_invariants, check_before_writing, write_outputs
 from pymorembs.io.formats import read_body
+from pymorembs.io.reduced_file import SavedBody, read_reduced_body, write_reduced_body
 from pymorembs.methods import ReductionOptions, method_options
 from pymorembs.prepare import Frame, Port, PreparedModel, with_inertia_loads
 from pymorembs.prepare import prepare as prepare_body
@@ -74,6 +75,7 @@ __all__ = [
     "ReducedBody",
     "example",
     "facts",
+    "load",
     "prepare",
     "read",
     "reduce",
@@ -522,6 +524,16 @@ class ReducedBody:
             ref.kind,
         )
 
+    def save(self, path: PathLike) -> Path:
+        """Write the body to an HDF5 file that :func:`load` reads back (conventionally
+        ``.h5``): everything it holds -- the prepared model with its sparse matrices, the bases
+        and the reduced matrices, options and name -- so that the loaded body gives the same
+        error curves and exported files. Written atomically; the layout is in ``docs/api.md``
+        ("Saving and loading"), readable with h5py alone."""
+        saved = SavedBody(self.prepared, self.model, self.method, self.options.given(),
+                          self.name, self.before_removal)  # fmt: skip
+        return write_reduced_body(path, saved)
+
     def invariants(self, nodes: Sequence[int] | None = None) -> BodyInvariants:
         """The mass invariants (SID_NOTES section 4) with these frame nodes (default: the port
         nodes)."""
@@ -640,6 +652,23 @@ class ReducedBody:
         if not found:
             raise UserError(f"{self.name}: give the frame nodes of the exported body (nodes=[...])")
         return list(dict.fromkeys(found))
+
+
+def load(path: PathLike) -> ReducedBody:
+    """Read a reduced body written by :meth:`ReducedBody.save`.
+
+    Raises
+    ------
+    UserError
+        One line naming the file: missing, not such a file (an FE model: read it with
+        :func:`read`), of a newer format version, incomplete or damaged.
+    """
+    saved = read_reduced_body(path)
+    try:
+        options = method_options(saved.method, saved.options)
+    except UserError as exc:
+        raise UserError(f"{path}: /options: {exc}") from None
+    return ReducedBody(saved.prepared, saved.model, options, saved.name, saved.before_removal)
 
 
 def reduce(
