@@ -508,7 +508,7 @@ class ReducedBody:
             raise UserError(f"error: reference must be 'full', 'surrogate' or 'auto', got "
                             f"{described(reference)}")  # fmt: skip
         f_min, f_max = _band("band_hz", band_hz)
-        frequencies = frequency_grid(f_min, f_max, whole("points", points, minimum=2))
+        frequencies = frequency_grid(f_min, f_max, whole("points", points))
         workers = whole("workers", workers)
         system = self.prepared.reduction_system
         if system.input_matrix.shape[1] == 0 or system.output_matrix.shape[0] == 0:

@@ -60,7 +60,6 @@ import h5py
 import numpy as np
 import scipy.sparse as sp
 
-from pymorembs import __version__
 from pymorembs.errors import UserError
 from pymorembs.io.atomic import atomic_path
 from pymorembs.io.native import (
@@ -119,6 +118,8 @@ class SavedBody:
 def write_reduced_body(path: str | os.PathLike[str], saved: SavedBody) -> Path:
     """Write a reduced body to the HDF5 file ``path`` (atomically; layout in the module
     docstring). Returns ``path``."""
+    from pymorembs import __version__  # the package imports this module
+
     path = Path(path)
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
         f.attrs["format"] = FORMAT
