@@ -14,7 +14,7 @@ layer on it.
 __version__ = "0.1.0"
 
 from pymorembs.analysis.time_domain import LoadCase, TimeResponse
-from pymorembs.api import ErrorCurve, ReducedBody, example, facts, prepare, read, reduce
+from pymorembs.api import ErrorCurve, ReducedBody, example, facts, load, prepare, read, reduce
 from pymorembs.body import DIRECTIONS, ConstraintEquations, Damping, DofTable, ElasticBody
 from pymorembs.errors import NumericalError, PymorembsError, UserError
 from pymorembs.methods import METHODS, method_options
@@ -46,6 +46,7 @@ __all__ = [
     "__version__",
     "example",
     "facts",
+    "load",
     "method_options",
     "prepare",
     "read",

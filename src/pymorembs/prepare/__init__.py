@@ -15,6 +15,7 @@ from functools import cached_property
 import numpy as np
 
 from pymorembs.body import ElasticBody
+from pymorembs.display import html_table, one_line, port_rows
 from pymorembs.errors import NumericalError, UserError
 from pymorembs.linalg.mass_split import mass_split
 from pymorembs.prepare.buckens_frame import buckens_frame, centre_of_gravity
@@ -78,6 +79,10 @@ class Frame:
     kind: str = "tangent"
     node: int | None = None
 
+    def describe(self) -> str:
+        """One phrase, e.g. ``"tangent at node 2"``, ``"buckens"``."""
+        return f"{self.kind} at node {self.node}" if self.kind == "tangent" else self.kind
+
     def apply(self, body: ElasticBody) -> ElasticBody:
         if self.kind == "tangent":
             if self.node is None:
@@ -125,6 +130,32 @@ class PreparedModel:
     stiffening: Stiffening | None = None
     frame: Frame | None = None
     notes: tuple[str, ...] = ()
+
+    def summary(self) -> list[tuple[str, str]]:
+        """The facts ``repr`` and a notebook show, as (label, text) rows: frame, independent
+        dofs, inputs, outputs, inertia loads, stiffening, damping, warnings."""
+        system = self.system
+        rows = [
+            ("frame", "not recorded" if self.frame is None else self.frame.describe()),
+            ("independent dofs", f"{system.order} of {self.body.n_dof}"),
+            *port_rows(system.input_labels, system.output_labels),
+        ]
+        if self.inertia is not None:
+            rows.append(("inertia loads", " ".join(self.inertia.cases)))
+        if self.stiffening is not None:
+            rows.append(("stiffening", f"{self.stiffening.source}, "
+                                       f"{len(self.stiffening.cases)} load cases"))  # fmt: skip
+        body = self.body
+        rows.append(("damping", body.damping.describe(matrix=body.damping_matrix is not None)))
+        if self.warnings:
+            rows.append(("warnings", str(len(self.warnings))))
+        return rows
+
+    def __repr__(self) -> str:
+        return one_line(f"PreparedModel {self.body.name!r}", self.summary())
+
+    def _repr_html_(self) -> str:
+        return html_table(f"PreparedModel {self.body.name!r}", self.summary())
 
     @cached_property
     def reduction_system(self) -> SecondOrderSystem:
