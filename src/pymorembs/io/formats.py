@@ -332,6 +332,9 @@ def _hint(path: Path, head: bytes) -> str:
             " (it looks like an Abaqus input file; give it as the inp option next to the "
             "*MATRIX OUTPUT files jobname_STIFn.mtx and jobname_MASSn.mtx)"
         )
+    if path.suffix.lower() == ".npz":  # e.g. the reduced.npz of to_matrices
+        return (" (a .npz holds arrays, not an FE model; a reduced body saved by "
+                "ReducedBody.save is opened with pymorembs.load)")  # fmt: skip
     hint = _EXTENSION_HINTS.get(path.suffix.lower())
     if hint:
         return f" (the name suggests {hint}, but the content does not match)"

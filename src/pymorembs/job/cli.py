@@ -261,8 +261,8 @@ def _prepared_for_info(args: argparse.Namespace) -> tuple[ElasticBody, PreparedM
         validate_job_body(body, job)
         try:
             return body, prepare(body, job.frame, allow_rigid_body_modes=True)
-        except UserError as exc:
-            raise UserError(f"{args.model}: {exc}") from None
+        except PymorembsError as exc:
+            raise type(exc)(f"{args.model}: {exc}") from None
     if args.model is None and "stiffness" not in given:
         raise UserError("info: give a model file, a job file, or --stiffness and --mass")
     if args.model is not None and ("stiffness" in given or "mass" in given):
