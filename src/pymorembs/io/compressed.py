@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from pymorembs.errors import UserError, located_error
+from pymorembs.io.atomic import atomic_path
 
 __all__ = [
     "COMPRESSIONS",
@@ -205,7 +206,7 @@ class PlainCopies:
             raise located_error(
                 self._folder, None, f"cannot decompress {path} here: {err.strerror or err}"
             ) from None
-        with source, open(target, "wb") as out:
+        with source, atomic_path(target, fsync=False) as tmp, open(tmp, "wb") as out:
             while True:
                 try:
                     chunk = source.read(_CHUNK)
