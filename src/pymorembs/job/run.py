@@ -54,7 +54,7 @@ from pymorembs.analysis import (
     transfer_function,
 )
 from pymorembs.export import BODY_OUTPUTS, write_outputs
-from pymorembs.io import atomic_path, check_output_folder, read_body, write_text
+from pymorembs.io import atomic_path, check_output_folder, model_files, read_body, write_text
 from pymorembs.job.schema import Job, ModelSpec, ReductionSpec
 from pymorembs.job.time_domain import time_domain_checks
 from pymorembs.linalg import default_backend, mass_split
@@ -1339,7 +1339,8 @@ def provenance(job: Job, validation: ValidationReport | None = None) -> dict[str
     Returns
     -------
     dict
-        ``inputs``: ``{path: sha256}`` of the job file and every model file it names (built-in
+        ``inputs``: ``{path: sha256}`` of the job file and every model file it names or that is
+        read beside them (a CalculiX export's ``.mas``, ``.dof`` and deck; built-in
         examples: their name and options); ``software``: versions of pymorembs, Python, NumPy,
         SciPy, h5py, pypardiso and mkl (None when not installed), the platform; ``solver``: the
         requested and default sparse backend, and the one of the validation factorization;
@@ -1348,7 +1349,7 @@ def provenance(job: Job, validation: ValidationReport | None = None) -> dict[str
     """
     # a job parsed from a dictionary (parse_job) may name a file that does not exist
     inputs = {str(job.path): sha256_of(Path(job.path))} if Path(job.path).is_file() else {}
-    for path in job.model.files.values():
+    for path in model_files(job.model.files, job.model.format).values():
         if Path(path).is_file():
             inputs[str(path)] = sha256_of(Path(path))
     software = {
