@@ -16,7 +16,7 @@ __version__ = "0.1.0"
 from pymorembs.analysis.time_domain import LoadCase, TimeResponse
 from pymorembs.api import ErrorCurve, ReducedBody, example, facts, load, prepare, read, reduce
 from pymorembs.body import DIRECTIONS, ConstraintEquations, Damping, DofTable, ElasticBody
-from pymorembs.errors import NumericalError, PymorembsError, UserError
+from pymorembs.errors import AccuracyNotMet, NumericalError, PymorembsError, UserError
 from pymorembs.methods import METHODS, method_options
 from pymorembs.prepare import Frame, Port, PreparedModel
 from pymorembs.prepare.interface import InterfaceSpec, select_nodes
@@ -26,6 +26,7 @@ from pymorembs.system import SecondOrderSystem
 __all__ = [
     "DIRECTIONS",
     "METHODS",
+    "AccuracyNotMet",
     "ConstraintEquations",
     "Damping",
     "DofTable",

@@ -198,7 +198,14 @@ def die_with_parent(parent: int) -> None:
 
 def _init_worker(parent: int, token: int | None = None, context: Any = _NO_CONTEXT) -> None:
     """Set up a pool worker: it ends with its parent, one BLAS and solver thread; the context
-    if it was not inherited."""
+    if it was not inherited.
+
+    A worker leaves SIGINT to its parent (Ctrl-C reaches the whole process group; the parent
+    ends the pool, :func:`_pool_map`) and dies by SIGTERM without Python's handlers, which a
+    forked worker inherits from its parent: no traceback from a worker when a run is stopped.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     die_with_parent(parent)
     threadpool_limits(limits=1)
     os.environ[SOLVER_THREADS_ENV] = "1"
@@ -245,9 +252,24 @@ def _pool_map(
                     results[k] = future.result()  # re-raises a task's exception
                     if progress is not None:
                         progress.update(weights[k])
+        except BaseException as exc:
+            if not isinstance(exc, Exception):  # interrupted (Ctrl-C, SIGTERM): not a task's end
+                _end_workers(executor)
+            raise
         finally:
             executor.shutdown(wait=True, cancel_futures=True)
     return results
+
+
+def _end_workers(executor: ProcessPoolExecutor) -> None:
+    """Kill the worker processes of ``executor`` at once: an interrupted run does not wait
+    for their tasks (which may take minutes) before it ends."""
+    processes = list((getattr(executor, "_processes", None) or {}).values())
+    for process in processes:
+        if process.is_alive():
+            process.kill()
+    for process in processes:
+        process.join(timeout=5)
 
 
 @contextmanager

@@ -264,3 +264,23 @@ def test_a_bad_reduced_model_is_refused_and_nothing_written(change, message, tmp
         write_outputs(bad, prepared, "bad", ("npz", "mtx", "mat"), [60], folder)
     assert message in str(info.value) and "nothing was written" in str(info.value)
     assert list(folder.iterdir()) == []
+
+
+def test_provenance_hashes_the_files_found_beside_a_calculix_export(tmp_path):
+    """A CalculiX job names only job.sti; the .mas, .dof and deck read beside it are inputs too."""
+    from pymorembs.job.run import provenance
+    from pymorembs.job.schema import load_job
+
+    data = Path(__file__).parents[1] / "data" / "calculix_c3d20_block"
+    job_file = tmp_path / "job.toml"
+    job_file.write_text(
+        f'[model]\nfile = "{(data / "free.sti").as_posix()}"\n\n[frame]\ntype = "buckens"\n\n'
+        '[[inputs]]\nnode = 1\ndirections = "ux"\n\n[band]\nf_max_hz = 1000\n\n'
+        '[[reduction]]\nname = "modal"\nmethod = "modal"\norder = 6\n',
+        encoding="utf-8",
+    )
+    inputs = provenance(load_job(job_file))["inputs"]
+    expected = {job_file} | {data / f"free.{ext}" for ext in ("sti", "mas", "dof", "inp")}
+    assert {Path(p).resolve() for p in inputs} == {p.resolve() for p in expected}
+    mas = next(p for p in inputs if p.endswith("free.mas"))
+    assert inputs[mas] == hashlib.sha256((data / "free.mas").read_bytes()).hexdigest()

@@ -75,6 +75,7 @@ name = "krylov"
 method = "krylov"
 expansion_points_hz = [0, 200]
 moments = [4, 3]
+export_inaccurate = true  # max error 47 between the points (undamped): the test is on the ports
 """
 
 

@@ -100,6 +100,7 @@ from pymorembs.io.matrix_market import encoding_note
 __all__ = [
     "FORMATS",
     "detect_format",
+    "model_files",
     "read_body",
 ]
 
@@ -600,6 +601,46 @@ def read_body(
         if copies.compressed:
             body = replace(body, notes=tuple(copies.named(note) for note in body.notes))
     return body
+
+
+def model_files(files: dict[str, PathLike], format: str | None = None) -> dict[str, Path]:
+    """Every file a read of these model files opens, also those found beside the given ones.
+
+    A CalculiX ``job.sti`` brings its ``job.mas``, ``job.dof`` and deck ``job.inp``; a Matrix
+    Market directory its ``K.mtx``, ``M.mtx`` ...; other formats read only the files given.
+    This is what a job's provenance hashes.
+
+    Parameters
+    ----------
+    files : dict of str -> path-like
+        The file options of :func:`read_body` (``file``, ``stiffness``, ``mass``, ``nodes`` ...).
+    format : str, optional
+        One of :data:`FORMATS`; default: told from ``file`` or ``stiffness``
+        (:func:`detect_format`).
+
+    Returns
+    -------
+    dict of str -> Path
+        The given files and those found, by role (``"mass"``, ``"dofs"``, ``"inp"`` ...).
+        A file that cannot be found is left out: reading the model says what is missing.
+    """
+    from pymorembs.io.calculix import calculix_files
+    from pymorembs.io.matrix_market import directory_files
+
+    found = {key: Path(value) for key, value in files.items()}
+    main = found.get("file", found.get("stiffness"))
+    if main is None:
+        return found
+    try:
+        fmt = format or detect_format(main)
+        if fmt == "calculix":
+            deck = found.get("nodes", found.get("inp"))
+            found.update(calculix_files(main, found.get("mass"), found.get("dofs"), deck))
+        elif fmt == "matrix-market" and main.is_dir():
+            found.update(directory_files(main))
+    except UserError:
+        pass
+    return found
 
 
 def _directory_files(given: dict[str, Any]) -> dict[str, Any]:

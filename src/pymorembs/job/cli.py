@@ -1,9 +1,15 @@
 """Command line of pymorembs: ``pymorembs example | info | reduce | app``.
 
 Exit codes: 0 success; 2 a user mistake (one line on stderr naming the file or key and the
-problem); 3 a numerical failure on valid input (one line with the cause); 1 a bug (traceback).
-``reduce`` with several job files runs them all and exits with the worst code of its jobs (bug
-over numerical failure over user mistake), with one line per failing job.
+problem), also a full, over-quota or read-only output device; 3 a numerical failure on valid
+input (one line with the cause); 4 accuracy not met (the job ran and wrote its results, but a
+reduced body missed its accuracy limit and was not written; the table, then one line); 130 and
+143 interrupted by SIGINT (Ctrl-C) or SIGTERM (one line, temporary files removed); 1 a bug
+(traceback). ``reduce`` with several job files runs them all and exits with the worst code of
+its jobs (:data:`SEVERITY`), with one line per failing job.
+
+Streams: the stage lines and the table go to stdout (not with ``--quiet``); warnings, notes and
+errors go to stderr, one line each, also with ``--quiet``.
 """
 
 from __future__ import annotations
@@ -11,9 +17,13 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import signal
 import sys
+import threading
 import time
 import traceback
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -21,6 +31,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from pymorembs import (
+    AccuracyNotMet,
     ElasticBody,
     Frame,
     PreparedModel,
@@ -32,7 +43,7 @@ from pymorembs import (
 from pymorembs.analysis import model_facts
 from pymorembs.examples import EXAMPLES, RACK_SOLID_INTERFACES, build_example
 from pymorembs.io import read_body, write_body_h5, write_matrix_files
-from pymorembs.job.run import load_job_model, run_job, validate_job_body
+from pymorembs.job.run import load_job_model, output_errors, run_job, validate_job_body
 from pymorembs.job.schema import MODEL_FORMATS, load_job
 from pymorembs.parallel import dask_client, usable_cores
 from pymorembs.prepare import prepare, validate_body
@@ -60,8 +71,10 @@ a first session:
   pymorembs info model/model.h5                what was read: dofs, units, modes
   pymorembs reduce job.toml --out out/job      reduce as the job file says
 
-exit codes: 0 success, 2 a user mistake (one line naming the file or key),
-3 a numerical failure on valid input, 1 a bug (traceback).
+exit codes: 0 success, 2 a user mistake (one line naming the file or key) or a
+full or read-only output device, 3 a numerical failure on valid input, 4 accuracy
+not met (results written, the inaccurate bodies not), 130/143 interrupted
+(SIGINT/SIGTERM), 1 a bug (traceback).
 The job file format: docs/jobs.md (and the examples/*.toml files)."""
 JOB_HELP = (
     "Run reduction jobs. A job is a TOML file: [model] (a file or a built-in example), "
@@ -129,7 +142,9 @@ def build_parser() -> argparse.ArgumentParser:
     red.add_argument(
         "--out", type=Path, help="output folder of a single job (default: out/<job name>)"
     )
-    red.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    red.add_argument(
+        "--quiet", action="store_true", help="print nothing but errors, warnings and notes"
+    )
     red.add_argument(
         "--workers",
         type=int,
@@ -183,8 +198,51 @@ def main(argv: list[str] | None = None) -> int:
             f"got {threads!r}\n"
         )
         return 2
-    with threadpool_limits(limits=int(threads), user_api="blas"):
-        return _run(args)
+    with threadpool_limits(limits=int(threads), user_api="blas"), _sigterm_raises():
+        try:
+            return _run(args)
+        except KeyboardInterrupt:  # SIGINT, Ctrl-C: the clean-ups ran on the way out
+            return _ended_by_signal("interrupted", INTERRUPTED)
+        except Terminated:
+            return _ended_by_signal("terminated", TERMINATED)
+
+
+#: Exit codes of a run ended by SIGINT and SIGTERM (128 + the signal number, as a shell says).
+INTERRUPTED, TERMINATED = 128 + signal.SIGINT, 128 + signal.SIGTERM
+
+
+class Terminated(BaseException):
+    """SIGTERM, raised in the main thread so that every clean-up runs as for Ctrl-C (temporary
+    folders removed, worker processes ended); not an ``Exception``, so that nothing treats it
+    as an error of the work it interrupted."""
+
+
+def _raise_terminated(_number: int, _frame: Any) -> None:
+    raise Terminated
+
+
+@contextmanager
+def _sigterm_raises() -> Iterator[None]:
+    """SIGTERM raises :class:`Terminated` inside the block (in the main thread; elsewhere
+    Python cannot install a handler, and the block runs as it is)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
+
+
+def _ended_by_signal(what: str, code: int) -> int:
+    """The one line of a run ended by a signal; its exit code."""
+    try:
+        sys.stderr.write(f"pymorembs: {what}\n")
+        sys.stderr.flush()
+    except (OSError, ValueError):  # stderr gone too
+        pass
+    return code
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -226,9 +284,10 @@ def _example(args: argparse.Namespace) -> int:
     out: Path = args.out
     if out.exists() and not out.is_dir():
         raise UserError(f"{out}: exists and is not a folder")
-    out.mkdir(parents=True, exist_ok=True)
-    write_body_h5(body, out / "model.h5")
-    written = write_matrix_files(body, out)
+    with output_errors(out, outcome="the files written before are complete"):
+        out.mkdir(parents=True, exist_ok=True)
+        write_body_h5(body, out / "model.h5")
+        written = write_matrix_files(body, out)
     names = ["model.h5", *sorted(p.name for p in written.values())]
     print(f"{args.name}: {body.n_dof} dofs, {body.n_nodes} nodes -> {out}/ ({', '.join(names)})")
     return 0
@@ -382,12 +441,14 @@ def _reduce(args: argparse.Namespace) -> int:
         return worst(codes)
 
 
-#: Exit codes from good to bad: success, user mistake, numerical failure, bug.
-SEVERITY = (0, 2, 3, 1)
+#: Exit codes from good to bad: success, accuracy not met (the job ran and wrote its results),
+#: user mistake and numerical failure (the job wrote nothing), bug.
+SEVERITY = (0, 4, 2, 3, 1)
 
 
 def worst(codes: list[int]) -> int:
-    """The worst exit code: a bug (1) over a numerical failure (3) over a user mistake (2)."""
+    """The worst exit code: a bug (1) over a numerical failure (3) over a user mistake (2)
+    over accuracy not met (4) over success (0)."""
     return max(codes, key=SEVERITY.index, default=0)
 
 
@@ -421,15 +482,24 @@ def _reduce_job(
     start = time.perf_counter()
 
     def say(message: str) -> None:
-        if message.startswith("warning: "):  # warnings: one line on stderr, even with --quiet
+        if message.startswith(STDERR_LINES):  # one line on stderr each, even with --quiet
             progress.write(f"pymorembs: {message}", file=sys.stderr)
         elif not quiet:
             progress.write(f"[{time.perf_counter() - start:7.2f} s] {message}")
 
-    summary = run_job(job, out, say, workers=workers, scheduler=scheduler)
+    try:
+        summary = run_job(job, out, say, workers=workers, scheduler=scheduler)
+    except AccuracyNotMet as exc:  # the table first: the numbers behind the error line
+        if not quiet:
+            _print_summary(exc.summary, out)
+        raise
     if not quiet:
         _print_summary(summary, out)
     return 0
+
+
+#: Messages of a job that go to stderr (warnings and notes); the others are stage lines.
+STDERR_LINES = ("warning: ", "note: ")
 
 
 def _print_summary(summary: dict[str, Any], out: Path) -> None:
@@ -445,6 +515,7 @@ def _print_summary(summary: dict[str, Any], out: Path) -> None:
         print(
             f"{r['name']:<20} {r['method']:<14} {r['order']:>5} "
             f"{r['max_rel_error']:>15.3e} {static:>14}{loads} {r['time_s']:>8.2f}"
+            + accuracy_mark(r["accuracy"])
         )
     covers = "errors over the ports"
     if inertia:
@@ -456,16 +527,28 @@ def _print_summary(summary: dict[str, Any], out: Path) -> None:
     )
 
 
-def _job_task(path: str, out: str, threads: int) -> tuple[int, Any]:
-    """A whole job on a Dask worker: ``(0, summary)`` or ``(exit code, one-line message)``."""
+def accuracy_mark(accuracy: dict[str, Any]) -> str:
+    """The mark of a table row whose reduction missed its accuracy limit ("" if it met it)."""
+    if accuracy["met"]:
+        return ""
+    written = "written (export_inaccurate)" if accuracy["exported"] else "body not written"
+    return f"  ! above its limit {accuracy['limit']:.0e}: {written}"
+
+
+def _job_task(path: str, out: str, threads: int) -> tuple[int, str, dict[str, Any] | None]:
+    """A whole job on a Dask worker: ``(exit code, one-line message, summary)``; the summary
+    is None where the job wrote none, the message empty for success."""
     try:
         os.environ.setdefault("PYMOREMBS_SOLVER_THREADS", "1")  # jobs share the cores
         with threadpool_limits(limits=threads, user_api="blas"), progress.settings("off"):
-            return 0, run_job(load_job(Path(path)), Path(out), None, workers=1)
+            return 0, "", run_job(load_job(Path(path)), Path(out), None, workers=1)
+    except AccuracyNotMet as exc:
+        return exc.exit_code, str(exc), exc.summary
     except PymorembsError as exc:
-        return exc.exit_code, str(exc)
+        return exc.exit_code, str(exc), None
     except Exception as exc:  # a bug; the traceback stays in the worker's log
-        return 1, f"internal error ({type(exc).__name__}: {exc}); run it alone for details"
+        message = f"internal error ({type(exc).__name__}: {exc}); run it alone for details"
+        return 1, message, None
 
 
 def _reduce_on_dask(jobs: list[Path], args: argparse.Namespace) -> int:
@@ -496,16 +579,17 @@ def _reduce_on_dask(jobs: list[Path], args: argparse.Namespace) -> int:
             for future in as_completed(futures):
                 path = futures[future]
                 try:
-                    code, payload = future.result()
+                    code, message, summary = future.result()
                 except Exception as exc:  # the task itself failed (a worker died, ...)
-                    code, payload = 1, f"Dask task failed ({type(exc).__name__}: {exc})"
+                    code, message = 1, f"Dask task failed ({type(exc).__name__}: {exc})"
+                    summary = None
                 codes.append(code)
                 bar.update()
+                if summary is not None and not args.quiet:
+                    progress.write(f"\njob {path}: {'done' if code == 0 else 'written'}")
+                    _print_summary(summary, Path("out") / path.stem)
                 if code:
-                    _job_error(path, payload)
-                elif not args.quiet:
-                    progress.write(f"\njob {path}: done")
-                    _print_summary(payload, Path("out") / path.stem)
+                    _job_error(path, message)
     return worst(codes)
 
 

@@ -7,13 +7,17 @@ the output folder only when the whole job succeeded: a failed run leaves no part
 from __future__ import annotations
 
 import contextlib
+import dataclasses
+import errno
 import hashlib
 import importlib.metadata
 import json
 import os
 import platform
 import shutil
+import signal
 import tempfile
+import threading
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -24,6 +28,7 @@ import scipy
 
 from pymorembs import (
     DIRECTIONS,
+    AccuracyNotMet,
     ElasticBody,
     InterfaceSpec,
     NumericalError,
@@ -49,13 +54,15 @@ from pymorembs.analysis import (
     transfer_function,
 )
 from pymorembs.export import BODY_OUTPUTS, write_outputs
-from pymorembs.io import atomic_path, check_output_folder, read_body, write_text
+from pymorembs.io import atomic_path, check_output_folder, model_files, read_body, write_text
 from pymorembs.job.schema import Job, ModelSpec, ReductionSpec
 from pymorembs.job.time_domain import time_domain_checks
 from pymorembs.linalg import default_backend, mass_split
+from pymorembs.methods import DIRECT_GRAMIAN_LIMIT
 from pymorembs.prepare import (
     ValidationReport,
     add_interface_node,
+    inertia_load_cases,
     prepare,
     stiffening_from_matrices,
     stiffening_from_mesh,
@@ -226,10 +233,18 @@ def check_job_nodes(body: ElasticBody, job: Job, report: ValidationReport) -> No
 
 
 def check_job_orders(prepared: PreparedModel, job: Job, report: ValidationReport) -> None:
-    """The job's reduction orders lie below the number of independent dofs, and its inputs
-    reach the elastic body."""
+    """The job's reduction orders lie below the number of independent dofs and hold at least
+    one block of inputs where a method builds its basis from such blocks; its inputs reach the
+    elastic body."""
     system = prepared.system
     n = system.order
+    inputs = np.asarray(system.input_matrix)
+    if inputs.size and not np.any(inputs):
+        raise UserError(
+            f"{job.path}: [[inputs]]: every input acts on a fixed dof of the frame; the "
+            "elastic body has no input to reduce for (choose inputs away from the frame node)"
+        )
+    block = None
     for k, spec in enumerate(job.reductions, start=1):
         if spec.order is not None and spec.order >= n:
             raise UserError(
@@ -242,13 +257,95 @@ def check_job_orders(prepared: PreparedModel, job: Job, report: ValidationReport
                 f"{job.path}: [[reduction]] #{k}.fixed_modes: {fixed_modes} is not below the "
                 f"{n} independent dofs of the model"
             )
-    inputs = np.asarray(system.input_matrix)
-    if inputs.size and not np.any(inputs):
-        raise UserError(
-            f"{job.path}: [[inputs]]: every input acts on a fixed dof of the frame; the "
-            "elastic body has no input to reduce for (choose inputs away from the frame node)"
-        )
+        key, order = _block_order(spec, n)
+        if order is None:
+            continue
+        block = block or InputBlock.of(prepared, job)
+        needed, what = block.columns(two_sided=bool(spec.options.get("two_sided")))
+        if order < needed < n:  # (a block as large as the model: no reduction keeps it)
+            raise UserError(
+                f"{job.path}: [[reduction]] #{k}.{key}: {order} is below one block of the "
+                f"{what}, the first block of a {spec.method} basis; "
+                + _block_remedy(spec, key, needed, block)
+            )
     report.checks.append("orders and inputs of the job")
+
+
+@dataclasses.dataclass(frozen=True)
+class InputBlock:
+    """The columns of one block of a block Krylov space: the port inputs and outputs that reach
+    the elastic body, and the inertia loads the job adds to both (collocated).
+
+    Attributes
+    ----------
+    inputs, outputs : int
+        Port inputs (outputs) that are not zero on the independent dofs (a port on a fixed
+        frame dof adds nothing).
+    loads : tuple of str
+        The inertia load cases that will be inputs and outputs
+        (:func:`~pymorembs.prepare.inertia_load_cases`).
+    """
+
+    inputs: int
+    outputs: int
+    loads: tuple[str, ...]
+
+    @classmethod
+    def of(cls, prepared: PreparedModel, job: Job) -> InputBlock:
+        """The block of a prepared model (before its inertia loads are added) and a job."""
+        system = prepared.system
+        inputs = np.asarray(system.input_matrix)
+        outputs = np.asarray(system.output_matrix)
+        loads: tuple[str, ...] = ()
+        if job.inertia_loads.active(job.export.outputs):
+            loads = inertia_load_cases(prepared, job.inertia_loads.cases)
+        return cls(
+            int(np.count_nonzero(np.any(inputs != 0, axis=0))),
+            int(np.count_nonzero(np.any(outputs != 0, axis=1))),
+            loads,
+        )
+
+    def columns(self, two_sided: bool = False) -> tuple[int, str]:
+        """The columns of one block (the larger of input and output blocks for a two-sided
+        projection) and how they are made up, e.g. ``"13 inputs (3 port inputs + 10 inertia
+        loads)"``."""
+        count, kind = self.inputs, "input"
+        if two_sided and self.outputs > self.inputs:
+            count, kind = self.outputs, "output"
+        total = count + len(self.loads)
+        if not self.loads:
+            return total, f"{total} {kind}s"
+        return total, f"{total} {kind}s ({count} port {kind}s + {len(self.loads)} inertia loads)"
+
+
+def _block_order(spec: ReductionSpec, n_dofs: int) -> tuple[str, int | None]:
+    """The key and value of the order a reduction builds from blocks of inputs (None: none).
+
+    ``krylov``: its ``order`` (the basis size, or the cap of its ``moments``); ``soaga``: its
+    ``order`` (the largest order); ``gramian``: a given ``first_order`` of the medium model
+    (or of the rational Krylov space) the Gramians are computed from, where there is one.
+    """
+    if spec.method in ("krylov", "soaga"):
+        return "order", spec.order
+    if spec.method == "gramian":
+        stage = spec.options.get("first_stage")
+        if stage is None:
+            stage = "soaga" if n_dofs > DIRECT_GRAMIAN_LIMIT else "none"
+        if stage != "none":
+            return "first_order", spec.options.get("first_order")
+    return "order", None
+
+
+def _block_remedy(spec: ReductionSpec, key: str, needed: int, block: InputBlock) -> str:
+    """What to do about an order below one block of inputs."""
+    options = [f"raise the {key.replace('_', ' ')} to >= {needed}"]
+    if spec.method == "soaga":
+        options.append("give 'tolerance' without 'order' (the order chosen by the error)")
+    elif spec.method == "krylov":
+        options.append("use SOAGA (order chosen by the error)")
+    if block.loads:
+        options.append("fewer inertia loads ([inertia_loads] cases)")
+    return ", ".join(options[:-1]) + f" or {options[-1]}"
 
 
 def run_reduction(
@@ -398,7 +495,9 @@ def run_job(
 
     Written: ``summary.json``, ``error.png`` (all reductions), per reduction a folder with the
     files of ``[export] outputs``, ``error.csv`` and ``error.png``, and with ``[time_domain]``
-    ``time.png``.
+    ``time.png``. A reduction whose max error ε (ports and inertia loads) exceeds its limit
+    (:attr:`~pymorembs.job.schema.ReductionSpec.accuracy_limit`) gets only its error files,
+    unless it says ``export_inaccurate = true``; its summary entry's ``accuracy`` says so.
 
     Parameters
     ----------
@@ -415,6 +514,15 @@ def run_job(
         it.
     scheduler : str, optional
         ``"local"`` or a Dask scheduler address to run that frequency response on.
+
+    Raises
+    ------
+    AccuracyNotMet
+        After everything was written, when a reduction missed its accuracy limit and its body
+        files were therefore not written (``exc.summary`` is the summary).
+    UserError
+        Bad input (before any expensive step), or an output device that is full, over its
+        quota or read-only (the output folder is then left as it was).
     """
     say = progress or (lambda _msg: None)
     n_stages = (
@@ -444,9 +552,46 @@ def _run_job(
     scheduler: str | None,
 ) -> dict[str, Any]:
     """The steps of :func:`run_job`: prepare, reference, reductions, checks, summary."""
+    check_output_folder(out_dir)  # a file in the way fails now, not after all the work
+    with output_errors(out_dir), _staging(out_dir) as staging:  # an unwritable device: now
+        summary = _run_in(job, staging, say, stage, workers, scheduler)
+    failed = [r for r in summary["reductions"] if not r["accuracy"]["exported"]]
+    if failed:
+        raise AccuracyNotMet(_accuracy_message(job, failed), summary)
+    return summary
+
+
+def _accuracy_message(job: Job, failed: list[dict[str, Any]]) -> str:
+    """The one line of :class:`AccuracyNotMet`: the reductions, their errors and limits."""
+    parts = []
+    for entry in failed:
+        accuracy = entry["accuracy"]
+        where = f"ports {accuracy['ports']:.2g}"
+        if accuracy["inertia_loads"] is not None:
+            where += f", inertia loads {accuracy['inertia_loads']:.2g}"
+        parts.append(
+            f"reduction '{entry['name']}' max error {accuracy['max']:.2g} > "
+            f"{accuracy['limit']:.2g} ({where})"
+        )
+    its = "its" if len(failed) == 1 else "their"
+    return (
+        f"{job.path}: accuracy not met: {'; '.join(parts)}; {its} body files were not written "
+        "(summary.json and the error plots were): raise the order, choose another method, or "
+        f"set export_inaccurate = true in {its} [[reduction]] to write them anyway"
+    )
+
+
+def _run_in(
+    job: Job,
+    staging: Path,
+    say: Progress,
+    stage: Callable[..., None],
+    workers: int | None,
+    scheduler: str | None,
+) -> dict[str, Any]:
+    """Everything of :func:`_run_job` that writes into the ``staging`` folder."""
     timings: dict[str, float] = {}
     clock = time.perf_counter()
-    check_output_folder(out_dir)  # a file in the way fails now, not after all the work
     body, prepared, validation = _prepared_for_job(job, say, stage, timings)
     units = detect_units(body)
     warnings = [*prepared.warnings, *validation.warnings, *units.warnings]
@@ -454,56 +599,56 @@ def _run_job(
     for warning in warnings:
         say(f"warning: {warning}")
     for note in prepared.notes:  # facts of the setup, no mistake: not warnings
-        say(note)
+        say(f"note: {note}")
     reference = _reference(job, prepared, say, stage, workers, scheduler)
-    with _staging(out_dir) as staging:
-        nodes = export_nodes(job)
-        reference, reduced_runs = _reduce_all(job, prepared, reference, stage)
-        results = _judged(job, prepared, reference, reduced_runs, staging, nodes, warnings, say)
-        entries, errors, estimates, decay, models = results
-        timings["reference_s"] = reference.seconds
-        computed = [f for e in entries for f in e["eigenfrequencies_hz"]]
-        for warning in frequency_warnings(units, job.band_hz, np.asarray(computed)):
-            warnings.append(warning)
-            say(f"warning: {warning}")
-        figures = [_error_figure(job, prepared, reference, errors, estimates, staging)]
-        overview = ["summary.json", "error.png"]
-        if decay:
-            plot_decay(decay, staging / "decay.png")
-            overview.append("decay.png")
-            figures.append((staging / "decay.png", "Decay of singular values (paper Fig. 11)"))
-        checks = {}
-        done = _checks_in_time(job, body, prepared, models, nodes, staging, stage, say, timings)
-        for key, (result, figure) in done.items():
-            checks[key] = result
-            overview.append(figure[0].name)
-            figures.append(figure)
-            _attach_rows(entries, key, result)
-        if "report" in job.export.outputs:
-            overview.append("report.html")
-        timings["total_s"] = time.perf_counter() - clock
-        summary = {
-            "pymorembs_version": __version__,
-            "job": str(job.path),
-            "model": _model_summary(job, body, prepared),
-            "units": units.as_dict(),
-            "validation": validation.as_dict(),
-            "band_hz": list(job.band_hz),
-            "n_frequencies": int(reference.frequencies_hz.size),
-            "reference": reference.as_dict(),
-            "reductions": entries,
-            "warnings": warnings,
-            "notes": list(prepared.notes),
-            "timings_s": timings,
-            "files": overview,
-            "provenance": provenance(job, validation),
-            **checks,
-            **({"title": job.title} if job.title else {}),
-        }
-        scene = None
-        if "report" in job.export.outputs:
-            scene = reductions_scene(prepared, models, interfaces=job_interfaces(body, job))
-        _write_summary(job, summary, figures, scene, staging)
+    nodes = export_nodes(job)
+    reference, reduced_runs = _reduce_all(job, prepared, reference, stage)
+    results = _judged(job, prepared, reference, reduced_runs, staging, nodes, warnings, say)
+    entries, errors, estimates, decay, models = results
+    timings["reference_s"] = reference.seconds
+    computed = [f for e in entries for f in e["eigenfrequencies_hz"]]
+    for warning in frequency_warnings(units, job.band_hz, np.asarray(computed)):
+        warnings.append(warning)
+        say(f"warning: {warning}")
+    figures = [_error_figure(job, prepared, reference, errors, estimates, staging)]
+    overview = ["summary.json", "error.png"]
+    if decay:
+        plot_decay(decay, staging / "decay.png")
+        overview.append("decay.png")
+        figures.append((staging / "decay.png", "Decay of singular values (paper Fig. 11)"))
+    checks = {}
+    done = _checks_in_time(job, body, prepared, models, nodes, staging, stage, say, timings)
+    for key, (result, figure) in done.items():
+        checks[key] = result
+        overview.append(figure[0].name)
+        figures.append(figure)
+        _attach_rows(entries, key, result)
+    if "report" in job.export.outputs:
+        overview.append("report.html")
+    timings["total_s"] = time.perf_counter() - clock
+    summary = {
+        "pymorembs_version": __version__,
+        "job": str(job.path),
+        "model": _model_summary(job, body, prepared),
+        "units": units.as_dict(),
+        "validation": validation.as_dict(),
+        "band_hz": list(job.band_hz),
+        "n_frequencies": int(reference.frequencies_hz.size),
+        "reference": reference.as_dict(),
+        "reductions": entries,
+        "warnings": warnings,
+        "notes": list(prepared.notes),
+        "timings_s": timings,
+        "accuracy": _accuracy_summary(entries),
+        "files": overview,
+        "provenance": provenance(job, validation),
+        **checks,
+        **({"title": job.title} if job.title else {}),
+    }
+    scene = None
+    if "report" in job.export.outputs:
+        scene = reductions_scene(prepared, models, interfaces=job_interfaces(body, job))
+    _write_summary(job, summary, figures, scene, staging)
     return summary
 
 
@@ -567,17 +712,111 @@ def _reference(
 
 @contextlib.contextmanager
 def _staging(out_dir: Path) -> Iterator[Path]:
-    """A temporary folder next to ``out_dir`` for the files of a run; it replaces the output
-    folder's entries when the block succeeds and is removed when it fails."""
+    """A temporary folder ``.<name>.*`` next to ``out_dir`` for the files of a run; it replaces
+    the output folder's entries when the block succeeds (not interrupted by SIGINT or SIGTERM
+    half-way, :func:`_signals_held`) and is removed when it fails or is interrupted."""
     parent = out_dir.resolve().parent
     parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=parent))
     try:
         yield staging
-        _replace_folder(staging, out_dir)
+        with _signals_held():
+            _replace_folder(staging, out_dir)
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise
+
+
+@contextlib.contextmanager
+def _signals_held() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM while the block runs, then act on one that came meanwhile.
+
+    Only the main thread receives Python's signal handlers; elsewhere the block cannot be
+    interrupted by them and runs as it is.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    came: list[int] = []
+    held = (signal.SIGINT, signal.SIGTERM)
+    previous = {sig: signal.signal(sig, lambda number, _frame: came.append(number)) for sig in held}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, signal.SIG_DFL if handler is None else handler)
+        for number in came[:1]:
+            signal.raise_signal(number)
+
+
+_ELSEWHERE = "write elsewhere with --out"
+_FREE = "free some space, or write elsewhere with --out"
+#: What an ``OSError`` of the output device means, by ``errno``: the problem (naming the
+#: folder) and the remedy.
+OUTPUT_DEVICE_ERRORS = {
+    errno.ENOSPC: ("no space left on the device of {folder}", _FREE),
+    errno.EDQUOT: ("the disk quota is exceeded on the device of {folder}", _FREE),
+    errno.EROFS: ("{folder} lies on a read-only file system", _ELSEWHERE),
+    errno.EACCES: ("no permission to write into {folder}", _ELSEWHERE),
+    errno.EPERM: ("no permission to write into {folder}", _ELSEWHERE),
+}
+#: What a job's run left when its output device failed (the staging folder is removed).
+NOTHING_WRITTEN = "nothing of this run was written"
+#: Of these, the errors that count only where they name a file of the output (a full device
+#: is the output's; a refused permission may be an input's).
+_NAMED_ONLY = (errno.EACCES, errno.EPERM)
+
+
+def output_device_error(
+    exc: BaseException, folder: Path, outcome: str = NOTHING_WRITTEN
+) -> UserError | None:
+    """The one-line error for an output device that is full, over its quota, read-only or
+    refuses the writing, or None when ``exc`` is something else; ``outcome`` says what was left
+    (empty: nothing said).
+
+    ``exc`` or an exception it was raised from or while handling (a writer's own error that
+    wraps the ``OSError``) is an ``OSError`` of :data:`OUTPUT_DEVICE_ERRORS`. The line names
+    ``folder`` when the error names no file or a file of the output (``folder`` or its temporary
+    sibling ``.<name>.*``), else the folder of the file it names.
+    """
+    folder = Path(folder)
+    seen: set[int] = set()
+    current: BaseException | None = exc
+    while current is not None and id(current) not in seen:
+        seen.add(id(current))
+        if isinstance(current, OSError) and current.errno in OUTPUT_DEVICE_ERRORS:
+            named = None if current.filename is None else Path(os.fsdecode(current.filename))
+            ours = named is None or _is_output(named, folder)
+            if ours or current.errno not in _NAMED_ONLY:
+                where = folder if ours else named.parent
+                problem, remedy = OUTPUT_DEVICE_ERRORS[current.errno]
+                left = f"; {outcome}" if outcome else ""
+                return UserError(f"{problem.format(folder=where)}{left} ({remedy})")
+        current = current.__cause__ or current.__context__
+    return None
+
+
+def _is_output(path: Path, folder: Path) -> bool:
+    """Whether ``path`` is ``folder``, its temporary sibling ``.<name>.*`` or lies in them."""
+    parent = folder.resolve().parent
+    path = path.resolve()
+    return any(
+        p.parent == parent and (p.name == folder.name or p.name.startswith(f".{folder.name}."))
+        for p in (path, *path.parents)
+    )
+
+
+@contextlib.contextmanager
+def output_errors(folder: Path, outcome: str = NOTHING_WRITTEN) -> Iterator[None]:
+    """Turn an error of a full, over-quota or read-only output device inside the block into
+    the one-line :class:`UserError` of :func:`output_device_error` (exit 2)."""
+    try:
+        yield
+    except (OSError, PymorembsError) as exc:
+        error = output_device_error(exc, folder, outcome)
+        if error is None:
+            raise
+        raise error from None
 
 
 def _reduce_all(
@@ -676,10 +915,12 @@ def _judged(
         if inertia is not None:  # eq. 27 over the ports, and over the inertia loads
             eps_inertia = relative_error(reference.response, response, inertia)
             eps = relative_error(reference.response, response, ports)
+        accuracy = judge_accuracy(spec, eps, eps_inertia)
+        outputs = job.export.outputs if accuracy["exported"] else ()
         entry = _write_one(
-            prepared, spec, model, (eps, eps_inertia), elapsed, reference, staging,
-            job.export.outputs, nodes,
+            prepared, spec, model, (eps, eps_inertia), elapsed, reference, staging, outputs, nodes,
         )  # fmt: skip
+        entry["accuracy"] = accuracy
         projection = model.projection
         models[spec.name] = model
         if projection.error_curve is not None:
@@ -703,6 +944,57 @@ def _judged(
         if eps_inertia is not None:
             errors[f"{spec.name} (inertia loads)"] = eps_inertia
     return entries, errors, estimates, decay, models
+
+
+def judge_accuracy(
+    spec: ReductionSpec, eps: np.ndarray, eps_inertia: np.ndarray | None
+) -> dict[str, Any]:
+    """Whether a reduction meets its accuracy limit, and whether its body files are written.
+
+    Parameters
+    ----------
+    spec : ReductionSpec
+        The reduction (its limit: :attr:`~pymorembs.job.schema.ReductionSpec.accuracy_limit`).
+    eps : ndarray
+        ``eps(f)`` of eq. 27 over the ports.
+    eps_inertia : ndarray or None
+        ``eps(f)`` over the inertia loads (None: they are not inputs).
+
+    Returns
+    -------
+    dict
+        The ``accuracy`` entry of the reduction in ``summary.json``: ``met`` (max error <=
+        limit), ``limit``, ``limit_from`` (``"tolerance"`` or ``"default"``), ``max`` (over the
+        ports and the inertia loads), ``ports``, ``inertia_loads`` (None without them),
+        ``export_inaccurate`` (the job's flag) and ``exported`` (the body files are written:
+        met, or allowed by the flag).
+    """
+    limit, source = spec.accuracy_limit
+    ports = float(np.max(eps))
+    loads = None if eps_inertia is None else float(np.max(eps_inertia))
+    largest = max(ports, loads or 0.0)
+    met = largest <= limit
+    return {
+        "met": met,
+        "limit": limit,
+        "limit_from": source,
+        "max": largest,
+        "ports": ports,
+        "inertia_loads": loads,
+        "export_inaccurate": spec.export_inaccurate,
+        "exported": met or spec.export_inaccurate,
+    }
+
+
+def _accuracy_summary(entries: list[dict[str, Any]]) -> dict[str, Any]:
+    """The job's ``accuracy`` entry: whether every reduction met its limit, and which did not
+    (written anyway, or not)."""
+    missed = [e for e in entries if not e["accuracy"]["met"]]
+    return {
+        "met": not missed,
+        "not_met": [e["name"] for e in missed],
+        "not_exported": [e["name"] for e in missed if not e["accuracy"]["exported"]],
+    }
 
 
 def _attach_rows(entries: list[dict[str, Any]], key: str, checks: dict[str, Any]) -> None:
@@ -917,7 +1209,9 @@ def _write_one(
 ) -> dict[str, Any]:
     """Write a reduction's files into ``staging/<name>``; its entry of the summary.
 
-    ``errors``: ``eps(f)`` over the ports and over the inertia loads (None without them).
+    ``errors``: ``eps(f)`` over the ports and over the inertia loads (None without them);
+    ``outputs``: the body files to write (none for a body that missed its accuracy limit),
+    besides its error curve and plot, which are always written.
     """
     eps, eps_inertia = errors
     projection = model.projection
@@ -1045,7 +1339,8 @@ def provenance(job: Job, validation: ValidationReport | None = None) -> dict[str
     Returns
     -------
     dict
-        ``inputs``: ``{path: sha256}`` of the job file and every model file it names (built-in
+        ``inputs``: ``{path: sha256}`` of the job file and every model file it names or that is
+        read beside them (a CalculiX export's ``.mas``, ``.dof`` and deck; built-in
         examples: their name and options); ``software``: versions of pymorembs, Python, NumPy,
         SciPy, h5py, pypardiso and mkl (None when not installed), the platform; ``solver``: the
         requested and default sparse backend, and the one of the validation factorization;
@@ -1054,7 +1349,7 @@ def provenance(job: Job, validation: ValidationReport | None = None) -> dict[str
     """
     # a job parsed from a dictionary (parse_job) may name a file that does not exist
     inputs = {str(job.path): sha256_of(Path(job.path))} if Path(job.path).is_file() else {}
-    for path in job.model.files.values():
+    for path in model_files(job.model.files, job.model.format).values():
         if Path(path).is_file():
             inputs[str(path)] = sha256_of(Path(path))
     software = {
@@ -1119,6 +1414,7 @@ def job_settings(job: Job) -> dict[str, Any]:
                 "method": spec.method,
                 "order": spec.order,
                 "options": _jsonable(spec.options),
+                "export_inaccurate": spec.export_inaccurate,
             }
             for spec in job.reductions
         ],
@@ -1180,8 +1476,11 @@ __all__ = [
     "add_interfaces",
     "check_job_nodes",
     "check_job_orders",
+    "judge_accuracy",
     "load_job_model",
     "load_model",
+    "output_device_error",
+    "output_errors",
     "prepare_and_validate",
     "prepare_job",
     "provenance",

@@ -81,20 +81,32 @@ class InterfaceNodeSpec:
     parameters: dict[str, float]
 
 
+#: The accuracy limit of a reduction whose method has no error target of its own: the largest
+#: relative error ε (paper eq. 27) over the ports and over the inertia loads its body may have.
+DEFAULT_ACCURACY_LIMIT = 1e-2
+#: Methods whose ``tolerance`` is a target for ε itself (SOAGA: the estimated maximum relative
+#: error); it is then their accuracy limit. The ``tolerance`` of ``gramian`` and ``pod`` is a
+#: ratio of singular values, not an error: they get :data:`DEFAULT_ACCURACY_LIMIT`.
+ERROR_TARGET_METHODS = ("soaga",)
+
+
 @dataclass(frozen=True)
 class ReductionSpec:
     """One reduction of a job: a unique name, a method, an order and method options.
 
-    ``options`` are the ``[[reduction]]`` keys besides ``name``, ``method`` and ``order``
-    (:mod:`pymorembs.methods` lists them per method); ``settings`` is the checked options
-    object of the method built from them once (:func:`~pymorembs.methods.method_options`,
-    which raises :class:`~pymorembs.methods.OptionError` on a bad option).
+    ``options`` are the ``[[reduction]]`` keys besides ``name``, ``method``, ``order`` and
+    ``export_inaccurate`` (:mod:`pymorembs.methods` lists them per method); ``settings`` is the
+    checked options object of the method built from them once
+    (:func:`~pymorembs.methods.method_options`, which raises
+    :class:`~pymorembs.methods.OptionError` on a bad option). ``export_inaccurate``: write the
+    body files even when the reduction misses its accuracy limit (:attr:`accuracy_limit`).
     """
 
     name: str
     method: str
     order: int | None
     options: dict[str, Any]
+    export_inaccurate: bool = False
     settings: ReductionOptions = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -102,6 +114,16 @@ class ReductionSpec:
         if self.order is not None:
             values["order"] = self.order
         object.__setattr__(self, "settings", method_options(self.method, values))
+
+    @property
+    def accuracy_limit(self) -> tuple[float, str]:
+        """The largest max ε (ports and inertia loads) the reduction's body may have, and where
+        the limit comes from: ``"tolerance"`` (the method's error target,
+        :data:`ERROR_TARGET_METHODS`) or ``"default"`` (:data:`DEFAULT_ACCURACY_LIMIT`)."""
+        tolerance = getattr(self.settings, "tolerance", None)
+        if self.method in ERROR_TARGET_METHODS and tolerance is not None:
+            return float(tolerance), "tolerance"
+        return DEFAULT_ACCURACY_LIMIT, "default"
 
 
 @dataclass(frozen=True)
@@ -710,6 +732,9 @@ def _reductions(data: Any, path: Path) -> tuple[ReductionSpec, ...]:
                 "name", f"{name!r} is the name of a file of the job's output folder; choose another"
             )
         order = table.integer("order")
+        inaccurate = table.get("export_inaccurate", False)
+        if not isinstance(inaccurate, bool):
+            raise table.error("export_inaccurate", f"must be true or false, got {inaccurate!r}")
         if method == "craig-bampton" and order is not None:
             raise table.error("order", "is set by the inputs (boundary dofs) and 'fixed_modes'")
         known = tuple(f.name for f in dataclasses.fields(METHODS[method]) if f.name != "order")
@@ -728,5 +753,5 @@ def _reductions(data: Any, path: Path) -> tuple[ReductionSpec, ...]:
             raise table.error(exc.key, exc.problem) from None
         checked = {key: getattr(settings, key) for key in options}
         checked = {k: list(v) if isinstance(v, tuple) else v for k, v in checked.items()}
-        specs.append(ReductionSpec(name, method, order, checked))
+        specs.append(ReductionSpec(name, method, order, checked, inaccurate))
     return tuple(specs)

@@ -23,6 +23,7 @@ from pymorembs.prepare.elimination import Elimination, eliminate
 from pymorembs.prepare.inertia_loads import (
     INERTIA_LOAD_CASES,
     InertiaLoads,
+    elastic_loads,
     inertia_loads,
     static_solver,
 )
@@ -53,6 +54,7 @@ __all__ = [
     "buckens_frame",
     "centre_of_gravity",
     "eliminate",
+    "inertia_load_cases",
     "prepare",
     "select_nodes",
     "stiffening_from_matrices",
@@ -316,6 +318,20 @@ def with_inertia_loads(
     if not loads.cases:
         warnings.append("inertia loads: none of the load cases deforms the body in this frame")
     return replace(prepared, inertia=loads if loads.cases else None, warnings=tuple(warnings))
+
+
+def inertia_load_cases(
+    prepared: PreparedModel, cases: tuple[str, ...] = INERTIA_LOAD_CASES
+) -> tuple[str, ...]:
+    """The load cases :func:`with_inertia_loads` keeps as inputs, without its factorization.
+
+    Costs one product of the mass matrix with the cases' acceleration fields, so the inputs a
+    reduction will see can be counted before any expensive step. :func:`with_inertia_loads`
+    may drop a further case whose static response is zero (a load that is not zero but does
+    not deform the body: possible only at the rounding level).
+    """
+    kept, _, _ = elastic_loads(prepared.body, prepared.system, prepared.elimination.inputs, cases)
+    return kept
 
 
 def _elastic_system(

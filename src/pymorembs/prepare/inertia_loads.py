@@ -52,6 +52,7 @@ __all__ = [
     "INERTIA_LOAD_CASES",
     "InertiaLoads",
     "acceleration_fields",
+    "elastic_loads",
     "inertia_loads",
     "is_inertia_label",
     "static_compliances",
@@ -190,26 +191,27 @@ def static_solver(system: SecondOrderSystem, label: str) -> Factorization | Iner
     return Factorization(system.stiffness, label=label)
 
 
-def inertia_loads(
+def elastic_loads(
     body: ElasticBody,
     system: SecondOrderSystem,
     transform_inputs: Callable[[np.ndarray], np.ndarray],
     cases: tuple[str, ...] = INERTIA_LOAD_CASES,
-) -> InertiaLoads:
-    """The scaled inertia load ports of a prepared body.
+) -> tuple[tuple[str, ...], np.ndarray, list[str]]:
+    """The unscaled d'Alembert loads of the load cases that deform the body.
 
-    Parameters
-    ----------
-    body : ElasticBody
-        The body in its reference frame (coordinates relative to the frame origin).
-    system : SecondOrderSystem
-        Its system of independent dofs with the port inputs (scaled against their compliance);
-        ``rigid_modes`` set for a free body in the Buckens frame.
-    transform_inputs : callable
-        Loads on all dofs (n_dof, k) to loads on the independent dofs (the transpose of the
-        elimination, ``T^T``).
+    The first step of :func:`inertia_loads`, without its factorization: one product with the
+    mass matrix (parameters as there). A case is dropped when the body has no coordinates for it
+    or its load is balanced by the rigid-body motion (Buckens frame) or vanishes (e.g. the
+    centrifugal load about the axis of a straight beam).
+
+    Returns
+    -------
     cases : tuple of str
-        Load cases wanted (:data:`INERTIA_LOAD_CASES`).
+        The cases kept.
+    loads : ndarray, shape (n_independent, len(cases))
+        Their loads on the independent dofs (the self-equilibrated part in the Buckens frame).
+    dropped : list of str
+        The cases dropped, each with the reason.
     """
     cases = tuple(dict.fromkeys(cases))
     if not body.has_coordinates:
@@ -235,7 +237,31 @@ def inertia_loads(
             )
             dropped.append(f"{case} ({why})")
     cases = tuple(c for c, ok in zip(cases, keep, strict=True) if ok)
-    loads = loads[:, keep]
+    return cases, loads[:, keep], dropped
+
+
+def inertia_loads(
+    body: ElasticBody,
+    system: SecondOrderSystem,
+    transform_inputs: Callable[[np.ndarray], np.ndarray],
+    cases: tuple[str, ...] = INERTIA_LOAD_CASES,
+) -> InertiaLoads:
+    """The scaled inertia load ports of a prepared body.
+
+    Parameters
+    ----------
+    body : ElasticBody
+        The body in its reference frame (coordinates relative to the frame origin).
+    system : SecondOrderSystem
+        Its system of independent dofs with the port inputs (scaled against their compliance);
+        ``rigid_modes`` set for a free body in the Buckens frame.
+    transform_inputs : callable
+        Loads on all dofs (n_dof, k) to loads on the independent dofs (the transpose of the
+        elimination, ``T^T``).
+    cases : tuple of str
+        Load cases wanted (:data:`INERTIA_LOAD_CASES`).
+    """
+    cases, loads, dropped = elastic_loads(body, system, transform_inputs, cases)
     ports = system.input_matrix
     compliance = static_compliances(
         system, np.hstack([ports, loads]), "K (compliance of the inertia loads)"

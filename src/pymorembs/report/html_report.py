@@ -29,6 +29,8 @@ figure { margin: 1em 0; } figcaption { font-size: 0.9em; color: #555; }
 img { max-width: 100%; border: 1px solid #ddd; }
 pre { background: #f6f6f6; padding: 0.8em; overflow-x: auto; font-size: 0.85em; }
 .warning { color: #a40; }
+.inaccurate { color: #fff; background: #b00020; padding: 0.5em 0.8em; font-weight: 600; }
+td.inaccurate { padding: 0.25em 0.6em; }
 .viewer { width: 100%; height: 32em; border: 1px solid #ddd; }
 .viewer canvas { width: 100%; height: 100%; display: block; cursor: grab; }
 .controls { margin: 0.4em 0; font-size: 0.9em; } .controls label { margin-right: 1em; }
@@ -103,6 +105,9 @@ def write_report(
         "<h2>Settings</h2>",
         _settings_table(summary),
     ]
+    banner = _accuracy_banner(summary["reductions"])
+    if banner:
+        parts.insert(parts.index("<h2>Model</h2>"), banner)
     if job_text:
         parts += ["<details><summary>Job file</summary>", f"<pre>{e(job_text)}</pre>", "</details>"]
     warnings = summary.get("warnings") or []
@@ -168,13 +173,51 @@ def _view(scene: dict[str, Any]) -> list[str]:
     ]
 
 
-def _row(cells: list[str], header: bool = False, text_columns: int = 1) -> str:
+def _row(
+    cells: list[str], header: bool = False, text_columns: int = 1, marked: int | None = None
+) -> str:
+    """A table row; the cell ``marked`` (an index) gets the class ``inaccurate``."""
     tag = "th" if header else "td"
     out = []
     for k, cell in enumerate(cells):
-        css = ' class="text"' if k < text_columns else ""
+        classes = ["text"] if k < text_columns else []
+        if k == marked:
+            classes.append("inaccurate")
+        css = f' class="{" ".join(classes)}"' if classes else ""
         out.append(f"<{tag}{css}>{html.escape(cell)}</{tag}>")
     return "<tr>" + "".join(out) + "</tr>"
+
+
+def _accuracy_banner(reductions: list[dict[str, Any]]) -> str:
+    """A paragraph on top of the page naming the reductions that missed their accuracy limit
+    ("" when every one met it)."""
+    missed = [r for r in reductions if not (r.get("accuracy") or {}).get("met", True)]
+    if not missed:
+        return ""
+    parts = []
+    for r in missed:
+        accuracy = r["accuracy"]
+        written = (
+            "its body files are written (export_inaccurate = true)"
+            if accuracy["exported"]
+            else "its body files were not written"
+        )
+        parts.append(
+            f"'{r['name']}': max rel. error {_number(accuracy['max'])} above its limit "
+            f"{_number(accuracy['limit'])}; {written}"
+        )
+    text = "Accuracy not met. " + "; ".join(parts) + "."
+    return f'<p class="inaccurate" id="accuracy-not-met">{html.escape(text)}</p>'
+
+
+def _accuracy_cell(accuracy: dict[str, Any] | None) -> str:
+    """The table's accuracy column: the limit, and whether the body met it and was written."""
+    if not accuracy:
+        return "–"
+    if accuracy["met"]:
+        return f"met (≤ {_number(accuracy['limit'])})"
+    written = "written anyway" if accuracy["exported"] else "not written"
+    return f"NOT MET (> {_number(accuracy['limit'])}), {written}"
 
 
 def _covers(summary: dict[str, Any]) -> str:
@@ -288,6 +331,7 @@ def _methods_table(reductions: list[dict[str, Any]]) -> str:
             "highest f [Hz]",
             "explicit step [s]",
             "time [s]",
+            "accuracy",
         ],
         header=True,
         text_columns=2,
@@ -306,8 +350,10 @@ def _methods_table(reductions: list[dict[str, Any]]) -> str:
                 _number(r.get("highest_frequency_hz")),
                 _number(r.get("explicit_step_s")),
                 _number(r.get("time_s")),
+                _accuracy_cell(r.get("accuracy")),
             ],
             text_columns=2,
+            marked=None if (r.get("accuracy") or {}).get("met", True) else 11,
         )
         for r in reductions
     ]

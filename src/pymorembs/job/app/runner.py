@@ -42,7 +42,11 @@ class Run:
     stages : int
         The stages the job has (model, reference, one per reduction, time domain, large motion).
     state : str
-        ``"running"``, ``"done"``, ``"failed"`` or ``"cancelled"``.
+        ``"running"``, ``"done"``, ``"failed"`` or ``"cancelled"``. A run that ended with
+        exit code 4 (accuracy not met) is ``"done"``: its results are written, the bodies
+        that missed their limit are marked in them; :attr:`error` holds its line.
+    exit_code : int or None
+        The command's exit code once it ended.
     """
 
     job: Path
@@ -53,6 +57,7 @@ class Run:
     stage: str = "starting"
     lines: list[str] = field(default_factory=list)
     error: str = ""
+    exit_code: int | None = None
     started: float = field(default_factory=time.time)
     ended: float | None = None
     process: subprocess.Popen | None = None
@@ -93,6 +98,7 @@ class Run:
             "stage": self.stage,
             "lines": self.lines[-12:],
             "error": self.error,
+            "exit_code": self.exit_code,
             "seconds": (self.ended or time.time()) - self.started,
             "job": str(self.job),
             "out": str(self.out),
@@ -179,17 +185,26 @@ def _follow(run: Run) -> None:
     code = process.wait()
     reader.join(timeout=5)
     ended = time.time()
+    message = [e.strip() for e in errors if e.strip().startswith("pymorembs: error")]
     with run.lock:
+        run.exit_code = code
         if run.state == "cancelled":
             run.stage = "cancelled"
             run.remove_staging()
         elif code == 0:
             run.state, run.stage = "done", "done"
+        elif code == ACCURACY_NOT_MET and (run.out / "summary.json").is_file():
+            run.state, run.stage = "done", "done, accuracy not met"
+            run.error = message[-1] if message else "accuracy not met"
         else:
             run.state = "failed"
-            message = [e.strip() for e in errors if e.strip()]
-            run.error = message[-1] if message else f"pymorembs reduce exited with code {code}"
+            lines = message or [e.strip() for e in errors if e.strip()]
+            run.error = lines[-1] if lines else f"pymorembs reduce exited with code {code}"
         run.ended = ended  # last: an ended run has nothing left to clean up
     for line in errors:
-        if line.startswith("pymorembs: warning"):
+        if line.startswith(("pymorembs: warning", "pymorembs: note")):
             run.lines.append(line.rstrip())
+
+
+#: The exit code of a job whose results are written but a body missed its accuracy limit.
+ACCURACY_NOT_MET = 4

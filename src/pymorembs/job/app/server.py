@@ -77,7 +77,7 @@ VIEWER = Path(__file__).resolve().parents[2] / "report" / "viewer.js"
 #: What the results give of each reduction's summary entry.
 RESULT_KEYS = (
     "name", "method", "order", "max_rel_error", "static_rel_error", "error_estimate",
-    "error_bound", "eigenfrequencies_hz", "time_s", "files",
+    "error_bound", "eigenfrequencies_hz", "time_s", "files", "accuracy",
 )  # fmt: skip
 #: The arrays of ``reduced.npz`` the shape view and the MAC read.
 BASIS_KEYS = ("V", "dof_nodes", "dof_directions", "eigenfrequencies_hz")
@@ -448,6 +448,7 @@ class App:
             "band_hz": summary["band_hz"],
             "reference": summary["reference"].get("kind"),
             "warnings": summary.get("warnings", []),
+            "accuracy": summary.get("accuracy"),
             "out": str(run.out),
             "job": str(run.job),
         }

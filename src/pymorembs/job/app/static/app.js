@@ -270,6 +270,12 @@ function renderReductions() {
       }
       card.append(el("label", { title }, `${f.name} `, input));
     }
+    // a job key of every reduction, not a method option: write the body even if inaccurate
+    const inaccurate = el("input", { type: "checkbox", "data-option": "export_inaccurate" });
+    inaccurate.checked = Boolean(red.export_inaccurate);
+    inaccurate.onchange = () => { if (inaccurate.checked) red.export_inaccurate = true; else delete red.export_inaccurate; changed(); };
+    card.append(el("label", { title: "write the body files even when the reduction misses its accuracy limit (they are marked)" },
+      "export_inaccurate ", inaccurate));
     box.append(card);
   });
 }
@@ -329,11 +335,17 @@ async function loadResults() {
   app.results = res; app.shapeCache = {};
   const body = $("results-table").querySelector("tbody"); body.replaceChildren();
   for (const r of res.reductions) {
-    body.append(el("tr", { "data-name": r.name }, el("td", { text: r.name }), el("td", { text: r.method }),
+    const a = r.accuracy, met = !a || a.met;
+    body.append(el("tr", { "data-name": r.name, "data-accuracy": met ? "met" : "not-met", class: met ? "" : "inaccurate" },
+      el("td", { text: r.name }), el("td", { text: r.method }),
       el("td", { class: "order", text: String(r.order) }), el("td", { class: "max-error", text: fmt(r.max_rel_error) }),
       el("td", { class: "static-error", text: fmt(r.static_rel_error) }), el("td", { text: fmt(r.error_estimate) }),
-      el("td", { text: fmt(r.error_bound) })));
+      el("td", { text: fmt(r.error_bound) }),
+      el("td", { class: "accuracy", text: !a ? "" : met ? `met (≤ ${fmt(a.limit)})` :
+        `NOT MET: ${fmt(a.max)} > ${fmt(a.limit)}, ${a.exported ? "written anyway" : "body not written"}` })));
   }
+  const missed = res.reductions.filter((r) => r.accuracy && !r.accuracy.met).map((r) => r.name);
+  $("accuracy").textContent = missed.length ? `Accuracy not met: ${missed.join(", ")} (see the table; ε over the ports and the inertia loads)` : "";
   plotErrors(res);
   eigenTable(res);
   const names = res.reductions.map((r) => r.name);
