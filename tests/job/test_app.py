@@ -10,6 +10,7 @@ import os
 import signal
 import socket
 import sys
+import tempfile
 import threading
 import time
 import tomllib
@@ -550,7 +551,10 @@ def test_no_second_run_while_a_cancelled_one_is_ending(stubborn_child, tmp_path)
     stubborn_child.append(app.run)
 
 
-def test_cli_app_refuses_a_bad_model_and_a_busy_port(tmp_path, capsys):
+def test_cli_app_refuses_a_bad_model_and_a_busy_port(tmp_path, capsys, monkeypatch):
+    temporary = tmp_path / "temporary"
+    temporary.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(temporary))
     assert main(["app", str(tmp_path / "missing.h5"), "--no-browser"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "missing.h5: no such file" in err
@@ -566,6 +570,7 @@ def test_cli_app_refuses_a_bad_model_and_a_busy_port(tmp_path, capsys):
         assert main(["app", "--port", str(port), "--no-browser"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and f"port {port} is in use" in err
+    assert list(temporary.iterdir()) == []  # no empty run folder left behind
 
 
 def test_the_body_without_surface_cannot_be_picked(tmp_path):

@@ -14,6 +14,7 @@ come from the run's own output folder. See ``docs/app.md``.
 
 from __future__ import annotations
 
+import shutil
 import sys
 import threading
 import webbrowser
@@ -60,9 +61,21 @@ def serve(
     """
     if model is not None and not Path(model).exists():
         raise UserError(f"{model}: no such file")
-    server = make_server(App(workdir), port)
+    app = App(workdir)
     try:
-        app = server.app  # type: ignore[attr-defined]
+        _serve_app(app, model, port, open_browser, format)
+    finally:
+        if workdir is None and app.runs == 0:  # leave no empty temporary folder behind
+            shutil.rmtree(app.workdir, ignore_errors=True)
+    return 0
+
+
+def _serve_app(
+    app: App, model: str | Path | None, port: int, open_browser: bool, format: str | None
+) -> None:
+    """Serve ``app`` until interrupted (the body of :func:`serve`)."""
+    server = make_server(app, port)
+    try:
         app.open({"path": str(model), "format": format} if model is not None else DEFAULT_EXAMPLE)
         url = f"http://127.0.0.1:{server.server_address[1]}/"
         print(f"pymorembs app: {url} (runs in {app.workdir}); Ctrl-C ends it", flush=True)
@@ -77,4 +90,3 @@ def serve(
                 app.run.cancel()
     finally:
         server.server_close()
-    return 0
