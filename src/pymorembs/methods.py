@@ -1,9 +1,10 @@
 """The reduction methods and their options, written once (the method registry).
 
-Each method family of ``paper.md`` section 3 has one frozen dataclass of options with its
-defaults; the Python API (:func:`pymorembs.reduction`), the job file (``[[reduction]]`` tables,
-:mod:`pymorembs.job.schema`) and the job reference (:func:`options_table`) all use them. Building an
-options object checks it: a bad value raises :class:`OptionError`, which names the option.
+Each method family of the paper's section 3 (Fehr and Eberhard 2011, cited in
+:mod:`pymorembs`) has one frozen dataclass of options with its defaults; the Python API
+(:func:`pymorembs.reduction`), the job file (``[[reduction]]`` tables, :mod:`pymorembs.job.schema`)
+and the job reference (:func:`options_table`) all use them. Building an options object checks it:
+a bad value raises :class:`OptionError`, which names the option.
 
 =================  ==========================================================================
 method             what it keeps (paper section)
