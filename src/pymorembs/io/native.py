@@ -234,6 +234,26 @@ def read_hdf5(
         raise UserError(f"{path}: cannot read {what}: {reason}") from None
 
 
+def check_format_version(f: h5py.Group, newest: int) -> int:
+    """The ``version`` attribute of a pymorembs file, checked to be ``1 .. newest``.
+
+    Raises
+    ------
+    UserError
+        Not a whole number >= 1, or newer than this pymorembs reads (without the file name,
+        which the caller prepends).
+    """
+    version = f.attrs.get("version")
+    if not isinstance(version, int | np.integer) or int(version) < 1:
+        raise UserError(f"invalid format version {version!r}")
+    if int(version) > newest:
+        raise UserError(
+            f"format version {int(version)} is newer than this pymorembs reads "
+            f"(version {newest}); update pymorembs"
+        )
+    return int(version)
+
+
 def read_body_group(f: h5py.Group) -> ElasticBody:
     """Check the format marker and build the body from an open file or group.
 
@@ -247,14 +267,7 @@ def read_body_group(f: h5py.Group) -> ElasticBody:
         )
     if marker != FORMAT:
         raise UserError(f"HDF5 file without the format marker {FORMAT!r}; not a pymorembs body")
-    version = f.attrs.get("version")
-    if not isinstance(version, int | np.integer) or int(version) < 1:
-        raise UserError(f"invalid format version {version!r}")
-    if int(version) > VERSION:
-        raise UserError(
-            f"format version {int(version)} is newer than this pymorembs reads "
-            f"(version {VERSION}); update pymorembs"
-        )
+    check_format_version(f, VERSION)
     dofs = DofTable(
         get_array(f, "dofs/nodes", INTEGER_KINDS), get_array(f, "dofs/directions", INTEGER_KINDS)
     )

@@ -67,6 +67,7 @@ from pymorembs.io.native import (
     INTEGER_KINDS,
     REDUCED_BODY_FORMAT,
     attribute_text,
+    check_format_version,
     get_array,
     get_csr,
     put_array,
@@ -253,14 +254,7 @@ def _read_saved(f: h5py.File) -> SavedBody:
             f"HDF5 file without the format marker {FORMAT!r}; not a reduced body saved by "
             "ReducedBody.save"
         )
-    version = f.attrs.get("version")
-    if not isinstance(version, int | np.integer) or int(version) < 1:
-        raise UserError(f"invalid format version {version!r}")
-    if int(version) > VERSION:
-        raise UserError(
-            f"format version {int(version)} is newer than this pymorembs reads "
-            f"(version {VERSION}); update pymorembs"
-        )
+    check_format_version(f, VERSION)
     options = _group(f, "options")
     values = _json(options, "values")
     prepared = _read_prepared(f)
