@@ -367,6 +367,27 @@ class InpModel:
     boundaries: tuple[Boundary, ...] = ()
     matrix_storage_step: int | None = None
 
+    def element_rows(self, block: ElementBlock) -> np.ndarray:
+        """Node indices of the block's elements, shape (elements, nodes per element).
+
+        Raises
+        ------
+        UserError
+            An element names a node that is not defined (file and line of the block).
+        """
+        labels = block.element_labels(self.scopes)
+        scope, node_labels = block.node_labels(self.scopes)
+        rows = self.index_of(scope, node_labels)
+        if np.any(rows < 0):
+            k = int(np.flatnonzero(rows < 0)[0])
+            raise located_error(
+                block.path,
+                block.line,
+                f"an element of this *ELEMENT, TYPE={block.type} block names node "
+                f"{node_labels[k]}, which is not defined",
+            )
+        return rows.reshape(labels.size, -1)
+
     def index_of(self, scope: np.ndarray, label: np.ndarray) -> np.ndarray:
         """Node index of each (scope, label) pair, -1 where no such node exists."""
         scope = np.asarray(scope, dtype=np.int64)
@@ -1284,17 +1305,7 @@ def solid_blocks(model: InpModel) -> list[SolidBlock] | str:
         labels = block.element_labels(model.scopes)
         if not labels.size:
             continue
-        scope, node_labels = block.node_labels(model.scopes)
-        index = model.index_of(scope, node_labels)
-        if np.any(index < 0):
-            k = int(np.flatnonzero(index < 0)[0])
-            raise located_error(
-                block.path,
-                block.line,
-                f"an element of this *ELEMENT, TYPE={block.type} block names node "
-                f"{node_labels[k]}, which is not defined",
-            )
-        connectivity = model.node_ids[index].reshape(labels.size, -1)
+        connectivity = model.node_ids[model.element_rows(block)]
         material = np.full(labels.size, -1, dtype=np.int64)
         found: list[Material] = []
         for section in model.sections:

@@ -526,17 +526,7 @@ def _element_rows(model: InpModel, deck: Path) -> tuple[list[np.ndarray], str]:
         labels = block.element_labels(model.scopes)
         if not labels.size:
             continue
-        scope, node_labels = block.node_labels(model.scopes)
-        rows = model.index_of(scope, node_labels)
-        if np.any(rows < 0):
-            k = int(np.flatnonzero(rows < 0)[0])
-            raise located_error(
-                block.path,
-                block.line,
-                f"an element of this *ELEMENT, TYPE={block.type} block names node "
-                f"{node_labels[k]}, which is not defined",
-            )
-        blocks.append(rows.reshape(labels.size, -1))
+        blocks.append(model.element_rows(block))
         if block.type.upper() not in types:
             types.append(block.type.upper())
     return blocks, " ".join(types)
