@@ -16,6 +16,7 @@ import pytest
 from threadpoolctl import threadpool_limits
 
 from conftest import spring_lattice
+from lattice_jobs import lattice_job
 from pymorembs import progress
 from pymorembs.analysis.error import frequency_grid
 from pymorembs.analysis.transfer import transfer_function
@@ -30,27 +31,10 @@ ROOT = Path(__file__).resolve().parents[1]
 
 needs_dask = pytest.mark.skipif(not dask_available(), reason="dask.distributed not installed")
 
-JOB = """
-[model]
-file = "model.h5"
-
-[frame]
-type = "tangent"
-node = 10
-
-[[inputs]]
-node = 60
-directions = "ux uy"
-
-[band]
-f_max_hz = 200
-
-[[reduction]]
-name = "modal-{order}"
-method = "modal"
-order = {order}
-export_inaccurate = true  # a few modes of the undamped lattice: poor bodies, on purpose
-"""
+MODAL = (
+    'name = "modal-{order}"\nmethod = "modal"\norder = {order}\n'
+    "export_inaccurate = true  # a few modes of the undamped lattice: poor bodies, on purpose"
+)
 
 
 @pytest.fixture(scope="module")
@@ -148,7 +132,7 @@ def two_jobs(tmp_path, monkeypatch):
     paths = []
     for order in (4, 6):
         path = tmp_path / f"job{order}.toml"
-        path.write_text(JOB.format(order=order))
+        path.write_text(lattice_job(MODAL.format(order=order)))
         paths.append(path)
     return paths
 

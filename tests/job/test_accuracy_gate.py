@@ -24,6 +24,7 @@ import numpy as np
 import pytest
 
 from conftest import spring_lattice
+from lattice_jobs import SOAGA, lattice_job
 from pymorembs.elements.beam import BeamSection
 from pymorembs.errors import AccuracyNotMet, PymorembsError, UserError
 from pymorembs.io.native import write_body_h5
@@ -328,31 +329,15 @@ def test_export_inaccurate_must_be_a_boolean(beam, capsys):
 
 
 # ------------------------------------------------------------ the API, several jobs, the app
-LATTICE_JOB = """
-[model]
-file = "model.h5"
-[frame]
-type = "tangent"
-node = 10
-[[inputs]]
-node = 60
-directions = "ux uy"
-[band]
-f_max_hz = 200
-points = 200
-[[reduction]]
-{reduction}
-"""
 POOR = 'name = "modal-4"\nmethod = "modal"\norder = 4'
-GOOD = 'name = "soaga"\nmethod = "soaga"\ntolerance = 1e-8'
 
 
 @pytest.fixture(scope="module")
 def lattice_folder(tmp_path_factory):
     folder = tmp_path_factory.mktemp("lattice")
     write_body_h5(spring_lattice(), folder / "model.h5")
-    (folder / "poor.toml").write_text(LATTICE_JOB.format(reduction=POOR))
-    (folder / "good.toml").write_text(LATTICE_JOB.format(reduction=GOOD))
+    (folder / "poor.toml").write_text(lattice_job(POOR, points=200))
+    (folder / "good.toml").write_text(lattice_job(SOAGA, points=200))
     return folder
 
 

@@ -24,6 +24,8 @@ from pathlib import Path
 import pytest
 
 from conftest import spring_lattice
+from lattice_jobs import SOAGA
+from lattice_jobs import lattice_job as job_text
 from pymorembs.errors import UserError
 from pymorembs.io.native import write_body_h5
 from pymorembs.job.cli import main
@@ -33,34 +35,12 @@ from pymorembs.job.schema import load_job
 ROOT = Path(__file__).resolve().parents[2]
 needs_proc = pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc")
 
-JOB = """
-[model]
-file = "model.h5"
-
-[frame]
-type = "tangent"
-node = 10
-
-[[inputs]]
-node = 60
-directions = "ux uy"
-
-[band]
-f_max_hz = 200
-points = {points}
-
-[[reduction]]
-name = "soaga"
-method = "soaga"
-tolerance = 1e-8
-"""
-
 
 @pytest.fixture
 def lattice_job(tmp_path):
     write_body_h5(spring_lattice(), tmp_path / "model.h5")
     path = tmp_path / "job.toml"
-    path.write_text(JOB.format(points=200))
+    path.write_text(job_text(SOAGA, points=200))
     return path
 
 
@@ -123,7 +103,7 @@ def test_ctrl_c_during_the_sweep_of_two_workers(lattice_job, tmp_path):
     """SIGINT while two forked workers solve the frequency response: exit 130, one line, no
     traceback, the workers gone at once (they do not finish their share), no temporary
     folder."""
-    lattice_job.write_text(JOB.format(points=200000))  # a sweep of minutes
+    lattice_job.write_text(job_text(SOAGA, points=200000))  # a sweep of minutes
     out = tmp_path / "out"
     run = command("reduce", str(lattice_job), "--out", str(out), "--workers", "2")
     try:
