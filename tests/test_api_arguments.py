@@ -224,3 +224,24 @@ def test_a_wrong_argument_of_the_api_is_one_line_naming_it(
     with pytest.raises(pm.UserError, match=message) as caught:
         call(rack, reduced)
     assert "\n" not in str(caught.value)
+
+
+def test_a_port_takes_direction_names_and_refuses_what_is_no_port():
+    """issue #27: pm.Port(1, "ux uy uz") ended in a TypeError deep inside pm.prepare."""
+    assert (
+        pm.Port(1, "ux uy uz") == pm.Port(1, (0, 1, 2)) == pm.Port(np.int64(1), ["ux", "uy", "uz"])
+    )
+    assert pm.Port(7, "rotations").directions == (3, 4, 5)
+    body = pm.example("rack-beams")
+    by_name = pm.prepare(body, frame=pm.Frame("tangent", node=2), inputs=[pm.Port(1, "ux uy")])
+    by_pair = pm.prepare(body, frame=pm.Frame("tangent", node=2), inputs=[(1, "ux uy")])
+    assert by_name.system.input_labels == by_pair.system.input_labels == ("1:ux", "1:uy")
+    for node, directions, words in [
+        (1.5, "ux", "whole number"),
+        ("a", "ux", "whole number"),
+        (1, (9,), "direction codes are 0..6"),
+        (1, (0, 0), "repeated"),
+        (1, "ux wz", "unknown direction 'wz'"),
+    ]:
+        with pytest.raises(pm.UserError, match=words):
+            pm.Port(node, directions)

@@ -25,12 +25,37 @@ class Port:
     ----------
     node : int
         Node id as in the FE model.
-    directions : tuple of int
-        Direction codes 0..5 (ux uy uz rx ry rz).
+    directions : tuple of int, or str
+        Direction codes 0..6 (ux uy uz rx ry rz q), or their names as :func:`Port.parse`
+        takes them (``"ux uy uz"``, ``["ux", "uy"]``, ``"translations"``); stored as codes.
+
+    Raises
+    ------
+    UserError
+        A node that is not a whole number, no direction, an unknown or repeated direction.
     """
 
     node: int
     directions: tuple[int, ...]
+
+    def __post_init__(self) -> None:
+        node = self.node
+        if isinstance(node, bool) or not _is_number(node) or not float(node).is_integer():
+            raise UserError(f"Port: the node must be a node id (a whole number), got {node!r}")
+        directions = self.directions
+        if isinstance(directions, str) or any(isinstance(d, str) for d in directions):
+            codes = parse_directions(directions)
+        else:
+            codes = [int(d) for d in directions]
+            if not codes or len(set(codes)) != len(codes):
+                raise UserError(f"Port {node}: no direction or a direction repeated in {codes}")
+            if any(c < 0 or c >= len(DIRECTIONS) for c in codes):
+                raise UserError(
+                    f"Port {node}: direction codes are 0..{len(DIRECTIONS) - 1} "
+                    f"({' '.join(DIRECTIONS)}), got {codes}"
+                )
+        object.__setattr__(self, "node", int(node))
+        object.__setattr__(self, "directions", tuple(codes))
 
     @classmethod
     def parse(cls, node: int, directions: str | list[str]) -> Port:
@@ -38,6 +63,10 @@ class Port:
 
     def labels(self) -> list[str]:
         return [f"{self.node}:{DIRECTIONS[d]}" for d in self.directions]
+
+
+def _is_number(value: object) -> bool:
+    return isinstance(value, int | float | np.integer | np.floating)
 
 
 def selection_matrix(body: ElasticBody, ports: list[Port]) -> tuple[sp.csr_matrix, list[str]]:
