@@ -45,9 +45,11 @@ said so (``map not proved``).
    fit; the scales of :data:`~pymorembs.units.COORDINATE_SCALES` are tried with the same
    products. Without rotational dofs the rigid fields are scale-free: a mesh of solid elements
    gives the density ``mass / volume`` and ``E / rho``, which must be a material in some unit
-   system (:func:`~pymorembs.units.material_systems`), else the implied numbers of
-   :mod:`pymorembs.units`. A scale that fits where the given one does not: exit 2, "the
-   coordinates look like mm while K and M are in m-kg-s-N ...".
+   system (:func:`~pymorembs.units.material_systems`). A scale that fits where the given one
+   does not: exit 2, "the coordinates look like mm while K and M are in m-kg-s-N ...".
+   Without a mesh only the implied numbers of :mod:`pymorembs.units` remain (mass over the
+   bounding box's volume), which a truss, a lattice of springs or a thin-walled part leave
+   far below any material: a scale that makes them fit is a warning, never an error.
 5. **Centre of gravity and inertia fit the node cloud**: ``c`` within the nodes' box widened by
    :data:`CG_MARGIN` times its largest side; the largest principal moment about ``c`` at most
    :data:`INERTIA_FACTOR` times ``m |extent|^2`` (point masses on the nodes give at most
@@ -213,7 +215,7 @@ def check_consistency(body: ElasticBody) -> dict[str, Any]:
     facts["map"] = proof.as_dict()
     if not proof.proved and proof.unexplained:
         warnings.append(f"map not proved: {proof.reason}")
-    facts["material"] = check_material(body, proof)
+    facts["material"] = check_material(body, proof, warnings)
     check_node_cloud(body, facts["rigid_mass"])
     facts["notes"] = notes
     facts["warnings"] = warnings
@@ -649,10 +651,13 @@ def _near_supports(body: ElasticBody, failing: np.ndarray) -> np.ndarray:
 
 
 # ============================================================================ units
-def check_material(body: ElasticBody, proof: MapProof) -> dict[str, Any] | None:
+def check_material(
+    body: ElasticBody, proof: MapProof, warnings: list[str]
+) -> dict[str, Any] | None:
     """Item 4 without rotational dofs: mass / volume of the solid elements and ``E / rho``
     are a material in some unit system; without a mesh, the implied numbers of
-    :mod:`pymorembs.units` for a body of solids.
+    :mod:`pymorembs.units` (a warning into ``warnings`` where only another length unit of
+    the coordinates makes them fit).
 
     Returns
     -------
@@ -663,8 +668,8 @@ def check_material(body: ElasticBody, proof: MapProof) -> dict[str, Any] | None:
     Raises
     ------
     UserError
-        The numbers fit no system as given but do with the coordinates in another length unit,
-        or (with a mesh) fit none at all.
+        With a solid mesh: the material fits no system as given (the message names the
+        length unit of the coordinates where another one makes it fit).
     """
     mesh = body.mesh
     mass = body.total_mass()
@@ -697,13 +702,14 @@ def check_material(body: ElasticBody, proof: MapProof) -> dict[str, Any] | None:
             for scale in COORDINATE_SCALES:
                 guess = units_of_numbers(density / scale**3, speed2 * scale**2)
                 if guess.plausible and not guess.ambiguous and guess.system is not None:
-                    raise UserError(
-                        f"[model]: {_unit_mix(body, scale)}: as given, mass / bounding-box "
+                    warnings.append(
+                        f"coordinates in another length unit? As given, mass / bounding-box "
                         f"volume {density:.3g} and the wave speed^2 estimate {speed2:.3g} fit "
                         f"no unit system, with the coordinates times {scale:g} they fit "
-                        f"{guess.system.name}; give the coordinates in the length unit of the "
-                        "matrices"
+                        f"{guess.system.name} (only a hint: a truss or a lattice of springs "
+                        "fills little of its box)"
                     )
+                    break
     return None
 
 
