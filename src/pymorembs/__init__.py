@@ -1,6 +1,8 @@
 """pymorembs: model order reduction of elastic bodies for flexible multibody simulation.
 
-The reduction process follows Fig. 1 and Fig. 8 of ``paper.md``::
+The reduction process follows Figs. 1 and 8 of Fehr and Eberhard, "Simulation process of flexible
+multibody systems with non-modal model order reduction techniques" (Multibody System Dynamics,
+2011; "the paper" of the docs and docstrings)::
 
     read / example --> ElasticBody --prepare--> PreparedModel --reduce--> ReducedBody
         --> .error(band) / .to_sid() / .to_exudyn() / .to_neweul() / .to_vtu() / .to_matrices()
@@ -12,7 +14,7 @@ layer on it.
 __version__ = "0.1.0"
 
 from pymorembs.analysis.time_domain import LoadCase, TimeResponse
-from pymorembs.api import ErrorCurve, ReducedBody, example, facts, prepare, read, reduce
+from pymorembs.api import ErrorCurve, ReducedBody, example, facts, load, prepare, read, reduce
 from pymorembs.body import DIRECTIONS, ConstraintEquations, Damping, DofTable, ElasticBody
 from pymorembs.errors import NumericalError, PymorembsError, UserError
 from pymorembs.methods import METHODS, method_options
@@ -44,6 +46,7 @@ __all__ = [
     "__version__",
     "example",
     "facts",
+    "load",
     "method_options",
     "prepare",
     "read",

@@ -18,11 +18,12 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import scipy.sparse as sp
 
 from pymorembs.analysis.error import error_blocks, frequency_grid, relative_error
 from pymorembs.analysis.reference import reference_response
@@ -34,12 +35,23 @@ from pymorembs.analysis.time_domain import (
     simulate,
 )
 from pymorembs.analysis.transfer import transfer_function
-from pymorembs.body import ElasticBody
+from pymorembs.arguments import (
+    OptionError,
+    described,
+    node_ids,
+    number,
+    number_list,
+    plain,
+    whole,
+)
+from pymorembs.body import DAMPING_KEYS, Damping, ElasticBody
+from pymorembs.display import html_table, one_line
 from pymorembs.errors import UserError
 from pymorembs.examples import build_example
 from pymorembs.export.invariants import BodyInvariants
 from pymorembs.export.outputs import body_invariants, check_before_writing, write_outputs
 from pymorembs.io.formats import read_body
+from pymorembs.io.reduced_file import SavedBody, read_reduced_body, write_reduced_body
 from pymorembs.methods import ReductionOptions, method_options
 from pymorembs.prepare import Frame, Port, PreparedModel, with_inertia_loads
 from pymorembs.prepare import prepare as prepare_body
@@ -63,6 +75,7 @@ __all__ = [
     "ReducedBody",
     "example",
     "facts",
+    "load",
     "prepare",
     "read",
     "reduce",
@@ -70,6 +83,7 @@ __all__ = [
 
 PathLike = str | os.PathLike[str]
 PortLike = Port | tuple[int, str]
+DampingLike = Damping | Mapping[str, Any] | np.ndarray | sp.spmatrix | sp.sparray
 
 
 def read(
@@ -148,17 +162,52 @@ def facts(body: ElasticBody, modes: int = 10) -> dict[str, Any]:
     eigenfrequencies (Hz), massless directions condensed exactly.
     """
     prepared = prepare_body(body, Frame("none"), allow_rigid_body_modes=True)
-    out = model_facts(body, prepared, int(modes))
+    out = model_facts(body, prepared, whole("modes", modes, minimum=0))
     out["units"] = detect_units(body).as_dict()
     return out
 
 
-def _port(port: PortLike, what: str) -> Port:
-    if isinstance(port, Port):
-        return port
-    if isinstance(port, tuple | list) and len(port) == 2:
-        return Port.parse(int(port[0]), port[1])
-    raise UserError(f"{what}: {port!r} is neither a Port nor a (node, directions) pair")
+def _ports(ports: Sequence[PortLike] | None, what: str) -> list[Port] | None:
+    """Ports from a list, tuple or array of :class:`Port` or (node, directions) pairs."""
+    if ports is None:
+        return None
+    if isinstance(ports, Port) or (
+        isinstance(ports, tuple | list) and len(ports) == 2 and isinstance(plain(ports[1]), str)
+    ):
+        raise OptionError(what, f"give a list of ports, e.g. {what}=[(1, 'ux uy uz')]")
+    if isinstance(ports, np.ndarray) and ports.ndim != 2:
+        raise OptionError(what, f"must be a list of (node, directions) pairs, got "
+                                f"{described(ports)}")  # fmt: skip
+    if not isinstance(ports, tuple | list | np.ndarray):
+        raise OptionError(what, f"must be a list of Port or (node, directions) pairs, got "
+                                f"{described(ports)}")  # fmt: skip
+    out = []
+    for port in ports:
+        if isinstance(port, Port):
+            out.append(port)
+        elif isinstance(port, tuple | list | np.ndarray) and len(port) == 2:
+            directions = plain(port[1])
+            if isinstance(directions, np.ndarray):
+                directions = [str(d) for d in directions.ravel()]
+            out.append(Port.parse(whole(f"{what} node", port[0], minimum=None), directions))
+        else:
+            raise OptionError(what, f"{described(port)} is neither a Port nor a (node, "
+                                    "directions) pair")  # fmt: skip
+    return out
+
+
+def _band(key: str, band_hz: Any) -> tuple[float, float]:
+    """A band ``(f_min, f_max)`` in Hz with ``0 <= f_min < f_max``."""
+    what = "(f_min, f_max) in Hz"
+    f_min, f_max = number_list(key, band_hz, what, length=2, minimum=0.0)
+    if not f_max > f_min:
+        raise OptionError(key, f"must be {what} with f_min < f_max, got ({f_min:g}, {f_max:g})")
+    return f_min, f_max
+
+
+def _frame_nodes(nodes: Any) -> list[int] | None:
+    """The frame nodes of an exported body (None: the port nodes)."""
+    return None if plain(nodes) is None else node_ids("nodes", nodes)
 
 
 def prepare(
@@ -172,6 +221,7 @@ def prepare(
     inertia_loads: bool | Sequence[str] = False,
     stiffening: str | Mapping[str, PathLike] | None = None,
     stiffening_nodes: Sequence[int] = (),
+    damping: DampingLike | None = None,
 ) -> PreparedModel:
     """The body in its reference frame with its inputs and outputs (paper sections 2.1-2.3).
 
@@ -198,29 +248,52 @@ def prepare(
         load case.
     stiffening_nodes : sequence of int
         Frame nodes whose unit forces also get their stiffening (``"mesh"`` only).
+    damping : Damping, mapping or matrix, optional
+        The damping of the body (default: what it carries, undamped for a model read without
+        one). A :class:`~pymorembs.body.Damping` -- ``Damping("modal", ratio=0.02)`` (the
+        damping ratio of every mode), ``Damping("rayleigh", alpha=2.0, beta=1e-5)``
+        (``D = alpha M + beta K``, alpha in 1/s, beta in s) or ``Damping("none")`` -- or the
+        same as a mapping with the keys of a job's ``[damping]`` table
+        (``{"kind": "modal", "ratio": 0.02}``) replaces the body's damping model; a damping
+        matrix read with the model stays and is added. A matrix, sparse or dense, shape
+        (n_dof, n_dof), in the body's dof order (force x time / length), replaces the body's
+        explicit damping matrix; the damping model stays.
 
     Returns
     -------
     PreparedModel
         Carries its frame (``prepared.frame``).
     """
+    node = whole("node", node, minimum=None)
     if isinstance(frame, str):
         frame = Frame(frame, node)
+    elif not isinstance(frame, Frame):
+        raise OptionError("frame", f"must be a Frame or 'tangent', 'buckens' or 'none', got "
+                                   f"{described(frame)}")  # fmt: skip
     elif node is not None:
         raise UserError("prepare: give node only with a frame given by name")
+    if isinstance(interfaces, InterfaceSpec) or not all(
+        isinstance(spec, InterfaceSpec) for spec in interfaces
+    ):
+        raise OptionError("interfaces", "must be a list of InterfaceSpec")
+    nodes = (
+        [] if plain(stiffening_nodes) is None else node_ids("stiffening_nodes", stiffening_nodes)
+    )
+    if damping is not None:
+        body = _with_damping(body, damping)
     for spec in interfaces:
         body = add_interface_node(body, spec)
-    ins = None if inputs is None else [_port(p, "inputs") for p in inputs]
-    outs = ins if outputs is None else [_port(p, "outputs") for p in outputs]
+    ins = _ports(inputs, "inputs")
+    outs = ins if outputs is None else _ports(outputs, "outputs")
+    cases = _inertia_cases(inertia_loads)
     prepared = prepare_body(body, frame, ins, outs)
-    if inertia_loads:
-        cases = None if inertia_loads is True else tuple(inertia_loads)
+    if cases is not None:
         prepared = (
-            with_inertia_loads(prepared) if cases is None else with_inertia_loads(prepared, cases)
+            with_inertia_loads(prepared) if cases == () else with_inertia_loads(prepared, cases)
         )
     if stiffening is not None:
         if stiffening == "mesh":
-            terms = stiffening_from_mesh(prepared, nodes=list(stiffening_nodes))
+            terms = stiffening_from_mesh(prepared, nodes=nodes)
         elif isinstance(stiffening, Mapping):
             terms = stiffening_from_matrices(prepared, dict(stiffening))
         else:
@@ -230,6 +303,60 @@ def prepare(
             )
         prepared = with_stiffening(prepared, terms)
     return prepared
+
+
+def _with_damping(body: ElasticBody, damping: DampingLike) -> ElasticBody:
+    """The body with the damping of :func:`prepare`'s ``damping`` argument."""
+    if isinstance(damping, Damping):
+        return body.with_damping(damping)
+    if isinstance(damping, Mapping):
+        values = dict(damping)
+        kind = plain(values.pop("kind", None))
+        if kind is None:
+            raise OptionError("damping", "a mapping needs 'kind' ('modal', 'rayleigh' or 'none')")
+        if not isinstance(kind, str) or kind not in DAMPING_KEYS:
+            raise OptionError("damping", f"kind must be 'none', 'rayleigh' or 'modal', got "
+                                         f"{described(kind)}")  # fmt: skip
+        for key in values:
+            if key not in DAMPING_KEYS[kind]:
+                takes = ", ".join(DAMPING_KEYS[kind]) or "nothing"
+                raise OptionError("damping", f"unknown key {key!r} for kind {kind!r} (it takes "
+                                             f"{takes})")  # fmt: skip
+        if kind == "modal" and "ratio" not in values:
+            raise OptionError("damping", "kind 'modal' needs 'ratio' (e.g. 0.02)")
+        try:
+            return body.with_damping(Damping(kind, **values))
+        except UserError as exc:
+            raise OptionError("damping", str(exc)) from None
+    if sp.issparse(damping) or isinstance(damping, np.ndarray):
+        n = body.n_dof
+        if damping.shape != (n, n):
+            raise OptionError("damping", f"a damping matrix must have the shape (n_dof, n_dof) = "
+                                         f"({n}, {n}), got {damping.shape}")  # fmt: skip
+        if damping.dtype.kind not in "iuf":
+            raise OptionError("damping", f"a damping matrix must hold real numbers, got "
+                                         f"{described(damping)}")  # fmt: skip
+        try:
+            return replace(body, damping_matrix=sp.csr_matrix(damping, dtype=float))
+        except UserError as exc:
+            raise OptionError("damping", str(exc)) from None
+    raise OptionError("damping", f"must be a Damping, a mapping like {{'kind': 'modal', 'ratio': "
+                                 f"0.02}} or a matrix, got {described(damping)}")  # fmt: skip
+
+
+def _inertia_cases(value: Any) -> tuple[str, ...] | None:
+    """``inertia_loads``: None (none), ``()`` (all twelve cases) or the named cases."""
+    single = plain(value)
+    if isinstance(single, bool):
+        return () if single else None
+    if isinstance(single, str):
+        raise OptionError("inertia_loads", f"give a list of load cases, e.g. ['{single}']")
+    if isinstance(value, np.ndarray) and value.ndim == 1:
+        value = value.tolist()
+    if not isinstance(value, list | tuple) or not all(isinstance(c, str) for c in value):
+        raise OptionError("inertia_loads", f"must be true, false or a list of load cases "
+                                           f"(ax ay az ...), got {described(value)}")  # fmt: skip
+    return tuple(value) if value else None
 
 
 @dataclass(frozen=True, eq=False)
@@ -256,6 +383,26 @@ class ErrorCurve:
     def max(self) -> float:
         """The largest error over the ports."""
         return float(np.max(self.relative))
+
+    def summary(self) -> list[tuple[str, str]]:
+        """The facts ``repr`` and a notebook show, as (label, text) rows: the band, the largest
+        error and where, over the inertia loads, the reference."""
+        f = self.frequencies_hz
+        worst = int(np.argmax(self.relative))
+        rows = [
+            ("band", f"{f.min():g} ... {f.max():g} Hz, {f.size} frequencies"),
+            ("max", f"{self.max:.3e} at {f[worst]:.4g} Hz"),
+        ]
+        if self.inertia is not None:
+            rows.append(("max inertia loads", f"{self.max_inertia:.3e}"))
+        rows.append(("reference", self.reference))
+        return rows
+
+    def __repr__(self) -> str:
+        return one_line("ErrorCurve", self.summary())
+
+    def _repr_html_(self) -> str:
+        return html_table("ErrorCurve", self.summary())
 
     @property
     def max_inertia(self) -> float | None:
@@ -290,6 +437,29 @@ class ReducedBody:
     @property
     def method(self) -> str:
         return self.options.method
+
+    def summary(self) -> list[tuple[str, str]]:
+        """The facts ``repr`` and a notebook show, as (label, text) rows: method and options,
+        order, eigenfrequencies, the body, frame, inputs and outputs, damping."""
+        given = self.options.given()
+        options = ", ".join(f"{key}={value}" for key, value in given.items())
+        rows = [("method", f"{self.method}" + (f" ({options})" if options else "")),
+                ("body", f"{self.prepared.body.name!r}")]  # fmt: skip
+        model = self.model.summary()
+        rows += [row for row in model if row[0] in ("order", "eigenfrequencies")]
+        if self.before_removal is not None:
+            removed = self.before_removal.projection.order - self.order
+            rows.append(("removed", f"{removed} directions above {self.options.max_frequency_hz:g}"
+                                    " Hz"))  # fmt: skip
+        rows += [row for row in self.prepared.summary() if row[0] == "frame"]
+        rows += [row for row in model if row[0].startswith(("inputs", "outputs", "damping"))]
+        return rows
+
+    def __repr__(self) -> str:
+        return one_line(f"ReducedBody {self.name!r}", self.summary())
+
+    def _repr_html_(self) -> str:
+        return html_table(f"ReducedBody {self.name!r}", self.summary())
 
     @property
     def projection(self) -> Projection:
@@ -333,13 +503,13 @@ class ReducedBody:
         workers : int, optional
             Processes for the full model's frequency sweep.
         """
+        reference = plain(reference)
         if reference not in ("full", "surrogate", "auto"):
             raise UserError(f"error: reference must be 'full', 'surrogate' or 'auto', got "
-                            f"{reference!r}")  # fmt: skip
-        try:
-            frequencies = frequency_grid(float(band_hz[0]), float(band_hz[1]), int(points))
-        except (TypeError, ValueError, IndexError) as exc:
-            raise UserError(f"error: band_hz must be (f_min, f_max) in Hz: {exc}") from None
+                            f"{described(reference)}")  # fmt: skip
+        f_min, f_max = _band("band_hz", band_hz)
+        frequencies = frequency_grid(f_min, f_max, whole("points", points))
+        workers = whole("workers", workers)
         system = self.prepared.reduction_system
         if system.input_matrix.shape[1] == 0 or system.output_matrix.shape[0] == 0:
             raise UserError("error: the prepared model has no inputs or no outputs to compare")
@@ -354,10 +524,22 @@ class ReducedBody:
             ref.kind,
         )
 
+    def save(self, path: PathLike) -> Path:
+        """Write the body to an HDF5 file that :func:`load` reads back (conventionally
+        ``.h5``): everything it holds -- the prepared model with its sparse matrices, the bases
+        and the reduced matrices, options and name -- so that the loaded body gives the same
+        error curves and exported files. Written atomically; the layout is in ``docs/api.md``
+        ("Saving and loading"), readable with h5py alone."""
+        saved = SavedBody(self.prepared, self.model, self.method, self.options.given(),
+                          self.name, self.before_removal)  # fmt: skip
+        return write_reduced_body(path, saved)
+
     def invariants(self, nodes: Sequence[int] | None = None) -> BodyInvariants:
         """The mass invariants (SID_NOTES section 4) with these frame nodes (default: the port
         nodes)."""
-        return body_invariants(self.model, self.prepared, self._nodes(nodes), self.name)
+        return body_invariants(
+            self.model, self.prepared, self._nodes(_frame_nodes(nodes)), self.name
+        )
 
     def to_sid(self, path: PathLike, nodes: Sequence[int] | None = None) -> Path:
         """Write the body as a SID file (Simpack, ``.SID_FEM``), checked before it is written."""
@@ -393,6 +575,13 @@ class ReducedBody:
 
     def to_matrices(self, folder: PathLike, formats: Sequence[str] = ("npz", "mtx")) -> list[Path]:
         """Write the reduced matrices (``reduced.npz``, ``M K D B C.mtx``, ``reduced.mat``)."""
+        given = formats
+        formats = [formats] if isinstance(plain(formats), str) else formats
+        if isinstance(formats, np.ndarray) and formats.ndim == 1:
+            formats = [plain(f) for f in formats]
+        if not isinstance(formats, list | tuple) or not all(isinstance(f, str) for f in formats):
+            raise OptionError("formats", f"must be a list of 'npz', 'mtx', 'mat', got "
+                                         f"{described(given)}")  # fmt: skip
         unknown = sorted(set(formats) - {"npz", "mtx", "mat"})
         if unknown:
             raise UserError(f"to_matrices: unknown formats {unknown} (npz, mtx, mat)")
@@ -436,12 +625,20 @@ class ReducedBody:
         TimeResponse
             Displacements of ``load_node`` (m) per load case.
         """
+        if isinstance(load_cases, LoadCase) or not all(
+            isinstance(case, LoadCase) for case in load_cases
+        ):
+            raise OptionError("load_cases", "must be a list of LoadCase")
+        clamp = whole("clamp_node", clamp_node, minimum=None)
+        load = whole("load_node", load_node, minimum=None)
+        duration, step = number("duration_s", duration_s), number("step_s", step_s)
+        if not 0 < step <= duration:
+            raise OptionError("step_s", f"must lie in (0, duration_s], got {step!r}")
         system = clamped_reduced_system(
             self.prepared.body, self.basis, np.asarray(self.system.mass),
-            np.asarray(self.system.stiffness), self.model.damping_matrix, int(clamp_node),
-            int(load_node),
+            np.asarray(self.system.stiffness), self.model.damping_matrix, clamp, load,
         )  # fmt: skip
-        return simulate(system, list(load_cases), duration_s, step_s, rho_inf)
+        return simulate(system, list(load_cases), duration, step, number("rho_inf", rho_inf))
 
     def _nodes(self, nodes: Sequence[int] | None) -> list[int]:
         if nodes is not None:
@@ -455,6 +652,23 @@ class ReducedBody:
         if not found:
             raise UserError(f"{self.name}: give the frame nodes of the exported body (nodes=[...])")
         return list(dict.fromkeys(found))
+
+
+def load(path: PathLike) -> ReducedBody:
+    """Read a reduced body written by :meth:`ReducedBody.save`.
+
+    Raises
+    ------
+    UserError
+        One line naming the file: missing, not such a file (an FE model: read it with
+        :func:`read`), of a newer format version, incomplete or damaged.
+    """
+    saved = read_reduced_body(path)
+    try:
+        options = method_options(saved.method, saved.options)
+    except UserError as exc:
+        raise UserError(f"{path}: /options: {exc}") from None
+    return ReducedBody(saved.prepared, saved.model, options, saved.name, saved.before_removal)
 
 
 def reduce(
@@ -498,9 +712,9 @@ def reduce(
         if settings.method in ("soaga", "gramian", "pod"):
             raise UserError(f"reduce: {settings.method} needs band_hz=(f_min, f_max) in Hz")
         band_hz = (0.0, 1.0)
+    band = _band("band_hz", band_hz)
     system = prepared.reduction_system
-    model = reduced_model(system, settings.reduce(system, (float(band_hz[0]),
-                                                           float(band_hz[1]))))  # fmt: skip
+    model = reduced_model(system, settings.reduce(system, band))
     before = None
     limit = settings.max_frequency_hz
     if limit is not None and model.eigenfrequencies_hz.max() > limit:

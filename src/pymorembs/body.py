@@ -27,7 +27,9 @@ from typing import Literal
 import numpy as np
 import scipy.sparse as sp
 
+from pymorembs.arguments import described, plain
 from pymorembs.arrays import first_duplicate, missing_from, sorted_unique
+from pymorembs.display import html_table, one_line, port_labels
 from pymorembs.elements.beam import BeamSection
 from pymorembs.errors import UserError
 from pymorembs.sparse_rows import abs_row_sums
@@ -112,6 +114,9 @@ class DofTable:
 
     def __len__(self) -> int:
         return int(self.nodes.size)
+
+    def __repr__(self) -> str:
+        return one_line("DofTable", [("dofs", f"{len(self)} ({self.describe()})")])
 
     @cached_property
     def _lookup(self) -> dict[tuple[int, int], int]:
@@ -242,6 +247,19 @@ class ConstraintEquations:
     def __len__(self) -> int:
         return int(self.dependent.size)
 
+    def __repr__(self) -> str:
+        rows = [("dependent dofs", str(len(self))), ("of dofs", str(self.matrix.shape[1])),
+                ("coefficients", str(self.matrix.nnz))]  # fmt: skip
+        return one_line("ConstraintEquations", rows)
+
+
+#: The values each damping kind takes (the keys of a job's ``[damping]`` table besides ``kind``).
+DAMPING_KEYS: dict[str, tuple[str, ...]] = {
+    "none": (),
+    "rayleigh": ("alpha", "beta"),
+    "modal": ("ratio",),
+}
+
 
 @dataclass(frozen=True)
 class Damping:
@@ -264,16 +282,38 @@ class Damping:
     ratio: float = 0.0
 
     def __post_init__(self) -> None:
-        if self.kind not in ("none", "rayleigh", "modal"):
+        object.__setattr__(self, "kind", plain(self.kind))
+        if not isinstance(self.kind, str) or self.kind not in DAMPING_KEYS:
             raise UserError(
-                f"damping kind {self.kind!r} is unknown; use 'none', 'rayleigh' or 'modal'"
+                f"damping kind {described(self.kind)} is unknown; use 'none', 'rayleigh' or 'modal'"
             )
         for name in ("alpha", "beta", "ratio"):
-            value = getattr(self, name)
+            value = plain(getattr(self, name))
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise UserError(f"damping {name} must be a number, got {described(value)}")
             if not np.isfinite(value) or value < 0:
                 raise UserError(f"damping {name} must be a finite number >= 0, got {value!r}")
+            object.__setattr__(self, name, float(value))
+        unused = [key for key in ("alpha", "beta", "ratio")
+                  if getattr(self, key) and key not in DAMPING_KEYS[self.kind]]  # fmt: skip
+        if unused:
+            takes = " and ".join(DAMPING_KEYS[self.kind]) or "no values"
+            raise UserError(
+                f"damping {unused[0]} does not belong to kind {self.kind!r}, which takes {takes}"
+            )
         if self.kind == "modal" and not 0 < self.ratio < 1:
             raise UserError(f"modal damping ratio must lie in (0, 1), got {self.ratio!r}")
+
+    def describe(self, matrix: bool = False) -> str:
+        """One phrase, e.g. ``"modal, ratio 0.02"`` or ``"rayleigh, alpha 2 1/s, beta 1e-05 s"``;
+        with ``matrix``, a body's explicit damping matrix is named too."""
+        if self.kind == "modal":
+            text = f"modal, ratio {self.ratio:g}"
+        elif self.kind == "rayleigh":
+            text = f"rayleigh, alpha {self.alpha:g} 1/s, beta {self.beta:g} s"
+        else:
+            return "damping matrix" if matrix else "none"
+        return f"{text} + damping matrix" if matrix else text
 
 
 @dataclass(frozen=True, eq=False)
@@ -317,6 +357,12 @@ class ModelPorts:
             object.__setattr__(self, labels_key, labels)
         if self.inputs is None and self.outputs is not None:
             raise UserError("model ports: an output matrix C needs an input matrix B")
+
+    def __repr__(self) -> str:
+        rows = [("inputs", port_labels(self.input_labels))]
+        if self.outputs is not None:
+            rows.append(("outputs", port_labels(self.output_labels)))
+        return one_line("ModelPorts", rows)
 
     def check(self, n_dof: int) -> None:
         """Raise :class:`UserError` unless the matrices fit a body of ``n_dof`` equations."""
@@ -367,6 +413,13 @@ class ElementMesh:
     poisson: float | np.ndarray
     section: BeamSection | None = None
     up: tuple[float, float, float] | None = None
+
+    def __repr__(self) -> str:
+        materials = "one material" if np.ndim(self.young) == 0 else "a material per element"
+        rows = [("elements", f"{self.connectivity.shape[0]} x {self.element}"),
+                ("nodes", str(sorted_unique(self.connectivity).size)),
+                ("material", materials)]  # fmt: skip
+        return one_line("ElementMesh", rows)
 
     def __post_init__(self) -> None:
         if self.element not in ELEMENT_NODES:
@@ -546,6 +599,35 @@ class ElasticBody:
         object.__setattr__(self, "notes", tuple(str(note) for note in self.notes))
 
     # ----------------------------------------------------------------- facts
+    def summary(self) -> list[tuple[str, str]]:
+        """The facts ``repr`` and a notebook show, as (label, text) rows: nodes, dofs,
+        dependent and fixed dofs, damping, elements, surface, ports and notes of the file."""
+        nodes = f"{self.n_nodes}" + ("" if self.has_coordinates else " (no coordinates)")
+        damping = self.damping.describe(matrix=self.damping_matrix is not None)
+        rows = [
+            ("nodes", nodes),
+            ("dofs", f"{self.n_dof} ({self.dofs.describe()})"),
+            ("dependent", str(len(self.constraints))),
+            ("fixed", str(self.fixed.size)),
+            ("damping", damping),
+        ]
+        if self.mesh is not None:
+            rows.append(("elements", f"{self.mesh.connectivity.shape[0]} x {self.mesh.element}"))
+        if self.surface is not None:
+            rows.append(("surface", f"{self.surface.triangles.shape[0]} triangles, "
+                                    f"{self.surface.lines.shape[0]} lines"))  # fmt: skip
+        if self.ports is not None:
+            rows.append(("ports of the file", port_labels(self.ports.input_labels) + " inputs"))
+        if self.notes:
+            rows.append(("notes", str(len(self.notes))))
+        return rows
+
+    def __repr__(self) -> str:
+        return one_line(f"ElasticBody {self.name!r}", self.summary())
+
+    def _repr_html_(self) -> str:
+        return html_table(f"ElasticBody {self.name!r}", self.summary())
+
     @property
     def n_dof(self) -> int:
         """Number of equations of the FE model."""

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
-import math
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -32,7 +31,16 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from pymorembs.errors import UserError
+from pymorembs.arguments import (
+    OptionError,
+    described,
+    flag,
+    frequencies,
+    number,
+    plain,
+    whole,
+    whole_list,
+)
 from pymorembs.prepare.inertia_loads import is_inertia_label
 from pymorembs.reduction.gramian import gramian_reduction, pod_reduction
 from pymorembs.reduction.krylov import krylov_reduction
@@ -73,64 +81,36 @@ RENAMED_OPTIONS: dict[str, str] = {"tol": "deflation_tolerance"}
 DIRECT_GRAMIAN_LIMIT = 2000
 
 
-class OptionError(UserError):
-    """A bad reduction option; ``key`` names it (None: a missing combination of options)."""
-
-    def __init__(self, key: str | None, problem: str) -> None:
-        super().__init__(problem if key is None else f"{key}: {problem}")
-        self.key = key
-        self.problem = problem
-
-
-def _number(key: str, value: Any, minimum: float | None = None) -> float | None:
-    if value is None:
-        return None
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise OptionError(key, f"must be a number, got {value!r}")
-    if not math.isfinite(value):
-        raise OptionError(key, f"must be finite, got {value!r}")
-    if minimum is not None and value < minimum:
-        raise OptionError(key, f"must be >= {minimum}, got {value!r}")
-    return float(value)
-
-
-def _whole(key: str, value: Any, minimum: int = 1) -> int | None:
-    if value is None:
-        return None
-    if isinstance(value, bool) or not isinstance(value, int | np.integer):
-        raise OptionError(key, f"must be a whole number, got {value!r}")
-    if value < minimum:
-        raise OptionError(key, f"must be >= {minimum}, got {value!r}")
-    return int(value)
-
-
-def _frequencies(key: str, value: Any) -> tuple[float, ...]:
-    """A list of frequencies >= 0 in Hz (a single number is a list of one)."""
-    if isinstance(value, int | float) and not isinstance(value, bool):
-        value = [value]
-    if isinstance(value, np.ndarray):
-        value = value.tolist()
-    if (
-        not isinstance(value, list | tuple)
-        or not value
-        or not all(
-            isinstance(p, int | float) and not isinstance(p, bool) and 0 <= p < math.inf
-            for p in value
-        )
-    ):
-        raise OptionError(key, f"must be a list of finite frequencies >= 0 in Hz, got {value!r}")
-    return tuple(float(p) for p in value)
-
-
 def _choice(key: str, value: Any, choices: tuple[str, ...], what: str = "") -> str:
+    value = plain(value)
     if not isinstance(value, str) or value not in choices:
         quoted = ", ".join(f"'{c}'" for c in choices[:-1]) + f" or '{choices[-1]}'"
-        raise OptionError(key, f"must be {quoted}{what}, got {value!r}")
+        raise OptionError(key, f"must be {quoted}{what}, got {described(value)}")
     return value
 
 
+def _given(value: Any) -> bool:
+    """Whether a list option with the default ``()`` was given (an array, list or non-empty
+    tuple; an array is never compared elementwise with the default)."""
+    return not (isinstance(value, tuple) and value == ())
+
+
+def _moments(value: Any, points: tuple[float, ...] | None) -> int | tuple[int, ...] | None:
+    """Moments per expansion point: one whole number for all points, or one per point."""
+    single = plain(value)
+    if single is None:
+        return None
+    what = "a whole number >= 1 or one per expansion point"
+    if isinstance(single, int) and not isinstance(single, bool):
+        return whole("moments", single, minimum=1)
+    values = whole_list("moments", value, what, minimum=1)
+    if points is not None and len(values) != len(points):
+        raise OptionError("moments", f"{len(values)} values for {len(points)} expansion points")
+    return values
+
+
 def _relative(key: str, value: Any, meaning: str) -> float | None:
-    value = _number(key, value)
+    value = number(key, value)
     if value is not None and not 0 < value < 1:
         raise OptionError(key, f"must lie in (0, 1) ({meaning}), got {value}")
     return value
@@ -138,7 +118,7 @@ def _relative(key: str, value: Any, meaning: str) -> float | None:
 
 def _deflation(value: Any) -> float:
     key = "deflation_tolerance"
-    tolerance = _number(key, value, minimum=1e-15)
+    tolerance = number(key, value, minimum=1e-15)
     if tolerance > 1e-3:
         raise OptionError(key, f"must be at most 1e-3 (a deflation tolerance), got {tolerance!r}")
     return tolerance
@@ -159,7 +139,7 @@ class ReductionOptions:
     max_frequency_hz: float | None = None
 
     def __post_init__(self) -> None:
-        limit = _number("max_frequency_hz", self.max_frequency_hz)
+        limit = number("max_frequency_hz", self.max_frequency_hz)
         if limit is not None and not limit > 0:
             raise OptionError("max_frequency_hz", f"must be a frequency > 0 (Hz), got {limit!r}")
         self._set("max_frequency_hz", limit)
@@ -216,14 +196,15 @@ class ModalOptions(ReductionOptions):
         super().__post_init__()
         if self.order is None:
             raise OptionError(None, "modal reduction needs 'order'")
-        order = _whole("order", self.order)
+        order = whole("order", self.order)
         self._set("order", order)
-        self._set("shift_hz", _number("shift_hz", self.shift_hz, minimum=0.0))
-        _choice("select", self.select, ("lowest", "best"), " (eq. 26)")
-        candidates = _whole("candidates", self.candidates)
+        self._set("shift_hz", number("shift_hz", self.shift_hz, minimum=0.0))
+        self._set("select", _choice("select", self.select, ("lowest", "best"), " (eq. 26)"))
+        candidates = whole("candidates", self.candidates)
         if candidates is not None and candidates <= order:
             raise OptionError("candidates", f"must exceed the order {order}, got {candidates}")
-        self._set("frm_hz", _frequencies("frm_hz", self.frm_hz) if self.frm_hz != () else ())
+        self._set("candidates", candidates)
+        self._set("frm_hz", frequencies("frm_hz", self.frm_hz) if _given(self.frm_hz) else ())
 
     def reduce(self, system: SecondOrderSystem, band_hz: tuple[float, float]) -> Projection:
         if self.frm_hz:
@@ -257,8 +238,8 @@ class CraigBamptonOptions(ReductionOptions):
         super().__post_init__()
         if self.fixed_modes is None:
             raise OptionError(None, "craig-bampton needs 'fixed_modes'")
-        self._set("fixed_modes", _whole("fixed_modes", self.fixed_modes, minimum=0))
-        self._set("shift_hz", _number("shift_hz", self.shift_hz, minimum=0.0))
+        self._set("fixed_modes", whole("fixed_modes", self.fixed_modes, minimum=0))
+        self._set("shift_hz", number("shift_hz", self.shift_hz, minimum=0.0))
 
     def reduce(self, system: SecondOrderSystem, band_hz: tuple[float, float]) -> Projection:
         inertia = np.array([is_inertia_label(label) for label in system.input_labels], dtype=bool)
@@ -300,26 +281,15 @@ class KrylovOptions(ReductionOptions):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        if self.expansion_points_hz == ():
+        if not _given(self.expansion_points_hz):
             raise OptionError(None, "missing key 'expansion_points_hz'")
-        points = _frequencies("expansion_points_hz", self.expansion_points_hz)
+        points = frequencies("expansion_points_hz", self.expansion_points_hz)
         self._set("expansion_points_hz", points)
-        self._set("order", _whole("order", self.order))
-        moments = self.moments
-        if moments is None and self.order is None:
+        self._set("order", whole("order", self.order))
+        self._set("moments", _moments(self.moments, points))
+        if self.moments is None and self.order is None:
             raise OptionError(None, "krylov needs 'moments' or 'order'")
-        if moments is not None:
-            values = list(moments) if isinstance(moments, list | tuple) else [moments]
-            if not all(isinstance(m, int) and not isinstance(m, bool) and m >= 1 for m in values):
-                raise OptionError("moments", f"must be whole numbers >= 1, got {moments!r}")
-            if isinstance(moments, list | tuple):
-                if len(values) != len(points):
-                    raise OptionError(
-                        "moments", f"{len(values)} values for {len(points)} expansion points"
-                    )
-                self._set("moments", tuple(values))
-        if not isinstance(self.two_sided, bool):
-            raise OptionError("two_sided", f"must be true or false, got {self.two_sided!r}")
+        self._set("two_sided", flag("two_sided", self.two_sided))
         self._set("deflation_tolerance", _deflation(self.deflation_tolerance))
 
     def reduce(self, system: SecondOrderSystem, band_hz: tuple[float, float]) -> Projection:
@@ -356,10 +326,10 @@ class SoagaOptions(ReductionOptions):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        self._set("order", _whole("order", self.order))
+        self._set("order", whole("order", self.order))
         if self.candidates_hz is not None:
-            self._set("candidates_hz", _frequencies("candidates_hz", self.candidates_hz))
-        self._set("n_candidates", _whole("n_candidates", self.n_candidates))
+            self._set("candidates_hz", frequencies("candidates_hz", self.candidates_hz))
+        self._set("n_candidates", whole("n_candidates", self.n_candidates))
         tolerance = _relative("tolerance", self.tolerance, "relative error")
         self._set("tolerance", tolerance)
         if self.order is None and tolerance is None:
@@ -429,15 +399,16 @@ class GramianOptions(ReductionOptions):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        self._set("order", _whole("order", self.order))
+        self._set("order", whole("order", self.order))
         self._set("tolerance", _indicator(self))
         if self.first_stage is not None:
-            _choice("first_stage", self.first_stage, ("soaga", "krylov", "rational-krylov", "none"))
-        self._set("first_order", _whole("first_order", self.first_order))
-        self._set("first_tolerance", _number("first_tolerance", self.first_tolerance, 0.0))
+            stages = ("soaga", "krylov", "rational-krylov", "none")
+            self._set("first_stage", _choice("first_stage", self.first_stage, stages))
+        self._set("first_order", whole("first_order", self.first_order))
+        self._set("first_tolerance", number("first_tolerance", self.first_tolerance, 0.0))
         self._set(
             "convergence_tolerance",
-            _number("convergence_tolerance", self.convergence_tolerance, 0.0),
+            number("convergence_tolerance", self.convergence_tolerance, 0.0),
         )
         rational = self.first_stage == "rational-krylov"
         if rational and self.first_tolerance is not None:
@@ -448,16 +419,13 @@ class GramianOptions(ReductionOptions):
             )
         if not rational and self.convergence_tolerance is not None:
             raise OptionError("convergence_tolerance", "belongs to first_stage = 'rational-krylov'")
-        if self.first_stage == "krylov":
-            if self.expansion_points_hz is None:
-                raise OptionError(None, "missing key 'expansion_points_hz'")
-            points = _frequencies("expansion_points_hz", self.expansion_points_hz)
+        if self.first_stage == "krylov" and self.expansion_points_hz is None:
+            raise OptionError(None, "missing key 'expansion_points_hz'")
+        points = None
+        if self.expansion_points_hz is not None:
+            points = frequencies("expansion_points_hz", self.expansion_points_hz)
             self._set("expansion_points_hz", points)
-        elif self.expansion_points_hz is not None:
-            points = _frequencies("expansion_points_hz", self.expansion_points_hz)
-            self._set("expansion_points_hz", points)
-        if isinstance(self.moments, list):
-            self._set("moments", tuple(self.moments))
+        self._set("moments", _moments(self.moments, points))
 
     def reduce(self, system: SecondOrderSystem, band_hz: tuple[float, float]) -> Projection:
         if self.first_stage == "rational-krylov":
@@ -512,9 +480,9 @@ class PodOptions(ReductionOptions):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        self._set("order", _whole("order", self.order))
+        self._set("order", whole("order", self.order))
         self._set("tolerance", _indicator(self))
-        self._set("snapshots", _whole("snapshots", self.snapshots, minimum=4))
+        self._set("snapshots", whole("snapshots", self.snapshots, minimum=4))
 
     def reduce(self, system: SecondOrderSystem, band_hz: tuple[float, float]) -> Projection:
         return pod_reduction(system, band_hz, order=self.order, tolerance=self.tolerance,

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pymorembs.arrays import missing_from, sorted_unique
+from pymorembs.display import one_line
 from pymorembs.errors import UserError
 
 __all__ = ["SURFACE_ELEMENTS", "Surface", "outer_surface", "smooth_patch"]
@@ -110,6 +111,10 @@ class Surface:
             value = np.asarray(getattr(self, name), dtype=np.int64).reshape(-1, width)
             value.setflags(write=False)
             object.__setattr__(self, name, value)
+
+    def __repr__(self) -> str:
+        rows = [("triangles", str(self.triangles.shape[0])), ("lines", str(self.lines.shape[0]))]
+        return one_line(f"Surface {self.source!r}", rows)
 
     @property
     def node_ids(self) -> np.ndarray:

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
+from pymorembs.display import one_line, port_rows
 from pymorembs.errors import NumericalError
 from pymorembs.linalg.products import extended_product
 
@@ -76,6 +77,28 @@ class SecondOrderSystem:
             object.__setattr__(self, "input_labels", tuple(f"u{i}" for i in range(b.shape[1])))
         if not self.output_labels:
             object.__setattr__(self, "output_labels", tuple(f"y{i}" for i in range(c.shape[0])))
+
+    def summary(self) -> list[tuple[str, str]]:
+        """The facts ``repr`` shows, as (label, text) rows: order, inputs, outputs, damping."""
+        form = f"sparse, {self.stiffness.nnz} entries in K" if self.is_sparse else "dense"
+        damping = []
+        if self.damping is not None:
+            damping.append("viscous D")
+        if self.loss_factor:
+            damping.append(f"loss factor {self.loss_factor:g}")
+        if self.modal_damping_ratio:
+            damping.append(f"modal ratio {self.modal_damping_ratio:g}")
+        rows = [
+            ("order", f"{self.order} ({form})"),
+            *port_rows(self.input_labels, self.output_labels),
+            ("damping", ", ".join(damping) or "none"),
+        ]
+        if self.rigid_modes is not None:
+            rows.append(("rigid-body modes", str(self.rigid_modes.shape[1])))
+        return rows
+
+    def __repr__(self) -> str:
+        return one_line("SecondOrderSystem", self.summary())
 
     @property
     def order(self) -> int:

@@ -253,8 +253,8 @@ def test_option_errors(fmt: str | None, options: dict, words: str) -> None:
 
 def test_detected_format_rejects_foreign_options(tmp_path: Path) -> None:
     k = write(tmp_path / "k.mtx", ABAQUS_K)
-    with pytest.raises(UserError, match="option nodes does not apply to format abaqus"):
-        read_body(stiffness=k, mass=k, nodes=tmp_path / "nodes.csv")
+    with pytest.raises(UserError, match="option mapping does not apply to format abaqus"):
+        read_body(stiffness=k, mass=k, mapping=tmp_path / "map.txt")
 
 
 # ============================================================================ assembly

@@ -321,6 +321,33 @@ def hexbeam_cdb() -> bytes:
     ).read_bytes()
 
 
+#: The genuine CalculiX export of a *BOUNDARY-constrained block (tests/data).
+CALCULIX = Path(__file__).parents[1] / "data" / "calculix_c3d20_block"
+
+
+def _calculix_file(suffix: str) -> Callable[[], bytes]:
+    return lambda: (CALCULIX / f"fixed.{suffix}").read_bytes()
+
+
+CALCULIX_COMPANIONS = tuple((f"job.{s}", _calculix_file(s)) for s in ("sti", "mas", "dof", "inp"))
+
+
+def _read_calculix(d: Path) -> ElasticBody:
+    return read_body(file=d / "job.sti")
+
+
+@functools.cache
+def gzipped_mm_k() -> bytes:
+    """The Matrix Market stiffness of the plain-file targets, gzip-compressed."""
+    import gzip
+
+    return gzip.compress(MM_K.encode(), mtime=0)
+
+
+def _read_compressed_mm(d: Path) -> ElasticBody:
+    return read_body(stiffness=d / "K.mtx.gz", mass=d / "M.mtx", dofs=d / "dofs.csv")
+
+
 def _matlab_model() -> dict[str, object]:
     k = sp.csc_matrix(np.array([[2.0e3, -1.0e3, 0.0], [-1.0e3, 2.0e3, -1.0e3], [0, -1.0e3, 1.0e3]]))
     return {"K": k, "M": np.diag([1.0, 2.0, 0.5]), "E": 1e-3 * k, "B": np.eye(3)[:, :1]}
@@ -688,6 +715,23 @@ TARGETS: dict[str, Target] = {
         Target("detect-binary", "model.dat", binary_op4, _read_any, OP4_COMPANIONS, binary=True),
         Target("detect-op4-ascii", "model.dat", ascii_op4, _read_any, OP4_COMPANIONS),
         Target("detect-full", "model.dat", ansys_full, _read_any, (), binary=True),
+        Target(
+            "calculix-sti", "job.sti", _calculix_file("sti"), _read_calculix, CALCULIX_COMPANIONS
+        ),
+        Target(
+            "calculix-dof", "job.dof", _calculix_file("dof"), _read_calculix, CALCULIX_COMPANIONS
+        ),
+        Target(
+            "calculix-inp", "job.inp", _calculix_file("inp"), _read_calculix, CALCULIX_COMPANIONS
+        ),
+        Target(
+            "compressed-mm",
+            "K.mtx.gz",
+            gzipped_mm_k,
+            _read_compressed_mm,
+            (("M.mtx", MM_M), ("dofs.csv", DOFS_CSV)),
+            binary=True,
+        ),
     ]
 }
 
@@ -904,6 +948,9 @@ SLOW_TARGETS = {
     "detect-full",
     "op4-names",
     "op4-extbulk",
+    "calculix-sti",
+    "calculix-dof",
+    "calculix-inp",
 }
 
 

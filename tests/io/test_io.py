@@ -509,7 +509,7 @@ def test_failed_h5_write_keeps_old_file(tmp_path: Path, monkeypatch: pytest.Monk
     def broken(*args: object, **kwargs: object) -> None:
         raise OSError("disk full")
 
-    monkeypatch.setattr(native, "_put_csr", broken)
+    monkeypatch.setattr(native, "put_csr", broken)
     with pytest.raises(OSError, match="disk full"):
         write_body_h5(make_body(name="new"), path)
     assert read_body_h5(path).name == "old"

@@ -632,7 +632,8 @@ def test_full_wrong_files(tmp_path):
         read_ansys_full(tmp_path)
     notes = tmp_path / "nodes.txt"
     notes.write_text("no nodes here\n")
-    with pytest.raises(UserError, match=r"neither a nodes\.csv .* nor an Ansys archive") as excinfo:
+    unknown = r"no node coordinates: neither a nodes\.csv .* Ansys archive"
+    with pytest.raises(UserError, match=unknown) as excinfo:
         read_ansys_full(FULL, nodes=notes)
     _one_line_error(excinfo, notes)
 

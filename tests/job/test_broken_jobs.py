@@ -77,6 +77,11 @@ CASES = [
     ("time_domain_with_modal_damping", 2, r"\[time_domain\]: modal damping is a loss factor"),
     ("dangling_constraint", 2, r"\[model\]: .*lattice-dangling/constraints\.csv:2: node 999 has "
      r"no dofs in the model"),
+    ("input_on_massless_mechanism", 2, r"\[\[inputs\]\]: input 150:ux loads a direction without "
+     r"mass and stiffness \(node 150 ux\)"),
+    ("coupled_massless_mechanism", 3, r"\[model\]: the stiffness matrix is not positive "
+     r"semidefinite: a massless direction without stiffness of its own \(nodes 150, 160 ux\) is "
+     r"coupled to node 50 ux"),
 ]  # fmt: skip
 
 
@@ -107,6 +112,10 @@ def _models(folder: Path) -> None:
     )
 
     write_matrix_files(space_truss(), folder / "truss")
+
+    for name, coupled in (("lattice-massless", False), ("lattice-massless-coupled", True)):
+        (folder / name).mkdir()
+        write_body_h5(_with_massless_pair(lattice, coupled), folder / name / "model.h5")
 
     dangling = folder / "lattice-dangling"
     write_matrix_files(lattice, dangling)
@@ -145,6 +154,35 @@ def _with_extra_nodes(body: ElasticBody, joined: bool) -> ElasticBody:
         mass=m,
         stiffness=k,
         constraints=replace(constraints, matrix=sp.csr_matrix(g)),
+    )
+
+
+def _with_massless_pair(body: ElasticBody, coupled: bool) -> ElasticBody:
+    """The body plus nodes 150 and 160 (ux only, no mass): nothing touches them, or
+    (``coupled``) a spring joins them to each other and a stiffness term joins node 150 to node
+    50 ux without a diagonal entry to balance it (its 2x2 minors stay positive)."""
+    n = body.n_dof
+    extra = np.zeros((2, 2))
+    k = sp.block_diag([body.stiffness, sp.csr_matrix(extra)], format="lil")
+    if coupled:
+        k[n:, n:] = 1e5 * np.array([[1.0, -1.0], [-1.0, 1.0]])
+        i = body.dofs.index(50, "ux")
+        k[n, i] = k[i, n] = 0.1 * np.sqrt(1e5 * k[i, i])
+    constraints = body.constraints
+    return replace(
+        body,
+        node_ids=np.concatenate([body.node_ids, [150, 160]]),
+        coordinates=np.vstack([body.coordinates, [[20.0, 0.0, 0.0], [21.0, 0.0, 0.0]]]),
+        dofs=DofTable(
+            np.concatenate([body.dofs.nodes, [150, 160]]),
+            np.concatenate([body.dofs.directions, [0, 0]]),
+        ),
+        mass=sp.block_diag([body.mass, sp.csr_matrix((2, 2))], format="csr"),
+        stiffness=sp.csr_matrix(k),
+        constraints=replace(
+            constraints,
+            matrix=sp.hstack([constraints.matrix, sp.csr_matrix((len(constraints), 2))]),
+        ),
     )
 
 

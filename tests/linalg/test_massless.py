@@ -6,11 +6,17 @@ with an offset, whose nodal 6x6 block has rank 3 (its null space mixes the node'
 references condense the massless directions with plain numpy (coordinate-aligned for zero rows, a
 global eigen-decomposition of ``M`` otherwise), independently of
 :mod:`pymorembs.linalg.mass_split`.
+
+Massless mechanisms (issue #27, item 3), directions with neither mass nor stiffness: a genuine
+Femap punch of a pinned bar (``tests/data/qinterfly_pchconverter_femap``) and spring-mass chains
+with a loose dof, a loose pair, a tied pair, a massless link and a coupled pair, against dense
+computations and theory written here; 20,000 massless dofs against their known null space.
 """
 
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -21,13 +27,13 @@ import scipy.sparse.linalg as spla
 
 from pymorembs.analysis.spectrum import model_spectrum
 from pymorembs.analysis.time_domain import LoadCase, simulate
-from pymorembs.body import Damping, DofTable, ElasticBody
+from pymorembs.body import ConstraintEquations, Damping, DofTable, ElasticBody
 from pymorembs.elements.beam import BeamSection, assemble_beams
-from pymorembs.errors import NumericalError
+from pymorembs.errors import NumericalError, UserError
 from pymorembs.io.matrix_market import write_matrix_files
 from pymorembs.job.cli import main
 from pymorembs.linalg.mass_split import condensed_dense_eigh, mass_split
-from pymorembs.prepare import Frame, Port, prepare
+from pymorembs.prepare import Frame, Port, eliminate, prepare, validate_prepared
 from pymorembs.reduction.gramian import gramian_reduction
 from pymorembs.reduction.krylov import krylov_reduction
 from pymorembs.reduction.modal import eigenmodes
@@ -378,3 +384,349 @@ def test_every_method_reduces_a_model_with_massless_dofs(massless_rack, frame, e
         ]
     )
     assert _relative(full, approx).max() < 1e-6
+
+
+# ------------------------------------------------- massless mechanisms (issue #27, item 3)
+FEMAP = Path(__file__).parents[1] / "data" / "qinterfly_pchconverter_femap"
+#: The pinned-pinned bar of the Femap deck (beam.dat): E, rho, A, I, length.
+BAR = {"E": 2e11, "rho": 7850.0, "A": 3.1416e-6, "I": 7.854e-13, "L": np.sqrt(0.875)}
+
+
+def projected_reference_hz(body: ElasticBody) -> np.ndarray:
+    """All finite frequencies (Hz) of a body whose massless rows hold one direction without
+    mass and stiffness, dense and written here.
+
+    The massive dofs after static condensation of the massless ones, with that direction
+    projected out of the massless space by hand: the complement of the null singular vector of
+    ``K_00``.
+    """
+    k, m = body.stiffness.toarray(), body.mass.toarray()
+    massless = np.flatnonzero(np.abs(m).sum(axis=1) == 0.0)
+    massive = np.setdiff1d(np.arange(k.shape[0]), massless)
+    k00 = k[np.ix_(massless, massless)]
+    u, s, _ = np.linalg.svd(k00)
+    assert s[-1] < 1e-9 * s[0] < s[-2]  # exactly one null direction
+    z = u[:, :-1]  # the massless space without it
+    k_zm = z.T @ k[np.ix_(massless, massive)]
+    condensed = k[np.ix_(massive, massive)] - k_zm.T @ np.linalg.solve(z.T @ k00 @ z, k_zm)
+    values = sla.eigh(condensed, m[np.ix_(massive, massive)], eigvals_only=True)
+    return np.sign(values) * np.sqrt(np.abs(values)) / (2 * np.pi)
+
+
+def femap_reference_hz() -> np.ndarray:
+    """All finite frequencies (Hz) of the genuine Femap punch (:func:`projected_reference_hz`:
+    its null direction lies in the 33 rotations)."""
+    from pymorembs.io import read_body
+
+    return projected_reference_hz(
+        read_body(None, file=FEMAP / "beam.pch", nodes=FEMAP / "beam.dat")
+    )
+
+
+def test_the_genuine_femap_beam_with_a_massless_mechanism_gives_its_frequencies(capsys):
+    """Exit 3 before (``the model has a massless mechanism``); now the torsion of the pinned bar
+    is removed with a note and the frequencies are those of a dense computation."""
+    files = [str(FEMAP / "beam.pch"), "--nodes", str(FEMAP / "beam.dat")]
+    code = main(["info", *files, "--modes", "8", "--json"])
+    facts = json.loads(capsys.readouterr().out)
+    assert code == 0
+    reference = femap_reference_hz()
+    assert reference.size == 27  # the 27 translations carry mass
+    # fixing one rotation and projecting out the null singular vector differ by what the
+    # file's 10 digits leave of the null eigenvalue (-1.9e-10 scaled): 6e-9 here, against a
+    # rounding bound of the frequencies themselves of 1e-3
+    assert np.allclose(facts["eigenfrequencies_hz"], reference[:8], rtol=1e-7)
+    # Euler-Bernoulli, pinned-pinned: f_n = n^2 pi / (2 L^2) sqrt(EI / rho A), two planes
+    f1 = np.pi / (2 * BAR["L"] ** 2) * np.sqrt(BAR["E"] * BAR["I"] / (BAR["rho"] * BAR["A"]))
+    theory = f1 * np.repeat([1.0, 4.0, 9.0], 2)
+    assert np.allclose(facts["eigenfrequencies_hz"][:6], theory, rtol=1e-3)
+    assert facts["rigid_body_modes"] == 0 and facts["mechanisms"] == 0
+    assert facts["n_fixed"] == 1 and facts["n_massless"] == 32
+    (note,) = [n for n in facts["notes"] if "massless mechanism" in n]
+    assert re.fullmatch(
+        r"a massless mechanism of 33 dofs \(nodes 1, 2, 3, 4, 5, 6, \.\.\. \(11 nodes\) rx ry rz\)"
+        r" with no mass and no stiffness, decoupled from every massive dof \(residual "
+        r"\d\.\de-1\d\): removed by fixing node \d+ rz \(like Nastran's AUTOSPC\)",
+        note,
+    )
+
+
+def test_the_femap_beam_prepares_and_passes_the_deep_checks_of_a_job(tmp_path):
+    """What ``pymorembs reduce`` does before any reduction: the job's preparation with the
+    factorization of K + sigma M, which the massless mechanism made singular."""
+    from pymorembs.job.run import prepare_and_validate
+    from pymorembs.job.schema import load_job
+
+    for name in ("beam.pch", "beam.dat"):
+        (tmp_path / name).write_bytes((FEMAP / name).read_bytes())
+    job = tmp_path / "job.toml"
+    job.write_text(FEMAP_JOB)
+    _, prepared, report = prepare_and_validate(load_job(job))
+    assert "no mechanism (lowest eigenvalues)" in report.checks
+    assert any("removed by fixing node" in note for note in prepared.notes)
+    values, _ = eigenmodes(prepared.system, 4)
+    assert np.allclose(hz(values), femap_reference_hz()[:4], rtol=1e-7)  # as above
+
+
+FEMAP_JOB = """
+[model]
+file = "beam.pch"
+nodes = "beam.dat"
+[frame]
+type = "none"
+[[inputs]]
+node = 6
+directions = "ux uy uz"
+[band]
+f_max_hz = 60
+points = 200
+[[reduction]]
+name = "krylov"
+method = "krylov"
+expansion_points_hz = [0, 30]
+order = 24
+"""
+
+
+@pytest.mark.slow
+def test_pymorembs_reduce_on_the_femap_beam(tmp_path, capsys):
+    for name in ("beam.pch", "beam.dat"):
+        (tmp_path / name).write_bytes((FEMAP / name).read_bytes())
+    (tmp_path / "job.toml").write_text(FEMAP_JOB)
+    code = main(["reduce", str(tmp_path / "job.toml"), "--out", str(tmp_path / "out")])
+    assert code == 0
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert any("removed by fixing node" in note for note in summary["notes"])
+    assert summary["reductions"][0]["max_rel_error"] < 1e-6
+
+
+def test_a_free_straight_beam_without_rotary_inertia_has_five_rigid_body_modes(capsys, tmp_path):
+    """Turning about its own axis moves only massless rotations: no rigid-body mode but a
+    massless mechanism (before: exit 3). The Buckens frame, which needs six, says why."""
+    body = beam_body(10, clamped=False)
+    write_matrix_files(body, tmp_path)
+    code = main(["info", str(tmp_path), "--modes", "6", "--json"])
+    facts = json.loads(capsys.readouterr().out)
+    assert code == 0
+    assert facts["rigid_body_modes"] == 5 and facts["mechanisms"] == 0
+    assert [n for n in facts["notes"] if re.fullmatch(
+        r"a massless mechanism of 11 dofs \(nodes 1, 2, 3, 4, 5, 6, \.\.\. \(11 nodes\) rx\) "
+        r"with no mass and no stiffness, decoupled from every massive dof \(residual .*\): "
+        r"removed by fixing node \d+ rx \(like Nastran's AUTOSPC\)", n)]  # fmt: skip
+    reference = projected_reference_hz(body)
+    assert np.all(np.abs(reference[:5]) < 1e-4 * reference[5])
+    assert np.allclose(facts["eigenfrequencies_hz"][5:], reference[5:11], rtol=1e-8)
+    ports = [Port.parse(3, "uz")]
+    why = (
+        r"; removed as massless mechanisms before: nodes 1, 2, 3, 4, 5, 6, \.\.\. \(11 nodes\) rx$"
+    )
+    with pytest.raises(UserError, match=r"six rigid-body modes; this one has 5 .*" + why):
+        prepare(body, Frame("buckens"), ports, ports)
+
+
+def chain_body(extra: str = "", n: int = 12) -> ElasticBody:
+    """A spring-mass chain along x (nodes 1..n, ux), held by a spring to ground at node 1.
+
+    ``extra``: ``"loose"`` -- node 100 with no mass and no stiffness; ``"pair"`` -- nodes 100
+    and 101 without mass, joined by a spring to each other only (a massless mechanism of two
+    dofs: both move together); ``"coupled"`` -- that pair with a stiffness term between node
+    100 and node 5 (no stiffness of its own to balance it: K is indefinite there);
+    ``"constrained"`` -- nodes 100 and 101 without mass and stiffness, 101 tied to 100 by the
+    constraint equation ``q_101 = 2 q_100``; ``"attached"`` -- the pair as a massless link
+    between nodes 5 and 9 (springs of 300 N/m from node 5 to 100 and 200 N/m from 101 to 9):
+    condensed, not a mechanism.
+    """
+    masses = 1.0 + 0.1 * np.arange(n)
+    springs = 1.0e3 * (1.0 + 0.05 * np.arange(n))  # ground-1, 1-2, ..., (n-1)-n
+    k = np.diag(springs + np.append(springs[1:], 0.0))
+    k -= np.diag(springs[1:], 1) + np.diag(springs[1:], -1)
+    m = np.diag(masses)
+    extra_ids = {"": [], "loose": [100], "pair": [100, 101], "coupled": [100, 101]}
+    extra_ids["attached"] = extra_ids["constrained"] = [100, 101]
+    ids = np.concatenate([np.arange(1, n + 1), extra_ids[extra]]).astype(int)
+    size = ids.size
+    k_all, m_all = np.zeros((size, size)), np.zeros((size, size))
+    k_all[:n, :n], m_all[:n, :n] = k, m
+    if extra in ("pair", "coupled", "attached"):
+        k_all[n:, n:] = 500.0 * np.array([[1.0, -1.0], [-1.0, 1.0]])
+    if extra == "coupled":
+        k_all[n, 4] = k_all[4, n] = 0.1 * np.sqrt(500.0 * k[4, 4])  # the 2x2 minors pass
+    if extra == "attached":
+        for massless, massive, spring in ((n, 4, 300.0), (n + 1, 8, 200.0)):
+            k_all[massless, massless] += spring
+            k_all[massive, massive] += spring
+            k_all[massless, massive] = k_all[massive, massless] = -spring
+    constraints = None
+    if extra == "constrained":
+        tie = sp.csr_matrix(([2.0], ([0], [n])), shape=(1, size))
+        constraints = ConstraintEquations(np.array([n + 1]), tie, np.zeros(1))
+    return ElasticBody(
+        node_ids=ids,
+        coordinates=np.column_stack([ids.astype(float), np.zeros(size), np.zeros(size)]),
+        dofs=DofTable(ids, np.zeros(size, dtype=int)),
+        mass=sp.csr_matrix(m_all),
+        stiffness=sp.csr_matrix(k_all),
+        constraints=constraints,
+        name=f"chain-{extra or 'plain'}",
+    )
+
+
+def chain_hz(n: int = 12) -> np.ndarray:
+    """The frequencies (Hz) of the plain chain: dense, from its own matrices."""
+    plain = chain_body("", n)
+    values = sla.eigh(plain.stiffness.toarray(), plain.mass.toarray(), eigvals_only=True)
+    return np.sqrt(values) / (2 * np.pi)
+
+
+@pytest.mark.parametrize(
+    ("extra", "note"),
+    [
+        ("loose", r"node 100 ux: no mass and no stiffness \(removed like Nastran's AUTOSPC\)"),
+        (
+            "constrained",
+            r"node 100 ux: no mass and no stiffness \(removed like Nastran's AUTOSPC\)",
+        ),
+        (
+            "pair",
+            r"a massless mechanism of 2 dofs \(nodes 100, 101 ux\) with no mass and no stiffness,"
+            r" decoupled from every massive dof \(residual .*\): removed by fixing node 100 ux "
+            r"\(like Nastran's AUTOSPC\)",
+        ),
+    ],
+)
+def test_a_decoupled_dof_or_pair_without_mass_and_stiffness_changes_no_frequency(
+    extra, note, tmp_path, capsys
+):
+    """Before: ``info`` exit 3 (``massless mechanism``), a job exit 2 (``neither mass nor
+    stiffness``) or 3 (``K + sigma M is singular``)."""
+    body = chain_body(extra)
+    write_matrix_files(body, tmp_path)
+    code = main(["info", str(tmp_path), "--modes", "12", "--json"])
+    facts = json.loads(capsys.readouterr().out)
+    assert code == 0
+    assert np.allclose(facts["eigenfrequencies_hz"], chain_hz(), rtol=1e-10)
+    assert [n for n in facts["notes"] if re.fullmatch(note, n)]
+    prepared = prepare(body, Frame("none"))
+    assert prepared.body.fixed.tolist() == [body.dofs.index(100, "ux")]
+    again = eliminate(prepared.body)  # the elimination of the held body, from scratch
+    assert np.array_equal(again.independent, prepared.elimination.independent)
+    assert np.array_equal(again.fixed, prepared.elimination.fixed)
+    assert abs(again.transform - prepared.elimination.transform).max() == 0.0
+    assert validate_prepared(prepared).checks[-1] == "no mechanism (lowest eigenvalues)"
+    values, _ = eigenmodes(prepared.system, 5)
+    assert np.allclose(hz(values), chain_hz()[:5], rtol=1e-10)
+
+
+def test_a_massless_link_between_two_masses_is_condensed_not_removed():
+    body = chain_body("attached")
+    prepared = prepare(body, Frame("none"))
+    assert prepared.body.fixed.size == 0 and prepared.notes == ()
+    # reference: the link is three springs in series (300, 500, 200 N/m) between nodes 5 and 9
+    series = 1.0 / (1.0 / 300.0 + 1.0 / 500.0 + 1.0 / 200.0)
+    k = chain_body("").stiffness.toarray()
+    k[np.ix_([4, 8], [4, 8])] += series * np.array([[1.0, -1.0], [-1.0, 1.0]])
+    expected = sla.eigh(k, chain_body("").mass.toarray(), eigvals_only=True)
+    values, _ = eigenmodes(prepared.system, 6)
+    assert np.allclose(values, expected[:6], rtol=1e-10)
+    assert not np.allclose(hz(values), chain_hz()[:6], rtol=1e-3)  # the link does count
+
+
+def test_a_massless_mechanism_coupled_to_a_massive_dof_is_refused_in_one_line(tmp_path, capsys):
+    body = chain_body("coupled")
+    with pytest.raises(NumericalError) as info:
+        prepare(body, Frame("none"))
+    message = str(info.value)
+    assert message.startswith(
+        "[model]: the stiffness matrix is not positive semidefinite: a massless direction "
+        "without stiffness of its own (nodes 100, 101 ux) is coupled to node 5 ux"
+    )
+    assert "\n" not in message
+    write_matrix_files(body, tmp_path)
+    assert main(["info", str(tmp_path)]) == 3
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "(nodes 100, 101 ux) is coupled to node 5 ux" in err
+
+
+def test_ports_on_a_removed_direction():
+    body = chain_body("loose")
+    with pytest.raises(UserError, match=r"^\[\[inputs\]\]: input 100:ux loads a direction "
+                       r"without mass and stiffness \(node 100 ux\)"):  # fmt: skip
+        prepare(body, Frame("none"), inputs=[Port.parse(100, "ux")], outputs=[])
+    prepared = prepare(body, Frame("none"), [Port.parse(3, "ux")], [Port.parse(100, "ux")])
+    assert prepared.warnings == (
+        "output 100:ux reads a direction without mass and stiffness (node 100 ux), removed by "
+        "fixing node 100 ux: its part along that motion is undetermined and taken as 0 there",
+    )
+
+
+def _chain_laplacian(n: int, k: float) -> sp.csr_matrix:
+    """Stiffness of ``n`` dofs joined in a row by springs ``k``, free at both ends."""
+    diagonal = np.full(n, 2.0 * k)
+    diagonal[[0, -1]] = k
+    return sp.csr_matrix(sp.diags([diagonal, -k * np.ones(n - 1), -k * np.ones(n - 1)], [0, 1, -1]))
+
+
+def test_twenty_thousand_massless_dofs_with_eight_null_directions_stay_sparse():
+    """200 masses in a held chain; 20,000 massless dofs: five chains of 4,000 (two hung on the
+    masses, three free: each moves as a whole without mass and stiffness) and five dofs that
+    nothing touches. The null space is known exactly: constants on the free chains, unit
+    vectors on the loose dofs."""
+    import time
+    import tracemalloc
+
+    from pymorembs.linalg.massless_mechanisms import massless_mechanisms
+
+    n_m, length, n_loose = 200, 4000, 5
+    held = _chain_laplacian(n_m, 1e4).tolil()
+    held[0, 0] += 1e4
+    chains = [_chain_laplacian(length, 50.0 * (c + 1)) for c in range(5)]
+    k = sp.block_diag([held, *chains, sp.csr_matrix((n_loose, n_loose))], format="lil")
+    for c in (3, 4):  # hung on masses 30 and 40 by a spring at their first dof
+        i, j = n_m + c * length, 10 * c
+        k[i, i] += 70.0
+        k[j, j] += 70.0
+        k[i, j] = k[j, i] = -70.0
+    k = sp.csr_matrix(k)
+    n = k.shape[0]
+    m = sp.diags(np.concatenate([np.linspace(1.0, 2.0, n_m), np.zeros(n - n_m)]), format="csr")
+    expected = np.zeros((n, 8))
+    for c in range(3):
+        expected[n_m + c * length : n_m + (c + 1) * length, c] = 1.0 / np.sqrt(length)
+    expected[n - n_loose + np.arange(n_loose), 3 + np.arange(n_loose)] = 1.0
+
+    start = time.perf_counter()
+    found = massless_mechanisms(k, mass_split(m))
+    seconds = time.perf_counter() - start
+    tracemalloc.start()
+    massless_mechanisms(k, mass_split(m))
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert seconds < 1.0
+    assert peak < 64e6  # one dense 20,000 x 20,000 matrix would be 3.2 GB
+    assert found.count == 8 and not found.coupled.any()
+    vectors = found.vectors.toarray()
+    cosines = np.linalg.svd(expected.T @ vectors, compute_uv=False)
+    assert np.allclose(cosines, 1.0, atol=1e-10)  # the same space
+    assert np.abs(k @ vectors).max() < 1e-10 * abs(k).max()
+    # fixing the pivots removes the whole null space: one in each free chain, the loose dofs
+    assert np.linalg.matrix_rank(vectors[found.pivots]) == 8
+    owner = (np.sort(found.pivots) - n_m) // length
+    assert owner.tolist() == [0, 1, 2, 5, 5, 5, 5, 5]
+
+
+def test_two_null_directions_in_one_massless_part_get_two_pivots():
+    """K_00 = 100 v v^T on three massless dofs (one connected part, rank 1): a plane of null
+    directions; two dofs fixed, and the third carries the stiffness."""
+    from pymorembs.linalg.massless_mechanisms import massless_mechanisms
+
+    v = np.array([1.0, -2.0, 0.5])
+    k = sp.block_diag([sp.csr_matrix([[3.0]]), sp.csr_matrix(100.0 * np.outer(v, v))], "csr")
+    m = sp.diags([1.0, 0.0, 0.0, 0.0], format="csr")
+    found = massless_mechanisms(k, mass_split(m))
+    assert found.count == 2 and found.group.tolist() == [0, 0]
+    assert not found.coupled.any()
+    assert np.abs(found.vectors.toarray()[1:].T @ v).max() < 1e-12
+    assert sorted(found.pivots.tolist()) in ([1, 3], [1, 2], [2, 3])
+    assert 0 not in found.pivots
+    rest = np.setdiff1d([1, 2, 3], found.pivots)
+    assert k[rest][:, rest].toarray()[0, 0] > 0

@@ -203,13 +203,19 @@ def test_a_dof_without_stiffness_is_named():
         validate_prepared(prepared, deep=False)
 
 
-def test_a_dof_without_mass_and_stiffness_is_dangling():
+def test_a_dof_without_mass_and_stiffness_is_removed_and_the_rest_named():
+    """The dangling dof is removed like Nastran's AUTOSPC (issue #27, item 3); the dofs of
+    that node with mass but without stiffness are still named."""
     body = _loose(spring_lattice(), joined=False)
     m = body.mass.tolil()
     i = body.dofs.index(130, "uy")
     m[i, i] = 0.0
     prepared = prepare(replace(body, mass=m.tocsr()), Frame("tangent", 10), PORT, PORT)
-    with pytest.raises(UserError, match="node 130 uy has neither mass nor stiffness"):
+    assert "node 130 uy: no mass and no stiffness (removed like Nastran's AUTOSPC)" in (
+        prepared.notes
+    )
+    with pytest.raises(UserError, match="translation x at node 130 is free: the dof has no "
+                       r"stiffness \(2 such dofs"):  # fmt: skip
         validate_prepared(prepared, deep=False)
 
 

@@ -422,7 +422,7 @@ def model_facts(body: ElasticBody, prepared: PreparedModel, modes: int) -> dict[
         },
         "dof_table": body.dofs.describe(),
         "has_coordinates": bool(body.has_coordinates),
-        "notes": list(body.notes),
+        "notes": [*body.notes, *prepared.notes],  # the reader's, then the preparation's
         "total_mass": body.total_mass(),
         "rigid_body_modes": rigid.count,
         "rigid_body_motions": list(rigid.labels),

@@ -50,6 +50,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from pymorembs.body import ElasticBody
+from pymorembs.display import one_line, port_labels
 from pymorembs.errors import NumericalError, UserError
 from pymorembs.linalg.backends import factorize
 from pymorembs.linalg.mass_split import mass_split
@@ -159,6 +160,14 @@ class TimeResponse:
     @property
     def step_s(self) -> float:
         return float(self.times[1] - self.times[0]) if self.times.size > 1 else 0.0
+
+    def __repr__(self) -> str:
+        end = float(self.times[-1]) if self.times.size else 0.0
+        rows = [("cases", " ".join(self.outputs) or "none"),
+                ("steps", f"{self.times.size} x {self.step_s:g} s to {end:g} s"),
+                ("outputs", port_labels(self.output_labels)),
+                ("order", str(self.order))]  # fmt: skip
+        return one_line("TimeResponse", rows)
 
 
 # --------------------------------------------------------------------------------- integrator

@@ -52,6 +52,7 @@ import scipy.sparse as sp
 
 from pymorembs.arrays import sorted_unique
 from pymorembs.body import ElasticBody
+from pymorembs.display import one_line
 from pymorembs.elements.beam import BeamSection
 from pymorembs.errors import UserError
 from pymorembs.linalg.products import extended
@@ -189,6 +190,13 @@ class BodyInvariants:
     second_order_mass: str
     name: str = ""
     stiffening: StiffeningTerms | None = None
+
+    def __repr__(self) -> str:
+        rows = [("mass", f"{self.mass:.6g}"), ("elastic coordinates", str(self.nq)),
+                ("frame nodes", " ".join(str(node.node_id) for node in self.nodes) or "none"),
+                ("second-order mass", self.second_order_mass),
+                ("stiffening", "yes" if self.stiffening is not None else "no")]  # fmt: skip
+        return one_line(f"BodyInvariants {self.name!r}", rows)
 
     # ------------------------------------------------------------------ derived (SID_NOTES §4.3)
     @property

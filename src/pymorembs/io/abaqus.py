@@ -99,8 +99,9 @@ from pymorembs.io.abaqus_inp import (
     surface_elements,
 )
 from pymorembs.io.element_surface import attach_surface
-from pymorembs.io.matrix_market import SYMMETRY_TOLERANCE, read_dofs_csv, read_nodes_csv
-from pymorembs.io.reader_support import assemble_symmetric, is_nodes_csv, read_text
+from pymorembs.io.matrix_market import SYMMETRY_TOLERANCE, read_dofs_csv
+from pymorembs.io.node_files import NodeFile, read_node_file
+from pymorembs.io.reader_support import assemble_symmetric, grown_csr, read_text
 from pymorembs.io.solid_mesh import attach_mesh
 from pymorembs.io.symmetric_assembly import half_of_entries, symmetric_from_half
 
@@ -110,7 +111,6 @@ __all__ = [
     "read_abaqus",
     "read_abaqus_stiffness",
     "read_inp_nodes",
-    "read_node_file",
     "release_penalties",
 ]
 
@@ -190,11 +190,12 @@ class _Nodes:
     path: Path
     ids: np.ndarray
     xyz: np.ndarray
-    model: InpModel | None  # None for nodes.csv
+    model: InpModel | None  # None for other node files
+    source: NodeFile
 
     def note(self) -> str:
         if self.model is None:
-            return f"coordinates: {self.path.name} ({self.ids.size} nodes)"
+            return f"coordinates: {self.source.describe()} ({self.ids.size} nodes)"
         placed = self.model.placements_note()
         return placed if placed is not None else f"coordinates: the *NODE data of {self.path.name}"
 
@@ -298,22 +299,11 @@ def read_inp_nodes(path: PathLike) -> tuple[np.ndarray, np.ndarray]:
     return model.node_ids, model.coordinates
 
 
-def read_node_file(path: PathLike) -> tuple[np.ndarray, np.ndarray, str]:
-    """Node ids, coordinates and a one-sentence note from an ``.inp`` or a ``nodes.csv``.
-
-    A file whose first content line is ``id,x,y,z`` is a ``nodes.csv``; anything else is read as
-    an Abaqus input file (:func:`pymorembs.io.abaqus_inp.read_inp`).
-    """
-    nodes = _read_node_source(Path(path))
-    return nodes.ids, nodes.xyz, nodes.note()
-
-
 def _read_node_source(path: Path) -> _Nodes:
-    if is_nodes_csv(path):
-        ids, xyz = read_nodes_csv(path)
-        return _Nodes(path, ids, xyz, None)
-    model = read_inp(path)
-    return _Nodes(path, model.node_ids, model.coordinates, model)
+    """The nodes of the ``inp`` option: an Abaqus input file, or any other node file
+    (:func:`pymorembs.io.node_files.read_node_file`), which gives coordinates only."""
+    node_file = read_node_file(path)
+    return _Nodes(path, node_file.ids, node_file.coordinates, node_file.inp, node_file)
 
 
 # ============================================================================ reading
@@ -394,7 +384,7 @@ def _assemble(
     for role, f in files.items():
         pair = indices(role)
         if pair is None:
-            matrix = _resized(f.assembled, n)
+            matrix = grown_csr(f.assembled, n)
         else:
             half = half_of_entries(*pair, f.values, n, SYMMETRY_TOLERANCE)
             del pair
@@ -411,15 +401,6 @@ def _assemble(
         matrices[role] = matrix
     matrices.setdefault("mass", sp.csr_matrix((n, n)))
     return matrices
-
-
-def _resized(matrix: sp.csr_matrix, n: int) -> sp.csr_matrix:
-    """A square CSR matrix grown to ``n x n`` with empty rows and columns (no copy of entries)."""
-    size = matrix.shape[0]
-    if size == n:
-        return matrix
-    indptr = np.concatenate([matrix.indptr, np.full(n - size, matrix.indptr[-1])])
-    return sp.csr_matrix((matrix.data, matrix.indices, indptr), shape=(n, n), copy=False)
 
 
 def _equation_indices(

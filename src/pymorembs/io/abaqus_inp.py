@@ -9,13 +9,16 @@ What is read
     ``*NODE`` (parameters ``NSET``, ``INPUT=file``, ``SYSTEM=R`` only; data lines
     ``label, x[, y[, z]]``, missing coordinates are 0), ``*ELEMENT`` (``TYPE``, ``ELSET``,
     ``INPUT=file``; data lines ``label, node, node, ...``, continued on the next line after a
-    trailing comma), ``*PART`` ... ``*END PART``, ``*ASSEMBLY`` ... ``*END ASSEMBLY``,
-    ``*INSTANCE, NAME=..., PART=...`` ... ``*END INSTANCE`` and ``*INCLUDE, INPUT=file``
-    (relative to the including file). Keyword lines ending in a comma continue on the next
-    line; ``**`` comments and blank lines are skipped; ``D`` exponents are accepted. Every other
-    keyword is skipped, except those that move nodes or turn their dof directions, which are
-    refused with an explanation: ``*SYSTEM``, ``*TRANSFORM``, ``*NMAP``, ``*NGEN``, ``*NFILL``,
-    ``*NCOPY``.
+    trailing comma), ``*NSET`` and ``*ELSET`` (labels, names of other sets, ``GENERATE``),
+    ``*SOLID SECTION``, ``*MATERIAL`` with ``*ELASTIC``, ``*BOUNDARY`` (kept with the step it
+    belongs to, :func:`boundary_dofs`), ``*STEP`` ... ``*END STEP`` and a ``*FREQUENCY,
+    SOLVER=MATRIXSTORAGE`` step (CalculiX), ``*PART`` ... ``*END PART``, ``*ASSEMBLY`` ...
+    ``*END ASSEMBLY``, ``*INSTANCE, NAME=..., PART=...`` ... ``*END INSTANCE`` and ``*INCLUDE,
+    INPUT=file`` (relative to the including file). Keyword lines ending in a comma continue on
+    the next line; ``**`` comments and blank lines are skipped; ``D`` exponents are accepted.
+    Every other keyword is skipped, except those that move nodes or turn their dof directions,
+    which are refused with an explanation: ``*SYSTEM``, ``*TRANSFORM``, ``*NMAP``, ``*NGEN``,
+    ``*NFILL``, ``*NCOPY``.
 
 Parts and instances (the layout Abaqus/CAE writes by default)
     The nodes and elements of a part exist once per ``*INSTANCE`` of it; an instance may hold
@@ -48,7 +51,7 @@ import os
 import re
 import warnings
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Literal
 
@@ -57,6 +60,7 @@ import numpy as np
 from pymorembs.arrays import sorted_unique
 from pymorembs.body import DofTable
 from pymorembs.errors import located_error
+from pymorembs.io.compressed import original_path
 from pymorembs.io.element_surface import SurfaceElements
 from pymorembs.io.reader_support import read_text
 from pymorembs.io.solid_mesh import SolidBlock
@@ -67,6 +71,8 @@ __all__ = [
     "ABAQUS_SOLID_TYPES",
     "ABAQUS_SURFACE_TYPES",
     "MAX_LABEL",
+    "Boundary",
+    "BoundaryDofs",
     "ElementBlock",
     "ElementSet",
     "InpModel",
@@ -75,10 +81,12 @@ __all__ = [
     "Scope",
     "SolidSection",
     "ascii_data",
+    "boundary_dofs",
     "derive_dof_table",
     "element_dofs",
     "integer_field",
     "keyword_blocks",
+    "node_sets",
     "parse_keyword",
     "read_inp",
     "solid_blocks",
@@ -244,7 +252,9 @@ class ElementBlock:
 
 @dataclass(frozen=True, eq=False)
 class ElementSet:
-    """One ``*ELSET`` data block (or the ``ELSET=`` of an ``*ELEMENT`` block) of a scope."""
+    """One ``*ELSET`` data block (or the ``ELSET=`` of an ``*ELEMENT`` block) of a scope; also
+    one ``*NSET`` data block (:attr:`InpModel.node_sets`), whose ``labels`` are set for the
+    ``NSET=`` of a ``*NODE`` block (then ``text`` is empty)."""
 
     name: str
     scope: int
@@ -253,6 +263,24 @@ class ElementSet:
     text: str
     first_line: int
     generate: bool = False
+    labels: np.ndarray | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Boundary:
+    """One ``*BOUNDARY`` block: data lines ``node or node set, first dof[, last dof[, value]]``.
+
+    ``step`` is 0 for the model data, else the number of its ``*STEP`` (from 1); ``new`` is its
+    ``OP=NEW`` (it removes the boundary conditions defined before it).
+    """
+
+    scope: int
+    path: Path
+    line: int
+    text: str
+    first_line: int
+    step: int
+    new: bool = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -313,6 +341,13 @@ class InpModel:
         Solid sections (likewise per instance).
     materials : dict of str -> Material
         Materials by upper-case name.
+    node_sets : tuple of ElementSet
+        Node sets (``*NSET`` blocks and the ``NSET=`` of ``*NODE`` blocks; :func:`node_sets`).
+    boundaries : tuple of Boundary
+        The ``*BOUNDARY`` blocks in file order.
+    matrix_storage_step : int or None
+        The number of the first ``*STEP`` with ``*FREQUENCY, SOLVER=MATRIXSTORAGE`` (the step in
+        which CalculiX writes its stiffness and mass matrices), or None.
     """
 
     path: Path
@@ -328,6 +363,9 @@ class InpModel:
     elsets: tuple[ElementSet, ...] = ()
     sections: tuple[SolidSection, ...] = ()
     materials: dict[str, Material] = field(default_factory=dict)
+    node_sets: tuple[ElementSet, ...] = ()
+    boundaries: tuple[Boundary, ...] = ()
+    matrix_storage_step: int | None = None
 
     def index_of(self, scope: np.ndarray, label: np.ndarray) -> np.ndarray:
         """Node index of each (scope, label) pair, -1 where no such node exists."""
@@ -391,6 +429,8 @@ class _Container:
     elements: list[tuple[str, Path, int, str, int, str | None]] = field(default_factory=list)
     elsets: list[tuple[str, Path, int, str, int, bool, str | None]] = field(default_factory=list)
     sections: list[tuple[str, str, Path, int]] = field(default_factory=list)
+    nsets: list[ElementSet] = field(default_factory=list)  # scope set when the model is built
+    boundaries: list[Boundary] = field(default_factory=list)  # likewise
 
 
 @dataclass
@@ -417,6 +457,8 @@ class _Reader:
         self.uses_parts = False
         self.materials: dict[str, Material] = {}
         self.material: str | None = None  # the *MATERIAL the material options belong to
+        self.step = 0  # the number of the current (or last) *STEP
+        self.matrix_storage_step: int | None = None
 
     def scan(self, path: Path, stack: tuple[Path, ...] = ()) -> None:
         resolved = path.resolve()
@@ -450,6 +492,18 @@ class _Reader:
             self._element(path, line, params, data, data_line)
         elif keyword == "ELSET":
             self._elset(path, line, params, data, data_line)
+        elif keyword == "NSET":
+            self._nset(path, line, params, data, data_line)
+        elif keyword == "BOUNDARY":
+            new = params.get("OP", "MOD").upper() == "NEW"
+            block = Boundary(-1, path, line, data, data_line, self.step, new)
+            self.context.boundaries.append(block)
+        elif keyword == "STEP":
+            self.step += 1
+        elif keyword == "FREQUENCY":
+            storage = params.get("SOLVER", "").upper() == "MATRIXSTORAGE"
+            if storage and self.matrix_storage_step is None:
+                self.matrix_storage_step = self.step
         elif keyword == "SOLIDSECTION":
             self._section(path, line, params)
         elif keyword == "MATERIAL":
@@ -463,7 +517,7 @@ class _Reader:
         elif keyword == "INCLUDE":
             if "INPUT" not in params:
                 raise located_error(path, line, "*INCLUDE without INPUT=file")
-            self.scan(path.parent / params["INPUT"], stack)
+            self.scan(original_path(path).parent / params["INPUT"], stack)
 
     def _expect(self, path: Path, line: int, word: str, where: str) -> None:
         if self.where != where:
@@ -535,11 +589,14 @@ class _Reader:
                 f"*NODE, SYSTEM={system}: only rectangular coordinates (SYSTEM=R) are supported",
             )
         if "INPUT" in params:
-            path = path.parent / params["INPUT"]
+            path = original_path(path).parent / params["INPUT"]
             data, data_line = read_text(path, "a file of *NODE data lines"), 1
         labels, xyz = _parse_nodes(path, data, data_line)
         if labels.size:
             self.context.nodes.append(_NodeBlock(labels, xyz, path, data, data_line))
+        if params.get("NSET"):
+            node_set = ElementSet(params["NSET"], -1, path, line, "", data_line, labels=labels)
+            self.context.nsets.append(node_set)
 
     def _element(
         self, path: Path, line: int, params: dict[str, str], data: str, data_line: int
@@ -548,7 +605,7 @@ class _Reader:
         if not kind:
             raise located_error(path, line, "*ELEMENT without TYPE=")
         if "INPUT" in params:
-            path = path.parent / params["INPUT"]
+            path = original_path(path).parent / params["INPUT"]
             data, data_line = read_text(path, "a file of *ELEMENT data lines"), 1
         elset = params.get("ELSET") or None
         self.context.elements.append((kind, path, line, data, data_line, elset))
@@ -563,6 +620,15 @@ class _Reader:
         self.context.elsets.append(
             (name, path, line, data, data_line, generate, params.get("INSTANCE") or None)
         )
+
+    def _nset(
+        self, path: Path, line: int, params: dict[str, str], data: str, data_line: int
+    ) -> None:
+        name = params.get("NSET")
+        if not name:
+            raise located_error(path, line, "*NSET without NSET=")
+        generate = "GENERATE" in params
+        self.context.nsets.append(ElementSet(name, -1, path, line, data, data_line, generate))
 
     def _section(self, path: Path, line: int, params: dict[str, str]) -> None:
         elset, material = params.get("ELSET"), params.get("MATERIAL")
@@ -632,6 +698,8 @@ class _Reader:
         elements: list[ElementBlock] = []
         elsets: list[ElementSet] = []
         sections: list[SolidSection] = []
+        nsets: list[ElementSet] = []
+        boundaries: list[Boundary] = []
         for index, (scope, group) in enumerate(zip(scopes, containers, strict=True)):
             blocks = [block for container in group for block in container.nodes]
             _check_unique(blocks, scope)
@@ -654,6 +722,8 @@ class _Reader:
                     elsets.append(ElementSet(name, owner_scope, where, line, text, first, generate))
                 for elset, material, where, line in container.sections:
                     sections.append(SolidSection(elset, material, index, where, line))
+                nsets += [replace(node_set, scope=index) for node_set in container.nsets]
+                boundaries += [replace(block, scope=index) for block in container.boundaries]
         label = np.concatenate(labels) if labels else np.zeros(0, dtype=np.int64)
         node_scope = np.concatenate(owner) if owner else np.zeros(0, dtype=np.int64)
         coordinates = np.concatenate(xyz) if xyz else np.zeros((0, 3))
@@ -672,7 +742,16 @@ class _Reader:
             elsets=tuple(elsets),
             sections=tuple(sections),
             materials=dict(self.materials),
+            node_sets=tuple(nsets),
+            boundaries=tuple(sorted(boundaries, key=_step_of)),
+            matrix_storage_step=self.matrix_storage_step,
         )
+
+
+def _step_of(block: Boundary) -> int:
+    """The sort key that puts the blocks of the model data first, then each step's (a stable
+    sort keeps the file order within each)."""
+    return block.step
 
 
 _WHERE = {
@@ -1356,31 +1435,192 @@ def _element_sets(model: InpModel) -> dict[tuple[int, str], np.ndarray]:
         if block.elset:
             key = (block.scope, block.elset.upper())
             members.setdefault(key, []).append(block.element_labels(model.scopes))
-    for elset in model.elsets:
-        key = (elset.scope, elset.name.upper())
+    return _set_members(members, model.elsets, "element label")
+
+
+def node_sets(model: InpModel) -> dict[tuple[int, str], np.ndarray]:
+    """Node labels of every node set, keyed by (scope, upper-case name).
+
+    A set is the union of its ``*NSET`` data (labels, ``GENERATE`` ranges, names of sets defined
+    before) and of the ``*NODE`` blocks that name it with ``NSET=``; later data adds to it.
+
+    Raises
+    ------
+    UserError
+        ``file:line: ...`` for a label that is not an integer or a malformed ``GENERATE`` line.
+    """
+    return _set_members({}, model.node_sets, "node label")
+
+
+def _set_members(
+    members: dict[tuple[int, str], list[np.ndarray]], sets: tuple[ElementSet, ...], what: str
+) -> dict[tuple[int, str], np.ndarray]:
+    """``members`` with the labels of ``sets`` added, as arrays (see :func:`node_sets`)."""
+    for entry in sets:
+        key = (entry.scope, entry.name.upper())
         lists = members.setdefault(key, [])
-        for offset, line in enumerate(elset.text.split("\n")):
+        if entry.labels is not None:
+            lists.append(entry.labels)
+            continue
+        for offset, line in enumerate(entry.text.split("\n")):
             text = line.split("**", 1)[0].strip()
             if not text:
                 continue
-            number = elset.first_line + offset
+            number = entry.first_line + offset
             fields = [f.strip() for f in text.split(",") if f.strip()]
-            if elset.generate:
-                values = [integer_field(elset.path, number, f, "element label") for f in fields]
+            if entry.generate:
+                values = [integer_field(entry.path, number, f, what) for f in fields]
                 if len(values) not in (2, 3) or (len(values) == 3 and values[2] < 1):
                     raise located_error(
-                        elset.path, number, "*ELSET, GENERATE data must be first, last[, step]"
+                        entry.path, number, "GENERATE data must be first, last[, step]"
                     )
                 step = values[2] if len(values) == 3 else 1
                 lists.append(np.arange(values[0], values[1] + 1, step, dtype=np.int64))
                 continue
             for item in fields:
                 if re.fullmatch(r"[+-]?\d+", item):
-                    lists.append(np.array([integer_field(elset.path, number, item, "label")]))
+                    lists.append(np.array([integer_field(entry.path, number, item, "label")]))
                 else:  # the name of another set of the scope
-                    for part in members.get((elset.scope, item.upper()), []):
+                    for part in members.get((entry.scope, item.upper()), []):
                         lists.append(part)
     return {
         key: np.concatenate(parts) if parts else np.zeros(0, np.int64)
         for key, parts in members.items()
     }
+
+
+# ============================================================================ boundary conditions
+#: The structural dofs 1-6 (ux uy uz rx ry rz) a *BOUNDARY line may name; others (11 temperature,
+#: 8 pressure, ...) fix no displacement.
+_STRUCTURAL_DOFS = 6
+
+
+@dataclass(frozen=True, eq=False)
+class BoundaryDofs:
+    """The dofs fixed by ``*BOUNDARY`` blocks (:func:`boundary_dofs`), each once.
+
+    Attributes
+    ----------
+    nodes : ndarray of int, shape (k,)
+        Index in :attr:`InpModel.node_ids` of each fixed dof's node.
+    directions : ndarray of int, shape (k,)
+        Its direction, 0-5 (ux uy uz rx ry rz).
+    lines : tuple of (Path, int)
+        The file and line of every data line read.
+    source : ndarray of int, shape (k,)
+        Which entry of ``lines`` fixed each dof (the last one that did).
+    """
+
+    nodes: np.ndarray
+    directions: np.ndarray
+    lines: tuple[tuple[Path, int], ...]
+    source: np.ndarray
+
+    def where(self, k: int) -> str:
+        """``file:line`` of the data line that fixed dof ``k``."""
+        path, line = self.lines[int(self.source[k])]
+        return f"{path.name}:{line}"
+
+
+def boundary_dofs(model: InpModel, last_step: int | None = None) -> BoundaryDofs:
+    """The displacement dofs that the ``*BOUNDARY`` blocks of the model fix.
+
+    The blocks of the model data and of the steps up to ``last_step`` count (all steps by
+    default); a block with ``OP=NEW`` removes those before it. Data lines are ``node or node
+    set, first dof[, last dof[, value]]`` (dofs 1-6 = ux uy uz rx ry rz; a prescribed value
+    fixes the dof too; dofs beyond 6, such as 11 for the temperature, are not displacements and
+    are left out).
+
+    Parameters
+    ----------
+    model : InpModel
+    last_step : int, optional
+        The last ``*STEP`` whose blocks count.
+
+    Returns
+    -------
+    BoundaryDofs
+
+    Raises
+    ------
+    UserError
+        ``file:line: ...`` for an unknown node or node set, a dof that is not a number (an
+        Abaqus type name such as ``ENCASTRE``) or out of order.
+    """
+    blocks = [b for b in model.boundaries if last_step is None or b.step <= last_step]
+    sets: dict[tuple[int, str], np.ndarray] | None = None
+    nodes: list[np.ndarray] = []
+    directions: list[np.ndarray] = []
+    sources: list[np.ndarray] = []
+    where: list[tuple[Path, int]] = []
+    for block in blocks:
+        if block.new:
+            nodes, directions, sources = [], [], []
+        for offset, line in enumerate(block.text.split("\n")):
+            text = line.split("**", 1)[0].strip()
+            if not text:
+                continue
+            number = block.first_line + offset
+            fields = [f.strip() for f in text.split(",")]
+            if len(fields) < 2 or not fields[1]:
+                raise located_error(
+                    block.path, number, "*BOUNDARY data line needs: node or node set, first dof"
+                )
+            if not re.fullmatch(r"\d+", fields[1]):
+                raise located_error(
+                    block.path,
+                    number,
+                    f"*BOUNDARY dof {fields[1]!r} is not a dof number; give the dofs as numbers "
+                    "(1-6 = ux uy uz rx ry rz), as CalculiX reads them",
+                )
+            first = integer_field(block.path, number, fields[1], "first dof", positive=True)
+            last = first
+            if len(fields) > 2 and fields[2]:
+                last = integer_field(block.path, number, fields[2], "last dof", positive=True)
+                if last < first:
+                    raise located_error(
+                        block.path, number, f"last dof {last} lies before the first dof {first}"
+                    )
+            last = min(last, _STRUCTURAL_DOFS)
+            if first > last:
+                continue  # a temperature or pressure dof
+            if re.fullmatch(r"[+-]?\d+", fields[0]):
+                label = integer_field(block.path, number, fields[0], "node label")
+                index = model.index_of(np.array([block.scope]), np.array([label]))
+                if index[0] < 0:
+                    raise located_error(
+                        block.path, number, f"*BOUNDARY names node {label}, which is not defined"
+                    )
+            else:
+                if sets is None:
+                    sets = node_sets(model)
+                labels = sets.get((block.scope, fields[0].upper()))
+                if labels is None:
+                    raise located_error(
+                        block.path,
+                        number,
+                        f"*BOUNDARY names node set {fields[0]}, which is not defined",
+                    )
+                index = model.index_of(np.full(labels.size, block.scope), labels)
+                if np.any(index < 0):
+                    missing = int(labels[np.flatnonzero(index < 0)[0]])
+                    raise located_error(
+                        block.path,
+                        number,
+                        f"node set {fields[0]} holds node {missing}, which is not defined",
+                    )
+            count = last - first + 1
+            nodes.append(np.repeat(index, count))
+            directions.append(np.tile(np.arange(first - 1, last), index.size))
+            sources.append(np.full(index.size * count, len(where), dtype=np.int64))
+            where.append((block.path, number))
+    if not nodes:
+        empty = np.zeros(0, dtype=np.int64)
+        return BoundaryDofs(empty, empty, tuple(where), empty)
+    node = np.concatenate(nodes)
+    direction = np.concatenate(directions)
+    source = np.concatenate(sources)
+    key = node * _STRUCTURAL_DOFS + direction
+    _, last_of = np.unique(key[::-1], return_index=True)  # the last line fixing each dof
+    keep = np.sort(key.size - 1 - last_of)
+    return BoundaryDofs(node[keep], direction[keep], tuple(where), source[keep])

@@ -63,7 +63,6 @@ import scipy.sparse as sp
 
 from pymorembs.body import DofTable, ElasticBody
 from pymorembs.errors import UserError, located_error
-from pymorembs.io.abaqus import read_node_file
 from pymorembs.io.abaqus_inp import (
     ABAQUS_DOF_NAMES,
     ascii_data,
@@ -72,6 +71,7 @@ from pymorembs.io.abaqus_inp import (
     parse_keyword,
 )
 from pymorembs.io.matrix_market import SYMMETRY_TOLERANCE
+from pymorembs.io.node_files import read_node_file
 from pymorembs.io.reader_support import read_text
 
 __all__ = ["read_abaqus_substructure"]
@@ -423,7 +423,9 @@ def _coordinates(
             "no coordinates: give the model's .inp or a nodes.csv as inp; the nodes lie at the "
             "origin",
         )
-    ids, xyz, note = read_node_file(inp)
+    node_file = read_node_file(inp)
+    ids, xyz = node_file.ids, node_file.coordinates
+    note = f"coordinates: {node_file.describe()} ({ids.size} nodes)"
     order = np.argsort(ids, kind="stable")
     pos = np.minimum(np.searchsorted(ids[order], node_ids), max(ids.size - 1, 0))
     found = ids.size > 0 and np.asarray(ids[order][pos] == node_ids)

@@ -53,7 +53,6 @@ from pymorembs.io.ansys_cdb import (
     AnsysArchive,
     cdb_solid_blocks,
     cdb_surface_elements,
-    looks_like_cdb,
     read_cdb,
 )
 from pymorembs.io.checks import make_body, reason
@@ -63,10 +62,9 @@ from pymorembs.io.matrix_market import (
     check_symmetric,
     parse_int,
     read_matrix_market_with_storage,
-    read_nodes_csv,
     read_text_lines,
 )
-from pymorembs.io.reader_support import is_nodes_csv
+from pymorembs.io.node_files import node_file_kind, read_node_file
 from pymorembs.io.solid_mesh import attach_mesh
 from pymorembs.sparse_rows import abs_row_sums
 
@@ -1070,21 +1068,15 @@ class _Geometry:
 
 
 def _coordinates(table: DofTable, nodes: PathLike | None, source: Path) -> _Geometry:
-    """Node ids and coordinates from ``nodes.csv`` or an Ansys archive, or all at the origin."""
+    """Node ids and coordinates from an Ansys archive or another node file (``nodes.csv``, an
+    Abaqus/CalculiX deck, Nastran bulk data), or all at the origin."""
     if nodes is None:
         node_ids, coordinates = _node_table(table, None, source)
         return _Geometry(node_ids, coordinates)
     path = Path(nodes)
-    if not path.is_file() or is_nodes_csv(path):
+    if not path.is_file() or node_file_kind(path) != "ansys":
         node_ids, coordinates = _node_table(table, path, source)
         return _Geometry(node_ids, coordinates, path)
-    if not looks_like_cdb(path):
-        raise located_error(
-            path,
-            None,
-            "neither a nodes.csv (first line id,x,y,z) nor an Ansys archive (.cdb with an "
-            "NBLOCK, written by CDWRITE,DB)",
-        )
     archive = read_cdb(path)
     missing = np.unique(table.nodes[~np.isin(table.nodes, archive.node_ids)])
     if missing.size:
@@ -1173,13 +1165,15 @@ def _with_mesh(body: ElasticBody, geometry: _Geometry) -> ElasticBody:
 def _node_table(
     table: DofTable, nodes: PathLike | None, source: Path
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Node ids and coordinates: from ``nodes.csv`` or, without it, the dof nodes at the origin."""
+    """Node ids and coordinates: from a node file (:func:`pymorembs.io.node_files.
+    read_node_file`) or, without it, the dof nodes at the origin."""
     if nodes is None:
         _, first = np.unique(table.nodes, return_index=True)
         node_ids = table.nodes[np.sort(first)]
         return node_ids, np.zeros((node_ids.size, 3))
     nodes_path = Path(nodes)
-    node_ids, coordinates = read_nodes_csv(nodes_path)
+    node_file = read_node_file(nodes_path)
+    node_ids, coordinates = node_file.ids, node_file.coordinates
     missing = np.unique(table.nodes[~np.isin(table.nodes, node_ids)])
     if missing.size:
         more = f" and {missing.size - 1} more" if missing.size > 1 else ""

@@ -36,6 +36,7 @@ __all__ = [
     "check_chunk_numpy",
     "compiled_checks",
     "compiled_worthwhile",
+    "count_line_ends",
     "count_plain_fields",
     "csr_from_sorted_coo",
     "full_from_triangle",
@@ -885,6 +886,54 @@ def parse_coordinate_lines(
     if done != entries:
         return None
     return rows, cols, values
+
+
+def count_line_ends(path: str | os.PathLike[str]) -> int | None:
+    """Line feeds in a file, counted by the compiled kernel
+    (:func:`~pymorembs.io.compiled_kernels.count_lines`) through a memory map, in parts on the
+    solver threads from the main thread.
+
+    Parameters
+    ----------
+    path : path-like
+        The file.
+
+    Returns
+    -------
+    int or None
+        The count; None without Numba or when the file cannot be mapped (unreadable or empty).
+    """
+    kernels = _kernels()
+    if kernels is None:
+        return None
+    try:
+        with (
+            open(path, "rb") as stream,
+            mmap.mmap(stream.fileno(), 0, access=mmap.ACCESS_READ) as mapped,
+        ):
+            return _count_mapped(kernels, mapped)
+    except (OSError, ValueError):
+        return None
+
+
+def _count_mapped(kernels, mapped: mmap.mmap) -> int:
+    """Line feeds of a mapped file (:func:`count_line_ends`)."""
+    data = np.frombuffer(mapped, dtype=np.uint8)
+    try:
+        return _count_buffer(kernels, data)
+    finally:
+        del data  # the mapping closes only without exports of its buffer
+
+
+def _count_buffer(kernels, buffer: np.ndarray) -> int:
+    """Line feeds of ``buffer`` (bytes), in parts on the solver threads from the main thread."""
+    size = buffer.size
+
+    def count(parts: int) -> int:
+        bounds = np.linspace(0, size, parts + 1).astype(np.int64)
+        return int(kernels.count_lines_parallel(buffer, bounds).sum())
+
+    return _on_threads(lambda: int(kernels.count_lines(buffer, 0, size)), count, size >> 20)
 
 
 def _parse_mapped(kernels, mapped: mmap.mmap, offset: int, n, rows, cols, values, bits) -> int:

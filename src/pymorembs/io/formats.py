@@ -29,6 +29,14 @@ file from its content (the file name is only a hint for the error message). The 
 ``matlab``
     MATLAB ``.mat`` files (v5 and v7.3) with ``M``, ``K`` and optionally ``D``, ``B``, ``C``
     (:mod:`pymorembs.io.matlab`).
+``calculix``
+    The ``job.sti``, ``job.mas`` and ``job.dof`` files of a CalculiX ``*FREQUENCY,
+    SOLVER=MATRIXSTORAGE`` step, with the input deck ``job.inp`` (:mod:`pymorembs.io.calculix`):
+    ``job.sti`` is given, the others are found beside it.
+
+Compressed files (gzip, bzip2, xz; :mod:`pymorembs.io.compressed`) are read as the file they
+hold, every option of every format: the detection looks at the decompressed content and at the
+name without the ``.gz``/``.bz2``/``.xz`` suffix, and each reader gets a decompressed copy.
 
 Detection rules (:func:`detect_format`), applied to the first bytes of the file in this order:
 
@@ -49,7 +57,10 @@ Detection rules (:func:`detect_format`), applied to the first bytes of the file 
 9. the header lines of a results punch (``$TITLE``, ``$EIGENVECTOR``, ...) or Nastran bulk data
    cards (``GRID``, ``EXTRN``, ``ASET``, ``DTI``, ``BEGIN SUPER`` ...) -> ``nastran-dmig``, whose
    reader then says what the file holds instead of DMIG matrices;
-10. the first data line (blank lines and ``**`` comments skipped) holds 5 comma-separated numbers
+10. a file named ``.sti`` or ``.mas`` whose first data line holds 3 blank-separated numbers
+    (``row column value``), or one named ``.dof`` whose first line is ``node.direction`` ->
+    ``calculix`` (the reader asks for the ``.sti`` if given another of the files);
+11. the first data line (blank lines and ``**`` comments skipped) holds 5 comma-separated numbers
     (``node, dof, node, dof, value``) or 3 numbers (``row, column, value``) -> ``abaqus``.
 
 Before rule 2, a MATLAB header (``MATLAB 5.0 MAT-file`` for v5 to v7, ``MATLAB 7.3 MAT-file`` or
@@ -75,6 +86,14 @@ from typing import Any, BinaryIO
 
 from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
+from pymorembs.io.compressed import (
+    DECOMPRESSION_ERRORS,
+    PlainCopies,
+    compression,
+    damaged_file_error,
+    open_plain,
+    plain_path,
+)
 from pymorembs.io.line_blocks import UTF8_BOM
 from pymorembs.io.matrix_market import encoding_note
 
@@ -98,6 +117,7 @@ FORMATS: tuple[str, ...] = (
     "nastran-op4",
     "nastran-op2",
     "matlab",
+    "calculix",
 )
 
 #: Options of :func:`read_body` each format takes (``format`` itself aside).
@@ -111,9 +131,9 @@ _OPTIONS: dict[str, frozenset[str]] = {
         {"stiffness", "mass", "mapping", "damping", "nodes", "constraints", "fixed", "name"}
     ),
     "abaqus": frozenset(
-        {"stiffness", "mass", "damping", "dofs", "inp", "constraints", "fixed", "name"}
+        {"stiffness", "mass", "damping", "dofs", "inp", "nodes", "constraints", "fixed", "name"}
     ),
-    "abaqus-substructure": frozenset({"file", "inp", "constraints", "fixed", "name"}),
+    "abaqus-substructure": frozenset({"file", "inp", "nodes", "constraints", "fixed", "name"}),
     "nastran-dmig": frozenset(
         {
             "file",
@@ -166,7 +186,14 @@ _OPTIONS: dict[str, frozenset[str]] = {
             "name",
         }
     ),
+    "calculix": frozenset(
+        {"file", "stiffness", "mass", "dofs", "inp", "nodes", "constraints", "fixed", "name"}
+    ),
 }
+#: The options that name files (a compressed one is read through a plain copy); ``damping``
+#: names a file only in the formats of :data:`_DAMPING_FILES`.
+_FILE_OPTIONS = ("file", "stiffness", "mass", "dofs", "nodes", "constraints", "fixed", "mapping")
+_DAMPING_FILES = frozenset({"matrix-market", "ansys-mmf", "abaqus"})
 
 #: What each format needs, as a readable hint for the "missing" error.
 _NEEDS: dict[str, str] = {
@@ -180,6 +207,7 @@ _NEEDS: dict[str, str] = {
     "nastran-op4": "file (the .op4 file)",
     "nastran-op2": "file (the .op2 file)",
     "matlab": "file (the .mat file)",
+    "calculix": "file (the job.sti of *FREQUENCY, SOLVER=MATRIXSTORAGE)",
 }
 
 _HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
@@ -222,7 +250,13 @@ _EXTENSION_HINTS = {
     ".op2": "nastran-op2",
     ".mat": "matlab",
     ".f06": "nastran-dmig",
+    ".sti": "calculix",
+    ".mas": "calculix",
+    ".dof": "calculix",
 }
+_CALCULIX_MATRIX = (".sti", ".mas")
+_COMPRESSION_SUFFIXES = ("", ".gz", ".bz2", ".xz")
+_CALCULIX_DOF = re.compile(r"\s*\d+\.\d+\s*")
 
 
 # ============================================================================ detection
@@ -233,7 +267,9 @@ def detect_format(path: PathLike) -> str:
     ----------
     path : path-like
         The model file (for ``native``, ``ansys-full``, ``nastran-dmig``, ``nastran-op4``), the
-        stiffness file (``matrix-market``, ``abaqus``) or a directory holding ``K.mtx``.
+        stiffness file (``matrix-market``, ``abaqus``, ``calculix``) or a directory holding
+        ``K.mtx``; a compressed file (gzip, bzip2, xz) by its decompressed content and its name
+        without the compression suffix.
 
     Returns
     -------
@@ -248,18 +284,24 @@ def detect_format(path: PathLike) -> str:
     """
     path = Path(path)
     if path.is_dir():
-        if (path / "K.mtx").is_file():
+        if any((path / f"K.mtx{suffix}").is_file() for suffix in _COMPRESSION_SUFFIXES):
             return "matrix-market"
         raise UserError(
             f"{path}: a directory without K.mtx; cannot tell the file format; "
             f"give --format (one of {', '.join(FORMATS)})"
         )
+    plain = plain_path(path) if compression(path) is not None else path
     try:
-        with open(path, "rb") as f:
-            head = f.read(_HEAD_BYTES)
-            found = _detect_head(path, head)
-            if found is None and len(head) == _HEAD_BYTES:
-                found = _scan_for_dmig(f, head)
+        with open_plain(path) as f:
+            try:
+                head = f.read(_HEAD_BYTES)
+                found = _detect_head(path, head, plain.suffix.lower())
+                if found is None and len(head) == _HEAD_BYTES:
+                    found = _scan_for_dmig(f, head)
+            except DECOMPRESSION_ERRORS as err:
+                if plain is path:
+                    raise
+                raise damaged_file_error(path, err) from None
     except FileNotFoundError:
         raise UserError(f"{path}: file not found") from None
     except OSError as err:
@@ -268,7 +310,7 @@ def detect_format(path: PathLike) -> str:
         return found
     if encoding_note(head):
         raise UserError(f"{path}: the file is UTF-16 encoded; save it as UTF-8 or ASCII text")
-    raise UserError(f"{path}: cannot tell the file format{_hint(path, head)}; {_give_format()}")
+    raise UserError(f"{path}: cannot tell the file format{_hint(plain, head)}; {_give_format()}")
 
 
 def _give_format() -> str:
@@ -281,18 +323,27 @@ def _hint(path: Path, head: bytes) -> str:
         return " (the file is empty)"
     first = _first_content_line(head.decode("latin-1"))
     if first is not None and first.lstrip().startswith("*") and not first.lstrip().startswith("**"):
+        if path.with_suffix(".sti").is_file():
+            return (
+                f" (it looks like the input deck of a CalculiX export; give its stiffness file "
+                f"{path.with_suffix('.sti').name}, beside which the deck, .mas and .dof are found)"
+            )
         return (
             " (it looks like an Abaqus input file; give it as the inp option next to the "
             "*MATRIX OUTPUT files jobname_STIFn.mtx and jobname_MASSn.mtx)"
         )
+    if path.suffix.lower() == ".npz":  # e.g. the reduced.npz of to_matrices
+        return (" (a .npz holds arrays, not an FE model; a reduced body saved by "
+                "ReducedBody.save is opened with pymorembs.load)")  # fmt: skip
     hint = _EXTENSION_HINTS.get(path.suffix.lower())
     if hint:
         return f" (the name suggests {hint}, but the content does not match)"
     return ""
 
 
-def _detect_head(path: Path, head: bytes) -> str | None:
-    """The format from the first bytes of a file, or None."""
+def _detect_head(path: Path, head: bytes, suffix: str) -> str | None:
+    """The format from the first bytes of a file, or None; ``suffix``: the file's (of the plain
+    name of a compressed file), lower case."""
     if _MATLAB_HEADER.match(head):
         return "matlab"  # v7.3 files are HDF5 with a MATLAB user block: test them first
     for offset in [0] + [512 << k for k in range(8)]:
@@ -321,9 +372,18 @@ def _detect_head(path: Path, head: bytes) -> str | None:
     if _PUNCH_RESULTS.search(head) or _BULK_CARD.search(head):
         return "nastran-dmig"  # its reader names what the file holds instead of matrices
     data = _first_content_line(text)
+    if data is not None and _is_calculix(suffix, data):
+        return "calculix"
     if data is not None and _is_abaqus_entry(data):
         return "abaqus"
     return None
+
+
+def _is_calculix(suffix: str, line: str) -> bool:
+    """A CalculiX ``.sti``/``.mas`` entry ``row column value`` or a ``.dof`` line."""
+    if suffix == ".dof":
+        return _CALCULIX_DOF.fullmatch(line) is not None
+    return suffix in _CALCULIX_MATRIX and "," not in line and _is_abaqus_entry(line)
 
 
 def _detect_binary(path: Path, head: bytes) -> str | None:
@@ -440,25 +500,30 @@ def read_body(
         (``.pch``) and ``nastran-op4`` (``.op4``); for ``matrix-market`` it may be a directory
         written by :func:`~pymorembs.io.matrix_market.write_matrix_files`.
     stiffness, mass : path-like, optional
-        The stiffness and mass files of ``matrix-market``, ``ansys-mmf`` and ``abaqus``.
+        The stiffness and mass files of ``matrix-market``, ``ansys-mmf`` and ``abaqus``; for
+        ``calculix`` ``job.sti`` (as ``file``) and ``job.mas`` (default: beside it).
     damping : path-like or str, optional
         The viscous damping matrix file (``matrix-market``, ``ansys-mmf``, ``abaqus``); for
         ``nastran-dmig`` and ``nastran-op4`` the *name* of the damping matrix in ``file``
         (e.g. ``BAAX``).
     dofs : path-like, optional
         ``dofs.csv`` (header ``node,direction``): the dof of every equation, for
-        ``matrix-market``, ``abaqus`` with ``FORMAT=COORDINATE`` files and ``nastran-op4``.
+        ``matrix-market``, ``abaqus`` with ``FORMAT=COORDINATE`` files and ``nastran-op4``; for
+        ``calculix`` the ``job.dof`` file (default: beside ``job.sti``).
     nodes : path-like, optional
-        Node coordinates: ``nodes.csv`` (header ``id,x,y,z``), for ``nastran-dmig`` also a
-        Nastran bulk data file with GRID cards, for ``ansys-full``/``ansys-mmf`` whatever
-        :mod:`pymorembs.io.ansys` reads.
+        Node coordinates, for every format but ``native``: ``nodes.csv`` (header ``id,x,y,z``),
+        an Abaqus or CalculiX input deck, an Ansys archive (``.cdb``), Nastran bulk data or an
+        ``.f06`` (:func:`pymorembs.io.node_files.read_node_file`). For ``abaqus``,
+        ``abaqus-substructure`` and ``calculix`` it is the same option as ``inp``.
     constraints, fixed : path-like, optional
         ``constraints.csv`` and ``fixed.csv`` (layout in :mod:`pymorembs.io.matrix_market`);
         accepted by every format and applied to the body read.
     mapping : path-like, optional
         The Ansys mapping file of ``ansys-mmf``.
     inp : path-like, optional
-        The Abaqus input file with the ``*NODE`` coordinates (``abaqus`` only).
+        The Abaqus input file with the ``*NODE`` coordinates (``abaqus``,
+        ``abaqus-substructure``), the CalculiX input deck (``calculix``; default: ``job.inp``
+        beside ``job.sti``).
     stiffness_name, mass_name, damping_name : str, optional
         Matrix (or variable) names in the file of ``nastran-dmig``, ``nastran-op4``,
         ``nastran-op2`` and ``matlab``. Default: found by the reader when the choice is
@@ -515,13 +580,63 @@ def read_body(
     if extra:
         plural = "s" if len(extra) > 1 else ""
         verb = "do" if len(extra) > 1 else "does"
+        detected = f"{source}: the content looks like {fmt}: " if format is None else ""
         raise UserError(
-            f"option{plural} {', '.join(extra)} {verb} not apply to format {fmt}; "
+            f"{detected}option{plural} {', '.join(extra)} {verb} not apply to format {fmt}; "
             f"it takes {', '.join(sorted(_OPTIONS[fmt]))}"
         )
     _check_distinct_matrices(given)
-    body, applied = _dispatch(fmt, given)
-    return _finish(body, given, applied)
+    if fmt == "calculix":
+        given = _calculix_files(given)
+    if fmt == "matrix-market" and "file" in given and Path(given["file"]).is_dir():
+        given = _directory_files(given)  # (its files may be compressed)
+    files = [key for key in (*_FILE_OPTIONS, "inp") if key in given]
+    if "damping" in given and fmt in _DAMPING_FILES:
+        files.append("damping")
+    with PlainCopies({key: given[key] for key in files}) as copies:
+        plain = {**given, **copies.paths}
+        body, applied = _dispatch(fmt, plain)
+        body = _finish(body, plain, applied)
+        if copies.compressed:
+            body = replace(body, notes=tuple(copies.named(note) for note in body.notes))
+    return body
+
+
+def _directory_files(given: dict[str, Any]) -> dict[str, Any]:
+    """The options of a Matrix Market directory (``file``) as its single files (plain or
+    compressed), the body named after the directory."""
+    from pymorembs.io.matrix_market import directory_files
+
+    clash = sorted({"stiffness", "mass", "damping", "dofs", "nodes"} & set(given))
+    if clash:
+        raise UserError(
+            f"format matrix-market: give either a directory (file) or the single files, "
+            f"not both (file and {', '.join(clash)})"
+        )
+    given = dict(given)
+    directory = Path(given.pop("file"))
+    given.setdefault("name", directory.resolve().name or "body")
+    return {**given, **directory_files(directory)}
+
+
+def _calculix_files(given: dict[str, Any]) -> dict[str, Any]:
+    """The options of a CalculiX export with its files found beside ``job.sti`` (before any
+    compressed file is decompressed, so that the files are found beside the original)."""
+    from pymorembs.io.calculix import calculix_files
+
+    for first, second in (("file", "stiffness"), ("inp", "nodes")):
+        if first in given and second in given:
+            raise UserError(
+                f"format calculix: give {first} or {second}, not both (the "
+                f"{'job.sti' if first == 'file' else 'input deck'} once)"
+            )
+    given = dict(given)
+    stiffness = given.pop("file", None) or given.pop("stiffness", None)
+    if stiffness is None:
+        _require("calculix", given, "file")
+    deck = given.pop("nodes", None) or given.get("inp")
+    found = calculix_files(stiffness, given.get("mass"), given.get("dofs"), deck)
+    return {**given, **found}
 
 
 def _check_distinct_matrices(given: dict[str, Any]) -> None:
@@ -557,22 +672,13 @@ def _dispatch(fmt: str, given: dict[str, Any]) -> tuple[ElasticBody, set[str]]:
 
         return read_body_h5(g("file")), set()
     if fmt == "matrix-market":
-        from pymorembs.io.matrix_market import read_matrix_directory, read_matrix_files
+        from pymorembs.io.matrix_market import read_matrix_files
 
-        if "file" in given:
-            path = Path(g("file"))
-            clash = sorted({"stiffness", "mass", "damping", "dofs", "nodes"} & set(given))
-            if clash:
-                raise UserError(
-                    f"format matrix-market: give either a directory (file) or the single files, "
-                    f"not both (file and {', '.join(clash)})"
-                )
-            if not path.is_dir():
-                raise UserError(
-                    f"{path}: format matrix-market reads a directory (file) or the files "
-                    "stiffness and mass, not a single file"
-                )
-            return read_matrix_directory(path, name=g("name")), {"name"}
+        if "file" in given:  # (read_body turned a directory into its files)
+            raise UserError(
+                f"{g('file')}: format matrix-market reads a directory (file) or the files "
+                "stiffness and mass, not a single file"
+            )
         _require(fmt, given, "stiffness")
         if "mass" not in given:
             raise UserError(
@@ -605,7 +711,7 @@ def _dispatch(fmt: str, given: dict[str, Any]) -> tuple[ElasticBody, set[str]]:
         body = read_abaqus(
             g("stiffness"),
             g("mass"),
-            inp=g("inp"),
+            inp=_deck(fmt, given),
             damping=g("damping"),
             name=g("name"),
             dofs=g("dofs"),
@@ -614,7 +720,15 @@ def _dispatch(fmt: str, given: dict[str, Any]) -> tuple[ElasticBody, set[str]]:
     if fmt == "abaqus-substructure":
         _require(fmt, given, "file")
         substructure = importlib.import_module("pymorembs.io.abaqus_substructure")
-        body = substructure.read_abaqus_substructure(g("file"), inp=g("inp"), name=g("name"))
+        body = substructure.read_abaqus_substructure(
+            g("file"), inp=_deck(fmt, given), name=g("name")
+        )
+        return body, {"name"}
+    if fmt == "calculix":
+        calculix = importlib.import_module("pymorembs.io.calculix")
+        body = calculix.read_calculix(
+            g("stiffness"), g("mass"), dofs=g("dofs"), inp=g("inp"), name=g("name")
+        )
         return body, {"name"}
     _require(fmt, given, "file")
     names = _matrix_names(given)
@@ -635,6 +749,13 @@ def _dispatch(fmt: str, given: dict[str, Any]) -> tuple[ElasticBody, set[str]]:
     matlab = importlib.import_module("pymorembs.io.matlab")
     body = matlab.read_matlab(g("file"), dofs=g("dofs"), nodes=g("nodes"), name=g("name"), **names)
     return body, {"name"}
+
+
+def _deck(fmt: str, given: dict[str, Any]) -> Any:
+    """The ``inp`` option of the Abaqus formats, which ``nodes`` may give instead."""
+    if "inp" in given and "nodes" in given:
+        raise UserError(f"format {fmt}: give inp or nodes, not both (the node file once)")
+    return given.get("inp", given.get("nodes"))
 
 
 def _matrix_names(given: dict[str, Any]) -> dict[str, str]:

@@ -53,7 +53,8 @@ from pymorembs.body import SCALAR, DofTable, ElasticBody, ModelPorts
 from pymorembs.errors import UserError, located_error
 from pymorembs.io.checks import reason
 from pymorembs.io.mat5 import Mat5Entry, is_v5, load_v5, scan_v5
-from pymorembs.io.matrix_market import check_symmetric, read_dofs_csv, read_nodes_csv
+from pymorembs.io.matrix_market import check_symmetric, read_dofs_csv
+from pymorembs.io.node_files import read_node_file
 
 __all__ = ["MatVariable", "mat_variables", "read_mat_variables", "read_matlab"]
 
@@ -641,15 +642,16 @@ def _dof_table(
         node_ids = table.nodes[geometric][np.sort(first)]
         note = f"dof table: {table.describe()} from {dofs_path.name}; no coordinates"
         return table, node_ids, np.zeros((node_ids.size, 3)), False, note
-    nodes_path = Path(nodes)
-    node_ids, coordinates = read_nodes_csv(nodes_path)
+    node_file = read_node_file(nodes)
+    nodes_path, node_ids, coordinates = node_file.path, node_file.ids, node_file.coordinates
     missing = np.setdiff1d(table.nodes[geometric], node_ids)
     if missing.size:
         raise located_error(
             nodes_path, None, f"node {int(missing[0])} of {dofs_path} is not listed"
         )
     note = (
-        f"dof table: {table.describe()} from {dofs_path.name}, coordinates from {nodes_path.name}"
+        f"dof table: {table.describe()} from {dofs_path.name}, coordinates from "
+        f"{node_file.describe()}"
     )
     return table, node_ids, coordinates, True, note
 

@@ -69,6 +69,7 @@ import scipy.sparse as sp
 from pymorembs.body import DIRECTIONS, ConstraintEquations, DofTable, ElasticBody, direction_code
 from pymorembs.errors import UserError, located_error
 from pymorembs.io.atomic import atomic_open, write_text
+from pymorembs.io.compressed import COMPRESSIONS
 from pymorembs.io.fast_text import (
     CheckedReader,
     PlainNumberScan,
@@ -87,7 +88,9 @@ __all__ = [
     "FILE_NAMES",
     "MAX_EQUATIONS",
     "SYMMETRY_TOLERANCE",
+    "DataLines",
     "check_symmetric",
+    "directory_files",
     "encoding_note",
     "read_matrix_directory",
     "read_matrix_files",
@@ -224,8 +227,10 @@ def read_matrix_files(
         ``dofs.csv``. Without it the dof table is generic: equation ``i`` (from 0) is direction
         ``ux`` of node ``i + 1``.
     nodes : path-like, optional
-        ``nodes.csv``; it must list every node of the dof table. Without it, every node of the dof
-        table lies at the origin.
+        ``nodes.csv``, or the input deck of an FE program (an Abaqus or CalculiX ``.inp``, an
+        Ansys ``.cdb``, Nastran bulk data or ``.f06``: :func:`pymorembs.io.node_files.
+        read_node_file`); it must hold every node of the dof table. Without it, every node of
+        the dof table lies at the origin.
     constraints, fixed : path-like, optional
         ``constraints.csv`` and ``fixed.csv``.
     name : str, optional
@@ -259,13 +264,19 @@ def read_matrix_files(
                 dofs_path, None, f"{len(table)} dofs but {k_path} is a {n} x {n} matrix"
             )
 
+    notes: list[str] = []
     if nodes is None:
         _, first = np.unique(table.nodes, return_index=True)
         node_ids = table.nodes[np.sort(first)]
         coordinates = np.zeros((node_ids.size, 3))
     else:
-        nodes_path = Path(nodes)
-        node_ids, coordinates = read_nodes_csv(nodes_path)
+        # (imported here: the node file readers import this module)
+        from pymorembs.io.node_files import read_node_file
+
+        node_file = read_node_file(nodes)
+        nodes_path, node_ids, coordinates = node_file.path, node_file.ids, node_file.coordinates
+        if node_file.kind != "csv":
+            notes.append(f"coordinates: {node_file.describe()}")
         missing = np.flatnonzero(~np.isin(table.nodes, node_ids))
         if missing.size:
             first_missing = int(missing[0])
@@ -298,6 +309,7 @@ def read_matrix_files(
             constraints=equations,
             fixed=fixed_dofs,
             name=name,
+            notes=tuple(notes),
         )
     except UserError as err:
         raise UserError(f"{k_path}: {err}") from None
@@ -310,16 +322,38 @@ def read_matrix_directory(directory: PathLike, name: str | None = None) -> Elast
     ``constraints.csv`` and ``fixed.csv`` are read when present (see :func:`read_matrix_files`
     for what their absence means). ``name`` defaults to the directory name.
     """
+    paths = directory_files(directory)
+    return read_matrix_files(name=name, **paths)
+
+
+def directory_files(directory: PathLike) -> dict[str, Path]:
+    """The files of a body in ``directory`` (:data:`FILE_NAMES`), each plain or compressed.
+
+    Returns
+    -------
+    dict of str -> Path
+        Keyed like the arguments of :func:`read_matrix_files`: ``stiffness`` and ``mass``
+        always (``K.mtx``, ``M.mtx`` or a compressed ``K.mtx.gz``, ``.bz2``, ``.xz``; the plain
+        name when neither exists, so that the reader says it is missing), the others when
+        present.
+
+    Raises
+    ------
+    UserError
+        ``directory`` is not a directory.
+    """
     directory = Path(directory)
     if not directory.is_dir():
         raise UserError(f"{directory}: not a directory of Matrix Market and CSV files")
-    paths = {key: directory / file for key, file in FILE_NAMES.items()}
-    optional = {
-        key: path
-        for key, path in paths.items()
-        if key not in ("stiffness", "mass") and path.exists()
-    }
-    return read_matrix_files(paths["stiffness"], paths["mass"], name=name, **optional)
+    found = {}
+    for key, file in FILE_NAMES.items():
+        candidates = [directory / file] + [
+            directory / f"{file}{suffix}" for suffix, _ in COMPRESSIONS.values()
+        ]
+        path = next((c for c in candidates if c.is_file()), None)
+        if path is not None or key in ("stiffness", "mass"):
+            found[key] = path if path is not None else candidates[0]
+    return found
 
 
 # ============================================================================ Matrix Market
@@ -436,7 +470,7 @@ def _read_matrix_market(path: Path) -> tuple[sp.csr_matrix, bool]:
     lines = read_text_lines(path, "a Matrix Market file")
     header = _parse_header(path, lines)
     n, size_line = header.n, header.size_line
-    data = _DataLines(path, lines, header.data_index)
+    data = DataLines(path, lines, header.data_index)
     if header.layout == "coordinate":
         table = data.parse((("row", int), ("column", int), ("value", float)))
         if table.size != header.entries:
@@ -845,7 +879,7 @@ def _read_symmetric(path: Path, like: tuple[Path, int] | None = None) -> sp.csr_
 
 
 def _coordinate_matrix(
-    data: _DataLines,
+    data: DataLines,
     rows: np.ndarray,
     cols: np.ndarray,
     values: np.ndarray,
@@ -899,8 +933,20 @@ def _entry(rows: np.ndarray, cols: np.ndarray, k: int) -> str:
         return f"({rows[k] + 1}, {cols[k] + 1})"
 
 
-class _DataLines:
-    """The entry lines of a Matrix Market file (after the size line), with line numbers."""
+class DataLines:
+    """The entry lines of a text file of numbers, with their line numbers: a Matrix Market file
+    after its size line, or a CalculiX matrix file (:mod:`pymorembs.io.calculix`) from its first
+    line. ``%`` starts a comment; blank lines are skipped.
+
+    Parameters
+    ----------
+    path : Path
+        The file, for messages.
+    lines : list of str
+        Every line of the file (:func:`read_text_lines`).
+    start : int
+        Index in ``lines`` of the first entry line.
+    """
 
     def __init__(self, path: Path, lines: list[str], start: int) -> None:
         self.path = path

@@ -68,6 +68,7 @@ from pathlib import Path
 import numpy as np
 
 from pymorembs.errors import located_error
+from pymorembs.io.compressed import original_path
 from pymorembs.io.element_surface import SurfaceElements
 from pymorembs.io.line_blocks import UTF8_BOM
 from pymorembs.io.matrix_market import encoding_note
@@ -1240,7 +1241,9 @@ class _Parser:
                 includes.append((i, name, int(self.sections[i])))
         for i, name, section in includes:
             target = (
-                (self.path.parent / name).resolve() if not Path(name).is_absolute() else Path(name)
+                (original_path(self.path).parent / name).resolve()
+                if not Path(name).is_absolute()
+                else Path(name)
             )
             if target.resolve() in self.stack:
                 raise located_error(

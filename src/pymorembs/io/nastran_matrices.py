@@ -37,7 +37,7 @@ from pymorembs.body import SCALAR, DofTable, ElasticBody
 from pymorembs.errors import UserError, located_error
 from pymorembs.io.checks import make_body
 from pymorembs.io.element_surface import attach_surface
-from pymorembs.io.matrix_market import check_symmetric, read_nodes_csv
+from pymorembs.io.matrix_market import check_symmetric
 from pymorembs.io.nastran_bulk import (
     AnalysisSet,
     BulkData,
@@ -45,7 +45,7 @@ from pymorembs.io.nastran_bulk import (
     bulk_surface_elements,
     read_bulk,
 )
-from pymorembs.io.reader_support import is_nodes_csv
+from pymorembs.io.node_files import node_file_kind, read_node_file
 from pymorembs.io.solid_mesh import attach_mesh
 from pymorembs.sparse_rows import abs_row_sums
 
@@ -380,14 +380,17 @@ class NodeSource:
 
 
 def node_source(path: PathLike | None, bulk: BulkData | None = None) -> NodeSource | None:
-    """Read ``path`` as ``nodes.csv`` or bulk data (reusing ``bulk`` if already read)."""
+    """Read ``path`` as bulk data (reusing ``bulk`` if already read), or as another node file
+    (``nodes.csv``, an Abaqus/CalculiX deck, an Ansys archive: :func:`pymorembs.io.node_files.
+    read_node_file`), whose nodes are grids in the basic system."""
     if path is None:
         return None
     path = Path(path)
     if bulk is not None and bulk.path == path:
         return NodeSource(path, bulk, None)
-    if is_nodes_csv(path):
-        return NodeSource(path, None, read_nodes_csv(path))
+    if path.is_file() and node_file_kind(path) != "nastran":
+        node_file = read_node_file(path)
+        return NodeSource(path, None, (node_file.ids, node_file.coordinates))
     return NodeSource(path, read_bulk(path), None)
 
 

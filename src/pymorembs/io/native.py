@@ -32,15 +32,23 @@ Layout (format version 2)::
 Version 1 files (no coordinates flag, notes or ports) are read as well.
 
 Arrays are stored exactly as they are in memory (floats bit for bit, sparsity structure as is);
-arrays of more than :data:`COMPRESS_FROM` elements are gzip-compressed, which is lossless.
+arrays of more than :data:`COMPRESS_FROM` elements are gzip-compressed, which is lossless. Every
+array carries a Fletcher-32 checksum (HDF5's ``fletcher32`` filter; files written before it are
+read as well), so a file damaged after it was written is refused instead of read wrong.
+
+The same layout may sit in a group of another file: a reduced body saved by ``ReducedBody.save``
+(:mod:`pymorembs.io.reduced_file`) keeps its body in ``/body`` (:func:`write_body_group`,
+:func:`read_body_group`); :func:`read_body_h5` of such a file says to load it with
+``pymorembs.load``.
 """
 
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from dataclasses import asdict, fields
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import h5py
 import numpy as np
@@ -59,7 +67,24 @@ from pymorembs.errors import UserError
 from pymorembs.io.atomic import atomic_path
 from pymorembs.surface import Surface
 
-__all__ = ["COMPRESS_FROM", "FORMAT", "VERSION", "read_body_h5", "write_body_h5"]
+__all__ = [
+    "COMPRESS_FROM",
+    "FLOAT_KINDS",
+    "FORMAT",
+    "INTEGER_KINDS",
+    "REDUCED_BODY_FORMAT",
+    "VERSION",
+    "attribute_text",
+    "get_array",
+    "get_csr",
+    "put_array",
+    "put_csr",
+    "read_body_group",
+    "read_body_h5",
+    "read_hdf5",
+    "write_body_group",
+    "write_body_h5",
+]
 
 #: Value of the root attribute ``format``.
 FORMAT = "pymorembs-body"
@@ -68,8 +93,14 @@ VERSION = 2
 #: Arrays with at least this many elements are stored gzip-compressed.
 COMPRESS_FROM = 4096
 
-_INT = "iu"  # dtype kinds accepted for integer arrays
-_FLOAT = "f"
+T = TypeVar("T")
+
+#: The ``format`` attribute of a reduced body saved by ``ReducedBody.save``
+#: (:mod:`pymorembs.io.reduced_file`), which holds a body in this layout in its group ``/body``.
+REDUCED_BODY_FORMAT = "pymorembs-reduced-body"
+#: dtype kinds accepted for integer and for float arrays (:func:`get_array`).
+INTEGER_KINDS = "iu"
+FLOAT_KINDS = "f"
 
 
 def write_body_h5(body: ElasticBody, path: str | os.PathLike[str]) -> Path:
@@ -89,56 +120,62 @@ def write_body_h5(body: ElasticBody, path: str | os.PathLike[str]) -> Path:
     """
     path = Path(path)
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
-        f.attrs["format"] = FORMAT
-        f.attrs["version"] = VERSION
-        f.attrs["name"] = str(body.name)
-        f.attrs["has_coordinates"] = bool(body.has_coordinates)
-        f.attrs["notes"] = [str(note) for note in body.notes]
-        f.attrs["precision"] = np.nan if body.precision is None else float(body.precision)
-        _put(f, "nodes/ids", body.node_ids, np.int64)
-        _put(f, "nodes/coordinates", body.coordinates, np.float64)
-        _put(f, "dofs/nodes", body.dofs.nodes, np.int64)
-        _put(f, "dofs/directions", body.dofs.directions, np.int64)
-        _put_csr(f, "mass", body.mass)
-        _put_csr(f, "stiffness", body.stiffness)
-        if body.damping_matrix is not None:
-            _put_csr(f, "damping_matrix", body.damping_matrix)
-        _put(f, "constraints/dependent", body.constraints.dependent, np.int64)
-        _put(f, "constraints/offset", body.constraints.offset, np.float64)
-        _put_csr(f, "constraints/matrix", body.constraints.matrix)
-        _put(f, "fixed", body.fixed, np.int64)
-        damping = f.create_group("damping")
-        damping.attrs["kind"] = body.damping.kind
-        for key in ("alpha", "beta", "ratio"):
-            damping.attrs[key] = np.float64(getattr(body.damping, key))
-        if body.mesh is not None:
-            _put(f, "mesh/connectivity", body.mesh.connectivity, np.int64)
-            f["mesh"].attrs["element"] = body.mesh.element
-            for key in ("young", "poisson"):
-                value = getattr(body.mesh, key)
-                if isinstance(value, np.ndarray):  # one per element
-                    _put(f, f"mesh/{key}", value, np.float64)
-                else:
-                    f["mesh"].attrs[key] = value
-            if body.mesh.section is not None:
-                for key, value in asdict(body.mesh.section).items():
-                    f["mesh"].attrs[f"section_{key}"] = float(value)
-            if body.mesh.up is not None:
-                f["mesh"].attrs["up"] = np.asarray(body.mesh.up, dtype=float)
-        if body.surface is not None:
-            _put(f, "surface/triangles", body.surface.triangles, np.int64)
-            _put(f, "surface/lines", body.surface.lines, np.int64)
-            f["surface"].attrs["source"] = body.surface.source
-        if body.ports is not None:
-            for key, labels in (
-                ("inputs", body.ports.input_labels),
-                ("outputs", body.ports.output_labels),
-            ):
-                matrix = getattr(body.ports, key)
-                if matrix is not None:
-                    _put_csr(f, f"ports/{key}", matrix)
-                    f[f"ports/{key}"].attrs["labels"] = [str(label) for label in labels]
+        write_body_group(f, body)
     return path
+
+
+def write_body_group(f: h5py.Group, body: ElasticBody) -> None:
+    """Write ``body`` into an open HDF5 file or group ``f`` (the layout of the module
+    docstring below ``f``; :func:`write_body_h5` writes it at the root of a file)."""
+    f.attrs["format"] = FORMAT
+    f.attrs["version"] = VERSION
+    f.attrs["name"] = str(body.name)
+    f.attrs["has_coordinates"] = bool(body.has_coordinates)
+    f.attrs["notes"] = [str(note) for note in body.notes]
+    f.attrs["precision"] = np.nan if body.precision is None else float(body.precision)
+    put_array(f, "nodes/ids", body.node_ids, np.int64)
+    put_array(f, "nodes/coordinates", body.coordinates, np.float64)
+    put_array(f, "dofs/nodes", body.dofs.nodes, np.int64)
+    put_array(f, "dofs/directions", body.dofs.directions, np.int64)
+    put_csr(f, "mass", body.mass)
+    put_csr(f, "stiffness", body.stiffness)
+    if body.damping_matrix is not None:
+        put_csr(f, "damping_matrix", body.damping_matrix)
+    put_array(f, "constraints/dependent", body.constraints.dependent, np.int64)
+    put_array(f, "constraints/offset", body.constraints.offset, np.float64)
+    put_csr(f, "constraints/matrix", body.constraints.matrix)
+    put_array(f, "fixed", body.fixed, np.int64)
+    damping = f.create_group("damping")
+    damping.attrs["kind"] = body.damping.kind
+    for key in ("alpha", "beta", "ratio"):
+        damping.attrs[key] = np.float64(getattr(body.damping, key))
+    if body.mesh is not None:
+        put_array(f, "mesh/connectivity", body.mesh.connectivity, np.int64)
+        f["mesh"].attrs["element"] = body.mesh.element
+        for key in ("young", "poisson"):
+            value = getattr(body.mesh, key)
+            if isinstance(value, np.ndarray):  # one per element
+                put_array(f, f"mesh/{key}", value, np.float64)
+            else:
+                f["mesh"].attrs[key] = value
+        if body.mesh.section is not None:
+            for key, value in asdict(body.mesh.section).items():
+                f["mesh"].attrs[f"section_{key}"] = float(value)
+        if body.mesh.up is not None:
+            f["mesh"].attrs["up"] = np.asarray(body.mesh.up, dtype=float)
+    if body.surface is not None:
+        put_array(f, "surface/triangles", body.surface.triangles, np.int64)
+        put_array(f, "surface/lines", body.surface.lines, np.int64)
+        f["surface"].attrs["source"] = body.surface.source
+    if body.ports is not None:
+        for key, labels in (
+            ("inputs", body.ports.input_labels),
+            ("outputs", body.ports.output_labels),
+        ):
+            matrix = getattr(body.ports, key)
+            if matrix is not None:
+                put_csr(f, f"ports/{key}", matrix)
+                f[f"ports/{key}"].attrs["labels"] = [str(label) for label in labels]
 
 
 def read_body_h5(path: str | os.PathLike[str]) -> ElasticBody:
@@ -150,32 +187,65 @@ def read_body_h5(path: str | os.PathLike[str]) -> ElasticBody:
         The file is missing, not HDF5, not a pymorembs body file, of a newer format version,
         or incomplete or inconsistent; the message names the file.
     """
+    return read_hdf5(path, read_body_group, "a pymorembs body .h5 file", "the body")
+
+
+def read_hdf5(
+    path: str | os.PathLike[str], reader: Callable[[h5py.File], T], expected: str, what: str
+) -> T:
+    """Open an HDF5 file and build a value from it with ``reader``, every failure one line.
+
+    Parameters
+    ----------
+    path : path-like
+        The file.
+    reader : callable
+        Builds the value from the open file; raises :class:`UserError` without the file name.
+    expected, what : str
+        For the messages: what the file should be (``"a pymorembs body .h5 file"``) and what
+        is read from it (``"the body"``).
+
+    Raises
+    ------
+    UserError
+        ``path: ...``: a missing file, a directory, not HDF5, an error of ``reader``, or a file
+        HDF5 cannot read (truncated, damaged: a checksum that does not match).
+    """
     path = Path(path)
     if not path.exists():
-        raise UserError(f"{path}: file not found (expected a pymorembs body .h5 file)")
+        raise UserError(f"{path}: file not found (expected {expected})")
     if path.is_dir():
-        raise UserError(f"{path}: is a directory, expected a pymorembs body .h5 file")
+        raise UserError(f"{path}: is a directory, expected {expected}")
     try:
         is_hdf5 = h5py.is_hdf5(path)
     except OSError as err:
         raise UserError(f"{path}: cannot read: {_one_line(err)}") from None
     if not is_hdf5:
-        raise UserError(f"{path}: not an HDF5 file (expected a pymorembs body .h5 file)")
+        raise UserError(f"{path}: not an HDF5 file (expected {expected})")
     try:
         with h5py.File(path, "r") as f:
-            return _read_body(f)
+            return reader(f)
     except UserError as err:
         raise UserError(f"{path}: {err}") from None
     except (OSError, KeyError, ValueError, TypeError, RuntimeError) as err:
-        raise UserError(f"{path}: cannot read the body: {_one_line(err)}") from None
+        reason = _one_line(err)
+        if "filter returned failure" in reason:  # HDF5's words for a failed checksum
+            reason = f"the file is damaged: an array fails its checksum ({reason})"
+        raise UserError(f"{path}: cannot read {what}: {reason}") from None
 
 
-def _read_body(f: h5py.File) -> ElasticBody:
-    """Check the format marker and build the body from an open file.
+def read_body_group(f: h5py.Group) -> ElasticBody:
+    """Check the format marker and build the body from an open file or group.
 
     Errors are :class:`UserError` without the file name, which the caller prepends.
     """
-    if _text(f.attrs.get("format")) != FORMAT:
+    marker = attribute_text(f.attrs.get("format"))
+    if marker == REDUCED_BODY_FORMAT:
+        raise UserError(
+            "a reduced body saved by ReducedBody.save, not an FE model; open it with "
+            "pymorembs.load(path)"
+        )
+    if marker != FORMAT:
         raise UserError(f"HDF5 file without the format marker {FORMAT!r}; not a pymorembs body")
     version = f.attrs.get("version")
     if not isinstance(version, int | np.integer) or int(version) < 1:
@@ -185,7 +255,9 @@ def _read_body(f: h5py.File) -> ElasticBody:
             f"format version {int(version)} is newer than this pymorembs reads "
             f"(version {VERSION}); update pymorembs"
         )
-    dofs = DofTable(_get(f, "dofs/nodes", _INT), _get(f, "dofs/directions", _INT))
+    dofs = DofTable(
+        get_array(f, "dofs/nodes", INTEGER_KINDS), get_array(f, "dofs/directions", INTEGER_KINDS)
+    )
     n_dof = len(dofs)
     damping = f.get("damping")
     if not isinstance(damping, h5py.Group):
@@ -196,12 +268,12 @@ def _read_body(f: h5py.File) -> ElasticBody:
         for key in ("inputs", "outputs"):
             if f"ports/{key}" in f:
                 matrix = (
-                    _get_csr(f, f"ports/{key}", n_dof) if key == "outputs" else _get_csr_any(f, key)
+                    get_csr(f, f"ports/{key}", n_dof) if key == "outputs" else _get_csr_any(f, key)
                 )
                 labels = f[f"ports/{key}"].attrs.get("labels", [])
                 parts[key] = matrix
                 parts["input_labels" if key == "inputs" else "output_labels"] = tuple(
-                    _text(label) for label in labels
+                    attribute_text(label) for label in labels
                 )
         ports = ModelPorts(**parts)
     notes = f.attrs.get("notes", [])
@@ -215,14 +287,14 @@ def _read_body(f: h5py.File) -> ElasticBody:
             section = BeamSection(**{name: float(attrs[f"section_{name}"]) for name in names})
         up = attrs.get("up")
         material = {
-            key: _get(f, f"mesh/{key}", _FLOAT)
+            key: get_array(f, f"mesh/{key}", FLOAT_KINDS)
             if key in f["mesh"]
             else float(attrs.get(key, np.nan))
             for key in ("young", "poisson")
         }
         mesh = ElementMesh(
-            _text(attrs.get("element", "")),
-            _get(f, "mesh/connectivity", _INT, ndim=2),
+            attribute_text(attrs.get("element", "")),
+            get_array(f, "mesh/connectivity", INTEGER_KINDS, ndim=2),
             material["young"],
             material["poisson"],
             section,
@@ -231,32 +303,32 @@ def _read_body(f: h5py.File) -> ElasticBody:
     surface = None
     if "surface" in f:
         surface = Surface(
-            _get(f, "surface/triangles", _INT, ndim=2),
-            _get(f, "surface/lines", _INT, ndim=2),
-            _text(f["surface"].attrs.get("source", "")),
+            get_array(f, "surface/triangles", INTEGER_KINDS, ndim=2),
+            get_array(f, "surface/lines", INTEGER_KINDS, ndim=2),
+            attribute_text(f["surface"].attrs.get("source", "")),
         )
     return ElasticBody(
-        node_ids=_get(f, "nodes/ids", _INT),
-        coordinates=_get(f, "nodes/coordinates", _FLOAT, ndim=2),
+        node_ids=get_array(f, "nodes/ids", INTEGER_KINDS),
+        coordinates=get_array(f, "nodes/coordinates", FLOAT_KINDS, ndim=2),
         dofs=dofs,
-        mass=_get_csr(f, "mass", n_dof),
-        stiffness=_get_csr(f, "stiffness", n_dof),
-        damping_matrix=_get_csr(f, "damping_matrix", n_dof) if "damping_matrix" in f else None,
+        mass=get_csr(f, "mass", n_dof),
+        stiffness=get_csr(f, "stiffness", n_dof),
+        damping_matrix=get_csr(f, "damping_matrix", n_dof) if "damping_matrix" in f else None,
         constraints=ConstraintEquations(
-            _get(f, "constraints/dependent", _INT),
-            _get_csr(f, "constraints/matrix", n_dof),
-            _get(f, "constraints/offset", _FLOAT),
+            get_array(f, "constraints/dependent", INTEGER_KINDS),
+            get_csr(f, "constraints/matrix", n_dof),
+            get_array(f, "constraints/offset", FLOAT_KINDS),
         ),
-        fixed=_get(f, "fixed", _INT),
+        fixed=get_array(f, "fixed", INTEGER_KINDS),
         damping=Damping(
-            kind=_text(damping.attrs.get("kind")),  # type: ignore[arg-type]
+            kind=attribute_text(damping.attrs.get("kind")),  # type: ignore[arg-type]
             alpha=float(damping.attrs.get("alpha", 0.0)),
             beta=float(damping.attrs.get("beta", 0.0)),
             ratio=float(damping.attrs.get("ratio", 0.0)),
         ),
-        name=_text(f.attrs.get("name", "body")),
+        name=attribute_text(f.attrs.get("name", "body")),
         has_coordinates=bool(f.attrs.get("has_coordinates", True)),
-        notes=tuple(_text(note) for note in np.atleast_1d(notes)),
+        notes=tuple(attribute_text(note) for note in np.atleast_1d(notes)),
         ports=ports,
         precision=None if np.isnan(precision) else precision,
         mesh=mesh,
@@ -269,54 +341,55 @@ def _get_csr_any(f: h5py.Group, key: str) -> sp.csr_matrix:
     group = f.get(f"ports/{key}")
     shape = np.asarray(group.attrs.get("shape", ())) if isinstance(group, h5py.Group) else ()
     columns = int(shape[1]) if np.shape(shape) == (2,) else -1
-    return _get_csr(f, f"ports/{key}", columns)
+    return get_csr(f, f"ports/{key}", columns)
 
 
-def _put(f: h5py.Group, key: str, values: np.ndarray, dtype: type) -> None:
-    """Store an array, compressed if large."""
+def put_array(f: h5py.Group, key: str, values: np.ndarray, dtype: type) -> None:
+    """Store an array (at least 1-d) with a Fletcher-32 checksum, so that a damaged file is
+    refused when it is read, and gzip-compressed from :data:`COMPRESS_FROM` elements on."""
     values = np.ascontiguousarray(values, dtype=dtype)
-    options: dict[str, Any] = {}
+    options: dict[str, Any] = {"fletcher32": True}
     if values.size >= COMPRESS_FROM:
-        options = {"compression": "gzip", "shuffle": True}
+        options.update(compression="gzip", shuffle=True)
     f.create_dataset(key, data=values, **options)
 
 
-def _put_csr(f: h5py.Group, key: str, matrix: sp.spmatrix | sp.sparray) -> None:
-    """Store a sparse matrix as its CSR arrays and shape."""
+def put_csr(f: h5py.Group, key: str, matrix: sp.spmatrix | sp.sparray) -> None:
+    """Store a sparse matrix as its CSR arrays (:func:`put_array`) and shape."""
     csr = sp.csr_matrix(matrix)
     group = f.require_group(key)
     group.attrs["shape"] = np.array(csr.shape, dtype=np.int64)
-    _put(group, "data", csr.data, np.float64)
-    _put(group, "indices", csr.indices, np.int64)
-    _put(group, "indptr", csr.indptr, np.int64)
+    put_array(group, "data", csr.data, np.float64)
+    put_array(group, "indices", csr.indices, np.int64)
+    put_array(group, "indptr", csr.indptr, np.int64)
 
 
-def _get(f: h5py.Group, key: str, kinds: str, ndim: int = 1) -> np.ndarray:
+def get_array(f: h5py.Group, key: str, kinds: str, ndim: int = 1) -> np.ndarray:
     """Read a dataset and check its element kind and number of dimensions."""
     node = f.get(key)
     if not isinstance(node, h5py.Dataset):
         raise UserError(f"/{_key(f, key)} is missing")
     values = np.asarray(node[()])
     if values.dtype.kind not in kinds or values.ndim != ndim:
-        what = "integer" if kinds == _INT else "float"
+        what = "integer" if kinds == INTEGER_KINDS else "float"
         raise UserError(
             f"/{_key(f, key)} must be a {ndim}-d {what} array, not {values.ndim}-d {values.dtype}"
         )
-    return values.astype(np.int64 if kinds == _INT else np.float64, copy=False)
+    return values.astype(np.int64 if kinds == INTEGER_KINDS else np.float64, copy=False)
 
 
-def _get_csr(f: h5py.Group, key: str, columns: int) -> sp.csr_matrix:
+def get_csr(f: h5py.Group, key: str, columns: int) -> sp.csr_matrix:
     """Read and validate a CSR group with ``columns`` columns."""
     group = f.get(key)
     if not isinstance(group, h5py.Group):
         raise UserError(f"/{_key(f, key)} is missing")
     shape = np.asarray(group.attrs.get("shape", ()))
-    if shape.shape != (2,) or shape.dtype.kind not in _INT or shape.min() < 0:
+    if shape.shape != (2,) or shape.dtype.kind not in INTEGER_KINDS or shape.min() < 0:
         raise UserError(f"/{_key(f, key)} has no valid shape attribute")
     rows, cols = (int(s) for s in shape)
-    data = _get(group, "data", _FLOAT)
-    indices = _get(group, "indices", _INT)
-    indptr = _get(group, "indptr", _INT)
+    data = get_array(group, "data", FLOAT_KINDS)
+    indices = get_array(group, "indices", INTEGER_KINDS)
+    indptr = get_array(group, "indptr", INTEGER_KINDS)
     valid = (
         cols == columns
         and indptr.size == rows + 1
@@ -335,8 +408,8 @@ def _key(group: h5py.Group, key: str) -> str:
     return f"{group.name.strip('/')}/{key}".strip("/")
 
 
-def _text(value: object) -> str:
-    """An HDF5 string attribute as str (h5py may give bytes)."""
+def attribute_text(value: object) -> str:
+    """An HDF5 string attribute or string as str (h5py may give bytes)."""
     if isinstance(value, bytes):
         return value.decode("utf-8", errors="replace")
     return "" if value is None else str(value)

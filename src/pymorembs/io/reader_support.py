@@ -17,7 +17,7 @@ from pymorembs.errors import located_error
 from pymorembs.io.line_blocks import UTF8_BOM
 from pymorembs.io.matrix_market import SYMMETRY_TOLERANCE, encoding_note
 
-__all__ = ["assemble_symmetric", "collect_nodes", "is_nodes_csv", "read_text"]
+__all__ = ["assemble_symmetric", "collect_nodes", "grown_csr", "is_nodes_csv", "read_text"]
 
 PathLike = str | os.PathLike[str]
 
@@ -158,6 +158,29 @@ def assemble_symmetric(
     matrix.eliminate_zeros()
     matrix.sort_indices()
     return matrix
+
+
+def grown_csr(matrix: sp.csr_matrix, n: int) -> sp.csr_matrix:
+    """A square CSR matrix grown to ``n x n`` by empty rows and columns at its end (no copy of
+    the entries).
+
+    Parameters
+    ----------
+    matrix : scipy.sparse.csr_matrix, shape (m, m)
+        ``m <= n``.
+    n : int
+        The new size.
+
+    Returns
+    -------
+    scipy.sparse.csr_matrix, shape (n, n)
+        ``matrix`` itself when ``m == n``.
+    """
+    size = matrix.shape[0]
+    if size == n:
+        return matrix
+    indptr = np.concatenate([matrix.indptr, np.full(n - size, matrix.indptr[-1])])
+    return sp.csr_matrix((matrix.data, matrix.indices, indptr), shape=(n, n), copy=False)
 
 
 def read_text(path: Path, kind: str) -> str:

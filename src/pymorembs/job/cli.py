@@ -101,18 +101,21 @@ def build_parser() -> argparse.ArgumentParser:
         "model",
         nargs="?",
         type=Path,
-        help="model file (.h5, .full, .pch, .op4, ...) or a job file (.toml)",
+        help="model file (.h5, .full, .pch, .op4, CalculiX .sti, ...; also .gz, .bz2, .xz) or "
+        "a job file (.toml)",
     )
     info.add_argument("--format", choices=MODEL_FORMATS, help="file format (default: detected)")
     info.add_argument("--stiffness", type=Path, help="stiffness matrix file")
     info.add_argument("--mass", type=Path, help="mass matrix file")
     info.add_argument("--damping", type=Path, help="damping matrix file")
-    info.add_argument("--dofs", type=Path, help="dof table CSV (node,direction)")
+    info.add_argument(
+        "--dofs", type=Path, help="dof table CSV (node,direction), or the CalculiX .dof"
+    )
     info.add_argument("--nodes", type=Path, help="nodes: CSV (id,x,y,z) or FE input file")
     info.add_argument("--constraints", type=Path, help="constraint equations CSV")
     info.add_argument("--fixed", type=Path, help="fixed dofs CSV (node,direction)")
     info.add_argument("--mapping", type=Path, help="Ansys dof mapping file (*SMAT MMF export)")
-    info.add_argument("--inp", type=Path, help="Abaqus input file with the *NODE data")
+    info.add_argument("--inp", type=Path, help="Abaqus input file or CalculiX deck")
     info.add_argument(
         "--stiffness-name", help="name of the stiffness matrix (default: found in the file)"
     )
@@ -261,8 +264,8 @@ def _prepared_for_info(
         report = validate_job_body(body, job)
         try:
             return body, prepare(body, job.frame, allow_rigid_body_modes=True), report
-        except UserError as exc:
-            raise UserError(f"{args.model}: {exc}") from None
+        except PymorembsError as exc:
+            raise type(exc)(f"{args.model}: {exc}") from None
     if args.model is None and "stiffness" not in given:
         raise UserError("info: give a model file, a job file, or --stiffness and --mass")
     if args.model is not None and ("stiffness" in given or "mass" in given):

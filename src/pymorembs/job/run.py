@@ -171,8 +171,8 @@ def prepare_and_validate(
     check_requests(job, body)
     try:
         prepared = prepare(body, job.frame, list(job.inputs), list(job.outputs))
-    except UserError as exc:
-        raise UserError(f"{job.path}: {exc}") from None
+    except PymorembsError as exc:  # also a massless mechanism that K cannot have (exit 3)
+        raise type(exc)(f"{job.path}: {exc}") from None
     check_job_orders(prepared, job, report)  # cheap: before the factorization
     try:
         deep_report = validate_prepared(prepared, deep=deep)

@@ -28,6 +28,10 @@ operator ``A = (K - sigma M)^-1`` (or the inertia-relief inverse of a free body)
 a symmetric problem in the ``B`` inner product of size ``rank(M)``: exact static condensation of
 the massless directions (the Schur complement of ``K - sigma M`` on them) without ever forming
 it. :func:`condensed_dense_eigh` does the same densely for small models.
+
+The condensation needs ``K_00 = Q_0^T K Q_0`` regular. Directions with neither mass nor stiffness
+(massless mechanisms) are found by :mod:`pymorembs.linalg.massless_mechanisms` and removed from
+the body before any of this by :func:`pymorembs.prepare.prepare`.
 """
 
 from __future__ import annotations
@@ -159,7 +163,7 @@ def mass_split(mass: sp.spmatrix | np.ndarray) -> MassSplit:
     groups = []  # (vectors, values, dofs, keep) per block size
     for size in np.unique(sizes[small]).tolist():
         components = small[sizes[small] == size]
-        vectors, values, dofs = _block_eigen(coo, labels, components, size)
+        vectors, values, dofs = block_eigen(coo, labels, components, size)
         scale = values.max(axis=1, keepdims=True)
         if np.any(values < -NEGATIVE_TOL * scale):
             bad = int(np.argmax((values < -NEGATIVE_TOL * scale).any(axis=1)))
@@ -217,13 +221,30 @@ def _check_positive(diagonal: np.ndarray, dofs: np.ndarray) -> None:
         )
 
 
-def _block_eigen(
+def block_eigen(
     coo: sp.coo_matrix, labels: np.ndarray, components: np.ndarray, size: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Eigenpairs of the mass blocks of ``components`` (all of ``size`` dofs), batched.
+    """Eigenpairs of the diagonal blocks of a symmetric matrix on some of its connected
+    components (all of ``size`` rows), batched in one ``eigh`` call.
 
-    Returns the eigenvectors (k, size, size) (columns), eigenvalues (k, size) and the equations
-    of each block (k, size), ascending.
+    Parameters
+    ----------
+    coo : sparse matrix in COO format, shape (n, n)
+        The symmetric matrix (e.g. ``M``).
+    labels : ndarray of int, shape (n,)
+        Component of each row (``scipy.sparse.csgraph.connected_components``).
+    components : ndarray of int, shape (k,)
+        The components to decompose, each of ``size`` rows.
+    size : int
+
+    Returns
+    -------
+    vectors : ndarray, shape (k, size, size)
+        Eigenvectors (columns) per block.
+    values : ndarray, shape (k, size)
+        Eigenvalues per block, ascending.
+    dofs : ndarray of int, shape (k, size)
+        The rows of each block, ascending.
     """
     slot = np.full(labels.max() + 1, -1, dtype=np.int64)
     slot[components] = np.arange(components.size)
@@ -281,7 +302,8 @@ def dense_condensation(
 ) -> DenseCondensation:
     """Condense the massless directions of a dense pencil (see :class:`DenseCondensation`).
 
-    ``K_00`` must be regular: a massless mechanism has no finite answer.
+    ``K_00`` must be regular: a massless mechanism has no finite answer (:func:`pymorembs.
+    prepare.prepare` removes those decoupled from the massive dofs).
 
     Raises
     ------

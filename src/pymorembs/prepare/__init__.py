@@ -15,6 +15,7 @@ from functools import cached_property
 import numpy as np
 
 from pymorembs.body import ElasticBody
+from pymorembs.display import html_table, one_line, port_rows
 from pymorembs.errors import NumericalError, UserError
 from pymorembs.linalg.mass_split import mass_split
 from pymorembs.prepare.buckens_frame import buckens_frame, centre_of_gravity
@@ -27,6 +28,7 @@ from pymorembs.prepare.inertia_loads import (
     static_solver,
 )
 from pymorembs.prepare.interface import InterfaceSpec, add_interface_node, select_nodes
+from pymorembs.prepare.mechanism_removal import mechanism_ports, remove_massless_mechanisms
 from pymorembs.prepare.ports import Port, selection_matrix
 from pymorembs.prepare.rigid_modes import free_rigid_body_modes
 from pymorembs.prepare.stiffening import (
@@ -80,6 +82,10 @@ class Frame:
     kind: str = "tangent"
     node: int | None = None
 
+    def describe(self) -> str:
+        """One phrase, e.g. ``"tangent at node 2"``, ``"buckens"``."""
+        return f"{self.kind} at node {self.node}" if self.kind == "tangent" else self.kind
+
     def apply(self, body: ElasticBody) -> ElasticBody:
         if self.kind == "tangent":
             if self.node is None:
@@ -127,6 +133,32 @@ class PreparedModel:
     stiffening: Stiffening | None = None
     frame: Frame | None = None
     notes: tuple[str, ...] = ()
+
+    def summary(self) -> list[tuple[str, str]]:
+        """The facts ``repr`` and a notebook show, as (label, text) rows: frame, independent
+        dofs, inputs, outputs, inertia loads, stiffening, damping, warnings."""
+        system = self.system
+        rows = [
+            ("frame", "not recorded" if self.frame is None else self.frame.describe()),
+            ("independent dofs", f"{system.order} of {self.body.n_dof}"),
+            *port_rows(system.input_labels, system.output_labels),
+        ]
+        if self.inertia is not None:
+            rows.append(("inertia loads", " ".join(self.inertia.cases)))
+        if self.stiffening is not None:
+            rows.append(("stiffening", f"{self.stiffening.source}, "
+                                       f"{len(self.stiffening.cases)} load cases"))  # fmt: skip
+        body = self.body
+        rows.append(("damping", body.damping.describe(matrix=body.damping_matrix is not None)))
+        if self.warnings:
+            rows.append(("warnings", str(len(self.warnings))))
+        return rows
+
+    def __repr__(self) -> str:
+        return one_line(f"PreparedModel {self.body.name!r}", self.summary())
+
+    def _repr_html_(self) -> str:
+        return html_table(f"PreparedModel {self.body.name!r}", self.summary())
 
     @cached_property
     def reduction_system(self) -> SecondOrderSystem:
@@ -183,8 +215,14 @@ def prepare(
     elimination = eliminate(framed)
     if elimination.n_independent == 0:
         raise UserError("the model has no independent dofs left after fixing and elimination")
+    mass = elimination.matrix(framed.mass)
+    stiffness = elimination.matrix(framed.stiffness)
+    framed, elimination, removal = remove_massless_mechanisms(framed, elimination, mass, stiffness)
+    mass, stiffness = removal.restrict(mass), removal.restrict(stiffness)
+    if elimination.n_independent == 0:
+        raise UserError("the model has no independent dofs left after fixing and elimination")
     warnings: list[str] = []
-    notes: list[str] = []
+    notes: list[str] = list(removal.notes)
     n_i = elimination.n_independent
     model_ports = body.ports if not inputs and not outputs else None
     if model_ports is not None and model_ports.inputs is not None:
@@ -193,23 +231,31 @@ def prepare(
             c_all, output_labels = b_all, list(model_ports.input_labels)
         else:
             c_all, output_labels = model_ports.outputs.T, list(model_ports.output_labels)
+        reading = mechanism_ports(
+            removal, b_all, input_labels, c_all, output_labels, "model ports: "
+        )
+        warnings += reading.values()
         b = elimination.inputs(b_all)
         c = elimination.outputs(c_all.T)
         notes += _zero_ports(b, input_labels, "input", axis=0)
         mirrored = model_ports.outputs is None  # the outputs are the inputs' dofs
-        (notes if mirrored else warnings).extend(_zero_ports(c, output_labels, "output", axis=1))
+        zero = _zero_ports(c, output_labels, "output", axis=1, told=set(reading))
+        (notes if mirrored else warnings).extend(zero)
     else:
         if inputs:
             b_all, input_labels = _selection(framed, inputs, "inputs")
+            mechanism_ports(removal, b_all, input_labels, None, [], "[[inputs]]: ")
             b = elimination.inputs(b_all)
             notes += _zero_ports(b, input_labels, "input", axis=0)
         else:
             b, input_labels = np.zeros((n_i, 0)), []
         if outputs:
             c_all, output_labels = _selection(framed, outputs, "outputs")
+            reading = mechanism_ports(removal, None, [], c_all, output_labels)
+            warnings += reading.values()
             c = elimination.outputs(c_all.T)
             mirrored = inputs is not None and list(outputs) == list(inputs)
-            zero = _zero_ports(c, output_labels, "output", axis=1)
+            zero = _zero_ports(c, output_labels, "output", axis=1, told=set(reading))
             (notes if mirrored else warnings).extend(zero)
         else:
             c, output_labels = np.zeros((0, n_i)), []
@@ -217,8 +263,8 @@ def prepare(
     damping = framed.damping
     modal = damping.kind == "modal"
     system = SecondOrderSystem(
-        mass=elimination.matrix(framed.mass),
-        stiffness=elimination.matrix(framed.stiffness),
+        mass=mass,
+        stiffness=stiffness,
         damping=elimination.matrix(framed.viscous_damping()),
         input_matrix=b,
         output_matrix=c,
@@ -230,13 +276,15 @@ def prepare(
     )
     warnings += _massless_ports(system)
     if frame.kind == "buckens":
+        try:
+            elastic = _elastic_system(framed, elimination, system)
+        except UserError as exc:
+            if not removal.count:
+                raise
+            removed = "; ".join(removal.descriptions)
+            raise UserError(f"{exc}; removed as massless mechanisms before: {removed}") from None
         return PreparedModel(
-            framed,
-            elimination,
-            _elastic_system(framed, elimination, system),
-            tuple(warnings),
-            frame=frame,
-            notes=tuple(notes),
+            framed, elimination, elastic, tuple(warnings), frame=frame, notes=tuple(notes)
         )
     if not allow_rigid_body_modes:
         free = free_rigid_body_modes(framed, elimination, system)
@@ -357,13 +405,16 @@ def _massless_ports(system: SecondOrderSystem) -> list[str]:
     return out
 
 
-def _zero_ports(matrix: np.ndarray, labels: list[str], what: str, axis: int) -> list[str]:
+def _zero_ports(
+    matrix: np.ndarray, labels: list[str], what: str, axis: int, told: set[str] | None = None
+) -> list[str]:
     """One line per node for the ports that act only on fixed dofs of the frame (zero column
-    of B / row of C), e.g. ``inputs 2:ux uy uz act on ...``."""
+    of B / row of C), e.g. ``inputs 2:ux uy uz act on ...``; ports in ``told`` (already
+    warned about as reading a removed massless mechanism) are left out."""
     norms = np.abs(matrix).max(axis=axis) if matrix.size else np.zeros(len(labels))
     by_node: dict[str, list[str]] = {}
     for label, norm in zip(labels, norms, strict=True):
-        if norm == 0.0:
+        if norm == 0.0 and label not in (told or set()):
             node, _, direction = label.rpartition(":")
             by_node.setdefault(node or label, []).append(direction if node else "")
     lines = []

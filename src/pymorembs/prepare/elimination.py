@@ -46,6 +46,10 @@ class Elimination:
     def n_independent(self) -> int:
         return int(self.independent.size)
 
+    def __repr__(self) -> str:
+        return (f"<Elimination: independent {self.independent.size}, dependent "
+                f"{self.dependent.size}, fixed {self.fixed.size}>")  # fmt: skip
+
     def matrix(self, matrix: sp.spmatrix | None) -> sp.csr_matrix | None:
         """``T^T A T`` -- eqs. 13-15 for A = M, D, K."""
         if matrix is None:

@@ -110,6 +110,10 @@ class InertiaLoads:
     scales: np.ndarray
     dropped: tuple[str, ...] = ()
 
+    def __repr__(self) -> str:
+        dropped = f", dropped {len(self.dropped)}" if self.dropped else ""
+        return f"<InertiaLoads: cases {' '.join(self.cases)}{dropped}>"
+
     @property
     def labels(self) -> tuple[str, ...]:
         """Port labels ``inertia:<case>`` of the inputs and of their collocated outputs."""

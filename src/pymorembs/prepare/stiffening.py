@@ -86,6 +86,10 @@ class Stiffening:
     cases: dict[str, sp.csr_matrix]
     nodes: dict[tuple[int, int], sp.csr_matrix] = field(default_factory=dict)
 
+    def __repr__(self) -> str:
+        return (f"<Stiffening {self.source!r}: load cases {' '.join(self.cases) or 'none'}, "
+                f"frame node loads {len(self.nodes)}>")  # fmt: skip
+
     def projected(
         self, basis: np.ndarray
     ) -> tuple[dict[str, np.ndarray], dict[tuple[int, int], np.ndarray]]:

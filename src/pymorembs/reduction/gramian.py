@@ -131,6 +131,12 @@ RIGID_TOL = 1e-10
 #: Modes with ``|d^2/4 - omega^2|^(1/2) < CRITICAL_TOL * omega`` are (nearly) critically damped:
 #: their closed-form eigenvectors are ill-conditioned, the general (logm) path is used.
 CRITICAL_TOL = 1e-3
+#: What an undamped body needs for its Gramians: the damping of a job or of the Python API.
+DAMPING_REMEDY = (
+    'give the body damping: [damping] kind = "modal" with ratio (or "rayleigh" with alpha, '
+    'beta) in a job, damping=pymorembs.Damping("modal", ratio=0.02) in pymorembs.prepare'
+)
+
 #: A modal damping matrix whose off-diagonal entries are below this times its largest diagonal
 #: entry is diagonal: the rounding of ``Phi^T D Phi`` for Rayleigh damping (~1e-12 at 600 dofs).
 DIAGONAL_TOL = 1e-10
@@ -249,8 +255,7 @@ def _modal_form(system: SecondOrderSystem, damping_ratio: float | None) -> Modal
     if not ratio and d is None:
         if damping_ratio is None:
             raise UserError(
-                "gramian: the system is undamped, so it has no Gramian; give it a damping model "
-                "(Rayleigh or a modal damping ratio) or a damping_ratio for the Gramians"
+                f"gramian: the system is undamped, so it has no Gramian; {DAMPING_REMEDY}"
             )
         ratio = float(damping_ratio)
     if ratio:
@@ -260,7 +265,7 @@ def _modal_form(system: SecondOrderSystem, damping_ratio: float | None) -> Modal
         raise UserError(
             f"gramian: {int(weak.sum())} mode(s) are undamped (lowest at "
             f"{omega[weak].min() / (2 * np.pi):.4g} Hz): the system is not asymptotically "
-            "stable and has no Gramian; give it a damping model"
+            f"stable and has no Gramian; {DAMPING_REMEDY}"
         )
     return ModalForm(modes, omega, damping, inputs, outputs_t)
 

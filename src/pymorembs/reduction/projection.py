@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 import scipy.linalg as sla
 
+from pymorembs.display import frequency_range, html_table, one_line, port_rows
 from pymorembs.errors import NumericalError, UserError
 from pymorembs.linalg.products import extended_product
 from pymorembs.system import SecondOrderSystem
@@ -57,6 +58,23 @@ class Projection:
     def one_sided(self) -> bool:
         return self.W is self.V
 
+    def summary(self) -> list[tuple[str, str]]:
+        """The facts ``repr`` shows, as (label, text) rows: bases, estimates, parameters."""
+        sides = "V = W" if self.one_sided else "V and W (oblique)"
+        rows = [("basis", f"{self.V.shape[0]} x {self.order}, {sides}")]
+        if self.error_estimate is not None:
+            rows.append(("error estimate", f"{self.error_estimate:.3g}"))
+        if self.error_bound is not None:
+            rows.append(("error bound", f"{self.error_bound:.3g}"))
+        if self.error_curve is not None:
+            rows.append(("estimator curve", f"{np.size(self.error_curve[0])} frequencies"))
+        if self.parameters:
+            rows.append(("parameters", " ".join(sorted(self.parameters))))
+        return rows
+
+    def __repr__(self) -> str:
+        return one_line(f"Projection {self.method!r}", self.summary())
+
 
 @dataclass(frozen=True, eq=False)
 class ReducedModel:
@@ -77,6 +95,24 @@ class ReducedModel:
     projection: Projection
     system: SecondOrderSystem
     eigenfrequencies_hz: np.ndarray
+
+    def summary(self) -> list[tuple[str, str]]:
+        """The facts ``repr`` and a notebook show, as (label, text) rows: order, the range of
+        the eigenfrequencies, inputs, outputs, damping."""
+        system = self.system
+        rows = [
+            ("order", f"{self.projection.order}" + ("" if self.projection.one_sided
+                                                    else " (oblique)")),
+            ("eigenfrequencies", frequency_range(self.eigenfrequencies_hz)),
+            *port_rows(system.input_labels, system.output_labels),
+        ]  # fmt: skip
+        return [*rows, *[row for row in system.summary() if row[0] == "damping"]]
+
+    def __repr__(self) -> str:
+        return one_line(f"ReducedModel {self.projection.method!r}", self.summary())
+
+    def _repr_html_(self) -> str:
+        return html_table(f"ReducedModel {self.projection.method!r}", self.summary())
 
     @property
     def damping_matrix(self) -> np.ndarray:
