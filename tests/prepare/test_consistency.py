@@ -21,12 +21,14 @@ import scipy.io
 import scipy.sparse as sp
 
 from abaqus_models import genuine
+from conftest import spring_lattice
 from pymorembs.errors import UserError
 from pymorembs.examples import build_example
 from pymorembs.io.formats import read_body
 from pymorembs.job.cli import main
 from pymorembs.prepare import validate_body
 from pymorembs.prepare.consistency import check_consistency
+from pymorembs.prepare.stiffening import geometric_stiffness
 
 DATA = Path(__file__).parents[1] / "data"
 CALCULIX = DATA / "calculix_map_check"
@@ -81,18 +83,35 @@ def calculix(job: str, folder: Path, shift: int = 0) -> list[str | Path]:
     ]  # fmt: skip
 
 
-@pytest.mark.parametrize(("job", "near"), [("free", 0), ("clamped", 36)])
-def test_calculix_exports_prove_their_map(capsys, tmp_path, job, near):
-    """Free: every row fits the six fields; clamped (*BOUNDARY removed 8 nodes): the 36 rows of
-    the 12 nodes next to them carry reactions, the other 108 fit to the 14 digits."""
-    facts = info_json(capsys, *calculix(job, tmp_path))
+@pytest.mark.parametrize(
+    ("path", "fitting", "near"),
+    [
+        ("calculix_map_check/free.sti.xz", 132, 0),  # 44 nodes x 3, nothing held
+        ("calculix_map_check/clamped.sti.xz", 72, 36),  # 8 nodes removed, 12 nodes beside them
+        ("calculix_c3d20_block/free.sti", 96, 0),
+        ("calculix_c3d20_block/fixed.sti", 36, 49),  # 11 dofs fixed, 12 nodes clear of them
+    ],
+)
+def test_calculix_exports_prove_their_map(capsys, path, fitting, near):
+    """Read natively (``info job.sti``): free exports fit the six fields in every row; the
+    constrained ones (``*BOUNDARY`` removed the fixed dofs) in the rows of the nodes that share
+    no element with a held node -- the count CalculiX's deck gives -- while the rows beside the
+    supports carry their reactions."""
+    facts = info_json(capsys, DATA / path)
     proof = facts["consistency"]["map"]
     assert proof["status"] == "map proved"
-    assert proof["rows_near_supports"] == near
-    assert proof["rows"] - near >= 72  # free: 44 nodes x 3; clamped: 36 nodes x 3, 12 of them near
-    assert proof["residual"] < 1e-12  # 14 digits: far below a wrong map's 1e-2 .. 1
-    if job == "free":  # the deck's mesh reproduces K: steel in mm-t-s-N from its volume
-        assert facts["consistency"]["material"]["systems"] == ["mm-t-s-N"]
+    assert (proof["rows"] - near, proof["rows_near_supports"]) == (fitting, near)
+    assert proof["residual"] < 1e-12  # 14 digits: far below a wrong map's 1e-1 .. 1
+    assert facts["consistency"]["warnings"] == []
+
+
+def test_calculix_export_read_as_abaqus_files_proves_its_map(capsys, tmp_path):
+    """The same clamped export with a hand-written dofs.csv: the reader no longer knows the
+    removed nodes, so the 36 rows beside them are rows held by springs to ground."""
+    facts = info_json(capsys, *calculix("clamped", tmp_path))
+    proof = facts["consistency"]["map"]
+    assert proof["status"] == "map proved"
+    assert (proof["rows"], proof["rows_near_supports"]) == (108, 36)
 
 
 @pytest.mark.parametrize("job", ["free", "clamped"])
@@ -184,6 +203,54 @@ def test_shifted_table_of_a_free_beam_model_is_refused():
     table = replace(body.dofs, nodes=np.array([following[int(n)] for n in body.dofs.nodes]))
     with pytest.raises(UserError, match="this map does not fit K"):
         check_consistency(replace(body, dofs=table, mesh=None, surface=None))
+
+
+def rack_with_geometric_stiffness(strain: float):
+    """rack-beams with the geometric stiffness of its rods stretched (``strain`` > 0) or
+    compressed uniformly along z (``u_z = strain z``, axial force ``E A strain``)."""
+    body = build_example("rack-beams")
+    z = body.coordinates[body.node_rows(body.dofs.nodes), 2]
+    displacement = np.where(body.dofs.directions == 2, strain * z, 0.0)
+    return replace(body, stiffness=body.stiffness + geometric_stiffness(body, displacement))
+
+
+@pytest.mark.parametrize("strain", [1e-3, -2e-4])  # tension near yield; compression below buckling
+def test_a_prestressed_stiffness_is_not_refused(strain):
+    """A stiffness with the geometric stiffness of a preload step: the rigid rotations leave
+    forces where the rods' stress turns with them, far below the strain itself; the run goes on
+    with "map not proved" and a warning that names the prestress."""
+    report = validate_body(rack_with_geometric_stiffness(strain))
+    proof = report.facts["consistency"]["map"]
+    assert proof["status"] == "map not proved"
+    assert 0 < proof["rows_unexplained"] < 0.01 * proof["rows"]
+    assert proof["unexplained_residual"] < abs(strain)
+    assert any("map not proved" in w and "prestressed stiffness" in w for w in report.warnings)
+
+
+def test_a_spring_between_two_separated_nodes_is_not_refused():
+    """An isotropic spring ``k I`` between nodes of two rods (a scalar spring, a bushing without
+    offset) resists the rigid rotations in exactly its six rows: "map not proved", not exit 2."""
+    body = build_example("rack-beams")
+    nodes = [1050, 3120]  # rods 1 and 3, (25, 20, 63) and (-25, -20, 148) mm
+    a, b = [[body.dofs.index(node, d) for d in ("ux", "uy", "uz")] for node in nodes]
+    gap = np.diff(body.coordinates[body.node_rows(nodes)], axis=0)
+    assert np.all(np.abs(gap) >= 0.04)  # apart in x, y and z: every rotation stretches it
+    spring = sp.lil_matrix(body.stiffness.shape)
+    for i, j in zip(a, b, strict=True):
+        spring[i, i] = spring[j, j] = 1e6
+        spring[i, j] = spring[j, i] = -1e6
+    report = validate_body(replace(body, stiffness=body.stiffness + spring.tocsr()))
+    proof = report.facts["consistency"]["map"]
+    assert proof["status"] == "map not proved" and proof["rows_unexplained"] == 6
+    assert any("springs between separated nodes" in w for w in report.warnings)
+
+
+def test_springs_to_ground_are_supports():
+    """The spring lattice of the tests is held by springs to ground at the x, y, z of nodes 10,
+    20 and 30: those 9 rows carry reactions, the central springs fit every rigid motion."""
+    facts = validate_body(spring_lattice(constraints=False)).facts["consistency"]
+    assert facts["map"]["status"] == "map proved"
+    assert facts["map"]["rows_near_supports"] == 9 and facts["map"]["rows"] == 36
 
 
 def test_directional_point_masses_give_a_note():

@@ -280,7 +280,7 @@ def _info(args: argparse.Namespace) -> int:
     body, prepared, report = _prepared_for_info(args)
     facts = model_facts(body, prepared, args.modes)
     consistency = report.facts["consistency"]
-    wrong_map = mechanism_or_map(consistency, facts["mechanisms"])
+    wrong_map = mechanism_or_map(consistency, facts["rigid_body_modes"], facts["mechanisms"])
     if wrong_map is not None:
         raise UserError(wrong_map)
     facts["consistency"] = consistency
