@@ -334,6 +334,7 @@ PROVED = {"hexbeam", "blockC3D4", "tetra-beam", "maewing-f06", "inboard", "outbo
           "bset-notall6", "se_test_n11"}  # fmt: skip
 
 
+@pytest.mark.slow  # corpus-wide: 15 exports
 @pytest.mark.parametrize("name", sorted(CORPUS))
 def test_corpus_files_pass_and_say_whether_the_map_is_proved(tmp_path, name):
     """Every genuine export of the corpus (tests/data holds the copies of ../shared/corpus):
@@ -347,7 +348,9 @@ def test_corpus_files_pass_and_say_whether_the_map_is_proved(tmp_path, name):
         assert facts["map"]["residual"] < 1e-6
 
 
-@pytest.mark.parametrize("name", ["rack-beams", "rack-solid", "blade"])
+@pytest.mark.parametrize(
+    "name", ["rack-beams", pytest.param("rack-solid", marks=pytest.mark.slow), "blade"]
+)
 def test_examples_pass_with_their_map_proved(name):
     facts = validate_body(build_example(name)).facts["consistency"]
     assert facts["warnings"] == [] and facts["notes"] == []
