@@ -22,12 +22,14 @@ import scipy.sparse as sp
 
 from abaqus_models import genuine
 from conftest import spring_lattice
+from pymorembs.body import DofTable
 from pymorembs.errors import UserError
 from pymorembs.examples import build_example
 from pymorembs.io.formats import read_body
+from pymorembs.io.native import write_body_h5
 from pymorembs.job.cli import main
 from pymorembs.prepare import validate_body
-from pymorembs.prepare.consistency import check_consistency
+from pymorembs.prepare.consistency import check_consistency, mechanism_or_map
 from pymorembs.prepare.stiffening import geometric_stiffness
 
 DATA = Path(__file__).parents[1] / "data"
@@ -251,6 +253,42 @@ def test_springs_to_ground_are_supports():
     facts = validate_body(spring_lattice(constraints=False)).facts["consistency"]
     assert facts["map"]["status"] == "map proved"
     assert facts["map"]["rows_near_supports"] == 9 and facts["map"]["rows"] == 36
+
+
+def test_a_loose_pair_of_nodes_is_a_mechanism_not_a_wrong_map(capsys, tmp_path):
+    """The lattice plus two nodes joined only to each other by ``k I`` (resisting their
+    rotation): ``info`` reports 3 mechanisms (the pair translating) and "map not proved" for the
+    pair's rows, not "this map does not fit K"."""
+    body = spring_lattice(constraints=False)
+    spring = 1e5 * np.array([[1.0, -1.0], [-1.0, 1.0]])
+    pair = DofTable(np.repeat([130, 140], 3), np.tile([0, 1, 2], 2))
+    loose = replace(
+        body,
+        node_ids=np.concatenate([body.node_ids, [130, 140]]),
+        coordinates=np.vstack([body.coordinates, [[2.0, 0.3, 0.4], [2.5, 0.7, 0.1]]]),
+        dofs=DofTable(
+            np.concatenate([body.dofs.nodes, pair.nodes]),
+            np.concatenate([body.dofs.directions, pair.directions]),
+        ),
+        stiffness=sp.block_diag([body.stiffness, sp.kron(spring, sp.eye(3))], format="csr"),
+        mass=sp.block_diag([body.mass, sp.eye(6)], format="csr"),
+    )
+    write_body_h5(loose, tmp_path / "loose.h5")
+    facts = info_json(capsys, tmp_path / "loose.h5")
+    assert (facts["rigid_body_modes"], facts["mechanisms"]) == (0, 3)
+    proof = facts["consistency"]["map"]
+    assert proof["status"] == "map not proved" and proof["rows_unexplained"] == 6
+
+
+def test_mechanism_or_map_only_for_a_free_body_with_rotations_missing():
+    """``info``'s line for a free body whose map is wrong: six zero modes in the spectrum, three
+    geometric ones and unexplained rows; not for a held body, a real mechanism, a proved map."""
+    wrong = {"map": {"rows_unexplained": 40, "reason": "..."}}
+    assert "this map does not fit K" in mechanism_or_map(wrong, 3, 3)
+    assert mechanism_or_map(wrong, 0, 3) is None  # a held body with a loose part
+    assert mechanism_or_map(wrong, 6, 1) is None  # a free body with a hinge
+    assert mechanism_or_map(wrong, 3, 6) is None  # a free body and a loose part
+    assert mechanism_or_map({"map": {"rows_unexplained": 0}}, 3, 3) is None
 
 
 def test_directional_point_masses_give_a_note():
