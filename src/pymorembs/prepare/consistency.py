@@ -86,8 +86,8 @@ Thresholds. Entries rounded to ``eps`` (``0.5 10^(1 - d)`` for ``d`` digits, at 
 :data:`~pymorembs.linalg.rounding.COMPUTATION_EPS`) change a sum of terms by at most ``eps``
 times the sum of their absolute values; :data:`CHECK_FACTOR` = 100 covers the computation's own
 rounding over rows of up to 10^4 terms. Exact exports cancel to 1e-16..1e-13 of that scale, a
-10-digit punch to 1e-10, single precision to 1e-8, while a wrong map or unit leaves 1e-4 to 1
-(a shifted node: 1e-2 to 1 in most rows) -- the tests compare both on genuine files.
+10-digit punch to 1e-10, single precision to 1e-8; a prestress leaves less than its strain
+(item 3), a wrong map 0.1 to 1 -- the tests compare them on genuine files.
 """
 
 from __future__ import annotations
