@@ -60,7 +60,9 @@ said so (``map not proved``).
      break. A spring acts on translations only or on rotations only of a node, a prestress
      leaves less, so this is a shifted map (rack-beams shifted by a node: 8 nodes at 0.5 to 1)
      and never a spring. A model made of springs that resist rigid rotation in most of its
-     rows cannot be told from a wrong map and is refused too.
+     rows, or held by springs to ground of a tenth of its elements' stiffness at most of its
+     nodes, cannot be told from a wrong map and is refused too (neither is a body for a
+     multibody simulation).
 
    Without coordinates, rotational fields or :data:`MIN_PROOF_ROWS` fitting rows the map is
    not proved. A real mechanism leaves all six fields in the null space (the map is proved); a
