@@ -16,30 +16,40 @@ def spring_lattice(
     offsets: bool = False,
     damping: Damping | None = None,
 ) -> ElasticBody:
-    """A chain of point masses in 3-D (3 translational dofs each) joined by random springs.
+    """A chain of point masses in 3-D (3 translational dofs each) joined by central springs.
 
-    Node ids are 10, 20, 30, ... (not contiguous). Node 10 is anchored by springs to ground so the
-    stiffness matrix is positive definite. With ``constraints``, the dofs of the last node are
-    dependent: a linear combination of dofs of two other nodes (plus offsets if asked).
+    Node ids are 10, 20, 30, ... (not contiguous). The nodes wind along x on a helix of radius
+    0.1 m with three nodes per turn, 0.05 m apart in x, moved randomly by a tenth of the radius
+    (general 3-D positions); masses of 0.5 to 2 kg and springs of 4e5 to 1.2e6 N/m give SI
+    numbers of a light material (mass / box volume ~ 1000 kg/m^3, lowest frequency ~ 10 Hz
+    for 12 nodes). Each node
+    is joined to the next three by an axial spring ``k e e^T`` (``e`` the unit vector between
+    them), so the lattice is rigid (every node after the first three is held by three bars to
+    three others), and the springs resist no rigid motion. Springs to ground at the x, y, z of
+    nodes 10, 20 and 30 hold it, so the stiffness matrix is positive definite; their rows are
+    support rows. Each node has the same mass in its three directions, nodes 20 and 30 a
+    little consistent-mass coupling (``0.05 I``): the rigid-body fields see a rigid body's
+    mass. With ``constraints``, the dofs of the last node are dependent: a linear combination
+    of dofs of two other nodes (plus offsets if asked).
     """
     rng = np.random.default_rng(seed)
     n = 3 * n_nodes
     ids = 10 * np.arange(1, n_nodes + 1)
-    coords = np.column_stack([np.arange(n_nodes), rng.normal(size=n_nodes), np.zeros(n_nodes)])
+    turn = 2 * np.pi / 3 * np.arange(n_nodes)
+    coords = 0.1 * np.column_stack([0.5 * np.arange(n_nodes), np.cos(turn), np.sin(turn)])
+    coords += 0.01 * rng.normal(size=(n_nodes, 3))
     k = np.zeros((n, n))
     for i in range(n_nodes - 1):
-        for j in (i + 1, min(i + 2, n_nodes - 1)):
-            if j == i:
-                continue
-            a = rng.normal(size=(3, 3))
-            spring = 1e5 * (a @ a.T + np.eye(3))
+        for j in range(i + 1, min(i + 4, n_nodes)):
+            e = (coords[j] - coords[i]) / np.linalg.norm(coords[j] - coords[i])
+            spring = 4e5 * rng.uniform(1.0, 3.0) * np.outer(e, e)
             blk_i, blk_j = slice(3 * i, 3 * i + 3), slice(3 * j, 3 * j + 3)
             k[blk_i, blk_i] += spring
             k[blk_j, blk_j] += spring
             k[blk_i, blk_j] -= spring
             k[blk_j, blk_i] -= spring
-    k[:3, :3] += 2e5 * np.eye(3)  # anchor
-    m = np.diag(rng.uniform(0.5, 2.0, size=n))
+    k[:9, :9] += 1e6 * np.eye(9)  # anchors: nodes 10, 20, 30 to ground
+    m = np.diag(np.repeat(rng.uniform(0.5, 2.0, size=n_nodes), 3))
     m[3:6, 6:9] = m[6:9, 3:6] = 0.05 * np.eye(3)  # a little consistent-mass coupling
     dofs = DofTable(np.repeat(ids, 3), np.tile([0, 1, 2], n_nodes))
     equations = None

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["abs_row_sums"]
+__all__ = ["abs_products", "abs_row_sums"]
 
 #: Stored entries per block of rows.
 _ENTRIES_PER_BLOCK = 1 << 20
@@ -32,8 +32,7 @@ def abs_row_sums(matrix: sp.spmatrix | sp.sparray) -> np.ndarray:
         a = a.copy()
         a.sum_duplicates()
     indptr = a.indptr
-    bounds = np.searchsorted(indptr, np.arange(0, a.nnz, _ENTRIES_PER_BLOCK), side="right") - 1
-    edges = np.unique(np.concatenate([bounds, [n]]))
+    edges = _row_blocks(a)
     scratch = np.empty(min(a.nnz, 2 * _ENTRIES_PER_BLOCK))
     for first, last in zip(edges[:-1].tolist(), edges[1:].tolist(), strict=True):
         # the rows' values as SciPy sums them (``np.add.reduceat`` over the non-empty rows)
@@ -44,3 +43,43 @@ def abs_row_sums(matrix: sp.spmatrix | sp.sparray) -> np.ndarray:
         rows = first + np.flatnonzero(np.diff(indptr[first : last + 1]))
         out[rows] = np.add.reduceat(values, indptr[rows] - lo)
     return out
+
+
+def abs_products(matrix: sp.spmatrix | sp.sparray, vectors: np.ndarray) -> np.ndarray:
+    """``|A| @ |V|`` (entrywise absolute values) for a sparse ``A`` and dense ``V``.
+
+    Parameters
+    ----------
+    matrix : sparse matrix, shape (n, m)
+    vectors : ndarray, shape (m,) or (m, k)
+
+    Returns
+    -------
+    ndarray, shape (n,) or (n, k)
+        The sums ``sum_j |a_ij| |v_jl|``: the scale against which the cancellation in
+        ``A @ V`` is judged. Extra memory: one block of about a million entries (not a copy of
+        ``|A|``) and ``|V|``.
+    """
+    a = matrix if sp.isspmatrix_csr(matrix) else sp.csr_matrix(matrix)
+    v = np.abs(np.asarray(vectors, dtype=float))
+    out = np.zeros((a.shape[0], *v.shape[1:]))
+    if a.nnz == 0 or a.shape[0] == 0:
+        return out
+    edges = _row_blocks(a)
+    for first, last in zip(edges[:-1].tolist(), edges[1:].tolist(), strict=True):
+        lo, hi = int(a.indptr[first]), int(a.indptr[last])
+        if hi == lo:
+            continue
+        block = sp.csr_matrix(
+            (np.abs(a.data[lo:hi]), a.indices[lo:hi], a.indptr[first : last + 1] - lo),
+            shape=(last - first, a.shape[1]),
+        )
+        out[first:last] = block @ v
+    return out
+
+
+def _row_blocks(a: sp.csr_matrix) -> np.ndarray:
+    """Row indices that cut ``a`` into blocks of about :data:`_ENTRIES_PER_BLOCK` entries
+    (first 0, last the number of rows)."""
+    bounds = np.searchsorted(a.indptr, np.arange(0, a.nnz, _ENTRIES_PER_BLOCK), side="right") - 1
+    return np.unique(np.concatenate([bounds, [a.shape[0]]]))

@@ -97,6 +97,55 @@ DENSITY_TYPICAL_SI = 1500.0
 SPEED_SQUARED_TYPICAL_SI = 1e8
 
 
+#: A material's density in SI, kg/m^3, as mass / volume of its solid elements: from foams and
+#: balsa (100) down by a factor 2, up to osmium (22,600) with non-structural mass on top (x 4).
+MATERIAL_DENSITY_RANGE_SI = (50.0, 1e5)
+#: A material's ``E / rho`` in SI, m^2/s^2: soft rubber (1e6 Pa / 1100 kg/m^3 ~ 900) with added
+#: mass, down to 100; diamond (1.05e12 / 3500 = 3e8) up to 1e9.
+MATERIAL_SPEED_SQUARED_RANGE_SI = (1e2, 1e9)
+#: Length units by name and size in m, for messages about coordinates in another unit.
+LENGTH_UNITS = {"mm": 1e-3, "cm": 1e-2, "dm": 0.1, "m": 1.0, "in": 0.0254, "ft": 0.3048}
+#: Factors by which coordinates are tried against the matrices when their unit looks wrong
+#: (between the lengths of :data:`LENGTH_UNITS`: mm <-> m, cm <-> m, mm <-> cm, in <-> m, ...).
+COORDINATE_SCALES = (1e-3, 1e3, 1e-2, 1e2, 1e-1, 1e1, 0.0254, 1 / 0.0254, 25.4, 1 / 25.4)
+
+
+def length_unit_name(length_m: float) -> str:
+    """The name of a length of ``length_m`` metres (``"mm"``), or ``"<x> m"`` if it has none."""
+    for name, size in LENGTH_UNITS.items():
+        if abs(length_m / size - 1.0) < 1e-6:
+            return name
+    return f"{length_m:.4g} m"
+
+
+def material_systems(density: float, speed_squared: float) -> list[UnitSystem]:
+    """The systems of :data:`SYSTEMS` in which a material is plausible.
+
+    Parameters
+    ----------
+    density : float
+        Mass / volume of the solid elements, model units (mass / length^3).
+    speed_squared : float
+        Young's modulus / density, model units (length^2 / time^2).
+
+    Returns
+    -------
+    list of UnitSystem
+        Those whose :data:`MATERIAL_DENSITY_RANGE_SI` and :data:`MATERIAL_SPEED_SQUARED_RANGE_SI`
+        hold both numbers (empty: no consistent system has such a material).
+    """
+    out = []
+    for system in SYSTEMS:
+        rho = density / system.density_factor
+        c2 = speed_squared / system.speed_squared_factor
+        if (
+            MATERIAL_DENSITY_RANGE_SI[0] <= rho <= MATERIAL_DENSITY_RANGE_SI[1]
+            and MATERIAL_SPEED_SQUARED_RANGE_SI[0] <= c2 <= MATERIAL_SPEED_SQUARED_RANGE_SI[1]
+        ):
+            out.append(system)
+    return out
+
+
 @dataclass(frozen=True)
 class UnitGuess:
     """The unit system a model's numbers point to.
@@ -263,7 +312,15 @@ def detect_units(body: ElasticBody) -> UnitGuess:
     """
     if not body.has_coordinates:
         return UnitGuess(None, False, reason="no coordinates: units cannot be judged")
-    density, speed2 = implied_numbers(body)
+    return units_of_numbers(*implied_numbers(body))
+
+
+def units_of_numbers(density: float, speed2: float) -> UnitGuess:
+    """:func:`detect_units` from the two implied numbers (model units): the nearest system.
+
+    Coordinates scaled by ``s`` scale the numbers by ``s^-3`` and ``s^2``, so a guess for
+    coordinates in another length unit needs no new pass over the model.
+    """
     if not np.isfinite(density):
         return UnitGuess(None, False, (), density, speed2)
     log_rho = np.log10(density)
@@ -427,4 +484,7 @@ __all__ = [
     "detect_units",
     "frequency_warnings",
     "implied_numbers",
+    "length_unit_name",
+    "material_systems",
+    "units_of_numbers",
 ]

@@ -46,7 +46,7 @@ from pymorembs.io import read_body, write_body_h5, write_matrix_files
 from pymorembs.job.run import load_job_model, output_errors, run_job, validate_job_body
 from pymorembs.job.schema import MODEL_FORMATS, load_job
 from pymorembs.parallel import dask_client, usable_cores
-from pymorembs.prepare import prepare, validate_body
+from pymorembs.prepare import ValidationReport, mechanism_or_map, prepare, validate_body
 from pymorembs.units import detect_units, frequency_warnings
 
 
@@ -309,17 +309,20 @@ INFO_FILES = (
 )
 
 
-def _prepared_for_info(args: argparse.Namespace) -> tuple[ElasticBody, PreparedModel]:
-    """The model of ``info``: a job (with its interfaces and frame) or model files as they are."""
+def _prepared_for_info(
+    args: argparse.Namespace,
+) -> tuple[ElasticBody, PreparedModel, ValidationReport]:
+    """The model of ``info``: a job (with its interfaces and frame) or model files as they are,
+    with the report of :func:`~pymorembs.prepare.validate_body`."""
     given = {key: getattr(args, key) for key in INFO_FILES if getattr(args, key) is not None}
     if args.model is not None and args.model.suffix.lower() == ".toml":
         if given or args.format:
             raise UserError("info: a job file brings its own model; give no file options")
         job = load_job(args.model)
         body = load_job_model(job)
-        validate_job_body(body, job)
+        report = validate_job_body(body, job)
         try:
-            return body, prepare(body, job.frame, allow_rigid_body_modes=True)
+            return body, prepare(body, job.frame, allow_rigid_body_modes=True), report
         except PymorembsError as exc:
             raise type(exc)(f"{args.model}: {exc}") from None
     if args.model is None and "stiffness" not in given:
@@ -328,16 +331,21 @@ def _prepared_for_info(args: argparse.Namespace) -> tuple[ElasticBody, PreparedM
         raise UserError("info: give either a model file or --stiffness/--mass, not both")
     files = {"file": args.model} if args.model is not None else {}
     body = read_body(args.format, **files, **given)
-    validate_body(body)
-    return body, prepare(body, Frame("none"), allow_rigid_body_modes=True)
+    report = validate_body(body)
+    return body, prepare(body, Frame("none"), allow_rigid_body_modes=True), report
 
 
 def _info(args: argparse.Namespace) -> int:
-    body, prepared = _prepared_for_info(args)
+    body, prepared, report = _prepared_for_info(args)
     facts = model_facts(body, prepared, args.modes)
+    consistency = report.facts["consistency"]
+    wrong_map = mechanism_or_map(consistency, facts["rigid_body_modes"], facts["mechanisms"])
+    if wrong_map is not None:
+        raise UserError(wrong_map)
+    facts["consistency"] = consistency
     units = detect_units(body)
     facts["units"] = units.as_dict()
-    warnings = list(units.warnings)
+    warnings = [*report.warnings, *units.warnings]
     if args.model is not None and args.model.suffix.lower() == ".toml":
         band = load_job(args.model).band_hz
         warnings += frequency_warnings(units, band, np.asarray(facts["eigenfrequencies_hz"]))
@@ -381,7 +389,9 @@ def _print_facts(facts: dict[str, Any], units: str) -> None:
     if facts["mechanisms"]:
         print(f"mechanisms        {facts['mechanisms']} further zero-energy modes")
     print(f"matrix entries    {facts['rounding']}")
-    for note in facts["notes"]:
+    proof = facts["consistency"]["map"]
+    print(f"dof map           {proof['status']}: {proof['reason']}")
+    for note in facts["notes"] + facts["consistency"]["notes"]:
         print(f"note              {note}")
     labels = facts["rigid_body_motions"]
     bounds = facts["eigenfrequency_bounds_hz"]

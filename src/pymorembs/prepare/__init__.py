@@ -19,6 +19,7 @@ from pymorembs.display import html_table, one_line, port_rows
 from pymorembs.errors import NumericalError, UserError
 from pymorembs.linalg.mass_split import mass_split
 from pymorembs.prepare.buckens_frame import buckens_frame, centre_of_gravity
+from pymorembs.prepare.consistency import check_consistency, mechanism_or_map
 from pymorembs.prepare.elimination import Elimination, eliminate
 from pymorembs.prepare.inertia_loads import (
     INERTIA_LOAD_CASES,
@@ -53,8 +54,10 @@ __all__ = [
     "add_interface_node",
     "buckens_frame",
     "centre_of_gravity",
+    "check_consistency",
     "eliminate",
     "inertia_load_cases",
+    "mechanism_or_map",
     "prepare",
     "select_nodes",
     "stiffening_from_matrices",

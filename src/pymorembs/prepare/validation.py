@@ -13,7 +13,11 @@ orders fit the model; ``pymorembs info`` runs :func:`validate_body`):
   (``a_ij^2 <= a_ii a_jj``): both prove a matrix indefinite;
 * ``M`` is no stiffness matrix: not proportional to ``K``, and it has mass in every rigid
   translation that ``K`` lets move freely;
-* no dependent dof of a constraint equation is also fixed.
+* no dependent dof of a constraint equation is also fixed;
+* the mass matrix, the dof map and the coordinates fit the stiffness matrix
+  (:mod:`~pymorembs.prepare.consistency`: rigid-body mass, M's pattern within K's, the map
+  proved by the rigid-body fields, the coordinates' length unit, the material of a solid mesh,
+  the centre of gravity and inertia within the node cloud); ``facts["consistency"]``.
 
 :func:`validate_prepared` -- on the system of the independent dofs (after frame and
 elimination, whose structural rigid-body check runs in :func:`~pymorembs.prepare.prepare`):
@@ -51,6 +55,7 @@ import scipy.sparse as sp
 from pymorembs.body import DIRECTIONS, ElasticBody
 from pymorembs.errors import NumericalError, UserError
 from pymorembs.linalg.rounding import COMPUTATION_EPS, relative_rounding
+from pymorembs.prepare.consistency import check_consistency
 
 if TYPE_CHECKING:  # pragma: no cover
     from pymorembs.prepare import PreparedModel
@@ -281,9 +286,21 @@ def validate_body(body: ElasticBody) -> ValidationReport:
         if constraints.matrix.shape[1] != n:
             raise UserError(f"{model}constraint equations do not match the dof table")
     report.checks.append("constraint equations")
+    _check_consistency(body, report)
 
     report.seconds = time.perf_counter() - start
     return report
+
+
+def _check_consistency(body: ElasticBody, report: ValidationReport) -> None:
+    """:func:`~pymorembs.prepare.consistency.check_consistency` into the report: its facts as
+    ``facts["consistency"]``, its warnings with the report's."""
+    consistency = check_consistency(body)
+    report.facts["consistency"] = consistency
+    report.warnings.extend(consistency["warnings"])
+    report.checks.append(
+        f"consistency of M, the dof map and the coordinates with K ({consistency['map']['status']})"
+    )
 
 
 def _check_mass_is_a_mass(body: ElasticBody, model: str) -> None:
