@@ -11,10 +11,13 @@ the modules behind them are not.
 * the (mass-weighted) modal assurance criterion between two bases: :func:`mac`;
 * time responses (paper section 5.1): :class:`LoadCase`, :func:`simulate`, the clamped full
   and reduced systems, :func:`compare`;
+* an exported body in Exudyn (:mod:`~pymorembs.analysis.exudyn_model`):
+  :func:`build_exudyn_model`, :func:`simulate_exudyn`;
 * large motions in Exudyn: :class:`LargeMotionSettings`, :func:`large_motion_checks`.
 """
 
 from pymorembs.analysis.error import error_blocks, frequency_grid, relative_error
+from pymorembs.analysis.exudyn_model import build_exudyn_model, simulate_exudyn
 from pymorembs.analysis.large_motion import (
     LARGE_MOTION_CASES,
     LargeMotionSettings,
@@ -47,6 +50,7 @@ __all__ = [
     "LoadCase",
     "ReferenceResponse",
     "TimeResponse",
+    "build_exudyn_model",
     "choose_kind",
     "clamped_full_system",
     "clamped_reduced_system",
@@ -59,5 +63,6 @@ __all__ = [
     "reference_response",
     "relative_error",
     "simulate",
+    "simulate_exudyn",
     "transfer_function",
 ]

@@ -34,9 +34,10 @@ from typing import Any
 
 import numpy as np
 
+from pymorembs.analysis.exudyn_model import build_exudyn_model, simulate_exudyn
 from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
-from pymorembs.export.exudyn_body import build_exudyn_model, exudyn_arrays, simulate_exudyn
+from pymorembs.export.exudyn_body import exudyn_arrays
 from pymorembs.export.outputs import body_invariants
 from pymorembs.prepare import Frame, PreparedModel
 from pymorembs.reduction.modal import modal_reduction
