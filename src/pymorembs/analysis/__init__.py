@@ -13,13 +13,15 @@ the modules behind them are not.
   and reduced systems, :func:`compare`;
 * an exported body in Exudyn (:mod:`~pymorembs.analysis.exudyn_model`):
   :func:`build_exudyn_model`, :func:`simulate_exudyn`;
-* large motions in Exudyn: :class:`LargeMotionSettings`, :func:`large_motion_checks`.
+* large motions in Exudyn: :class:`LargeMotionSettings`, :func:`large_motion_checks` and its
+  :class:`LargeMotionResult`.
 """
 
 from pymorembs.analysis.error import error_blocks, frequency_grid, relative_error
 from pymorembs.analysis.exudyn_model import build_exudyn_model, simulate_exudyn
 from pymorembs.analysis.large_motion import (
     LARGE_MOTION_CASES,
+    LargeMotionResult,
     LargeMotionSettings,
     large_motion_checks,
 )
@@ -46,6 +48,7 @@ __all__ = [
     "DEFAULT_CHECKS",
     "LARGE_MOTION_CASES",
     "REFERENCE_KINDS",
+    "LargeMotionResult",
     "LargeMotionSettings",
     "LoadCase",
     "ReferenceResponse",

@@ -73,7 +73,13 @@ from pymorembs.prepare import (
 )
 from pymorembs.progress import Progress as ProgressBar
 from pymorembs.reduction import Projection, explicit_step_s
-from pymorembs.report import plot_decay, plot_relative_errors, reductions_scene, write_report
+from pymorembs.report import (
+    plot_decay,
+    plot_large_motion,
+    plot_relative_errors,
+    reductions_scene,
+    write_report,
+)
 from pymorembs.units import band_unit_warnings, detect_units, frequency_warnings
 
 Progress = Callable[[str], None]
@@ -861,9 +867,11 @@ def _checks_in_time(
         stage("large motion in Exudyn", "large motion", line=False)
         tick = time.perf_counter()
         figure = staging / "large_motion.png"
-        result = large_motion_checks(
-            job.large_motion, job.frame, prepared, one_sided(models), nodes, figure, say
+        checks = large_motion_checks(
+            job.large_motion, job.frame, prepared, one_sided(models), nodes, say
         )
+        plot_large_motion(checks.runs, checks.off_axis_node, figure)
+        result = checks.summary
         timings["large_motion_s"] = time.perf_counter() - tick
         caption = ("Large motions in Exudyn: each body against the modal reference of order "
                    f"{result['reference']['order']}")  # fmt: skip
