@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from pymorembs.analysis.error import error_blocks, frequency_grid, relative_error
+from pymorembs.analysis.error import error_blocks, relative_error
 from pymorembs.analysis.reference import reference_response
 from pymorembs.analysis.spectrum import model_facts
 from pymorembs.analysis.time_domain import (
@@ -50,6 +50,7 @@ from pymorembs.errors import UserError
 from pymorembs.examples import build_example
 from pymorembs.export.invariants import BodyInvariants
 from pymorembs.export.outputs import body_invariants, check_before_writing, write_outputs
+from pymorembs.frequencies import frequency_grid
 from pymorembs.io.formats import read_body
 from pymorembs.io.reduced_file import SavedBody, read_reduced_body, write_reduced_body
 from pymorembs.methods import ReductionOptions, method_options

@@ -9,10 +9,11 @@ import pytest
 import scipy.linalg as sla
 
 from conftest import spring_lattice
-from pymorembs.analysis.error import frequency_grid, relative_error
+from pymorembs.analysis.error import relative_error
 from pymorembs.analysis.transfer import transfer_function
 from pymorembs.body import Damping
 from pymorembs.errors import UserError
+from pymorembs.frequencies import frequency_grid
 from pymorembs.prepare import Frame, Port, prepare
 from pymorembs.reduction.krylov import krylov_reduction
 from pymorembs.reduction.modal import modal_reduction

@@ -17,7 +17,7 @@ the modules behind them are not.
   :class:`LargeMotionResult`.
 """
 
-from pymorembs.analysis.error import error_blocks, frequency_grid, relative_error
+from pymorembs.analysis.error import error_blocks, relative_error
 from pymorembs.analysis.exudyn_model import build_exudyn_model, simulate_exudyn
 from pymorembs.analysis.large_motion import (
     LARGE_MOTION_CASES,
@@ -43,6 +43,7 @@ from pymorembs.analysis.time_domain import (
     simulate,
 )
 from pymorembs.analysis.transfer import transfer_function
+from pymorembs.frequencies import frequency_grid
 
 __all__ = [
     "DEFAULT_CHECKS",
