@@ -19,7 +19,7 @@ import signal
 import tempfile
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -1109,29 +1109,31 @@ def _reduce_one(
     elapsed = time.perf_counter() - tick
     model = reduced.model
     if reduced.before_removal is not None:
-        _record_removal_cost(prepared, reduced.before_removal, model, reference)
+        model = _with_removal_cost(prepared, reduced.before_removal, model, reference)
     response = transfer_function(model.system, reference.frequencies_hz)
     return model, response, elapsed
 
 
-def _record_removal_cost(
+def _with_removal_cost(
     prepared: PreparedModel,
     before: ReducedModel,
     model: ReducedModel,
     reference: ReferenceResponse,
-) -> None:
-    """The errors of ``before`` (the model before the removal of its stiff directions) in the
-    parameters of ``model``'s projection, to compare with the entry's own."""
+) -> ReducedModel:
+    """``model`` with the errors of ``before`` (the model before the removal of its stiff
+    directions) in the parameters of its projection, to compare with the entry's own."""
     response = transfer_function(before.system, reference.frequencies_hz)
     ports, inertia = error_blocks(prepared.reduction_system)
     frequencies = reference.frequencies_hz
+    costs = {}
     for key, block in (("", ports), ("inertia_", inertia)):
         if block is None:
             continue
         eps = relative_error(reference.response, response, block)
-        model.projection.parameters[f"{key}max_rel_error_before_removal"] = float(eps.max())
+        costs[f"{key}max_rel_error_before_removal"] = float(eps.max())
         if frequencies[0] == 0.0:
-            model.projection.parameters[f"{key}static_rel_error_before_removal"] = float(eps[0])
+            costs[f"{key}static_rel_error_before_removal"] = float(eps[0])
+    return dataclasses.replace(model, projection=model.projection.with_parameters(**costs))
 
 
 def inertia_warning(name: str, eps: np.ndarray, eps_inertia: np.ndarray | None) -> str | None:
@@ -1469,7 +1471,7 @@ def _replace_folder(staging: Path, target: Path) -> None:
 
 
 def _jsonable(value: Any) -> Any:
-    if isinstance(value, dict):
+    if isinstance(value, Mapping):
         return {str(k): _jsonable(v) for k, v in value.items()}
     if isinstance(value, list | tuple):
         return [_jsonable(v) for v in value]
