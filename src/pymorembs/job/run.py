@@ -96,7 +96,7 @@ def load_model(spec: ModelSpec) -> ElasticBody:
     """The body a job's ``[model]`` names: a built-in example or model files of any format."""
     if spec.example is not None:
         return example(spec.example, **spec.options)
-    return read_body(spec.format, **spec.files, **spec.names)
+    return read_body(format=spec.format, **spec.files, **spec.names)
 
 
 def load_job_model(job: Job) -> ElasticBody:
