@@ -99,9 +99,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from pymorembs.arrays import sorted_unique
+from pymorembs.elements.rigid import skew
 from pymorembs.errors import UserError
 from pymorembs.export.deterministic import write_npz
-from pymorembs.export.invariants import StiffeningTerms, levi_civita, skew
+from pymorembs.export.invariants import StiffeningTerms, levi_civita
 from pymorembs.export.nodal import node_fields
 
 if TYPE_CHECKING:

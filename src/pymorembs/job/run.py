@@ -56,7 +56,7 @@ from pymorembs.analysis import (
 from pymorembs.export import BODY_OUTPUTS, write_outputs
 from pymorembs.io import atomic_path, check_output_folder, model_files, read_body, write_text
 from pymorembs.job.schema import Job, ModelSpec, ReductionSpec
-from pymorembs.job.time_domain import time_domain_checks
+from pymorembs.job.time_domain_checks import time_domain_checks
 from pymorembs.linalg import default_backend, mass_split
 from pymorembs.methods import DIRECT_GRAMIAN_LIMIT
 from pymorembs.prepare import (
