@@ -79,8 +79,8 @@ def full_response(example: str, dofs: int | None, points: int) -> Path:
     the double-double ones by up to 4.4e-11 at rack-solid's 42 Hz resonance, where PARDISO and
     SuperLU refined with double-double agree to 5e-20.)
     """
-    from pymorembs.analysis.error import frequency_grid
     from pymorembs.analysis.transfer import transfer_function
+    from pymorembs.frequencies import frequency_grid
 
     prepared, _ = build_prepared(example, dofs, "rayleigh")
     system = prepared.system

@@ -48,9 +48,10 @@ POINTS = 200
 
 def measure(dofs: int) -> dict:
     """One size in this process: reduction, reference, one full-model frequency."""
-    from pymorembs.analysis.error import frequency_grid, relative_error
+    from pymorembs.analysis.error import relative_error
     from pymorembs.analysis.reference import reference_response
     from pymorembs.analysis.transfer import transfer_function
+    from pymorembs.frequencies import frequency_grid
     from pymorembs.job.run import run_reduction
     from pymorembs.linalg.factorization import Factorization
     from pymorembs.parallel import usable_cores

@@ -25,6 +25,18 @@ def files(tmp_path_factory):
     return folder
 
 
+def test_read_is_the_one_read_of_the_io_layer(files):
+    """Issue #28: one read signature; ``pm.read`` is ``pymorembs.io.read_body``, and the first
+    file given with a mass file is the stiffness file."""
+    import pymorembs.io
+
+    assert pm.read is pymorembs.io.read_body
+    model = files / "model"
+    first = pm.read(model / "K.mtx", mass=model / "M.mtx", dofs=model / "dofs.csv")
+    named = pm.read(stiffness=model / "K.mtx", mass=model / "M.mtx", dofs=model / "dofs.csv")
+    assert (first.stiffness != named.stiffness).nnz == 0 and first.n_dof == named.n_dof
+
+
 def dense_response(prepared: pm.PreparedModel, frequencies_hz: np.ndarray) -> np.ndarray:
     """H(f) = C (K - w^2 M + i w D)^-1 B with dense matrices (the model has a few hundred dofs)."""
     system = prepared.reduction_system

@@ -18,9 +18,9 @@ from threadpoolctl import threadpool_limits
 from conftest import spring_lattice
 from lattice_jobs import lattice_job
 from pymorembs import progress
-from pymorembs.analysis.error import frequency_grid
 from pymorembs.analysis.transfer import transfer_function
 from pymorembs.errors import NumericalError
+from pymorembs.frequencies import frequency_grid
 from pymorembs.io.native import write_body_h5
 from pymorembs.job.cli import main, worst
 from pymorembs.job.run import prepare_job

@@ -157,3 +157,167 @@ def test_every_public_module_says_what_it_offers():
         assert exported, f"{name} has no __all__"
         missing = [item for item in exported if not hasattr(module, item)]
         assert missing == [], (name, missing)
+
+
+#: The layers of the library from the ground up (issue #28): a module imports from its own
+#: layer and the ones below it, never from a layer above, also not lazily inside a function. A
+#: module stands on the layer of the longest name here that it is or lies under (``pymorembs``
+#: itself, the package's top level, names only itself). The saved reduced body
+#: (``io.reduced_file``) is a file of what the methods make, so it stands above them, with the
+#: exports; every other reader and writer of ``io`` stands below ``prepare``, which reads
+#: matrices and meshes through them.
+LAYERS: tuple[tuple[str, ...], ...] = (
+    ("errors", "arrays", "display", "progress", "sparse_rows", "arguments", "frequencies"),
+    ("linalg", "elements", "parallel"),
+    ("surface", "system"),
+    ("body",),
+    ("io", "units"),
+    ("prepare", "examples"),
+    ("reduction",),
+    ("methods", "io.reduced_file", "export"),
+    ("analysis",),
+    ("report",),
+    ("api", ""),
+    ("job",),
+)
+#: What a lower layer may take from the package's top level: the version, which
+#: ``pymorembs/__init__.py`` defines before it imports anything (the writers stamp files with it).
+TOP_LEVEL_METADATA = {"__version__"}
+
+
+def layer_of(module: str) -> int | None:
+    """The layer of ``module`` (``pymorembs...``), or None where no entry of LAYERS names it."""
+    best, found = -1, None
+    for number, names in enumerate(LAYERS):
+        for name in names:
+            full = f"pymorembs.{name}" if name else "pymorembs"
+            named = module == full or (name != "" and module.startswith(full + "."))
+            if named and len(full) > best:
+                best, found = len(full), number
+    return found
+
+
+def module_name(path: Path) -> str:
+    parts = path.relative_to(SOURCE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def imported_modules(module: str, source: str, is_package: bool = False) -> list[str]:
+    """Every ``pymorembs`` module that ``source`` (the text of ``module``) imports, at its top
+    or inside a function; relative imports resolved; an import of only the top level's
+    metadata (``from pymorembs import __version__``) left out."""
+    import ast
+
+    found = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            found += [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            name = node.module or ""
+            if node.level:
+                package = module.split(".")
+                package = package if is_package else package[:-1]
+                base = package[: len(package) - (node.level - 1)]
+                name = ".".join([*base, name] if name else base)
+            names = {alias.name for alias in node.names}
+            if name == "pymorembs" and names <= TOP_LEVEL_METADATA:
+                continue
+            found.append(name)
+    return [name for name in found if name == "pymorembs" or name.startswith("pymorembs.")]
+
+
+def climbs(module: str, source: str, is_package: bool = False) -> list[str]:
+    """The imports of ``module`` that reach a layer above its own, and any module LAYERS does not
+    place."""
+    own = layer_of(module)
+    if own is None:
+        return [f"{module}: not on any layer of LAYERS"]
+    found = []
+    for target in imported_modules(module, source, is_package):
+        layer = layer_of(target)
+        if layer is None:
+            found.append(f"{module} -> {target}: not on any layer of LAYERS")
+        elif layer > own:
+            found.append(f"{module} (layer {own}) -> {target} (layer {layer})")
+    return found
+
+
+def test_no_module_imports_from_a_layer_above_its_own():
+    """Issue #28: no climb from a lower layer into a higher one (analysis -> report, the methods
+    -> analysis ...), lazy imports included."""
+    found = []
+    for path in sorted(SOURCE.rglob("*.py")):
+        name = module_name(path)
+        found += climbs(name, path.read_text(encoding="utf-8"), path.name == "__init__.py")
+    assert found == []
+
+
+def test_the_layer_check_finds_what_it_is_for():
+    assert layer_of("pymorembs.io.reduced_file") > layer_of("pymorembs.reduction.krylov")
+    assert layer_of("pymorembs.io.matrix_market") < layer_of("pymorembs.prepare.stiffening")
+    assert layer_of("pymorembs") == layer_of("pymorembs.api") < layer_of("pymorembs.job.app")
+    assert layer_of("pymorembs.nothing") is None
+    lazy = "def f():\n    from pymorembs.report.time_plots import plot_large_motion\n"
+    assert climbs("pymorembs.analysis.large_motion", lazy) == [
+        "pymorembs.analysis.large_motion (layer 8) -> pymorembs.report.time_plots (layer 9)"
+    ]
+    assert climbs("pymorembs.reduction.soaga", "import pymorembs.analysis.error as e") != []
+    assert climbs("pymorembs.export.sid", "from pymorembs import __version__") == []
+    assert climbs("pymorembs.export.sid", "from pymorembs import __version__, reduce") != []
+    relative = "from .matrices import reduced_arrays\nfrom . import sid\nfrom .. import body\n"
+    assert imported_modules("pymorembs.export.outputs", relative) == [
+        "pymorembs.export.matrices",
+        "pymorembs.export",
+        "pymorembs",
+    ]
+    assert imported_modules("pymorembs.export", "from .sid import write_sid", is_package=True) == [
+        "pymorembs.export.sid"
+    ]
+
+
+#: Calls that build or run an Exudyn system; a module that only writes files makes none.
+SIMULATION_CALLS = {"SystemContainer", "AddSystem", "Assemble", "SolveDynamic", "SolveStatic"}
+
+
+def simulation_in(source: str) -> list[str]:
+    """What in ``source`` simulates: an import of Exudyn or of the analysis (where the Exudyn
+    model and its simulator live), or a call of :data:`SIMULATION_CALLS`."""
+    import ast
+
+    found = []
+    for node in ast.walk(ast.parse(source)):
+        modules = []
+        if isinstance(node, ast.Import):
+            modules = [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            modules = [node.module or ""]
+        for module in modules:
+            if module.split(".")[0] == "exudyn" or module.startswith("pymorembs.analysis"):
+                found.append(f"import {module}")
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute):
+            if node.func.attr in SIMULATION_CALLS:
+                found.append(f"{node.func.attr}()")
+    return found
+
+
+def test_the_export_writes_files_and_simulates_nothing():
+    """Issue #28: the Exudyn model builder and simulator live in analysis/, not in export/."""
+    found = []
+    for path in sorted((SOURCE / "export").rglob("*.py")):
+        found += [f"export/{path.name}: {what}" for what in simulation_in(path.read_text())]
+    assert found == []
+
+
+def test_the_simulation_check_finds_what_it_is_for():
+    source = (
+        "def run(model):\n    import exudyn\n    model.mbs.Assemble()\n"
+        "    model.mbs.SolveDynamic(settings)\n"
+        "from pymorembs.analysis.exudyn_model import simulate_exudyn\n"
+    )
+    assert simulation_in(source) == [
+        "import pymorembs.analysis.exudyn_model",
+        "import exudyn",
+        "Assemble()",
+        "SolveDynamic()",
+    ]
+    assert simulation_in("from pymorembs.export.deterministic import write_npz") == []

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from pymorembs.analysis.error import error_blocks, frequency_grid, relative_error
+from pymorembs.analysis.error import error_blocks, relative_error
 from pymorembs.analysis.reference import reference_response
 from pymorembs.analysis.spectrum import model_facts
 from pymorembs.analysis.time_domain import (
@@ -50,6 +50,7 @@ from pymorembs.errors import UserError
 from pymorembs.examples import build_example
 from pymorembs.export.invariants import BodyInvariants
 from pymorembs.export.outputs import body_invariants, check_before_writing, write_outputs
+from pymorembs.frequencies import frequency_grid
 from pymorembs.io.formats import read_body
 from pymorembs.io.reduced_file import SavedBody, read_reduced_body, write_reduced_body
 from pymorembs.methods import ReductionOptions, method_options
@@ -86,66 +87,9 @@ PortLike = Port | tuple[int, str]
 DampingLike = Damping | Mapping[str, Any] | np.ndarray | sp.spmatrix | sp.sparray
 
 
-def read(
-    path: PathLike | None = None,
-    *,
-    format: str | None = None,
-    stiffness: PathLike | None = None,
-    mass: PathLike | None = None,
-    damping: PathLike | None = None,
-    dofs: PathLike | None = None,
-    nodes: PathLike | None = None,
-    constraints: PathLike | None = None,
-    fixed: PathLike | None = None,
-    mapping: PathLike | None = None,
-    inp: PathLike | None = None,
-    stiffness_name: str | None = None,
-    mass_name: str | None = None,
-    damping_name: str | None = None,
-) -> ElasticBody:
-    """Read the FE model of a body from the files an FE program wrote.
-
-    Parameters
-    ----------
-    path : path-like, optional
-        A one-file model (``.h5``, ``.full``, ``.pch``, ``.op4``, ``.op2``, ``.mat``, an Abaqus
-        substructure ``.mtx``, a folder of Matrix Market files), or the stiffness matrix file of a
-        two-file format when ``mass`` is given.
-    format : str, optional
-        The format (``pymorembs.io.formats.FORMATS``); default: told from the content.
-    stiffness, mass, damping, dofs, nodes, constraints, fixed, mapping, inp : path-like, optional
-        The further files of the format (see the docs' "Reading FE models").
-    stiffness_name, mass_name, damping_name : str, optional
-        Matrix or variable names in Nastran and MATLAB files (default: found).
-
-    Returns
-    -------
-    ElasticBody
-
-    Raises
-    ------
-    UserError
-        A file that does not exist, cannot be read or does not hold a model, naming the file
-        (and line) and the problem.
-    """
-    if path is not None and mass is not None and stiffness is None:
-        path, stiffness = None, path  # read("K.mtx", mass="M.mtx", ...)
-    return read_body(
-        format,
-        file=path,
-        stiffness=stiffness,
-        mass=mass,
-        damping=damping,
-        dofs=dofs,
-        nodes=nodes,
-        constraints=constraints,
-        fixed=fixed,
-        mapping=mapping,
-        inp=inp,
-        stiffness_name=stiffness_name,
-        mass_name=mass_name,
-        damping_name=damping_name,
-    )
+#: Read the FE model of a body from the files an FE program wrote: the same function as
+#: :func:`pymorembs.io.read_body`, one signature and one docstring for both names.
+read = read_body
 
 
 def example(name: str, **options: Any) -> ElasticBody:

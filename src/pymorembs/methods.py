@@ -443,7 +443,7 @@ class GramianOptions(ReductionOptions):
             system, band_hz, order=order, tolerance=self.tolerance, medium=medium
         )
         if order != self.order:
-            projection.parameters["order_capped_by_first_stage"] = medium.order
+            projection = projection.with_parameters(order_capped_by_first_stage=medium.order)
         return projection
 
     def _medium(self, system: SecondOrderSystem, band_hz: tuple[float, float]) -> Projection | None:

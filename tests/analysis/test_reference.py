@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pymorembs.analysis.error import frequency_grid, relative_error
+from pymorembs.analysis.error import relative_error
 from pymorembs.analysis.reference import (
     SURROGATE_TOLERANCE,
     ReferenceResponse,
@@ -23,6 +23,7 @@ from pymorembs.analysis.reference import (
 from pymorembs.analysis.transfer import transfer_function
 from pymorembs.errors import UserError
 from pymorembs.examples import build_example
+from pymorembs.frequencies import frequency_grid
 from pymorembs.job.cli import main
 from pymorembs.job.run import run_reduction
 from pymorembs.job.schema import ReductionSpec, load_job

@@ -10,7 +10,7 @@ from conftest import spring_lattice
 from pymorembs.analysis.transfer import transfer_function
 from pymorembs.body import Damping
 from pymorembs.errors import UserError
-from pymorembs.export.matrices import reduced_arrays, to_pymor, write_mat
+from pymorembs.export.matrices import reduced_arrays, to_pymor, write_reduced_mat
 from pymorembs.prepare import Frame, Port, prepare
 from pymorembs.reduction.krylov import krylov_reduction
 from pymorembs.reduction.projection import reduced_model
@@ -31,7 +31,7 @@ def test_mat_file_holds_the_npz_arrays(tmp_path):
     prepared = prepared_lattice(Damping("rayleigh", alpha=0.5, beta=1e-4))
     model = reduced(prepared)
     arrays = reduced_arrays(model, prepared)
-    write_mat(tmp_path / "reduced.mat", arrays)
+    write_reduced_mat(tmp_path / "reduced.mat", arrays)
     data = scipy.io.loadmat(tmp_path / "reduced.mat")
     for key in ("M", "K", "D", "B", "C", "V"):
         np.testing.assert_array_equal(data[key], arrays[key])

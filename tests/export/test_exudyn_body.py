@@ -12,16 +12,15 @@ import pytest
 import scipy.sparse.linalg as spla
 from threadpoolctl import threadpool_limits
 
+from pymorembs.analysis.exudyn_model import build_exudyn_model, simulate_exudyn
 from pymorembs.body import Damping
 from pymorembs.errors import NumericalError, UserError
 from pymorembs.examples import build_example
 from pymorembs.export.exudyn_body import (
     FORMAT,
     SATELLITE_DIRECTIONS,
-    build_exudyn_model,
     exudyn_arrays,
     load_exudyn_body,
-    simulate_exudyn,
     surface_mesh,
     write_exudyn_body,
 )

@@ -149,16 +149,16 @@ def test_format_override(tmp_path: Path) -> None:
     """An explicit format skips detection; the wrong one fails in the reader."""
     k = write(tmp_path / "k.bin", ABAQUS_K)
     m = write(tmp_path / "m.bin", ABAQUS_M)
-    body = read_body("Abaqus", stiffness=k, mass=m)
+    body = read_body(format="Abaqus", stiffness=k, mass=m)
     np.testing.assert_array_equal(body.stiffness.toarray(), K_DENSE)
     dmig = write(tmp_path / "k.mtx", DMIG)
-    body = read_body("nastran_dmig", file=dmig, stiffness_name="kaax", mass_name="Maax")
+    body = read_body(format="nastran_dmig", file=dmig, stiffness_name="kaax", mass_name="Maax")
     np.testing.assert_array_equal(body.mass.toarray(), M_DENSE)
     with pytest.raises(UserError, match="holds no DMIG matrices") as err:
-        read_body("nastran-dmig", file=k)
+        read_body(format="nastran-dmig", file=k)
     one_line(err)
     with pytest.raises(UserError, match="unknown format 'ansys'"):
-        read_body("ansys", file=k)
+        read_body(format="ansys", file=k)
 
 
 def test_native_with_name_constraints_and_fixed(tmp_path: Path) -> None:
@@ -183,7 +183,7 @@ def test_matrix_market_files_and_directory(tmp_path: Path) -> None:
     assert body.name == "dir"
     np.testing.assert_array_equal(body.stiffness.toarray(), K_DENSE)
     with pytest.raises(UserError, match="not both"):
-        read_body("matrix-market", file=tmp_path / "body", stiffness=paths["stiffness"])
+        read_body(format="matrix-market", file=tmp_path / "body", stiffness=paths["stiffness"])
 
 
 def fake_module(monkeypatch: pytest.MonkeyPatch, name: str, **functions) -> list:
@@ -247,7 +247,7 @@ def test_dispatch_to_ansys_and_op4(tmp_path: Path, monkeypatch: pytest.MonkeyPat
 )
 def test_option_errors(fmt: str | None, options: dict, words: str) -> None:
     with pytest.raises(UserError) as err:
-        read_body(fmt, **options)
+        read_body(format=fmt, **options)
     assert words in one_line(err)
 
 

@@ -554,7 +554,7 @@ def _read_any(d: Path) -> ElasticBody:
     """Format detection plus the detected reader, as ``pymorembs info FILE`` does."""
     path = d / "model.dat"
     extra = {"dofs": d / "dofs.csv"} if detect_format(path) == "nastran-op4" else {}
-    return read_body(None, file=path, **extra)
+    return read_body(file=path, **extra)
 
 
 def _mm_fast_path(d: Path) -> sp.csr_matrix:

@@ -146,14 +146,14 @@ def test_detection_and_the_other_ways_to_name_the_files(tmp_path):
         {"file": DATA / "free.sti", "inp": DATA / "free.inp", "dofs": DATA / "free.dof"},
     ):
         fmt = options.pop("format", None)
-        body = read_body(fmt, **options)
+        body = read_body(format=fmt, **options)
         assert (body.stiffness != reference.stiffness).nnz == 0
         np.testing.assert_array_equal(body.coordinates, reference.coordinates)
     # the files under other names, given one by one
     for suffix in ("sti", "mas", "dof", "inp"):
         shutil.copy(DATA / f"free.{suffix}", tmp_path / f"other_{suffix}.txt")
     body = read_body(
-        "calculix",
+        format="calculix",
         file=tmp_path / "other_sti.txt",
         mass=tmp_path / "other_mas.txt",
         dofs=tmp_path / "other_dof.txt",

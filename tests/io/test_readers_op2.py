@@ -14,7 +14,7 @@ import pytest
 
 from pymorembs.errors import UserError
 from pymorembs.io.nastran_op2 import read_op2
-from pymorembs.io.pynastran_compat import op2_class
+from pymorembs.io.pynastran_compat import numpy_with_in1d, op2_class
 
 pytest.importorskip("pyNastran")
 
@@ -77,5 +77,17 @@ def test_numpy_in1d_shim() -> None:
     """pyNastran's OP2 reader imports with this NumPy; the shim is NumPy's old in1d."""
     assert op2_class().__name__ == "OP2"
     a, b = np.array([[1, 2], [3, 4]]), np.array([2, 3])
-    np.testing.assert_array_equal(np.in1d(a, b), [False, True, True, False])  # noqa: NPY201
-    np.testing.assert_array_equal(np.in1d(a, b, invert=True), [True, False, False, True])  # noqa: NPY201
+    with numpy_with_in1d():
+        np.testing.assert_array_equal(np.in1d(a, b), [False, True, True, False])  # noqa: NPY201
+        np.testing.assert_array_equal(np.in1d(a, b, invert=True), [True, False, False, True])  # noqa: NPY201
+
+
+def test_reading_an_op2_file_leaves_numpy_as_it_was() -> None:
+    """Issue #28: the shim lives for the calls into pyNastran only, not for the process: after
+    a read (and a read that ends in an error) NumPy has ``in1d`` only if it has its own."""
+    own = np.lib.NumpyVersion(np.__version__) < "2.4.0"  # NumPy 2.4 removed in1d
+    read_op2(OP2, mass="KGG")
+    assert hasattr(np, "in1d") == own
+    with pytest.raises(UserError):
+        read_op2(OP2)
+    assert hasattr(np, "in1d") == own

@@ -238,9 +238,10 @@ def test_exudyn_step_response_of_a_tangent_frame_body_matches_our_integration():
 
     from threadpoolctl import threadpool_limits
 
+    from pymorembs.analysis.exudyn_model import build_exudyn_model, simulate_exudyn
     from pymorembs.analysis.time_domain import clamped_reduced_system, paper_load_cases, simulate
     from pymorembs.body import Damping
-    from pymorembs.export.exudyn_body import build_exudyn_model, exudyn_arrays, simulate_exudyn
+    from pymorembs.export.exudyn_body import exudyn_arrays
     from pymorembs.export.outputs import body_invariants
     from pymorembs.prepare import Frame, Port, prepare
     from pymorembs.reduction.modal import modal_reduction

@@ -418,9 +418,7 @@ def femap_reference_hz() -> np.ndarray:
     its null direction lies in the 33 rotations)."""
     from pymorembs.io import read_body
 
-    return projected_reference_hz(
-        read_body(None, file=FEMAP / "beam.pch", nodes=FEMAP / "beam.dat")
-    )
+    return projected_reference_hz(read_body(file=FEMAP / "beam.pch", nodes=FEMAP / "beam.dat"))
 
 
 def test_the_genuine_femap_beam_with_a_massless_mechanism_gives_its_frequencies(capsys):

@@ -19,15 +19,11 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from conftest import blade_job
+from pymorembs.analysis.exudyn_model import build_exudyn_model, simulate_exudyn
 from pymorembs.elements.solid import assemble_solid_geometric
 from pymorembs.errors import UserError
 from pymorembs.examples.blade import blade, blade_mesh
-from pymorembs.export.exudyn_body import (
-    build_exudyn_model,
-    exudyn_arrays,
-    load_exudyn_body,
-    simulate_exudyn,
-)
+from pymorembs.export.exudyn_body import exudyn_arrays, load_exudyn_body
 from pymorembs.export.sid import check_sid, read_sid
 from pymorembs.io.matrix_market import write_matrix_market
 from pymorembs.job.cli import main
@@ -315,7 +311,7 @@ def test_the_stiffening_force_takes_every_input_in_body_coordinates():
     import exudyn
     from scipy.spatial.transform import Rotation
 
-    from pymorembs.export.exudyn_body import stiffening_force
+    from pymorembs.analysis.exudyn_model import stiffening_force
 
     _, arrays = exudyn_models(elements=4, order=4)
     data = dict(arrays["stiffened"])

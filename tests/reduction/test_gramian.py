@@ -13,10 +13,11 @@ import scipy.sparse as sp
 from scipy.integrate import quad_vec
 
 from conftest import space_truss, spring_lattice
-from pymorembs.analysis.error import frequency_grid, relative_error
+from pymorembs.analysis.error import relative_error
 from pymorembs.analysis.transfer import transfer_function
 from pymorembs.body import Damping
 from pymorembs.errors import UserError
+from pymorembs.frequencies import frequency_grid
 from pymorembs.prepare import Frame, Port, prepare
 from pymorembs.reduction import gramian
 from pymorembs.reduction.gramian import (

@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 from test_gramian import free_truss, system_of
 
-from pymorembs.analysis.error import frequency_grid, relative_error
+from pymorembs.analysis.error import relative_error
 from pymorembs.analysis.transfer import transfer_function
 from pymorembs.errors import UserError
+from pymorembs.frequencies import frequency_grid
 from pymorembs.reduction.gramian import frequency_weighted_gramians, gramian_reduction
 from pymorembs.reduction.projection import reduced_model
 from pymorembs.reduction.rational_gramian import (

@@ -9,10 +9,11 @@ import pytest
 import scipy.linalg as sla
 
 from conftest import spring_lattice
-from pymorembs.analysis.error import frequency_grid, relative_error
+from pymorembs.analysis.error import relative_error
 from pymorembs.analysis.transfer import transfer_function
 from pymorembs.body import Damping
 from pymorembs.errors import UserError
+from pymorembs.frequencies import frequency_grid
 from pymorembs.prepare import Frame, Port, prepare
 from pymorembs.reduction.krylov import krylov_reduction
 from pymorembs.reduction.modal import modal_reduction
@@ -193,3 +194,17 @@ def test_krylov_keeps_a_weak_input():
         full[:, :, 1], axis=1
     )
     assert column.max() < 1e-9
+
+
+def test_the_parameters_of_a_projection_are_read_only():
+    """Issue #28: a projection is complete when built; a further fact makes a new one."""
+    projection = modal_reduction(system_of(n_nodes=8), 4)
+    with pytest.raises(TypeError):
+        projection.parameters["order"] = 5  # type: ignore[index]
+    later = projection.with_parameters(order_capped_by_first_stage=4)
+    assert later.parameters["order_capped_by_first_stage"] == 4
+    assert "order_capped_by_first_stage" not in projection.parameters
+    assert later.V is projection.V and dict(later.parameters) == {
+        **projection.parameters,
+        "order_capped_by_first_stage": 4,
+    }

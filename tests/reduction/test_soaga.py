@@ -10,10 +10,11 @@ from test_reduce import OUTPUTS, moments_of, system_of
 from threadpoolctl import threadpool_limits
 
 import pymorembs.reduction.krylov as krylov_module
-from pymorembs.analysis.error import frequency_grid, relative_error
+from pymorembs.analysis.error import relative_error
 from pymorembs.analysis.transfer import transfer_function
 from pymorembs.body import Damping
 from pymorembs.errors import NumericalError, UserError
+from pymorembs.frequencies import frequency_grid
 from pymorembs.linalg.factorization import Factorization
 from pymorembs.prepare import Port
 from pymorembs.reduction.krylov import krylov_reduction

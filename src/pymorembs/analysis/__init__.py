@@ -11,12 +11,17 @@ the modules behind them are not.
 * the (mass-weighted) modal assurance criterion between two bases: :func:`mac`;
 * time responses (paper section 5.1): :class:`LoadCase`, :func:`simulate`, the clamped full
   and reduced systems, :func:`compare`;
-* large motions in Exudyn: :class:`LargeMotionSettings`, :func:`large_motion_checks`.
+* an exported body in Exudyn (:mod:`~pymorembs.analysis.exudyn_model`):
+  :func:`build_exudyn_model`, :func:`simulate_exudyn`;
+* large motions in Exudyn: :class:`LargeMotionSettings`, :func:`large_motion_checks` and its
+  :class:`LargeMotionResult`.
 """
 
-from pymorembs.analysis.error import error_blocks, frequency_grid, relative_error
+from pymorembs.analysis.error import error_blocks, relative_error
+from pymorembs.analysis.exudyn_model import build_exudyn_model, simulate_exudyn
 from pymorembs.analysis.large_motion import (
     LARGE_MOTION_CASES,
+    LargeMotionResult,
     LargeMotionSettings,
     large_motion_checks,
 )
@@ -38,15 +43,18 @@ from pymorembs.analysis.time_domain import (
     simulate,
 )
 from pymorembs.analysis.transfer import transfer_function
+from pymorembs.frequencies import frequency_grid
 
 __all__ = [
     "DEFAULT_CHECKS",
     "LARGE_MOTION_CASES",
     "REFERENCE_KINDS",
+    "LargeMotionResult",
     "LargeMotionSettings",
     "LoadCase",
     "ReferenceResponse",
     "TimeResponse",
+    "build_exudyn_model",
     "choose_kind",
     "clamped_full_system",
     "clamped_reduced_system",
@@ -59,5 +67,6 @@ __all__ = [
     "reference_response",
     "relative_error",
     "simulate",
+    "simulate_exudyn",
     "transfer_function",
 ]

@@ -29,20 +29,26 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from pymorembs.analysis.exudyn_model import build_exudyn_model, simulate_exudyn
 from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
-from pymorembs.export.exudyn_body import build_exudyn_model, exudyn_arrays, simulate_exudyn
+from pymorembs.export.exudyn_body import exudyn_arrays
 from pymorembs.export.outputs import body_invariants
 from pymorembs.prepare import Frame, PreparedModel
 from pymorembs.reduction.modal import modal_reduction
 from pymorembs.reduction.projection import ReducedModel, reduced_model
 
-__all__ = ["LARGE_MOTION_CASES", "LargeMotionSettings", "large_motion_checks", "off_axis_node"]
+__all__ = [
+    "LARGE_MOTION_CASES",
+    "LargeMotionResult",
+    "LargeMotionSettings",
+    "large_motion_checks",
+    "off_axis_node",
+]
 
 #: The motions of the check.
 LARGE_MOTION_CASES = ("pendulum", "spin-up")
@@ -73,6 +79,35 @@ class LargeMotionSettings:
     gravity_m_s2: float = 9.81
     reference_order: int = 120
     rho_inf: float = 0.9
+
+
+#: The runs of one motion: the reference body's and, by name, every reduced body's; each with
+#: ``times`` (s), ``angular_velocity`` (n_t, 3; rad/s, ground coordinates), ``angle`` (n_t,;
+#: rad, about the hinge), ``deflections`` (node id -> (n_t, 3); m, body frame) and
+#: ``wall_time_s``.
+MotionRuns = tuple[dict[str, Any], dict[str, dict[str, Any]]]
+
+
+@dataclass(frozen=True)
+class LargeMotionResult:
+    """What :func:`large_motion_checks` found: the summary entry and the runs behind it.
+
+    Attributes
+    ----------
+    summary : dict
+        The summary entry (JSON values): the reference (order, convergence), the off-axis
+        node, and per motion its parameters and per reduction the deviations from the
+        reference.
+    runs : dict of motion name -> MotionRuns
+        Per motion the reference run and every reduced body's run, for a plot
+        (:func:`pymorembs.report.plot_large_motion`).
+    off_axis_node : int
+        The node off every symmetry axis whose deflection the plot shows.
+    """
+
+    summary: dict[str, Any]
+    runs: dict[str, MotionRuns]
+    off_axis_node: int
 
 
 def off_axis_node(body: ElasticBody, joint: np.ndarray | None = None) -> int:
@@ -255,16 +290,14 @@ def large_motion_checks(
     prepared: PreparedModel,
     models: dict[str, ReducedModel],
     nodes: list[int],
-    figure: Path,
     say: Callable[[str], None],
-) -> dict[str, Any]:
-    """Run the checks for every one-sided reduced body, plot them into ``figure`` (PNG).
+) -> LargeMotionResult:
+    """Run the checks for every one-sided reduced body.
 
-    Returns the summary entry: the reference (order, convergence), the off-axis node, and per
-    motion its parameters and per reduction the deviations of :func:`_deviation`.
+    Returns the summary entry (the reference's order and convergence, the off-axis node, and per
+    motion its parameters and per reduction the deviations of :func:`_deviation`) with the runs
+    behind it; plotting them is the caller's.
     """
-    from pymorembs.report.time_plots import plot_large_motion
-
     joint = settings.joint_node
     extra = off_axis_node(prepared.body, prepared.body.node_position(joint))
     frame_nodes = list(dict.fromkeys([*nodes, joint, extra]))
@@ -308,8 +341,7 @@ def large_motion_checks(
             }
         )
         runs_for_plot[motion.name] = (reference, runs)
-    plot_large_motion(runs_for_plot, extra, figure)
-    return {
+    summary = {
         "joint_node": joint,
         "clamp": clamp,
         "off_axis_node": extra,
@@ -321,3 +353,4 @@ def large_motion_checks(
         "covers": "frame angular velocity and elastic deflections (body frame) of the listed "
         "nodes, each relative to the reference body's peak, over the whole motion",
     }
+    return LargeMotionResult(summary, runs_for_plot, extra)

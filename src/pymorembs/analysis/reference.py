@@ -238,7 +238,7 @@ def reference_response(
     system : SecondOrderSystem
         The full (sparse) system.
     frequencies_hz : ndarray, shape (n_f,)
-        The error grid in Hz (:func:`~pymorembs.analysis.error.frequency_grid`).
+        The error grid in Hz (:func:`~pymorembs.frequencies.frequency_grid`).
     kind : {"auto", "full", "surrogate"}
         See the module docstring; ``"auto"``: full up to :data:`FULL_MAX_ORDER` dofs.
     checks : int

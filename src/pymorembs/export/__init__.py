@@ -9,15 +9,13 @@
 * :mod:`~pymorembs.export.matrices`: reduced matrices for MATLAB, and the pyMOR adapter.
 * :mod:`~pymorembs.export.outputs`: the files a job asks for (``[export] outputs``).
 
+The package writes files and runs nothing: an exported Exudyn body in an Exudyn system is
+:mod:`pymorembs.analysis.exudyn_model`.
+
 A public subpackage (``docs/api.md``, "The public surface"): the names below are its interface.
 """
 
-from pymorembs.export.exudyn_body import (
-    build_exudyn_model,
-    exudyn_arrays,
-    simulate_exudyn,
-    write_exudyn_body,
-)
+from pymorembs.export.exudyn_body import exudyn_arrays, write_exudyn_body
 from pymorembs.export.invariants import BodyInvariants
 from pymorembs.export.neweul import write_neweul
 from pymorembs.export.outputs import (
@@ -32,12 +30,10 @@ __all__ = [
     "BODY_OUTPUTS",
     "BodyInvariants",
     "body_invariants",
-    "build_exudyn_model",
     "check_before_writing",
     "check_sid",
     "exudyn_arrays",
     "read_sid",
-    "simulate_exudyn",
     "write_exudyn_body",
     "write_neweul",
     "write_outputs",

@@ -54,6 +54,7 @@ from pymorembs.arrays import sorted_unique
 from pymorembs.body import ElasticBody
 from pymorembs.display import one_line
 from pymorembs.elements.beam import BeamSection
+from pymorembs.elements.rigid import skew
 from pymorembs.errors import UserError
 from pymorembs.linalg.products import extended
 
@@ -64,7 +65,6 @@ __all__ = [
     "StiffeningTerms",
     "compute_invariants",
     "levi_civita",
-    "skew",
 ]
 
 #: Order of the six products of angular velocity components Ω used with ``Oe`` (SID_NOTES §0).
@@ -76,16 +76,6 @@ _OMEGA_PAIRS = ((0, 1), (1, 2), (0, 2))
 #: Relative size (to the largest translational mass entry) below which an entry of ``M`` counts
 #: as zero, and two axis blocks as equal, in the Kronecker test.
 KRONECKER_TOL = 1e-12
-
-
-def skew(v: np.ndarray) -> np.ndarray:
-    """Cross-product matrices ``ṽ`` (``ṽ w = v × w``), shape (..., 3) -> (..., 3, 3)."""
-    v = np.asarray(v, dtype=float)
-    out = np.zeros((*v.shape[:-1], 3, 3))
-    out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
-    out[..., 1, 0], out[..., 1, 2] = v[..., 2], -v[..., 0]
-    out[..., 2, 0], out[..., 2, 1] = -v[..., 1], v[..., 0]
-    return out
 
 
 def _omega_components(matrices: np.ndarray) -> np.ndarray:

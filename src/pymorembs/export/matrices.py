@@ -52,8 +52,10 @@ def reduced_arrays(model: ReducedModel, prepared: PreparedModel) -> dict[str, np
     }
 
 
-def write_mat(path: str | Path, arrays: dict[str, np.ndarray]) -> Path:
-    """Write ``arrays`` (see :func:`reduced_arrays`) as a MATLAB 5 ``.mat`` file, atomically."""
+def write_reduced_mat(path: str | Path, arrays: dict[str, np.ndarray]) -> Path:
+    """Write ``arrays`` (see :func:`reduced_arrays`) as ``reduced.mat``, atomically: a MATLAB 5
+    file with the labels as cell arrays and a ``format`` entry, through the byte-reproducible
+    :func:`pymorembs.export.deterministic.write_mat`."""
     data: dict[str, Any] = {key: _matlab(value) for key, value in arrays.items()}
     data["format"] = "pymorembs reduced matrices"
     return deterministic.write_mat(path, data, do_compression=True, oned_as="column")
@@ -111,4 +113,4 @@ def to_pymor(system: SecondOrderSystem, damping: np.ndarray | sp.spmatrix | None
     return SecondOrderModel.from_matrices(*matrices, b, c)
 
 
-__all__ = ["reduced_arrays", "to_pymor", "write_mat"]
+__all__ = ["reduced_arrays", "to_pymor", "write_reduced_mat"]

@@ -71,9 +71,10 @@ from pathlib import Path
 
 import numpy as np
 
+from pymorembs.elements.rigid import skew
 from pymorembs.errors import NumericalError
 from pymorembs.export.deterministic import write_mat
-from pymorembs.export.invariants import BodyInvariants, skew
+from pymorembs.export.invariants import BodyInvariants
 
 __all__ = ["FORMAT", "FORMAT_VERSION", "neweul_fields", "write_neweul"]
 

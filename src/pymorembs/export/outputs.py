@@ -33,7 +33,7 @@ from pymorembs.reduction.projection import ReducedModel
 from pymorembs.system import check_damping
 
 from .deterministic import write_npz
-from .matrices import reduced_arrays, write_mat
+from .matrices import reduced_arrays, write_reduced_mat
 
 BODY_OUTPUTS = ("sid", "neweul", "exudyn")
 
@@ -128,7 +128,7 @@ def write_outputs(
                 scipy.io.mmwrite(str(tmp), np.asarray(arrays[key]), precision=17)
             names.append(f"{key}.mtx")
     if "mat" in outputs:
-        write_mat(folder / "reduced.mat", arrays)
+        write_reduced_mat(folder / "reduced.mat", arrays)
         names.append("reduced.mat")
     if "vtu" in outputs:
         write_reduced_vtu(folder / f"{name}.vtu", model, prepared)

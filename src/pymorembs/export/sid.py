@@ -57,8 +57,9 @@ from pathlib import Path
 
 import numpy as np
 
+from pymorembs.elements.rigid import skew
 from pymorembs.errors import NumericalError, UserError
-from pymorembs.export.invariants import BodyInvariants, StiffeningTerms, skew
+from pymorembs.export.invariants import BodyInvariants, StiffeningTerms
 from pymorembs.io.atomic import write_text
 
 __all__ = [

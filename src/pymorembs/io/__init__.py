@@ -1,7 +1,7 @@
 """Reading FE models and writing files safely.
 
 A public subpackage (``docs/api.md``, "The public surface"): :func:`read_body` reads a body in
-any of :data:`FORMATS` (:func:`pymorembs.read` is the same with keyword names; :func:`model_files`
+any of :data:`FORMATS` (:func:`pymorembs.read` is the same function; :func:`model_files`
 lists every file a read opens), the native HDF5
 file (:func:`write_body_h5`, :func:`read_body_h5`) and plain Matrix Market files
 (:func:`write_matrix_files`, :func:`read_matrix_files`); files are written atomically

@@ -471,9 +471,9 @@ def _first_content_line(text: str, skip_abaqus_comments: bool = True) -> str | N
 
 # ============================================================================ reading
 def read_body(
-    format: str | None = None,
-    *,
     file: PathLike | None = None,
+    *,
+    format: str | None = None,
     stiffness: PathLike | None = None,
     mass: PathLike | None = None,
     damping: PathLike | str | None = None,
@@ -488,18 +488,24 @@ def read_body(
     damping_name: str | None = None,
     name: str | None = None,
 ) -> ElasticBody:
-    """Read a body in any supported format.
+    """Read the FE model of a body from the files an FE program wrote, in any supported format.
+
+    :func:`pymorembs.read` is this function: ``pm.read("model.h5")``,
+    ``pm.read("K.mtx", mass="M.mtx", dofs="dofs.csv")``.
 
     Parameters
     ----------
+    file : path-like, optional
+        The one model file of ``native`` (``.h5``), ``ansys-full`` (``.full``), ``nastran-dmig``
+        (``.pch``), ``nastran-op4`` (``.op4``), ``nastran-op2``, ``matlab``,
+        ``abaqus-substructure`` and ``calculix`` (``job.sti``); for ``matrix-market`` it may be a
+        directory written by :func:`~pymorembs.io.matrix_market.write_matrix_files`. Given with
+        ``mass`` but without ``stiffness``, for a format that reads the stiffness from a file of
+        its own (``matrix-market``, ``ansys-mmf``, ``abaqus``), it is that stiffness file.
     format : str, optional
         One of :data:`FORMATS` (``_`` may stand for ``-``, any case). Default: told from the
         content of ``file`` or, without it, of ``stiffness`` (:func:`detect_format`); a Matrix
         Market file with a ``mapping`` file is ``ansys-mmf``.
-    file : path-like, optional
-        The one model file of ``native`` (``.h5``), ``ansys-full`` (``.full``), ``nastran-dmig``
-        (``.pch``) and ``nastran-op4`` (``.op4``); for ``matrix-market`` it may be a directory
-        written by :func:`~pymorembs.io.matrix_market.write_matrix_files`.
     stiffness, mass : path-like, optional
         The stiffness and mass files of ``matrix-market``, ``ansys-mmf`` and ``abaqus``; for
         ``calculix`` ``job.sti`` (as ``file``) and ``job.mas`` (default: beside it).
@@ -540,8 +546,18 @@ def read_body(
     ------
     UserError
         Unknown format, content of no known format, an option that does not apply to the format,
-        a missing required file, or any error of the format's reader.
+        a missing required file, or any error of the format's reader, naming the file (and line)
+        and the problem.
     """
+    fmt = _format_of(format, file if file is not None else stiffness, mapping)
+    if (
+        file is not None
+        and stiffness is None
+        and mass is not None
+        and "stiffness" in _OPTIONS[fmt]
+        and not Path(file).is_dir()
+    ):
+        file, stiffness = None, file  # read("K.mtx", mass="M.mtx", ...)
     options = {
         "file": file,
         "stiffness": stiffness,
@@ -559,19 +575,6 @@ def read_body(
         "name": name,
     }
     given = {key: value for key, value in options.items() if value is not None}
-    if format is None:
-        source = file if file is not None else stiffness
-        if source is None:
-            raise UserError(
-                "no model given: give the model file (file) or the stiffness file (stiffness)"
-            )
-        fmt = detect_format(source)
-        if fmt == "matrix-market" and mapping is not None:
-            fmt = "ansys-mmf"
-    else:
-        fmt = str(format).strip().lower().replace("_", "-")
-        if fmt not in FORMATS:
-            raise UserError(f"unknown format {format!r}; expected one of {', '.join(FORMATS)}")
     extra = sorted(set(given) - _OPTIONS[fmt])
     if extra and format is None and "file" in extra:
         raise UserError(
@@ -581,6 +584,7 @@ def read_body(
     if extra:
         plural = "s" if len(extra) > 1 else ""
         verb = "do" if len(extra) > 1 else "does"
+        source = file if file is not None else stiffness
         detected = f"{source}: the content looks like {fmt}: " if format is None else ""
         raise UserError(
             f"{detected}option{plural} {', '.join(extra)} {verb} not apply to format {fmt}; "
@@ -601,6 +605,22 @@ def read_body(
         if copies.compressed:
             body = replace(body, notes=tuple(copies.named(note) for note in body.notes))
     return body
+
+
+def _format_of(format: str | None, source: PathLike | None, mapping: PathLike | None) -> str:
+    """The format of a read: ``format`` checked, or told from the content of ``source`` (the
+    model file or the stiffness file); a Matrix Market file with a ``mapping`` is ansys-mmf."""
+    if format is not None:
+        fmt = str(format).strip().lower().replace("_", "-")
+        if fmt not in FORMATS:
+            raise UserError(f"unknown format {format!r}; expected one of {', '.join(FORMATS)}")
+        return fmt
+    if source is None:
+        raise UserError(
+            "no model given: give the model file (file) or the stiffness file (stiffness)"
+        )
+    fmt = detect_format(source)
+    return "ansys-mmf" if fmt == "matrix-market" and mapping is not None else fmt
 
 
 def model_files(files: dict[str, PathLike], format: str | None = None) -> dict[str, Path]:

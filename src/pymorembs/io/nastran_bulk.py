@@ -79,7 +79,7 @@ __all__ = [
     "AnalysisSet",
     "BulkData",
     "Card",
-    "Frame",
+    "CoordinateSystem",
     "bulk_solid_blocks",
     "bulk_surface_elements",
     "line_fields",
@@ -397,7 +397,7 @@ class Card:
 
 
 @dataclass(frozen=True)
-class Frame:
+class CoordinateSystem:
     """A coordinate system resolved to the basic system.
 
     ``kind`` is ``"R"``, ``"C"`` or ``"S"``; ``axes`` (3, 3) holds the unit vectors of the
@@ -455,7 +455,7 @@ class Frame:
         return np.einsum("ij,njk->nik", self.axes, local)
 
 
-BASIC = Frame(0, "R", np.zeros(3), np.eye(3))
+BASIC = CoordinateSystem(0, "R", np.zeros(3), np.eye(3))
 
 
 @dataclass(frozen=True)
@@ -551,7 +551,7 @@ class BulkData:
         self.paths: list[Path] = []
         self._grids = _Grids()
         self.sections: set[int] = set()
-        self._frames: dict[int, Frame] = {0: BASIC}
+        self._resolved: dict[int, CoordinateSystem] = {0: BASIC}
         self._resolving: list[int] = []
         self.grid: dict[str, np.ndarray] = {}
 
@@ -714,8 +714,10 @@ class BulkData:
                 out[mine] = self.grid["xyz"][rows[mine]]
                 continue
             first = int(rows[np.flatnonzero(mine)[0]])
-            frame = self.frame(cp, self._grid_where(first), f"CP of GRID {self.grid['ids'][first]}")
-            out[mine] = frame.to_basic(self.grid["xyz"][rows[mine]])
+            system = self.coordinate_system(
+                cp, self._grid_where(first), f"CP of GRID {self.grid['ids'][first]}"
+            )
+            out[mine] = system.to_basic(self.grid["xyz"][rows[mine]])
         return out
 
     def displacement_axes(
@@ -739,8 +741,8 @@ class BulkData:
                     *self._grid_where(first),
                     f"GRID {gid} has CD={cd}: a fluid grid point, not a structural one",
                 )
-            frame = self.frame(cd, self._grid_where(first), f"CD of GRID {gid}")
-            out[mine] = frame.displacement_axes(basic[mine])
+            system = self.coordinate_system(cd, self._grid_where(first), f"CD of GRID {gid}")
+            out[mine] = system.displacement_axes(basic[mine])
         return out
 
     def _grid_where(self, row: int) -> tuple[Path, int]:
@@ -775,10 +777,10 @@ class BulkData:
                     systems[cid] = entry
         return systems
 
-    def frame(self, cid: int, where: tuple[Path, int], what: str) -> Frame:
+    def coordinate_system(self, cid: int, where: tuple[Path, int], what: str) -> CoordinateSystem:
         """The coordinate system ``cid`` resolved to basic; ``where``/``what`` for messages."""
-        if cid in self._frames:
-            return self._frames[cid]
+        if cid in self._resolved:
+            return self._resolved[cid]
         entry = self._systems.get(cid)
         if entry is None:
             raise located_error(
@@ -794,7 +796,9 @@ class BulkData:
         try:
             if form == 2:
                 rid = parse_int(fields[1] or "0", card.path, card.line, f"CORD2{kind} RID")
-                ref = self.frame(rid, (card.path, card.line), f"RID of coordinate system {cid}")
+                ref = self.coordinate_system(
+                    rid, (card.path, card.line), f"RID of coordinate system {cid}"
+                )
                 values = [
                     parse_real(fields[2 + k], card.path, card.line, f"CORD2{kind} {cid} field", 0.0)
                     for k in range(9)
@@ -809,11 +813,11 @@ class BulkData:
                         card.path, card.line, f"CORD1{kind} {cid}: grid {gid} has no GRID card"
                     )
                 points = self.basic_coordinates(rows)
-            frame = _frame_from_points(cid, kind, points, card)
+            system = _system_from_points(cid, kind, points, card)
         finally:
             self._resolving.pop()
-        self._frames[cid] = frame
-        return frame
+        self._resolved[cid] = system
+        return system
 
     # ---------------------------------------------------------------- sets
     def analysis_set(self, limit: int | None = None) -> AnalysisSet | None:
@@ -989,7 +993,7 @@ class BulkData:
                 )
 
 
-def _frame_from_points(cid: int, kind: str, points: np.ndarray, card: Card) -> Frame:
+def _system_from_points(cid: int, kind: str, points: np.ndarray, card: Card) -> CoordinateSystem:
     """The system with origin A, z axis towards B and x-z plane through C (basic points)."""
     a, b, c = points
     z = b - a
@@ -1006,7 +1010,7 @@ def _frame_from_points(cid: int, kind: str, points: np.ndarray, card: Card) -> F
         )
     y = y / np.linalg.norm(y)
     x = np.cross(y, z)
-    return Frame(cid, kind, a.copy(), np.column_stack([x, y, z]))
+    return CoordinateSystem(cid, kind, a.copy(), np.column_stack([x, y, z]))
 
 
 def _describe_results(raw: bytes) -> str:

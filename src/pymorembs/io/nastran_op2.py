@@ -52,7 +52,7 @@ from pymorembs.io.nastran_matrices import (
     node_source,
     symmetric_matrix,
 )
-from pymorembs.io.pynastran_compat import op2_class, quiet_logger
+from pymorembs.io.pynastran_compat import numpy_with_in1d, op2_class, quiet_logger
 
 __all__ = ["read_op2"]
 
@@ -149,7 +149,12 @@ def _read(path: Path) -> Any:
         raise located_error(path, None, f"reading OP2 files needs pyNastran ({err})") from None
     chatter = io.StringIO()  # pyNastran prints diagnostics of damaged files
     try:
-        with warnings.catch_warnings(), redirect_stdout(chatter), redirect_stderr(chatter):
+        with (
+            numpy_with_in1d(),
+            warnings.catch_warnings(),
+            redirect_stdout(chatter),
+            redirect_stderr(chatter),
+        ):
             warnings.simplefilter("ignore")
             op2 = op2_type(debug=None, log=log)
             op2.read_op2(str(path), build_dataframe=False, skip_undefined_matrices=False)

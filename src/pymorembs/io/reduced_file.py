@@ -234,7 +234,7 @@ def _put_model(group: h5py.Group, model: ReducedModel) -> None:
     for key in ("error_estimate", "error_bound"):
         value = getattr(projection, key)
         out.attrs[key] = np.nan if value is None else float(value)
-    _put_json(out, "parameters", projection.parameters)
+    _put_json(out, "parameters", dict(projection.parameters))
     if projection.error_curve is not None:
         put_array(out, "error_curve_hz", projection.error_curve[0], np.float64)
         put_array(out, "error_curve_estimate", projection.error_curve[1], np.float64)

@@ -3,7 +3,7 @@
 * :mod:`~pymorembs.job.schema` -- the job file: tables, keys, their checks (``load_job``);
 * :mod:`~pymorembs.job.run` -- running a job: model, frame, reductions, errors, summary and
   provenance, outputs (``run_job``);
-* :mod:`~pymorembs.job.time_domain` -- the time-domain and multibody checks of a job;
+* :mod:`~pymorembs.job.time_domain_checks` -- the time-domain and multibody checks of a job;
 * :mod:`~pymorembs.job.cli` -- the ``pymorembs`` command.
 
 The job layer imports only the public surface of the library (``docs/api.md``, "The public

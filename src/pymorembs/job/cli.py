@@ -330,7 +330,7 @@ def _prepared_for_info(
     if args.model is not None and ("stiffness" in given or "mass" in given):
         raise UserError("info: give either a model file or --stiffness/--mass, not both")
     files = {"file": args.model} if args.model is not None else {}
-    body = read_body(args.format, **files, **given)
+    body = read_body(format=args.format, **files, **given)
     report = validate_body(body)
     return body, prepare(body, Frame("none"), allow_rigid_body_modes=True), report
 

@@ -19,7 +19,7 @@ import signal
 import tempfile
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -56,7 +56,7 @@ from pymorembs.analysis import (
 from pymorembs.export import BODY_OUTPUTS, write_outputs
 from pymorembs.io import atomic_path, check_output_folder, model_files, read_body, write_text
 from pymorembs.job.schema import Job, ModelSpec, ReductionSpec
-from pymorembs.job.time_domain import time_domain_checks
+from pymorembs.job.time_domain_checks import time_domain_checks
 from pymorembs.linalg import default_backend, mass_split
 from pymorembs.methods import DIRECT_GRAMIAN_LIMIT
 from pymorembs.prepare import (
@@ -73,7 +73,13 @@ from pymorembs.prepare import (
 )
 from pymorembs.progress import Progress as ProgressBar
 from pymorembs.reduction import Projection, explicit_step_s
-from pymorembs.report import plot_decay, plot_relative_errors, reductions_scene, write_report
+from pymorembs.report import (
+    plot_decay,
+    plot_large_motion,
+    plot_relative_errors,
+    reductions_scene,
+    write_report,
+)
 from pymorembs.units import band_unit_warnings, detect_units, frequency_warnings
 
 Progress = Callable[[str], None]
@@ -90,7 +96,7 @@ def load_model(spec: ModelSpec) -> ElasticBody:
     """The body a job's ``[model]`` names: a built-in example or model files of any format."""
     if spec.example is not None:
         return example(spec.example, **spec.options)
-    return read_body(spec.format, **spec.files, **spec.names)
+    return read_body(format=spec.format, **spec.files, **spec.names)
 
 
 def load_job_model(job: Job) -> ElasticBody:
@@ -861,9 +867,11 @@ def _checks_in_time(
         stage("large motion in Exudyn", "large motion", line=False)
         tick = time.perf_counter()
         figure = staging / "large_motion.png"
-        result = large_motion_checks(
-            job.large_motion, job.frame, prepared, one_sided(models), nodes, figure, say
+        checks = large_motion_checks(
+            job.large_motion, job.frame, prepared, one_sided(models), nodes, say
         )
+        plot_large_motion(checks.runs, checks.off_axis_node, figure)
+        result = checks.summary
         timings["large_motion_s"] = time.perf_counter() - tick
         caption = ("Large motions in Exudyn: each body against the modal reference of order "
                    f"{result['reference']['order']}")  # fmt: skip
@@ -1101,29 +1109,31 @@ def _reduce_one(
     elapsed = time.perf_counter() - tick
     model = reduced.model
     if reduced.before_removal is not None:
-        _record_removal_cost(prepared, reduced.before_removal, model, reference)
+        model = _with_removal_cost(prepared, reduced.before_removal, model, reference)
     response = transfer_function(model.system, reference.frequencies_hz)
     return model, response, elapsed
 
 
-def _record_removal_cost(
+def _with_removal_cost(
     prepared: PreparedModel,
     before: ReducedModel,
     model: ReducedModel,
     reference: ReferenceResponse,
-) -> None:
-    """The errors of ``before`` (the model before the removal of its stiff directions) in the
-    parameters of ``model``'s projection, to compare with the entry's own."""
+) -> ReducedModel:
+    """``model`` with the errors of ``before`` (the model before the removal of its stiff
+    directions) in the parameters of its projection, to compare with the entry's own."""
     response = transfer_function(before.system, reference.frequencies_hz)
     ports, inertia = error_blocks(prepared.reduction_system)
     frequencies = reference.frequencies_hz
+    costs = {}
     for key, block in (("", ports), ("inertia_", inertia)):
         if block is None:
             continue
         eps = relative_error(reference.response, response, block)
-        model.projection.parameters[f"{key}max_rel_error_before_removal"] = float(eps.max())
+        costs[f"{key}max_rel_error_before_removal"] = float(eps.max())
         if frequencies[0] == 0.0:
-            model.projection.parameters[f"{key}static_rel_error_before_removal"] = float(eps[0])
+            costs[f"{key}static_rel_error_before_removal"] = float(eps[0])
+    return dataclasses.replace(model, projection=model.projection.with_parameters(**costs))
 
 
 def inertia_warning(name: str, eps: np.ndarray, eps_inertia: np.ndarray | None) -> str | None:
@@ -1461,7 +1471,7 @@ def _replace_folder(staging: Path, target: Path) -> None:
 
 
 def _jsonable(value: Any) -> Any:
-    if isinstance(value, dict):
+    if isinstance(value, Mapping):
         return {str(k): _jsonable(v) for k, v in value.items()}
     if isinstance(value, list | tuple):
         return [_jsonable(v) for v in value]

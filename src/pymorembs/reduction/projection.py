@@ -7,7 +7,9 @@ diagonal, adds the damping model, and checks the result before anyone writes it.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -31,8 +33,10 @@ class Projection:
         Test basis; the same object as ``V`` for a one-sided (orthogonal) projection.
     method : str
         Name of the method (``"modal"``, ``"krylov"``...).
-    parameters : dict
-        Settings the method was run with and facts it found (JSON-serialisable).
+    parameters : mapping
+        Settings the method was run with and facts it found (JSON values), read-only and
+        complete when the projection is built: a further fact makes a new projection
+        (:meth:`with_parameters`).
     error_estimate : float or None
         Estimated max relative error on the band, for methods that have one.
     error_bound : float or None
@@ -45,10 +49,18 @@ class Projection:
     V: np.ndarray
     W: np.ndarray
     method: str
-    parameters: dict[str, Any] = field(default_factory=dict)
+    parameters: Mapping[str, Any] = field(default_factory=dict)
     error_estimate: float | None = None
     error_bound: float | None = None
     error_curve: tuple[np.ndarray, np.ndarray] | None = None
+
+    def __post_init__(self) -> None:
+        # a read-only copy, so that nobody writes into a projection after it is built
+        object.__setattr__(self, "parameters", MappingProxyType(dict(self.parameters)))
+
+    def with_parameters(self, **facts: Any) -> Projection:
+        """This projection with ``facts`` (JSON values) added to its parameters."""
+        return replace(self, parameters={**self.parameters, **facts})
 
     @property
     def order(self) -> int:

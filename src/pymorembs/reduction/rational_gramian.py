@@ -101,8 +101,8 @@ from typing import Any
 
 import numpy as np
 
-from pymorembs.analysis.error import frequency_grid
 from pymorembs.errors import UserError
+from pymorembs.frequencies import frequency_grid
 from pymorembs.linalg.orthogonalization import OrthonormalBasis
 from pymorembs.reduction.gramian import (
     KAPPA_POINTS,

@@ -76,8 +76,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg as sla
 
-from pymorembs.analysis.error import frequency_grid
 from pymorembs.errors import NumericalError, UserError
+from pymorembs.frequencies import frequency_grid
 from pymorembs.linalg.factorization import basis_plain_enough
 from pymorembs.linalg.orthogonalization import OrthonormalBasis
 from pymorembs.linalg.products import extended_product, multiply

@@ -116,7 +116,7 @@ def plot_large_motion(runs: dict[str, tuple[dict, dict[str, dict]]], node: int, 
     ----------
     runs : dict of motion name -> (reference run, {body name: run})
         Runs with ``times`` (s), ``angular_velocity`` (n_t, 3) and ``deflections`` (node ->
-        (n_t, 3) in m).
+        (n_t, 3) in m): ``runs`` of :class:`pymorembs.analysis.LargeMotionResult`.
     node : int
     path : Path
         PNG file to write (atomically).

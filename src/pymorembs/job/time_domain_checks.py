@@ -24,8 +24,15 @@ from typing import Any
 import numpy as np
 
 from pymorembs import ElasticBody, Frame, LoadCase, PreparedModel, ReducedModel, TimeResponse
-from pymorembs.analysis import clamped_full_system, clamped_reduced_system, compare, simulate
-from pymorembs.export import body_invariants, build_exudyn_model, exudyn_arrays, simulate_exudyn
+from pymorembs.analysis import (
+    build_exudyn_model,
+    clamped_full_system,
+    clamped_reduced_system,
+    compare,
+    simulate,
+    simulate_exudyn,
+)
+from pymorembs.export import body_invariants, exudyn_arrays
 from pymorembs.job.schema import TimeDomainSpec
 from pymorembs.report import plot_time_responses
 
