@@ -37,7 +37,7 @@ import numpy as np
 from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
 from pymorembs.export.exudyn_body import build_exudyn_model, exudyn_arrays, simulate_exudyn
-from pymorembs.export.outputs import body_invariants
+from pymorembs.export.source import body_invariants
 from pymorembs.prepare import Frame, PreparedModel
 from pymorembs.reduction.modal import modal_reduction
 from pymorembs.reduction.projection import ReducedModel, reduced_model
