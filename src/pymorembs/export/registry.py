@@ -223,17 +223,3 @@ def exports_table() -> str:
         marked = f"`{name}` (default)" if kind.default else f"`{name}`"
         lines.append(f"| {marked} | {files} | {options} | {kind.description} |")
     return "\n".join(lines) + "\n"
-
-
-__all__ = [
-    "BODY_OUTPUTS",
-    "DEFAULT_EXPORTS",
-    "EXPORTS",
-    "EXPORT_KINDS",
-    "MATRIX_OUTPUTS",
-    "MTX_MATRICES",
-    "BodyOptions",
-    "ExportKind",
-    "Writer",
-    "exports_table",
-]
