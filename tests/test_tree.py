@@ -321,3 +321,60 @@ def test_the_simulation_check_finds_what_it_is_for():
         "SolveDynamic()",
     ]
     assert simulation_in("from pymorembs.export.deterministic import write_npz") == []
+
+
+def export_kind_lists(source: str, kinds: set[str]) -> list[int]:
+    """The lines of the literal lists, tuples and sets of ``source`` (Python) that hold two or
+    more of the export ``kinds``."""
+    import ast
+
+    found = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.List | ast.Tuple | ast.Set):
+            named = {e.value for e in node.elts if isinstance(e, ast.Constant)} & kinds
+            if len(named) >= 2:
+                found.append(node.lineno)
+    return found
+
+
+def string_kinds(source: str, kinds: set[str]) -> set[str]:
+    """The export ``kinds`` that ``source`` (Python) holds as a string of their own."""
+    import ast
+
+    return {n.value for n in ast.walk(ast.parse(source)) if isinstance(n, ast.Constant)} & kinds
+
+
+def quoted_kinds(text: str, kinds: set[str]) -> set[str]:
+    """The export ``kinds`` that ``text`` names as a quoted string (``"sid"``, ``'sid'``)."""
+    return {kind for kind in kinds if re.search(rf"""(["'`]){kind}\1""", text)}
+
+
+def test_no_list_of_export_kinds_outside_the_registry():
+    """Issue #28 item 3: the kinds of ``[export] outputs`` are written once, in
+    ``export/registry.py``: no other module holds a list of them, ``write_outputs`` names none
+    (a loop over the registry, no if-chain), and no static file of the app lists them (the page
+    builds its list from what the server serves)."""
+    from pymorembs.export import EXPORT_KINDS
+
+    kinds = set(EXPORT_KINDS)
+    found = []
+    for path in sorted(SOURCE.rglob("*.py")):
+        if path.relative_to(SOURCE).as_posix() != "export/registry.py":
+            lines = export_kind_lists(path.read_text(encoding="utf-8"), kinds)
+            found += [f"{path.relative_to(SOURCE)}:{line}" for line in lines]
+    outputs = (SOURCE / "export" / "outputs.py").read_text(encoding="utf-8")
+    found += [f"export/outputs.py names {kind!r}" for kind in sorted(string_kinds(outputs, kinds))]
+    for path in sorted((SOURCE / "job" / "app" / "static").iterdir()):
+        named = quoted_kinds(path.read_text(encoding="utf-8"), kinds)
+        if len(named) >= 2:
+            found.append(f"{path.relative_to(SOURCE)} lists {sorted(named)}")
+    assert found == []
+
+
+def test_the_check_of_export_kinds_finds_what_it_is_for():
+    kinds = {"npz", "mtx", "sid"}
+    assert export_kind_lists('KINDS = ("npz", "mtx")\nx = ["sid"]\ny = {"a", "sid"}', kinds) == [1]
+    assert export_kind_lists('if "npz" in outputs and "sid" in outputs: pass', kinds) == []
+    assert string_kinds('"""Writes ``sid``."""\nif "npz" in outputs: pass', kinds) == {"npz"}
+    assert quoted_kinds('<input value="sid"> kinds: ["npz", \'mtx\'] npzfile', kinds) == kinds
+    assert quoted_kinds("reduced.npz and the sid file", kinds) == set()

@@ -19,8 +19,8 @@ from pymorembs.analysis.time_domain import (
 )
 from pymorembs.body import Damping
 from pymorembs.examples import build_example
-from pymorembs.export.outputs import body_invariants
 from pymorembs.export.sid import check_sid, sid_from_invariants
+from pymorembs.export.source import body_invariants
 from pymorembs.job.run import run_reduction
 from pymorembs.job.schema import ReductionSpec
 from pymorembs.prepare import Frame, Port, prepare

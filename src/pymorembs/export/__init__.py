@@ -7,6 +7,10 @@
 * :mod:`~pymorembs.export.vtu`: the surface with the shape functions as a VTU file (ParaView).
 * :mod:`~pymorembs.export.nodal`: vectors over the dofs as fields over the nodes.
 * :mod:`~pymorembs.export.matrices`: reduced matrices for MATLAB, and the pyMOR adapter.
+* :mod:`~pymorembs.export.registry`: the export registry, one entry per kind of ``[export]
+  outputs`` (writer, options, file names, description).
+* :mod:`~pymorembs.export.source`: a reduced model as the writers read it; the checks before
+  writing.
 * :mod:`~pymorembs.export.outputs`: the files a job asks for (``[export] outputs``).
 
 The package writes files and runs nothing: an exported Exudyn body in an Exudyn system is
@@ -18,20 +22,34 @@ A public subpackage (``docs/api.md``, "The public surface"): the names below are
 from pymorembs.export.exudyn_body import exudyn_arrays, write_exudyn_body
 from pymorembs.export.invariants import BodyInvariants
 from pymorembs.export.neweul import write_neweul
-from pymorembs.export.outputs import (
+from pymorembs.export.outputs import write_outputs
+from pymorembs.export.registry import (
     BODY_OUTPUTS,
-    body_invariants,
-    check_before_writing,
-    write_outputs,
+    DEFAULT_EXPORTS,
+    EXPORT_KINDS,
+    EXPORTS,
+    MATRIX_OUTPUTS,
+    BodyOptions,
+    ExportKind,
+    exports_table,
 )
 from pymorembs.export.sid import check_sid, read_sid, write_sid
+from pymorembs.export.source import ExportSource, body_invariants, check_before_writing
 
 __all__ = [
     "BODY_OUTPUTS",
+    "DEFAULT_EXPORTS",
+    "EXPORTS",
+    "EXPORT_KINDS",
+    "MATRIX_OUTPUTS",
     "BodyInvariants",
+    "BodyOptions",
+    "ExportKind",
+    "ExportSource",
     "body_invariants",
     "check_before_writing",
     "check_sid",
+    "exports_table",
     "exudyn_arrays",
     "read_sid",
     "write_exudyn_body",

@@ -53,7 +53,7 @@ from pymorembs.analysis import (
     relative_error,
     transfer_function,
 )
-from pymorembs.export import BODY_OUTPUTS, write_outputs
+from pymorembs.export import BODY_OUTPUTS, MATRIX_OUTPUTS, write_outputs
 from pymorembs.io import atomic_path, check_output_folder, model_files, read_body, write_text
 from pymorembs.job.schema import Job, ModelSpec, ReductionSpec
 from pymorembs.job.time_domain_checks import time_domain_checks
@@ -418,7 +418,7 @@ def check_requests(job: Job, body: ElasticBody) -> None:
             f"{job.path}: the model has no node coordinates, which the "
             f"{'[time_domain] check' if spec is not None else 'bodies for multibody codes'} "
             "need; give the nodes (nodes = nodes.csv or the FE input file) or write only "
-            'matrices ([export] outputs = ["npz", "mtx", "mat"])'
+            f"matrices ([export] outputs = {json.dumps(list(MATRIX_OUTPUTS))})"
         )
     if wants_body or (spec is not None and spec.exudyn):
         for node in export_nodes(job):
@@ -1079,7 +1079,7 @@ def _model_summary(job: Job, body: ElasticBody, prepared: PreparedModel) -> dict
             "source": prepared.stiffening.source,
             "cases": sorted(prepared.stiffening.cases),
             "node_loads": [f"{n}:{DIRECTIONS[d]}" for n, d in sorted(prepared.stiffening.nodes)],
-            "written_to": ["sid", "neweul", "exudyn"],
+            "written_to": list(BODY_OUTPUTS),
         },
         "total_mass": body.total_mass(),
         "damping": {

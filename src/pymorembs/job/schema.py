@@ -24,6 +24,7 @@ from pymorembs.analysis import (
     REFERENCE_KINDS,
     LargeMotionSettings,
 )
+from pymorembs.export import BODY_OUTPUTS, DEFAULT_EXPORTS, EXPORT_KINDS
 from pymorembs.io import FORMATS
 from pymorembs.methods import (
     METHODS,
@@ -41,11 +42,6 @@ MODEL_FILE_KEYS = (
 )  # fmt: skip
 MODEL_FORMATS = FORMATS
 INTERFACE_KINDS = ("rigid", "distributing", "beams", "springs")
-#: Files a job can write per reduction (``[export] outputs``), and the job's HTML report.
-EXPORT_KINDS = ("npz", "mtx", "mat", "sid", "neweul", "exudyn", "vtu", "report")
-DEFAULT_EXPORTS = ("npz", "mtx")
-#: Exports of a body for a multibody code: inertia loads are inputs by default for these.
-MULTIBODY_EXPORTS = ("sid", "neweul", "exudyn")
 _NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$")
 #: Files of the job folder a reduction (a sub-folder of that name) must not shadow.
 RESERVED_NAMES = frozenset(("summary.json", "error.png", "decay.png", "time.png", "report.html"))
@@ -162,7 +158,7 @@ class InertiaLoadSpec:
     """``[inertia_loads]``: the frame's d'Alembert loads as inputs of every reduction.
 
     ``enabled`` None: on when the job exports a body for a multibody code
-    (:data:`MULTIBODY_EXPORTS`), off otherwise. ``cases``: the load cases
+    (:data:`~pymorembs.export.registry.BODY_OUTPUTS`), off otherwise. ``cases``: the load cases
     (:data:`~pymorembs.prepare.INERTIA_LOAD_CASES`).
     """
 
@@ -172,7 +168,7 @@ class InertiaLoadSpec:
     def active(self, exports: tuple[str, ...]) -> bool:
         """Whether the loads are inputs for a job writing ``exports``."""
         if self.enabled is None:
-            return any(kind in MULTIBODY_EXPORTS for kind in exports)
+            return any(kind in BODY_OUTPUTS for kind in exports)
         return self.enabled
 
 

@@ -55,17 +55,12 @@ from pymorembs.analysis import mac as modal_assurance
 from pymorembs.body import ElasticBody
 from pymorembs.errors import PymorembsError, UserError
 from pymorembs.examples import EXAMPLES, OPTIONS
+from pymorembs.export import DEFAULT_EXPORTS, EXPORT_KINDS
 from pymorembs.io.atomic import write_text
 from pymorembs.job.app.editor import check_job_text, free_node_id, hole_selection, job_text
 from pymorembs.job.app.runner import Run, start_run
 from pymorembs.job.run import add_interfaces, load_job_model, load_model
-from pymorembs.job.schema import (
-    DEFAULT_EXPORTS,
-    EXPORT_KINDS,
-    MODEL_FILE_KEYS,
-    ModelSpec,
-    load_job,
-)
+from pymorembs.job.schema import MODEL_FILE_KEYS, ModelSpec, load_job
 from pymorembs.methods import METHODS, option_fields
 from pymorembs.prepare import centre_of_gravity
 from pymorembs.report.scene import body_scene
@@ -602,7 +597,7 @@ def methods() -> dict[str, Any]:
 
 def exports() -> dict[str, list[str]]:
     """The files a job can write (``[export] outputs``: ``kinds``) and those it writes when
-    it does not say (``default``), as the job parser knows them."""
+    it does not say (``default``), from the export registry (:mod:`pymorembs.export.registry`)."""
     return {"kinds": list(EXPORT_KINDS), "default": list(DEFAULT_EXPORTS)}
 
 

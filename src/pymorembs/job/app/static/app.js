@@ -287,7 +287,7 @@ $("add-reduction").onclick = () => {
   app.job.reduction = [...(app.job.reduction || []), { name, method }];
   changed();
 };
-// the files a job can write and its default ones: the job parser's (GET /api/exports)
+// the files a job can write and its default ones: the export registry's (GET /api/exports)
 function renderExports() {
   const box = $("exports"); box.replaceChildren("export ");
   const outputs = new Set(((app.job.export || {}).outputs) || app.exports.default);
