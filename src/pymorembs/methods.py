@@ -377,6 +377,8 @@ class GramianOptions(ReductionOptions):
             raise OptionError("convergence_tolerance", "belongs to first_stage = 'rational-krylov'")
         if self.first_stage == "krylov" and self.expansion_points_hz is None:
             raise OptionError(None, "missing key 'expansion_points_hz'")
+        if self.first_stage == "krylov" and self.moments is None and self.first_order is None:
+            raise OptionError(None, "the krylov first stage needs 'moments' or 'first_order'")
         points = None
         if self.expansion_points_hz is not None:
             points = _points("expansion_points_hz", self.expansion_points_hz)
