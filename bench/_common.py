@@ -81,11 +81,12 @@ def build_prepared(example: str, dofs: int | None, damping: str = "modal"):
 def krylov_or_soaga_spec(method: str):
     """The :class:`~pymorembs.job.schema.ReductionSpec` of the floor-ratio and scaling runs."""
     from pymorembs.job.schema import ReductionSpec
+    from pymorembs.methods import method_options
 
     if method == "krylov":  # as in examples/rack-beams-demo.toml
         options = {"expansion_points_hz": [0.0, 500.0, 1000.0], "moments": [6, 5, 5]}
-        return ReductionSpec("krylov", "krylov", None, options)
-    return ReductionSpec("soaga", "soaga", None, {"tolerance": 1e-6})
+        return ReductionSpec("krylov", method_options("krylov", options))
+    return ReductionSpec("soaga", method_options("soaga", {"tolerance": 1e-6}))
 
 
 # --------------------------------------------------------------------------- factorizations

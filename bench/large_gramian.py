@@ -65,6 +65,7 @@ def reduce(method: str, system):
     """The projection of ``method`` and facts about it (dimension of the intermediate space)."""
     from pymorembs.job.run import run_reduction
     from pymorembs.job.schema import ReductionSpec
+    from pymorembs.methods import method_options
     from pymorembs.reduction.gramian import pod_reduction
     from pymorembs.reduction.rational_gramian import rational_gramian_reduction
 
@@ -81,8 +82,8 @@ def reduce(method: str, system):
             "shifts_hz": [round(f, 1) for f in parameters["shifts_hz"]],
         }
     elif base == "two-step":
-        options = {} if tolerance is None else {"tolerance": tolerance}
-        spec = ReductionSpec(method, "gramian", order, options)
+        options = {"order": order, "tolerance": tolerance}
+        spec = ReductionSpec(method, method_options("gramian", options))
         projection = run_reduction(system, spec, BAND_HZ)
         parameters = projection.parameters
         facts = {"space": parameters["medium_order"], "detail": "medium model (SOAGA)"}

@@ -124,18 +124,18 @@ def reduce(method: str, system) -> tuple[object, dict]:
         return system.project(modes), {}
     from pymorembs.job.run import run_reduction
     from pymorembs.job.schema import ReductionSpec
+    from pymorembs.methods import method_options
     from pymorembs.reduction.projection import reduced_model
 
-    specs = {
-        "modal-40": ReductionSpec(method, "modal", MODES, {}),
-        "krylov": ReductionSpec(
-            method, "krylov", None, {"expansion_points_hz": [0, 500, 1000], "moments": [6, 5, 5]}
-        ),
-        "soaga": ReductionSpec(method, "soaga", None, {"tolerance": 1e-6}),
-        "gramian": ReductionSpec(method, "gramian", ORDER, {}),
-        "pod": ReductionSpec(method, "pod", ORDER, {"snapshots": 40}),
+    options = {
+        "modal-40": ("modal", {"order": MODES}),
+        "krylov": ("krylov", {"expansion_points_hz": [0, 500, 1000], "moments": [6, 5, 5]}),
+        "soaga": ("soaga", {"tolerance": 1e-6}),
+        "gramian": ("gramian", {"order": ORDER}),
+        "pod": ("pod", {"order": ORDER, "snapshots": 40}),
     }
-    projection = run_reduction(system, specs[method], BAND_HZ)
+    spec = ReductionSpec(method, method_options(*options[method]))
+    projection = run_reduction(system, spec, BAND_HZ)
     capped = projection.parameters.get("order_capped_by_first_stage")
     facts = {"note": f"capped at {capped} by its first stage"} if capped else {}
     return reduced_model(system, projection).system, facts

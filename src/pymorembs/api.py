@@ -64,6 +64,7 @@ from pymorembs.prepare.stiffening import (
     stiffening_from_mesh,
     with_stiffening,
 )
+from pymorembs.reduction.dispatch import method_projection
 from pymorembs.reduction.projection import (
     Projection,
     ReducedModel,
@@ -661,7 +662,7 @@ def reduce(
         band_hz = (0.0, 1.0)
     band = _band("band_hz", band_hz)
     system = prepared.reduction_system
-    model = reduced_model(system, settings.reduce(system, band))
+    model = reduced_model(system, method_projection(system, settings, band))
     before = None
     limit = settings.max_frequency_hz
     if limit is not None and model.eigenfrequencies_hz.max() > limit:

@@ -2,9 +2,13 @@
 
 Each method family of the paper's section 3 (Fehr and Eberhard 2011, cited in
 :mod:`pymorembs`) has one frozen dataclass of options with its defaults; the Python API
-(:func:`pymorembs.reduction`), the job file (``[[reduction]]`` tables, :mod:`pymorembs.job.schema`)
-and the job reference (:func:`options_table`) all use them. Building an options object checks it:
-a bad value raises :class:`OptionError`, which names the option.
+(:func:`pymorembs.reduce`), the job file (``[[reduction]]`` tables, :mod:`pymorembs.job.schema`),
+the method functions of :mod:`pymorembs.reduction` called directly (``krylov_reduction(system,
+...)``) and the job reference (:func:`options_table`) all use them. Building an options object
+checks it, and nothing else checks an option: a bad value raises :class:`OptionError`, which
+names the option. The registry only declares; the methods run the checked object
+(:func:`pymorembs.reduction.method_projection`), their policies (the two-step Gramian's first
+stage) live with them in :mod:`pymorembs.reduction`.
 
 =================  ==========================================================================
 method             what it keeps (paper section)
@@ -30,8 +34,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
-import numpy as np
-
 from pymorembs.arguments import (
     OptionError,
     described,
@@ -42,23 +44,8 @@ from pymorembs.arguments import (
     whole,
     whole_list,
 )
-from pymorembs.prepare.inertia_loads import is_inertia_label
-from pymorembs.reduction.gramian import gramian_reduction, pod_reduction
-from pymorembs.reduction.krylov import krylov_reduction
-from pymorembs.reduction.modal import modal_reduction
-from pymorembs.reduction.modal_family import (
-    best_modes,
-    boundary_dofs_of_inputs,
-    craig_bampton,
-    modes_with_frm,
-)
-from pymorembs.reduction.projection import Projection
-from pymorembs.reduction.rational_gramian import rational_gramian_reduction
-from pymorembs.reduction.soaga import soaga_reduction
-from pymorembs.system import SecondOrderSystem
 
 __all__ = [
-    "DIRECT_GRAMIAN_LIMIT",
     "METHODS",
     "RENAMED_OPTIONS",
     "CraigBamptonOptions",
@@ -77,9 +64,6 @@ __all__ = [
 
 #: Old option name -> its name now (one name per idea); the old name is refused with a pointer.
 RENAMED_OPTIONS: dict[str, str] = {"tol": "deflation_tolerance"}
-
-#: Models above this order get a medium model before dense Gramians (``first_stage``).
-DIRECT_GRAMIAN_LIMIT = 2000
 
 
 def _choice(key: str, value: Any, choices: tuple[str, ...], what: str = "") -> str:
@@ -108,6 +92,15 @@ def _moments(value: Any, points: tuple[float, ...] | None) -> int | tuple[int, .
     if points is not None and len(values) != len(points):
         raise OptionError("moments", f"{len(values)} values for {len(points)} expansion points")
     return values
+
+
+def _points(key: str, value: Any) -> tuple[float, ...]:
+    """Expansion points (Hz): a non-empty list of finite frequencies >= 0, none repeated (a
+    repeated point adds a factorization and no direction)."""
+    points = frequencies(key, value)
+    if len(set(points)) != len(points):
+        raise OptionError(key, f"points repeat: {list(points)}")
+    return points
 
 
 def _relative(key: str, value: Any, meaning: str) -> float | None:
@@ -151,10 +144,6 @@ class ReductionOptions:
     @property
     def order(self) -> int | None:  # overridden by the methods that have one
         return None
-
-    def reduce(self, system: SecondOrderSystem, band_hz: tuple[float, float]) -> Projection:
-        """The projection of this method on ``system`` (band in Hz for the band-aware ones)."""
-        raise NotImplementedError
 
     def given(self) -> dict[str, Any]:
         """The options that differ from their defaults (as a job would write them)."""
@@ -207,15 +196,6 @@ class ModalOptions(ReductionOptions):
         self._set("candidates", candidates)
         self._set("frm_hz", frequencies("frm_hz", self.frm_hz) if _given(self.frm_hz) else ())
 
-    def reduce(self, system: SecondOrderSystem, band_hz: tuple[float, float]) -> Projection:
-        if self.frm_hz:
-            return modes_with_frm(system, self.order, list(self.frm_hz), modes=self.select,
-                                  candidates=self.candidates, shift_hz=self.shift_hz)  # fmt: skip
-        if self.select == "best":
-            return best_modes(system, self.order, candidates=self.candidates,
-                              shift_hz=self.shift_hz)  # fmt: skip
-        return modal_reduction(system, self.order, shift_hz=self.shift_hz)
-
 
 @dataclass(frozen=True)
 class CraigBamptonOptions(ReductionOptions):
@@ -241,17 +221,6 @@ class CraigBamptonOptions(ReductionOptions):
             raise OptionError(None, "craig-bampton needs 'fixed_modes'")
         self._set("fixed_modes", whole("fixed_modes", self.fixed_modes, minimum=0))
         self._set("shift_hz", number("shift_hz", self.shift_hz, minimum=0.0))
-
-    def reduce(self, system: SecondOrderSystem, band_hz: tuple[float, float]) -> Projection:
-        inertia = np.array([is_inertia_label(label) for label in system.input_labels], dtype=bool)
-        ports = dataclasses.replace(system, input_matrix=system.input_matrix[:, ~inertia])
-        return craig_bampton(
-            system,
-            boundary_dofs_of_inputs(ports),
-            self.fixed_modes,
-            shift_hz=self.shift_hz,
-            static_loads=system.input_matrix[:, inertia] if inertia.any() else None,
-        )
 
 
 @dataclass(frozen=True)
@@ -284,7 +253,7 @@ class KrylovOptions(ReductionOptions):
         super().__post_init__()
         if not _given(self.expansion_points_hz):
             raise OptionError(None, "missing key 'expansion_points_hz'")
-        points = frequencies("expansion_points_hz", self.expansion_points_hz)
+        points = _points("expansion_points_hz", self.expansion_points_hz)
         self._set("expansion_points_hz", points)
         self._set("order", whole("order", self.order))
         self._set("moments", _moments(self.moments, points))
@@ -292,12 +261,6 @@ class KrylovOptions(ReductionOptions):
             raise OptionError(None, "krylov needs 'moments' or 'order'")
         self._set("two_sided", flag("two_sided", self.two_sided))
         self._set("deflation_tolerance", _deflation(self.deflation_tolerance))
-
-    def reduce(self, system: SecondOrderSystem, band_hz: tuple[float, float]) -> Projection:
-        moments = list(self.moments) if isinstance(self.moments, tuple) else self.moments
-        return krylov_reduction(system, list(self.expansion_points_hz), moments=moments,
-                                order=self.order, tol=self.deflation_tolerance,
-                                two_sided=self.two_sided)  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -341,15 +304,6 @@ class SoagaOptions(ReductionOptions):
             )
         self._set("deflation_tolerance", _deflation(self.deflation_tolerance))
 
-    def reduce(self, system: SecondOrderSystem, band_hz: tuple[float, float]) -> Projection:
-        extra: dict[str, Any] = {}
-        if self.candidates_hz is not None:
-            extra["candidates_hz"] = list(self.candidates_hz)
-        if self.n_candidates is not None:
-            extra["n_candidates"] = self.n_candidates
-        return soaga_reduction(system, band_hz, tolerance=self.tolerance, max_order=self.order,
-                               tol=self.deflation_tolerance, **extra)  # fmt: skip
-
 
 def _indicator(options: ReductionOptions) -> float | None:
     tolerance = _relative("tolerance", options.tolerance, "sigma_n+1 / sigma_1")
@@ -374,8 +328,9 @@ class GramianOptions(ReductionOptions):
         Automatic order: the smallest n with ``sigma_n+1 / sigma_1 <= tolerance``.
     first_stage : {"soaga", "krylov", "rational-krylov", "none"}, optional
         The medium model of the two-step reduction (section 3.2). Default: ``"soaga"`` above
-        :data:`DIRECT_GRAMIAN_LIMIT` dofs, else none. ``"rational-krylov"``: no medium model, the
-        Gramians of the large model by a rational Krylov (Galerkin) solver.
+        :data:`~pymorembs.reduction.gramian.MAX_DENSE_ORDER` dofs, else none.
+        ``"rational-krylov"``: no medium model, the Gramians of the large model by a rational
+        Krylov (Galerkin) solver.
     first_order : int, optional
         Order of the medium model (SOAGA default 132, Krylov as its ``order``), or the largest
         dimension of the rational Krylov space (default 300).
@@ -422,44 +377,13 @@ class GramianOptions(ReductionOptions):
             raise OptionError("convergence_tolerance", "belongs to first_stage = 'rational-krylov'")
         if self.first_stage == "krylov" and self.expansion_points_hz is None:
             raise OptionError(None, "missing key 'expansion_points_hz'")
+        if self.first_stage == "krylov" and self.moments is None and self.first_order is None:
+            raise OptionError(None, "the krylov first stage needs 'moments' or 'first_order'")
         points = None
         if self.expansion_points_hz is not None:
-            points = frequencies("expansion_points_hz", self.expansion_points_hz)
+            points = _points("expansion_points_hz", self.expansion_points_hz)
             self._set("expansion_points_hz", points)
         self._set("moments", _moments(self.moments, points))
-
-    def reduce(self, system: SecondOrderSystem, band_hz: tuple[float, float]) -> Projection:
-        if self.first_stage == "rational-krylov":
-            extra = {} if self.first_order is None else {"max_dim": self.first_order}
-            return rational_gramian_reduction(system, band_hz, order=self.order,
-                                              tolerance=self.tolerance,
-                                              tol=self.convergence_tolerance,
-                                              **extra)  # fmt: skip
-        medium = self._medium(system, band_hz)
-        order = self.order
-        if medium is not None and order is not None and order > medium.order:
-            order = medium.order  # the two-step model cannot exceed its medium model
-        projection = gramian_reduction(
-            system, band_hz, order=order, tolerance=self.tolerance, medium=medium
-        )
-        if order != self.order:
-            projection = projection.with_parameters(order_capped_by_first_stage=medium.order)
-        return projection
-
-    def _medium(self, system: SecondOrderSystem, band_hz: tuple[float, float]) -> Projection | None:
-        """The medium model of the two-step reduction (paper section 3.2), or None."""
-        stage = self.first_stage
-        if stage is None:
-            stage = "soaga" if system.order > DIRECT_GRAMIAN_LIMIT else "none"
-        if stage == "none":
-            return None
-        if stage == "soaga":
-            first = 1e-10 if self.first_tolerance is None else self.first_tolerance
-            order = 132 if self.first_order is None else self.first_order
-            return soaga_reduction(system, band_hz, max_order=order, tolerance=first)
-        moments = list(self.moments) if isinstance(self.moments, tuple) else self.moments
-        return krylov_reduction(system, list(self.expansion_points_hz), moments=moments,
-                                order=self.first_order)  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -484,10 +408,6 @@ class PodOptions(ReductionOptions):
         self._set("order", whole("order", self.order))
         self._set("tolerance", _indicator(self))
         self._set("snapshots", whole("snapshots", self.snapshots, minimum=4))
-
-    def reduce(self, system: SecondOrderSystem, band_hz: tuple[float, float]) -> Projection:
-        return pod_reduction(system, band_hz, order=self.order, tolerance=self.tolerance,
-                             n_snapshots=self.snapshots)  # fmt: skip
 
 
 #: Method name -> its options class.

@@ -27,6 +27,7 @@ from pymorembs.frequencies import frequency_grid
 from pymorembs.job.cli import main
 from pymorembs.job.run import run_reduction
 from pymorembs.job.schema import ReductionSpec, load_job
+from pymorembs.methods import method_options
 from pymorembs.prepare import Frame, Port, prepare
 from pymorembs.reduction.projection import reduced_model
 
@@ -76,7 +77,8 @@ def test_surrogate_is_the_full_response_to_its_measured_accuracy(surrogate, full
 
 
 def test_error_curves_from_the_surrogate_match_the_full_ones(rack, surrogate, full):
-    modal = reduced_model(rack, run_reduction(rack, ReductionSpec("m", "modal", 20, {}), BAND))
+    spec = ReductionSpec("m", method_options("modal", {"order": 20}))
+    modal = reduced_model(rack, run_reduction(rack, spec, BAND))
     reduced = transfer_function(modal.system, surrogate.frequencies_hz)
     true = relative_error(full, reduced)
     assert true.max() > 1e-4  # an error far above the reference's accuracy ...
@@ -89,7 +91,7 @@ def test_error_curves_from_the_surrogate_match_the_full_ones(rack, surrogate, fu
 
 def test_settle_measures_the_maximum_against_the_full_model(rack, grid, full):
     spec = ReductionSpec(
-        "k", "krylov", None, {"expansion_points_hz": [0.0, 1000.0], "moments": [4, 4]}
+        "k", method_options("krylov", {"expansion_points_hz": [0.0, 1000.0], "moments": [4, 4]})
     )
     krylov = reduced_model(rack, run_reduction(rack, spec, BAND))
     reduced = transfer_function(krylov.system, grid)
@@ -223,10 +225,11 @@ def test_settle_all_judges_every_reduction_against_the_same_checks(rack, grid, f
     """Two reductions settled together: every maximum lies on a frequency checked against the
     full model, and each curve is the one a second round would give (nothing moves any more)."""
     spec = ReductionSpec(
-        "k", "krylov", None, {"expansion_points_hz": [0.0, 1000.0], "moments": [4, 4]}
+        "k", method_options("krylov", {"expansion_points_hz": [0.0, 1000.0], "moments": [4, 4]})
     )
     krylov = reduced_model(rack, run_reduction(rack, spec, BAND))
-    modal = reduced_model(rack, run_reduction(rack, ReductionSpec("m", "modal", 8, {}), BAND))
+    modal_spec = ReductionSpec("m", method_options("modal", {"order": 8}))
+    modal = reduced_model(rack, run_reduction(rack, modal_spec, BAND))
     responses = [transfer_function(m.system, grid) for m in (krylov, modal)]
     reference = reference_response(rack, grid, "surrogate", checks=0)
     reference = reference.settled_all(responses)

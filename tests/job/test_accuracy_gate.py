@@ -33,7 +33,14 @@ from pymorembs.job.app.server import App
 from pymorembs.job.cli import SEVERITY, main, worst
 from pymorembs.job.run import judge_accuracy, prepare_and_validate, run_job
 from pymorembs.job.schema import DEFAULT_ACCURACY_LIMIT, ReductionSpec, load_job
+from pymorembs.methods import method_options
 from test_units import straight_beam
+
+
+def reduction_spec(name: str, method: str, **options: object) -> ReductionSpec:
+    """A job's reduction of ``method`` with these options (checked once)."""
+    return ReductionSpec(name, method_options(method, options))
+
 
 BEAM_JOB = """
 [model]
@@ -278,7 +285,7 @@ def test_a_tolerance_given_is_the_limit(gated):
     row = next(line for line in out.splitlines() if line.startswith("soaga "))
     assert row.endswith("! above its limit 1e-12: body not written")
     table = np.loadtxt(out_dir / "soaga" / "error.csv", delimiter=",", skiprows=1)
-    without = judge_accuracy(ReductionSpec("soaga", "soaga", 26, {}), table[:, 1], table[:, 2])
+    without = judge_accuracy(reduction_spec("soaga", "soaga", order=26), table[:, 1], table[:, 2])
     assert without["met"] and without["exported"] and without["limit_from"] == "default"
 
 
@@ -308,17 +315,20 @@ def test_export_inaccurate_writes_the_body_marked(beam, capsys):
 def test_the_limit_of_each_method():
     """SOAGA's tolerance is an error target (the limit); the tolerance of gramian and pod is a
     ratio of singular values (σ_n+1 / σ_1), not an error: they get the default."""
-    assert ReductionSpec("s", "soaga", None, {"tolerance": 1e-7}).accuracy_limit == (
+    assert reduction_spec("s", "soaga", tolerance=1e-7).accuracy_limit == (
         1e-7,
         "tolerance",
     )
-    assert ReductionSpec("s", "soaga", 20, {}).accuracy_limit == (1e-2, "default")
-    assert ReductionSpec("g", "gramian", None, {"tolerance": 1e-9}).accuracy_limit == (
+    assert reduction_spec("s", "soaga", order=20).accuracy_limit == (1e-2, "default")
+    assert reduction_spec("g", "gramian", tolerance=1e-9).accuracy_limit == (
         1e-2,
         "default",
     )
-    assert ReductionSpec("p", "pod", None, {"tolerance": 1e-9}).accuracy_limit[1] == "default"
-    assert ReductionSpec("m", "modal", 4, {}).accuracy_limit == (DEFAULT_ACCURACY_LIMIT, "default")
+    assert reduction_spec("p", "pod", tolerance=1e-9).accuracy_limit[1] == "default"
+    assert reduction_spec("m", "modal", order=4).accuracy_limit == (
+        DEFAULT_ACCURACY_LIMIT,
+        "default",
+    )
 
 
 def test_export_inaccurate_must_be_a_boolean(beam, capsys):

@@ -172,10 +172,7 @@ def test_job_text_is_the_job_in_toml():
     assert tomllib.loads(text) == job
     assert text.index("[model]") < text.index("[[interface]]") < text.index("[frame]")
     parsed = check_job_text(text, Path("job.toml"))
-    assert parsed.frame.node == 2 and parsed.reductions[0].options["expansion_points_hz"] == [
-        0,
-        500,
-    ]
+    assert parsed.frame.node == 2 and parsed.reductions[0].options.expansion_points_hz == (0, 500)
 
 
 # -- the HTTP API ---------------------------------------------------------------------------------

@@ -23,6 +23,7 @@ from pymorembs.export.sid import check_sid, sid_from_invariants
 from pymorembs.export.source import body_invariants
 from pymorembs.job.run import run_reduction
 from pymorembs.job.schema import ReductionSpec
+from pymorembs.methods import method_options
 from pymorembs.prepare import Frame, Port, prepare
 from pymorembs.reduction.projection import reduced_model
 
@@ -34,9 +35,10 @@ def test_two_step_model_of_rack_solid_follows_the_full_model_in_time():
     ports = [Port.parse(1, "ux uy uz"), Port.parse(2, "all")]
     spec = ReductionSpec(
         "krylov-gramian",
-        "gramian",
-        35,
-        {"first_stage": "soaga", "first_order": 200, "first_tolerance": 1e-10},
+        method_options(
+            "gramian",
+            {"order": 35, "first_stage": "soaga", "first_order": 200, "first_tolerance": 1e-10},
+        ),
     )
     with threadpool_limits(1):
         prepared = prepare(body, Frame("buckens"), ports, ports)

@@ -113,6 +113,10 @@ def test_overview_plots_are_written(summary):
         ('method = "soaga"\ntolerance = 2.0', "must lie in (0, 1)"),
         ('method = "gramian"', "gramian needs 'order' or 'tolerance'"),
         ('method = "gramian"\norder = 5\nfirst_stage = "magic"', "first_stage"),
+        (
+            'method = "gramian"\norder = 5\nfirst_stage = "krylov"\nexpansion_points_hz = [0]',
+            "[[reduction]] #1: the krylov first stage needs 'moments' or 'first_order'",
+        ),
         ('method = "pod"\ntolerance = 1e-6\nsnapshot = 20', "did you mean 'snapshots'"),
         (
             'method = "krylov"\nexpansion_points_hz = [0]\nmoments = 2\ntwo_sided = "yes"',

@@ -182,10 +182,10 @@ def test_job_option_first_stage_rational_krylov(lattice, tmp_path):
     """``first_stage = "rational-krylov"`` in a job reaches this solver (no medium model)."""
     from pymorembs.job.run import run_reduction
     from pymorembs.job.schema import ReductionSpec
+    from pymorembs.methods import method_options
 
-    spec = ReductionSpec(
-        "rk", "gramian", 10, {"first_stage": "rational-krylov", "convergence_tolerance": 1e-8}
-    )
+    options = {"order": 10, "first_stage": "rational-krylov", "convergence_tolerance": 1e-8}
+    spec = ReductionSpec("rk", method_options("gramian", options))
     projection = run_reduction(lattice, spec, BAND)
     direct = rational_gramian_reduction(lattice, BAND, order=10, tol=1e-8)
     assert projection.parameters["gramian_solver"] == "rational-krylov"

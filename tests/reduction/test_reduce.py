@@ -163,11 +163,11 @@ def test_modal_damping_ratio_gives_diagonal_damping():
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [
-        ({"expansion_points_hz": []}, "at least one"),
+        ({"expansion_points_hz": []}, "must be a list of .* got an empty list"),
         ({"expansion_points_hz": [-5.0], "moments": 2}, ">= 0"),
         ({"expansion_points_hz": [1.0, 1.0], "moments": 2}, "repeat"),
         ({"expansion_points_hz": [1.0]}, "moments"),
-        ({"expansion_points_hz": [1.0, 2.0], "moments": [1, 2, 3]}, "3 moment counts"),
+        ({"expansion_points_hz": [1.0, 2.0], "moments": [1, 2, 3]}, "moments: 3 values for 2"),
         ({"expansion_points_hz": [1.0], "order": 10**6}, "exceeds"),
     ],
 )

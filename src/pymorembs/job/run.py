@@ -58,7 +58,6 @@ from pymorembs.io import atomic_path, check_output_folder, model_files, read_bod
 from pymorembs.job.schema import Job, ModelSpec, ReductionSpec
 from pymorembs.job.time_domain_checks import time_domain_checks
 from pymorembs.linalg import default_backend, mass_split
-from pymorembs.methods import DIRECT_GRAMIAN_LIMIT
 from pymorembs.prepare import (
     ValidationReport,
     add_interface_node,
@@ -72,7 +71,7 @@ from pymorembs.prepare import (
     with_stiffening,
 )
 from pymorembs.progress import Progress as ProgressBar
-from pymorembs.reduction import Projection, explicit_step_s
+from pymorembs.reduction import Projection, explicit_step_s, first_stage, method_projection
 from pymorembs.report import (
     plot_decay,
     plot_large_motion,
@@ -257,7 +256,7 @@ def check_job_orders(prepared: PreparedModel, job: Job, report: ValidationReport
                 f"{job.path}: [[reduction]] #{k}.order: {spec.order} is not below the "
                 f"{n} independent dofs of the model; choose a smaller order"
             )
-        fixed_modes = spec.options.get("fixed_modes")
+        fixed_modes = getattr(spec.options, "fixed_modes", None)
         if fixed_modes is not None and fixed_modes >= n:
             raise UserError(
                 f"{job.path}: [[reduction]] #{k}.fixed_modes: {fixed_modes} is not below the "
@@ -267,7 +266,7 @@ def check_job_orders(prepared: PreparedModel, job: Job, report: ValidationReport
         if order is None:
             continue
         block = block or InputBlock.of(prepared, job)
-        needed, what = block.columns(two_sided=bool(spec.options.get("two_sided")))
+        needed, what = block.columns(two_sided=getattr(spec.options, "two_sided", False))
         if order < needed < n:  # (a block as large as the model: no reduction keeps it)
             raise UserError(
                 f"{job.path}: [[reduction]] #{k}.{key}: {order} is below one block of the "
@@ -333,12 +332,8 @@ def _block_order(spec: ReductionSpec, n_dofs: int) -> tuple[str, int | None]:
     """
     if spec.method in ("krylov", "soaga"):
         return "order", spec.order
-    if spec.method == "gramian":
-        stage = spec.options.get("first_stage")
-        if stage is None:
-            stage = "soaga" if n_dofs > DIRECT_GRAMIAN_LIMIT else "none"
-        if stage != "none":
-            return "first_order", spec.options.get("first_order")
+    if spec.method == "gramian" and first_stage(spec.options.first_stage, n_dofs) != "none":
+        return "first_order", spec.options.first_order
     return "order", None
 
 
@@ -358,7 +353,7 @@ def run_reduction(
     system: SecondOrderSystem, spec: ReductionSpec, band_hz: tuple[float, float]
 ) -> Projection:
     """Run one reduction method on a prepared system (band in Hz for the band-aware methods)."""
-    return spec.settings.reduce(system, band_hz)
+    return method_projection(system, spec.options, band_hz)
 
 
 #: A reduction whose error under the inertia loads exceeds this and ...
@@ -458,7 +453,7 @@ def check_requests(job: Job, body: ElasticBody) -> None:
 def _require_one_sided(job: Job, what: str, alternative: str = "") -> None:
     """Refuse two-sided reductions where bodies are needed (``what``: who needs them)."""
     for reduction in job.reductions:
-        if reduction.options.get("two_sided"):
+        if getattr(reduction.options, "two_sided", False):
             raise UserError(
                 f"{job.path}: reduction '{reduction.name}': {what} a one-sided (Galerkin) "
                 f"projection; drop two_sided {alternative}".rstrip()
@@ -1105,7 +1100,7 @@ def _reduce_one(
     projection's parameters: the errors before it.
     """
     tick = time.perf_counter()
-    reduced = reduce(prepared, spec.settings, band_hz=band_hz, name=spec.name)
+    reduced = reduce(prepared, spec.options, band_hz=band_hz, name=spec.name)
     elapsed = time.perf_counter() - tick
     model = reduced.model
     if reduced.before_removal is not None:
@@ -1423,7 +1418,7 @@ def job_settings(job: Job) -> dict[str, Any]:
                 "name": spec.name,
                 "method": spec.method,
                 "order": spec.order,
-                "options": _jsonable(spec.options),
+                "options": _jsonable(spec.written_options()),
                 "export_inaccurate": spec.export_inaccurate,
             }
             for spec in job.reductions

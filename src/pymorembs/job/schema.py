@@ -88,35 +88,43 @@ ERROR_TARGET_METHODS = ("soaga",)
 
 @dataclass(frozen=True)
 class ReductionSpec:
-    """One reduction of a job: a unique name, a method, an order and method options.
+    """One reduction of a job: a unique name and the options object of its method.
 
-    ``options`` are the ``[[reduction]]`` keys besides ``name``, ``method``, ``order`` and
-    ``export_inaccurate`` (:mod:`pymorembs.methods` lists them per method); ``settings`` is the
-    checked options object of the method built from them once
-    (:func:`~pymorembs.methods.method_options`, which raises
-    :class:`~pymorembs.methods.OptionError` on a bad option). ``export_inaccurate``: write the
-    body files even when the reduction misses its accuracy limit (:attr:`accuracy_limit`).
+    ``options`` is the checked options object of the method
+    (:func:`~pymorembs.methods.method_options`, the one check of the ``[[reduction]]`` table's
+    values), built once by the parser and handed as it is to the method
+    (:func:`~pymorembs.reduction.method_projection`); :attr:`method` and :attr:`order` are its
+    own. ``written``: the option keys the table wrote (besides ``name``, ``method``, ``order``
+    and ``export_inaccurate``), what the summary records of the job. ``export_inaccurate``:
+    write the body files even when the reduction misses its accuracy limit
+    (:attr:`accuracy_limit`).
     """
 
     name: str
-    method: str
-    order: int | None
-    options: dict[str, Any]
+    options: ReductionOptions
     export_inaccurate: bool = False
-    settings: ReductionOptions = field(init=False, repr=False, compare=False)
+    written: tuple[str, ...] = ()
 
-    def __post_init__(self) -> None:
-        values = dict(self.options)
-        if self.order is not None:
-            values["order"] = self.order
-        object.__setattr__(self, "settings", method_options(self.method, values))
+    @property
+    def method(self) -> str:
+        """The method's name (``options.method``)."""
+        return self.options.method
+
+    @property
+    def order(self) -> int | None:
+        """The ``order`` option (None: the method has none, or it was not given)."""
+        return self.options.order
+
+    def written_options(self) -> dict[str, Any]:
+        """The options the table wrote, by key, as the options object holds them."""
+        return {key: getattr(self.options, key) for key in self.written}
 
     @property
     def accuracy_limit(self) -> tuple[float, str]:
         """The largest max ε (ports and inertia loads) the reduction's body may have, and where
         the limit comes from: ``"tolerance"`` (the method's error target,
         :data:`ERROR_TARGET_METHODS`) or ``"default"`` (:data:`DEFAULT_ACCURACY_LIMIT`)."""
-        tolerance = getattr(self.settings, "tolerance", None)
+        tolerance = getattr(self.options, "tolerance", None)
         if self.method in ERROR_TARGET_METHODS and tolerance is not None:
             return float(tolerance), "tolerance"
         return DEFAULT_ACCURACY_LIMIT, "default"
@@ -740,14 +748,12 @@ def _reductions(data: Any, path: Path) -> tuple[ReductionSpec, ...]:
                 raise table.error(key, renamed_message(key))
         table.done(known)
         try:
-            settings = method_options(
+            checked = method_options(
                 method, {**options, **({} if order is None else {"order": order})}
             )
         except OptionError as exc:
             if exc.key is None:
                 raise UserError(f"{table.path}: {table.where}: {exc.problem}") from None
             raise table.error(exc.key, exc.problem) from None
-        checked = {key: getattr(settings, key) for key in options}
-        checked = {k: list(v) if isinstance(v, tuple) else v for k, v in checked.items()}
-        specs.append(ReductionSpec(name, method, order, checked, inaccurate))
+        specs.append(ReductionSpec(name, checked, inaccurate, tuple(options)))
     return tuple(specs)

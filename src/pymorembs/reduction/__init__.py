@@ -1,14 +1,17 @@
 """The reduction methods of paper section 3 and the reduced model they give.
 
 A public subpackage (``docs/api.md``, "The public surface"). A method is usually chosen by name
-through :func:`pymorembs.reduce` (options checked by :mod:`pymorembs.methods`); the method
-functions below take a prepared system directly and give a :class:`Projection` (``V``, ``W``
-and how they were made). :func:`reduced_model` projects, diagonalises and checks it
-(:class:`ReducedModel`); :func:`without_stiff_directions` and :func:`explicit_step_s` concern
-the highest frequencies of the reduced model.
+through :func:`pymorembs.reduce` (options checked by :mod:`pymorembs.methods`, run by
+:func:`method_projection`); the method functions below take a prepared system directly, check
+their options by the same options classes, and give a :class:`Projection` (``V``, ``W`` and how
+they were made). :func:`first_stage` is the Gramian method's choice of its first stage.
+:func:`reduced_model` projects, diagonalises and checks it (:class:`ReducedModel`);
+:func:`without_stiff_directions` and :func:`explicit_step_s` concern the highest frequencies of
+the reduced model.
 """
 
-from pymorembs.reduction.gramian import gramian_reduction, pod_reduction
+from pymorembs.reduction.dispatch import method_projection
+from pymorembs.reduction.gramian import first_stage, gramian_reduction, pod_reduction
 from pymorembs.reduction.krylov import krylov_reduction
 from pymorembs.reduction.modal import modal_reduction
 from pymorembs.reduction.modal_family import best_modes, craig_bampton, modes_with_frm
@@ -28,8 +31,10 @@ __all__ = [
     "best_modes",
     "craig_bampton",
     "explicit_step_s",
+    "first_stage",
     "gramian_reduction",
     "krylov_reduction",
+    "method_projection",
     "modal_reduction",
     "modes_with_frm",
     "pod_reduction",

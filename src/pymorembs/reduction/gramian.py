@@ -121,7 +121,10 @@ from pymorembs.linalg.factorization import Factorization
 from pymorembs.linalg.inertia_relief import InertiaRelief
 from pymorembs.linalg.mass_split import condensed_dense_eigh, mass_split
 from pymorembs.linalg.products import extended_product
+from pymorembs.methods import GramianOptions, PodOptions
+from pymorembs.reduction.krylov import moment_matching
 from pymorembs.reduction.projection import Projection, ReducedModel, reduced_model
+from pymorembs.reduction.soaga import soaga_reduction
 from pymorembs.system import SecondOrderSystem
 
 #: Largest number of dofs for which dense Gramians of the full model are computed.
@@ -409,16 +412,6 @@ def band_gramians(
 # reduction
 
 
-def check_order_options(order: int | None, tolerance: float | None, method: str) -> None:
-    """Raise :class:`UserError` unless ``order`` (>= 1) and/or ``tolerance`` is given."""
-    if order is None and tolerance is None:
-        raise UserError(f"{method}: give an 'order' or a 'tolerance'")
-    if order is not None and (int(order) != order or order < 1):
-        raise UserError(f"{method}: order must be an integer >= 1, got {order!r}")
-    if tolerance is not None and not (np.isfinite(tolerance) and 0.0 < tolerance < 1.0):
-        raise UserError(f"{method}: tolerance must lie in (0, 1), got {tolerance!r}")
-
-
 def error_indicator(sigma: np.ndarray) -> np.ndarray:
     """``sigma_{i+1} / sigma_1`` for reduced orders ``i = 1, ..., N`` (paper Fig. 11).
 
@@ -544,10 +537,27 @@ def gramian_reduction(
 
     Raises
     ------
+    OptionError
+        A bad ``order`` or ``tolerance``, checked by :class:`~pymorembs.methods.GramianOptions`.
     UserError
-        Bad options, an undamped system, or a large system without ``medium``.
+        A bad band, an undamped system, or a large system without ``medium``.
     """
-    check_order_options(order, tolerance, "gramian")
+    checked = GramianOptions(order=order, tolerance=tolerance)
+    return _dominant_projection(
+        system, band_hz, checked.order, checked.tolerance, medium, damping_ratio, kappa_points
+    )
+
+
+def _dominant_projection(
+    system: SecondOrderSystem,
+    band_hz: Sequence[float],
+    order: int | None,
+    tolerance: float | None,
+    medium: Projection | ReducedModel | None,
+    damping_ratio: float | None = None,
+    kappa_points: int = KAPPA_POINTS,
+) -> Projection:
+    """:func:`gramian_reduction` with ``order`` and ``tolerance`` checked."""
     w1, w2 = band_in_rad_s(band_hz, allow_infinite=False)
     if medium is not None:
         outer = _medium_basis(system, medium)
@@ -575,6 +585,84 @@ def gramian_reduction(
             "medium_order": None if outer is None else int(outer.shape[1]),
         },
     )
+
+
+# --------------------------------------------------------------------------------------------
+# the two-step method (paper section 3.2): its first stage
+
+
+#: Order and estimated error target of the SOAGA first stage when the options give none.
+FIRST_SOAGA_ORDER = 132
+FIRST_SOAGA_TOLERANCE = 1e-10
+
+
+def first_stage(requested: str | None, n_dofs: int) -> str:
+    """The first stage of the ``gramian`` method on a model of ``n_dofs`` independent dofs.
+
+    Parameters
+    ----------
+    requested : {"soaga", "krylov", "rational-krylov", "none"} or None
+        The ``first_stage`` option (:class:`~pymorembs.methods.GramianOptions`).
+    n_dofs : int
+        Independent dofs of the model.
+
+    Returns
+    -------
+    str
+        ``requested`` if given; else ``"soaga"`` above :data:`MAX_DENSE_ORDER` dofs (the dense
+        Gramians of the full model are out of reach) and ``"none"`` up to it.
+    """
+    if requested is not None:
+        return requested
+    return "soaga" if n_dofs > MAX_DENSE_ORDER else "none"
+
+
+def medium_model(
+    system: SecondOrderSystem, options: GramianOptions, band_hz: tuple[float, float]
+) -> Projection | None:
+    """The medium model of the two-step reduction (paper section 3.2), or None.
+
+    Its first stage is :func:`first_stage`: SOAGA (``first_order``, default
+    :data:`FIRST_SOAGA_ORDER`; ``first_tolerance``, default :data:`FIRST_SOAGA_TOLERANCE`),
+    Krylov (``expansion_points_hz``, ``moments``, ``first_order`` as its order), or none. The
+    rational Krylov first stage has no medium model
+    (:func:`~pymorembs.reduction.rational_gramian.rational_gramian_reduction`).
+    """
+    stage = first_stage(options.first_stage, system.order)
+    if stage == "none":
+        return None
+    if stage == "soaga":
+        tolerance = options.first_tolerance
+        order = options.first_order
+        return soaga_reduction(
+            system,
+            band_hz,
+            max_order=FIRST_SOAGA_ORDER if order is None else order,
+            tolerance=FIRST_SOAGA_TOLERANCE if tolerance is None else tolerance,
+        )
+    return moment_matching(
+        system, options.expansion_points_hz, options.moments, options.first_order, 1e-10, False
+    )
+
+
+def gramian_from_options(
+    system: SecondOrderSystem, options: GramianOptions, band_hz: tuple[float, float]
+) -> Projection:
+    """The ``gramian`` method on its checked options, with a medium model or none
+    (:func:`medium_model`; the rational Krylov first stage is
+    :func:`~pymorembs.reduction.rational_gramian.rational_gramian_from_options`).
+
+    The order is capped by the medium model's (a two-step model cannot exceed it); a capped
+    projection says so in ``parameters["order_capped_by_first_stage"]``.
+    """
+    medium = medium_model(system, options, band_hz)
+    order = options.order
+    if medium is not None and order is not None and order > medium.order:
+        order = medium.order
+    projection = _dominant_projection(system, band_hz, order, options.tolerance, medium)
+    if order == options.order:
+        return projection
+    return projection.with_parameters(order_capped_by_first_stage=medium.order)
 
 
 def projection_from_gramians(
@@ -823,8 +911,39 @@ def pod_reduction(
         ``sigma`` (``s_i^2``), ``indicator`` (``sigma_{i+1} / sigma_1``, entry ``i - 1`` for order
         ``i``), ``neglected_sum`` and ``a_priori_bound = sqrt(neglected_sum)`` -- eq. 24 with
         ``kappa = kappa_T = 1`` from the approximate eigenvalues (an estimate, not a bound).
+
+    Raises
+    ------
+    OptionError
+        A bad ``order`` or ``tolerance``, checked by :class:`~pymorembs.methods.PodOptions`.
+    UserError
+        A bad band, ``n_snapshots`` or ``rule``, a system without inputs and outputs, or an
+        order above the snapshot columns.
     """
-    check_order_options(order, tolerance, "pod")
+    checked = PodOptions(order=order, tolerance=tolerance)
+    return _snapshot_projection(
+        system, band_hz, checked.order, checked.tolerance, n_snapshots, rule
+    )
+
+
+def pod_from_options(
+    system: SecondOrderSystem, options: PodOptions, band_hz: tuple[float, float]
+) -> Projection:
+    """The ``pod`` method on its checked options."""
+    return _snapshot_projection(
+        system, band_hz, options.order, options.tolerance, options.snapshots, "gauss"
+    )
+
+
+def _snapshot_projection(
+    system: SecondOrderSystem,
+    band_hz: Sequence[float],
+    order: int | None,
+    tolerance: float | None,
+    n_snapshots: int,
+    rule: str,
+) -> Projection:
+    """:func:`pod_reduction` with ``order`` and ``tolerance`` checked."""
     frequencies, weights = quadrature(band_hz, n_snapshots, rule)
     if system.n_inputs == 0 and system.n_outputs == 0:
         raise UserError("pod: the system has neither inputs nor outputs")

@@ -44,6 +44,7 @@ from pymorembs.linalg.factorization import Factorization, basis_plain_enough
 from pymorembs.linalg.inertia_relief import InertiaRelief
 from pymorembs.linalg.orthogonalization import OrthonormalBasis
 from pymorembs.linalg.products import multiply
+from pymorembs.methods import KrylovOptions
 from pymorembs.progress import Progress
 from pymorembs.reduction.projection import Projection
 from pymorembs.system import SecondOrderSystem
@@ -171,24 +172,6 @@ class SecondOrderArnoldi:
         return max(2.0 * np.pi * self.frequency_hz, omega_r)
 
 
-def checked_points(
-    frequencies_hz: Sequence[float], method: str, one: str, many: str
-) -> list[float]:
-    """Expansion points (Hz) as floats: at least one, finite, >= 0, none repeated.
-
-    ``one`` and ``many`` name them in the messages (``"expansion point"``, ``"expansion
-    points"``); a bad list is a :class:`UserError` starting with ``method``.
-    """
-    points = [float(f) for f in frequencies_hz]
-    if not points:
-        raise UserError(f"{method}: at least one {one} is needed")
-    if any(not np.isfinite(f) or f < 0 for f in points):
-        raise UserError(f"{method}: {many} must be finite frequencies >= 0 Hz, got {points}")
-    if len(set(points)) != len(points):
-        raise UserError(f"{method}: {many} repeat: {points}")
-    return points
-
-
 def krylov_reduction(
     system: SecondOrderSystem,
     expansion_points_hz: Sequence[float],
@@ -199,12 +182,16 @@ def krylov_reduction(
 ) -> Projection:
     """Second-order Krylov reduction at several expansion points (eqs. 19-22).
 
+    The arguments are those of the ``krylov`` method, checked by its options class
+    :class:`~pymorembs.methods.KrylovOptions` (``tol`` is its ``deflation_tolerance``), the one
+    check of a job file, :func:`pymorembs.reduce` and this function alike.
+
     Parameters
     ----------
     system : SecondOrderSystem
         Sparse full system with input matrix ``B``.
     expansion_points_hz : sequence of float
-        Frequencies ``f_k >= 0`` in Hz; ``s_k = i 2 pi f_k``.
+        Frequencies ``f_k >= 0`` in Hz, none repeated; ``s_k = i 2 pi f_k``.
     moments : int or sequence of int, optional
         Number of moments (blocks) per point: ``r_k``. One number applies to all points.
     order : int, optional
@@ -227,22 +214,65 @@ def krylov_reduction(
     Projection
         ``parameters`` holds the points, the moments computed per point (for ``two_sided`` also
         ``output_moments``, those of ``W``) and the factorizations.
+
+    Raises
+    ------
+    OptionError
+        A bad argument (:class:`~pymorembs.methods.KrylovOptions`, with its message).
+    UserError
+        What only the system can tell (see :func:`moment_matching`).
     """
-    points = checked_points(expansion_points_hz, "krylov", "expansion point", "expansion points")
-    if moments is None and order is None:
-        raise UserError("krylov: give 'moments' (per expansion point) or 'order'")
-    if isinstance(moments, int | np.integer):
-        moments = [int(moments)] * len(points)
-    if moments is not None:
-        moments = [int(m) for m in moments]
-        if len(moments) != len(points):
-            raise UserError(
-                f"krylov: {len(moments)} moment counts for {len(points)} expansion points"
-            )
-        if any(m < 1 for m in moments):
-            raise UserError("krylov: every expansion point needs at least 1 moment")
-    if order is not None and order < 1:
-        raise UserError(f"krylov: order must be at least 1, got {order}")
+    options = KrylovOptions(
+        expansion_points_hz=expansion_points_hz,
+        order=order,
+        moments=moments,
+        two_sided=two_sided,
+        deflation_tolerance=tol,
+    )
+    return krylov_from_options(system, options)
+
+
+def krylov_from_options(
+    system: SecondOrderSystem,
+    options: KrylovOptions,
+    band_hz: tuple[float, float] | None = None,
+) -> Projection:
+    """The ``krylov`` method on its checked options (``band_hz``: unused, the signature of
+    every method of :func:`~pymorembs.reduction.dispatch.method_projection`)."""
+    return moment_matching(
+        system,
+        options.expansion_points_hz,
+        options.moments,
+        options.order,
+        options.deflation_tolerance,
+        options.two_sided,
+    )
+
+
+def moment_matching(
+    system: SecondOrderSystem,
+    points: tuple[float, ...],
+    moments: int | tuple[int, ...] | None,
+    order: int | None,
+    tol: float,
+    two_sided: bool,
+) -> Projection:
+    """The Krylov basis of :func:`krylov_reduction` from checked values.
+
+    The values are those of a :class:`~pymorembs.methods.KrylovOptions` (points in Hz,
+    moments, order, deflation tolerance, two-sided), or of the Krylov first stage of a
+    :class:`~pymorembs.methods.GramianOptions`: checked there, used here as they are. Only what
+    depends on the system is checked here.
+
+    Raises
+    ------
+    UserError
+        An order above the independent dofs, a system without inputs, a two-sided projection
+        without outputs or with asymmetric matrices, or inputs (outputs) that are zero on the
+        independent dofs.
+    """
+    if isinstance(moments, int):
+        moments = (moments,) * len(points)
     if order is not None and order > system.order:
         raise UserError(f"krylov: order {order} exceeds the {system.order} independent dofs")
     if system.n_inputs == 0:
@@ -278,7 +308,7 @@ def krylov_reduction(
                 del process
         else:
             # round-robin over the points, lowest moments first, until `order` columns
-            limits = moments or [MAX_MOMENTS] * len(points)
+            limits = list(moments or (MAX_MOMENTS,) * len(points))
             arnoldi = [_start(system, f, tol, bar) for f in points]
             _round_robin(basis, arnoldi, limits, order, bar)
             if two_sided:
@@ -297,7 +327,7 @@ def krylov_reduction(
     if v.shape[1] == 0:
         raise UserError("krylov: the input matrix is zero on the independent dofs")
     parameters = {
-        "expansion_points_hz": points,
+        "expansion_points_hz": list(points),
         "moments": computed,
         "factorizations": len(points),
     }

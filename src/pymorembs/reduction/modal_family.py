@@ -17,6 +17,7 @@ basis is put into modal form by :func:`~pymorembs.reduction.projection.reduced_m
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 
 import numpy as np
@@ -27,7 +28,9 @@ from pymorembs.linalg.factorization import Factorization
 from pymorembs.linalg.inertia_relief import InertiaRelief
 from pymorembs.linalg.mass_split import condensed_dense_eigh
 from pymorembs.linalg.orthogonalization import OrthonormalBasis
-from pymorembs.reduction.modal import DEFAULT_SHIFT_HZ, eigenmodes
+from pymorembs.methods import CraigBamptonOptions, ModalOptions
+from pymorembs.prepare.inertia_loads import is_inertia_label
+from pymorembs.reduction.modal import DEFAULT_SHIFT_HZ, eigenmodes, modal_reduction
 from pymorembs.reduction.projection import Projection
 from pymorembs.system import SecondOrderSystem
 
@@ -630,3 +633,37 @@ def _interior_modes(
             f"{values.size} modes with mass ({n_i - values.size} massless directions)"
         )
     return values[:count], vectors[:, :count]
+
+
+def modal_from_options(
+    system: SecondOrderSystem, options: ModalOptions, band_hz: tuple[float, float] | None = None
+) -> Projection:
+    """The ``modal`` method on its checked options: the lowest modes, the best ones
+    (:func:`best_modes`), or either with frequency-response modes (:func:`modes_with_frm`);
+    ``band_hz`` unused."""
+    if options.frm_hz:
+        return modes_with_frm(system, options.order, options.frm_hz, modes=options.select,
+                              candidates=options.candidates, shift_hz=options.shift_hz)  # fmt: skip
+    if options.select == "best":
+        return best_modes(system, options.order, candidates=options.candidates,
+                          shift_hz=options.shift_hz)  # fmt: skip
+    return modal_reduction(system, options.order, shift_hz=options.shift_hz)
+
+
+def craig_bampton_from_options(
+    system: SecondOrderSystem,
+    options: CraigBamptonOptions,
+    band_hz: tuple[float, float] | None = None,
+) -> Projection:
+    """The ``craig-bampton`` method on its checked options: the boundary is the dofs of the port
+    inputs; the inertia loads among the inputs add their static responses with the boundary
+    held (``band_hz`` unused)."""
+    inertia = np.array([is_inertia_label(label) for label in system.input_labels], dtype=bool)
+    ports = dataclasses.replace(system, input_matrix=system.input_matrix[:, ~inertia])
+    return craig_bampton(
+        system,
+        boundary_dofs_of_inputs(ports),
+        options.fixed_modes,
+        shift_hz=options.shift_hz,
+        static_loads=system.input_matrix[:, inertia] if inertia.any() else None,
+    )

@@ -104,12 +104,12 @@ import numpy as np
 from pymorembs.errors import UserError
 from pymorembs.frequencies import frequency_grid
 from pymorembs.linalg.orthogonalization import OrthonormalBasis
+from pymorembs.methods import GramianOptions
 from pymorembs.reduction.gramian import (
     KAPPA_POINTS,
     ModalForm,
     band_gramians,
     band_in_rad_s,
-    check_order_options,
     projection_from_gramians,
     resolvent,
 )
@@ -648,8 +648,51 @@ def rational_gramian_reduction(
         ``gramian_change`` (the last value of the stopping quantity), ``max_residual`` (the
         largest relative Galerkin residual of the integrand over the shift grid) and
         ``history``. ``error_bound`` as in ``gramian_reduction``.
+
+    Raises
+    ------
+    OptionError
+        A bad ``order`` or ``tolerance``, checked by :class:`~pymorembs.methods.GramianOptions`.
+    UserError
+        A bad band or solver keyword, or an order above ``max_dim``.
     """
-    check_order_options(order, tolerance, "gramian")
+    checked = GramianOptions(order=order, tolerance=tolerance)
+    return _rational_projection(
+        system,
+        band_hz,
+        checked.order,
+        checked.tolerance,
+        tol,
+        max_dim,
+        damping_ratio,
+        kappa_points,
+        **options,
+    )
+
+
+def rational_gramian_from_options(
+    system: SecondOrderSystem, options: GramianOptions, band_hz: tuple[float, float]
+) -> Projection:
+    """The ``gramian`` method with ``first_stage = "rational-krylov"`` on its checked options
+    (``first_order``: the largest Krylov dimension, ``convergence_tolerance``: ``tol``)."""
+    max_dim = DEFAULT_MAX_DIM if options.first_order is None else options.first_order
+    return _rational_projection(
+        system, band_hz, options.order, options.tolerance, options.convergence_tolerance, max_dim
+    )
+
+
+def _rational_projection(
+    system: SecondOrderSystem,
+    band_hz: Sequence[float],
+    order: int | None,
+    tolerance: float | None,
+    tol: float | None,
+    max_dim: int,
+    damping_ratio: float | None = None,
+    kappa_points: int = KAPPA_POINTS,
+    **options: Any,
+) -> Projection:
+    """:func:`rational_gramian_reduction` with ``order`` and ``tolerance`` checked."""
     w1, w2 = band_in_rad_s(band_hz, allow_infinite=False)
     if tol is None:
         tol = DEFAULT_TOL if tolerance is None else min(DEFAULT_TOL, 1e-2 * tolerance)

@@ -72,6 +72,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import scipy.linalg as sla
@@ -81,9 +82,10 @@ from pymorembs.frequencies import frequency_grid
 from pymorembs.linalg.factorization import basis_plain_enough
 from pymorembs.linalg.orthogonalization import OrthonormalBasis
 from pymorembs.linalg.products import extended_product, multiply
+from pymorembs.methods import SoagaOptions
 from pymorembs.parallel import available_memory_bytes
 from pymorembs.progress import Progress
-from pymorembs.reduction.krylov import SecondOrderArnoldi, checked_points
+from pymorembs.reduction.krylov import SecondOrderArnoldi
 from pymorembs.reduction.projection import Projection
 from pymorembs.system import SecondOrderSystem
 
@@ -254,6 +256,24 @@ class BlockProducts:
         for key, matrix in self.matrices.items():
             if matrix is not None:
                 self.columns[key] = np.hstack([self.columns[key], extended_product(matrix, new)])
+
+
+def checked_points(
+    frequencies_hz: Sequence[float], method: str, one: str, many: str
+) -> list[float]:
+    """Expansion points (Hz) as floats: at least one, finite, >= 0, none repeated.
+
+    ``one`` and ``many`` name them in the messages (``"expansion point"``, ``"expansion
+    points"``); a bad list is a :class:`UserError` starting with ``method``.
+    """
+    points = [float(f) for f in frequencies_hz]
+    if not points:
+        raise UserError(f"{method}: at least one {one} is needed")
+    if any(not np.isfinite(f) or f < 0 for f in points):
+        raise UserError(f"{method}: {many} must be finite frequencies >= 0 Hz, got {points}")
+    if len(set(points)) != len(points):
+        raise UserError(f"{method}: {many} repeat: {points}")
+    return points
 
 
 def soaga_reduction(
@@ -492,6 +512,19 @@ def soaga_reduction(
         error_estimate=float(estimate.max()),
         error_curve=(grid, estimate),
     )
+
+
+def soaga_from_options(
+    system: SecondOrderSystem, options: SoagaOptions, band_hz: tuple[float, float]
+) -> Projection:
+    """The ``soaga`` method on its checked options over the band (Hz)."""
+    extra: dict[str, Any] = {}
+    if options.candidates_hz is not None:
+        extra["candidates_hz"] = options.candidates_hz
+    if options.n_candidates is not None:
+        extra["n_candidates"] = options.n_candidates
+    return soaga_reduction(system, band_hz, tolerance=options.tolerance, max_order=options.order,
+                           tol=options.deflation_tolerance, **extra)  # fmt: skip
 
 
 def _room_for_a_factorization(processes: list[GlobalSecondOrderArnoldi]) -> bool:
