@@ -165,16 +165,18 @@ def test_every_public_module_says_what_it_offers():
 #: itself, the package's top level, names only itself). The saved reduced body
 #: (``io.reduced_file``) is a file of what the methods make, so it stands above them, with the
 #: exports; every other reader and writer of ``io`` stands below ``prepare``, which reads
-#: matrices and meshes through them.
+#: matrices and meshes through them. The method registry (``methods``: the options and their one
+#: check) stands low, so that the algorithms of ``reduction`` take its checked options.
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("errors", "arrays", "display", "progress", "sparse_rows", "arguments", "frequencies"),
+    ("methods",),
     ("linalg", "elements", "parallel"),
     ("surface", "system"),
     ("body",),
     ("io", "units"),
     ("prepare", "examples"),
     ("reduction",),
-    ("methods", "io.reduced_file", "export"),
+    ("io.reduced_file", "export"),
     ("analysis",),
     ("report",),
     ("api", ""),
@@ -259,7 +261,7 @@ def test_the_layer_check_finds_what_it_is_for():
     assert layer_of("pymorembs.nothing") is None
     lazy = "def f():\n    from pymorembs.report.time_plots import plot_large_motion\n"
     assert climbs("pymorembs.analysis.large_motion", lazy) == [
-        "pymorembs.analysis.large_motion (layer 8) -> pymorembs.report.time_plots (layer 9)"
+        "pymorembs.analysis.large_motion (layer 9) -> pymorembs.report.time_plots (layer 10)"
     ]
     assert climbs("pymorembs.reduction.soaga", "import pymorembs.analysis.error as e") != []
     assert climbs("pymorembs.export.sid", "from pymorembs import __version__") == []
