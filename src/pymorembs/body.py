@@ -210,7 +210,7 @@ class ConstraintEquations:
         Equation indices of the dependent dofs ``q_d``.
     matrix : sparse matrix, shape (n_d, n_dof)
         ``G`` over all equations of the body. A column of a dependent dof may be non-zero
-        (chained constraints); :func:`pymorembs.prepare.elimination` resolves such chains.
+        (chained constraints); :func:`pymorembs.preparation.elimination` resolves such chains.
     offset : ndarray, shape (n_d,)
         The constant part ``g`` (same unit as the dependent dof).
     """

@@ -1,7 +1,7 @@
 """Do the mass matrix, the dof map and the coordinates belong to the stiffness matrix?
 
 Cheap checks of a body as read (a few sparse products with up to nine vectors, no
-factorization), run by :func:`~pymorembs.prepare.validation.validate_body` for ``pymorembs
+factorization), run by :func:`~pymorembs.preparation.validation.validate_body` for ``pymorembs
 info`` and before every job. They catch what the checks of single matrices cannot: a mass
 matrix in another dof order, a dof table shifted by a node, coordinates in mm with matrices in
 SI units. A wrong map or a unit mix is a :class:`~pymorembs.errors.UserError` (exit 2) with one
