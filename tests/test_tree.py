@@ -418,3 +418,20 @@ def test_the_shadow_check_finds_what_it_is_for(tmp_path):
     package.steps = lambda: None  # a function named like the module: shadowed
     package.tools = types.ModuleType("package.tools")  # the module itself: fine
     assert shadowed_modules(package) == ["steps"]
+
+
+def design_layers(text: str) -> list[tuple[str, ...]]:
+    """The layers as the table of the section "The layers" of ``docs/design.md`` lists them:
+    the module names in backticks of each row, the package's top level as ``""``."""
+    section = text.split("\n## The layers\n", 1)[1].split("\n## ", 1)[0]
+    rows = re.findall(r"^\| \d+ \| (.*?) \|", section, flags=re.M)
+    top = ("",)  # the package's top level, named in words
+    return [
+        tuple(re.findall(r"`([\w.]+)`", row)) + (top if "top level" in row else ()) for row in rows
+    ]
+
+
+def test_the_design_page_lists_the_layers_of_the_tree():
+    """docs/design.md draws the layers that LAYERS holds, in its order."""
+    text = (ROOT / "docs" / "design.md").read_text(encoding="utf-8")
+    assert design_layers(text) == [tuple(names) for names in LAYERS]
