@@ -56,10 +56,10 @@ from pymorembs.frequencies import frequency_grid
 from pymorembs.io.formats import read_body
 from pymorembs.io.reduced_file import SavedBody, read_reduced_body, write_reduced_body
 from pymorembs.methods import ReductionOptions, method_options
-from pymorembs.prepare import Frame, Port, PreparedModel, with_inertia_loads
-from pymorembs.prepare import prepare as prepare_body
-from pymorembs.prepare.interface import InterfaceSpec, add_interface_node
-from pymorembs.prepare.stiffening import (
+from pymorembs.preparation import Frame, Port, PreparedModel, with_inertia_loads
+from pymorembs.preparation import prepare as prepare_body
+from pymorembs.preparation.interface import InterfaceSpec, add_interface_node
+from pymorembs.preparation.stiffening import (
     stiffening_from_matrices,
     stiffening_from_mesh,
     with_stiffening,

@@ -28,9 +28,9 @@ from pymorembs.examples import build_example
 from pymorembs.io.formats import read_body
 from pymorembs.io.native import write_body_h5
 from pymorembs.job.cli import main
-from pymorembs.prepare import validate_body
-from pymorembs.prepare.consistency import check_consistency, mechanism_or_map
-from pymorembs.prepare.stiffening import geometric_stiffness
+from pymorembs.preparation import validate_body
+from pymorembs.preparation.consistency import check_consistency, mechanism_or_map
+from pymorembs.preparation.stiffening import geometric_stiffness
 
 DATA = Path(__file__).parents[1] / "data"
 CALCULIX = DATA / "calculix_map_check"

@@ -62,7 +62,7 @@ from pymorembs.job.app.runner import Run, start_run
 from pymorembs.job.run import add_interfaces, load_job_model, load_model
 from pymorembs.job.schema import MODEL_FILE_KEYS, ModelSpec, load_job
 from pymorembs.methods import METHODS, option_fields
-from pymorembs.prepare import centre_of_gravity
+from pymorembs.preparation import centre_of_gravity
 from pymorembs.report import body_scene, viewer_script
 from pymorembs.surface import smooth_patch
 
