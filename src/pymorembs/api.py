@@ -56,7 +56,7 @@ from pymorembs.frequencies import frequency_grid
 from pymorembs.io.formats import read_body
 from pymorembs.io.reduced_file import SavedBody, read_reduced_body, write_reduced_body
 from pymorembs.methods import ReductionOptions, method_options
-from pymorembs.preparation import Frame, Port, PreparedModel, with_inertia_loads
+from pymorembs.preparation import Frame, Port, PreparedModel, check_consistency, with_inertia_loads
 from pymorembs.preparation import prepare as prepare_body
 from pymorembs.preparation.interface import InterfaceSpec, add_interface_node
 from pymorembs.preparation.stiffening import (
@@ -226,6 +226,7 @@ def prepare(
     nodes = (
         [] if plain(stiffening_nodes) is None else node_ids("stiffening_nodes", stiffening_nodes)
     )
+    consistency = check_consistency(body)  # a wrong dof map or unit mix: UserError, before work
     if damping is not None:
         body = _with_damping(body, damping)
     for spec in interfaces:
@@ -234,6 +235,11 @@ def prepare(
     outs = ins if outputs is None else _ports(outputs, "outputs")
     cases = _inertia_cases(inertia_loads)
     prepared = prepare_body(body, frame, ins, outs)
+    prepared = replace(
+        prepared,
+        warnings=(*consistency["warnings"], *prepared.warnings),
+        notes=(*consistency["notes"], *prepared.notes),
+    )
     if cases is not None:
         prepared = (
             with_inertia_loads(prepared) if cases == () else with_inertia_loads(prepared, cases)
