@@ -176,6 +176,19 @@ def test_lumped_mass_direction_major(tmp_path):
         validate_body(moved)
 
 
+def test_pm_prepare_refuses_the_wrong_order_and_the_unit_mix_too():
+    """The Python API runs the same checks as info and jobs, before any work."""
+    import pymorembs as pm
+
+    body = pm.example("rack-beams")
+    order = np.lexsort((body.dofs.nodes, body.dofs.directions))
+    with pytest.raises(UserError, match="the mass matrix does not fit the dof table"):
+        pm.prepare(replace(body, mass=body.mass[order][:, order]), "tangent", node=2)
+    with pytest.raises(UserError, match="the coordinates look like mm"):
+        pm.prepare(replace(body, coordinates=1e3 * body.coordinates), "tangent", node=2)
+    assert pm.prepare(body, "tangent", node=2, inputs=[(1, "ux")]).warnings == ()
+
+
 def test_coordinates_in_mm_on_the_beam_model(capsys, rack_files, tmp_path):
     nodes = np.loadtxt(rack_files / "nodes.csv", delimiter=",", skiprows=1)
     scaled = tmp_path / "nodes_mm.csv"
