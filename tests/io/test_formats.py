@@ -120,7 +120,7 @@ def test_unknown_content(tmp_path: Path, content: str | bytes, words: str) -> No
         detect_format(path)
     message = one_line(err)
     assert message.startswith(f"{path}: cannot tell the file format")
-    assert message.endswith(f"give --format (one of {', '.join(FORMATS)})")
+    assert message.endswith(f"give --format (format= in Python; one of {', '.join(FORMATS)})")
     assert words in message
     if not words:
         assert "the name suggests nastran-dmig" in message

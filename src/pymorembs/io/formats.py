@@ -68,7 +68,7 @@ Before rule 2, a MATLAB header (``MATLAB 5.0 MAT-file`` for v5 to v7, ``MATLAB 7
 ``NASTRAN FORT TAPE ID CODE`` in the first 512 bytes -> ``nastran-op2``.
 
 Anything else is a :class:`~pymorembs.errors.UserError`
-``path: cannot tell the file format; give --format (one of ...)``.
+``path: cannot tell the file format; give --format (format= in Python; one of ...)``.
 
 The helpers the readers share (reading a text file, the checked assembly of a symmetric matrix
 from entries) are in :mod:`pymorembs.io.reader_support`, so that no reader imports this module.
@@ -288,8 +288,7 @@ def detect_format(path: PathLike) -> str:
         if any((path / f"K.mtx{suffix}").is_file() for suffix in _COMPRESSION_SUFFIXES):
             return "matrix-market"
         raise UserError(
-            f"{path}: a directory without K.mtx; cannot tell the file format; "
-            f"give --format (one of {', '.join(FORMATS)})"
+            f"{path}: a directory without K.mtx; cannot tell the file format; {_give_format()}"
         )
     plain = plain_path(path) if compression(path) is not None else path
     try:
@@ -315,7 +314,8 @@ def detect_format(path: PathLike) -> str:
 
 
 def _give_format() -> str:
-    return f"give --format (one of {', '.join(FORMATS)})"
+    """The remedy of an unknown format, for the command line and for Python."""
+    return f"give --format (format= in Python; one of {', '.join(FORMATS)})"
 
 
 def _hint(path: Path, head: bytes) -> str:
@@ -579,7 +579,7 @@ def read_body(
     if extra and format is None and "file" in extra:
         raise UserError(
             f"{file}: the content looks like {fmt}, whose matrices come as separate files; give "
-            f"them as stiffness and mass, or give --format (one of {', '.join(FORMATS)})"
+            f"them as stiffness and mass, or {_give_format()}"
         )
     if extra:
         plural = "s" if len(extra) > 1 else ""
