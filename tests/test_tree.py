@@ -168,7 +168,7 @@ def test_every_public_module_says_what_it_offers():
 #: matrices and meshes through them. The method registry (``methods``: the options and their one
 #: check) stands low, so that the algorithms of ``reduction`` take its checked options.
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("errors", "arrays", "display", "progress", "sparse_rows", "arguments", "frequencies"),
+    ("errors", "arrays", "display", "progress", "sparse_rows", "arguments", "frequencies", "kinds"),
     ("methods",),
     ("linalg", "elements", "parallel"),
     ("surface", "system"),

@@ -26,6 +26,7 @@ from pymorembs.analysis import (
 )
 from pymorembs.export import BODY_OUTPUTS, DEFAULT_EXPORTS, EXPORT_KINDS
 from pymorembs.io import FORMATS
+from pymorembs.kinds import DampingKind, FrameType, InterfaceKind, choices
 from pymorembs.methods import (
     METHODS,
     RENAMED_OPTIONS,
@@ -41,7 +42,7 @@ MODEL_FILE_KEYS = (
     "inp",
 )  # fmt: skip
 MODEL_FORMATS = FORMATS
-INTERFACE_KINDS = ("rigid", "distributing", "beams", "springs")
+INTERFACE_KINDS = InterfaceKind.names()
 _NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$")
 #: Files of the job folder a reduction (a sub-folder of that name) must not shadow.
 RESERVED_NAMES = frozenset(("summary.json", "error.png", "decay.png", "time.png", "report.html"))
@@ -473,12 +474,8 @@ def _interfaces(data: Any, path: Path) -> tuple[InterfaceNodeSpec, ...]:
             sub = _Table(table.get("box"), f"[[interface]] #{k}.box", path)
             box = (_vector(sub, "min", required=True), _vector(sub, "max", required=True))
             sub.done()
-        allowed = {
-            "beams": ("youngs_modulus", "density", "diameter", "poisson"),
-            "springs": ("stiffness", "damping"),
-        }.get(kind, ())
         parameters = {}
-        for key in allowed:
+        for key in InterfaceKind(kind).keys:
             value = table.number(key, minimum=0.0)
             if value is not None:
                 parameters[key] = value
@@ -519,8 +516,8 @@ def _damping(data: Any, path: Path) -> Damping | None:
         return None
     table = _Table(data, "[damping]", path)
     kind = table.string("kind", required=True)
-    if kind not in ("none", "rayleigh", "modal"):
-        raise table.error("kind", f"must be 'none', 'rayleigh' or 'modal', got {kind!r}")
+    if kind not in DampingKind.names():
+        raise table.error("kind", f"must be {choices(DampingKind)}, got {kind!r}")
     alpha = beta = ratio = 0.0
     if kind == "rayleigh":
         alpha = table.number("alpha", 0.0, minimum=0.0)
@@ -683,15 +680,15 @@ def _large_motion(data: Any, path: Path) -> LargeMotionSettings | None:
 
 
 def _frame(table: _Table) -> Frame:
-    kind = table.string("type", "tangent")
-    if kind == "tangent":
+    kind = table.string("type", FrameType.TANGENT.value)
+    if kind == FrameType.TANGENT:
         node = table.integer("node", required=True, minimum=-(2**62))
         table.done()
         return Frame("tangent", node)
-    if kind in ("buckens", "none"):
+    if kind in FrameType.names():
         table.done()
         return Frame(kind)
-    raise table.error("type", f"must be 'tangent', 'buckens' or 'none', got {kind!r}")
+    raise table.error("type", f"must be {choices(FrameType)}, got {kind!r}")
 
 
 def _ports(data: Any, key: str, path: Path) -> tuple[Port, ...]:

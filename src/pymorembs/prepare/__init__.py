@@ -17,6 +17,7 @@ import numpy as np
 from pymorembs.body import ElasticBody
 from pymorembs.display import html_table, one_line, port_rows
 from pymorembs.errors import NumericalError, UserError
+from pymorembs.kinds import FrameType, choices
 from pymorembs.linalg.mass_split import mass_split
 from pymorembs.prepare.buckens_frame import buckens_frame, centre_of_gravity
 from pymorembs.prepare.consistency import check_consistency, mechanism_or_map
@@ -97,7 +98,7 @@ class Frame:
             return buckens_frame(body)
         if self.kind == "none":
             return body
-        raise UserError(f"frame type {self.kind!r} is unknown; use 'tangent', 'buckens' or 'none'")
+        raise UserError(f"frame type {self.kind!r} is unknown; use {choices(FrameType)}")
 
 
 @dataclass(frozen=True, eq=False)
