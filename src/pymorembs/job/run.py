@@ -526,9 +526,7 @@ def run_job(
         quota or read-only (the output folder is then left as it was).
     """
     say = progress or (lambda _msg: None)
-    n_stages = (
-        2 + len(job.reductions) + (job.time_domain is not None) + (job.large_motion is not None)
-    )
+    n_stages = job.stage_count()
     started = [False]
     with ProgressBar(f"job {Path(job.path).stem}", total=n_stages, unit="stage", every=1) as bar:
 

@@ -218,6 +218,13 @@ class Job:
     large_motion: LargeMotionSettings | None = None
     stiffening: StiffeningSpec = StiffeningSpec()
 
+    def stage_count(self) -> int:
+        """The progress stages of a run of the job (``pymorembs reduce`` and the app's run): the
+        model, the reference, one per reduction, the time domain and the large motion (each when
+        the job asks for it)."""
+        checks = (self.time_domain is not None) + (self.large_motion is not None)
+        return 2 + len(self.reductions) + checks
+
 
 class _Table:
     """A TOML table read key by key; :meth:`done` rejects the keys nobody asked for."""

@@ -394,9 +394,7 @@ class App:
             self.runs += 1
             job = self.workdir / f"job-{self.runs}.toml"
             write_text(job, text)
-            parsed = check_job_text(text, job)
-            stages = 2 + len(parsed.reductions)
-            stages += (parsed.time_domain is not None) + (parsed.large_motion is not None)
+            stages = check_job_text(text, job).stage_count()
             self._bases.clear()
             self.run = start_run(job, self.workdir / f"run-{self.runs}", stages)
             return self.run.as_dict()
