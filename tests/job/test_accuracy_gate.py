@@ -286,7 +286,7 @@ def test_a_tolerance_given_is_the_limit(gated):
     assert row.endswith("! above its limit 1e-12: body not written")
     table = np.loadtxt(out_dir / "soaga" / "error.csv", delimiter=",", skiprows=1)
     without = judge_accuracy(reduction_spec("soaga", "soaga", order=26), table[:, 1], table[:, 2])
-    assert without["met"] and without["exported"] and without["limit_from"] == "default"
+    assert without.met and without.exported and without.limit_from == "default"
 
 
 def test_export_inaccurate_writes_the_body_marked(beam, capsys):

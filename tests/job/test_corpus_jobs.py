@@ -157,7 +157,7 @@ def test_job_on_a_corpus_body_reports_the_true_error(case, tmp_path):
     job_file = _job(case, tmp_path)
     out = tmp_path / "out"
     summary = run_job(load_job(job_file), out, None, workers=1)
-    assert [r["name"] for r in summary["reductions"]] == ["modal", "krylov"]
+    assert [r.name for r in summary.reductions] == ["modal", "krylov"]
     _, prepared = prepare_job(load_job(job_file))
     for name in ("modal", "krylov"):
         curve = np.loadtxt(out / name / "error.csv", delimiter=",", skiprows=1)
