@@ -363,9 +363,9 @@ def poor_run(lattice_folder):
 def test_run_job_raises_accuracy_not_met_after_writing(poor_run):
     error, out = poor_run
     assert isinstance(error, PymorembsError) and error.exit_code == 4
-    assert error.summary["accuracy"]["not_exported"] == ["modal-4"]
+    assert error.summary.accuracy["not_exported"] == ["modal-4"]
     written = json.loads((out / "summary.json").read_text())
-    assert written["reductions"][0]["accuracy"] == error.summary["reductions"][0]["accuracy"]
+    assert written["reductions"][0]["accuracy"] == error.summary.reductions[0].accuracy.to_json()
     assert files_in(out / "modal-4") == {"error.csv", "error.png"}
 
 

@@ -562,17 +562,17 @@ def _run_job(
     return summary
 
 
-def _accuracy_message(job: Job, failed: list[dict[str, Any]]) -> str:
+def _accuracy_message(job: Job, failed: list[ReductionSummary]) -> str:
     """The one line of :class:`AccuracyNotMet`: the reductions, their errors and limits."""
     parts = []
     for entry in failed:
-        accuracy = entry["accuracy"]
-        where = f"ports {accuracy['ports']:.2g}"
-        if accuracy["inertia_loads"] is not None:
-            where += f", inertia loads {accuracy['inertia_loads']:.2g}"
+        accuracy = entry.accuracy
+        where = f"ports {accuracy.ports:.2g}"
+        if accuracy.inertia_loads is not None:
+            where += f", inertia loads {accuracy.inertia_loads:.2g}"
         parts.append(
-            f"reduction '{entry['name']}' max error {accuracy['max']:.2g} > "
-            f"{accuracy['limit']:.2g} ({where})"
+            f"reduction '{entry.name}' max error {accuracy.max:.2g} > "
+            f"{accuracy.limit:.2g} ({where})"
         )
     its = "its" if len(failed) == 1 else "their"
     return (
