@@ -26,7 +26,7 @@ from pymorembs.analysis import (
 )
 from pymorembs.export import BODY_OUTPUTS, DEFAULT_EXPORTS, EXPORT_KINDS
 from pymorembs.io import FORMATS
-from pymorembs.kinds import DampingKind, FrameType, InterfaceKind, choices
+from pymorembs.kinds import DampingKind, FrameType, InterfaceKind, ReferenceKind, choices
 from pymorembs.methods import (
     METHODS,
     RENAMED_OPTIONS,
@@ -132,6 +132,22 @@ class ReductionSpec:
 
 
 @dataclass(frozen=True)
+class BandSpec:
+    """``[band]``: the frequency band of the error curves and what they are measured against.
+
+    ``points`` log-spaced frequencies from ``f_min_hz`` to ``f_max_hz`` (Hz, plus 0 Hz);
+    ``reference`` one of :class:`~pymorembs.kinds.ReferenceKind`; ``check_points``: the
+    frequencies where a surrogate reference is checked against the full model.
+    """
+
+    f_max_hz: float
+    f_min_hz: float = 0.0
+    points: int = 400
+    reference: str = ReferenceKind.AUTO.value
+    check_points: int = DEFAULT_CHECKS
+
+
+@dataclass(frozen=True)
 class ExportSpec:
     """``[export]``: which files to write and for which nodes (SID frame, Exudyn markers).
 
@@ -206,17 +222,34 @@ class Job:
     frame: Frame
     inputs: tuple[Port, ...]
     outputs: tuple[Port, ...]
-    band_hz: tuple[float, float]
-    points: int
+    band: BandSpec
     reductions: tuple[ReductionSpec, ...]
     title: str = ""
     export: ExportSpec = ExportSpec()
     time_domain: TimeDomainSpec | None = None
-    reference: str = "auto"
-    check_points: int = DEFAULT_CHECKS
     inertia_loads: InertiaLoadSpec = InertiaLoadSpec()
     large_motion: LargeMotionSettings | None = None
     stiffening: StiffeningSpec = StiffeningSpec()
+
+    @property
+    def band_hz(self) -> tuple[float, float]:
+        """``(f_min_hz, f_max_hz)`` of ``[band]`` (Hz)."""
+        return (self.band.f_min_hz, self.band.f_max_hz)
+
+    @property
+    def points(self) -> int:
+        """``[band] points``."""
+        return self.band.points
+
+    @property
+    def reference(self) -> str:
+        """``[band] reference``."""
+        return self.band.reference
+
+    @property
+    def check_points(self) -> int:
+        """``[band] check_points``."""
+        return self.band.check_points
 
     def stage_count(self) -> int:
         """The progress stages of a run of the job (``pymorembs reduce`` and the app's run): the
@@ -347,7 +380,7 @@ def parse_job(data: dict[str, Any], path: Path) -> Job:
     f_min = band.number("f_min_hz", 0.0, minimum=0.0)
     f_max = band.number("f_max_hz", required=True)
     points = band.integer("points", 400, minimum=200)
-    reference = band.string("reference", "auto")
+    reference = band.string("reference", ReferenceKind.AUTO.value)
     if reference not in REFERENCE_KINDS:
         kinds = ", ".join(map(repr, REFERENCE_KINDS))
         raise band.error("reference", f"must be one of {kinds}, got {reference!r}")
@@ -372,14 +405,11 @@ def parse_job(data: dict[str, Any], path: Path) -> Job:
         frame,
         inputs,
         outputs,
-        (f_min, f_max),
-        points,
+        BandSpec(f_max, f_min, points, reference, check_points),
         reductions,
         title,
         export,
         time_domain,
-        reference,
-        check_points,
         inertia,
         large_motion,
         stiffening,
