@@ -10,6 +10,8 @@ the server). Only requests addressed to 127.0.0.1 or localhost are answered, and
 must be JSON objects: another web site open in the same browser cannot drive the app.
 
 =======================  ==================================================================
+``GET  /api/schema``      every table of a job, its keys and every list of kinds
+                          (:func:`~pymorembs.job.shape.job_schema`): the page's forms
 ``GET  /api/methods``     every method's options, from the method registry (the form)
 ``GET  /api/examples``    the built-in models and their options
 ``GET  /api/exports``     the files a job can write, and the default ones (``[export]``)
@@ -61,6 +63,7 @@ from pymorembs.job.app.editor import check_job_text, free_node_id, hole_selectio
 from pymorembs.job.app.runner import Run, start_run
 from pymorembs.job.run import add_interfaces, load_job_model, load_model
 from pymorembs.job.schema import MODEL_FILE_KEYS, ModelSpec, load_job
+from pymorembs.job.shape import job_schema
 from pymorembs.job.summary import JobSummary
 from pymorembs.methods import METHODS, option_fields
 from pymorembs.prepare import centre_of_gravity
@@ -705,6 +708,7 @@ class Handler(BaseHTTPRequestHandler):
             return self._file(path, download=True)
         app = self.app
         actions = {
+            "/api/schema": job_schema,
             "/api/methods": methods,
             "/api/examples": examples,
             "/api/exports": exports,
