@@ -11,7 +11,7 @@ and large-motion checks) stay their JSON dictionaries here.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, Self
 
 #: The ``covers`` text of a reduction's errors over the inertia loads.
 INERTIA_COVERS = (
@@ -24,8 +24,21 @@ PORTS_COVER = "ports: the port outputs to the port inputs"
 CHECK_KEYS = ("time_domain", "large_motion")
 
 
+class FlatEntry:
+    """An entry of ``summary.json`` whose keys are its dataclass fields, values plain JSON."""
+
+    def to_json(self) -> dict[str, Any]:
+        """The entry as ``summary.json`` holds it."""
+        return dict(vars(self))
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> Self:
+        """The entry read back from ``summary.json``."""
+        return cls(**data)
+
+
 @dataclass(frozen=True)
-class Accuracy:
+class Accuracy(FlatEntry):
     """A reduction's ``accuracy`` entry: does it meet its limit, are its body files written.
 
     Attributes
@@ -57,18 +70,9 @@ class Accuracy:
     export_inaccurate: bool
     exported: bool
 
-    def to_json(self) -> dict[str, Any]:
-        """The entry as ``summary.json`` holds it."""
-        return dict(vars(self))
-
-    @classmethod
-    def from_json(cls, data: dict[str, Any]) -> Accuracy:
-        """The entry read back from ``summary.json``."""
-        return cls(**data)
-
 
 @dataclass(frozen=True)
-class InertiaErrors:
+class InertiaErrors(FlatEntry):
     """A reduction's errors over the inertia loads of the frame motion (its ``inertia_loads``).
 
     ``max_rel_error`` and ``static_rel_error`` (at 0 Hz; None: the band does not start there)
@@ -78,15 +82,6 @@ class InertiaErrors:
     max_rel_error: float
     static_rel_error: float | None
     covers: str = INERTIA_COVERS
-
-    def to_json(self) -> dict[str, Any]:
-        """The entry as ``summary.json`` holds it."""
-        return dict(vars(self))
-
-    @classmethod
-    def from_json(cls, data: dict[str, Any]) -> InertiaErrors:
-        """The entry read back from ``summary.json``."""
-        return cls(**data)
 
 
 @dataclass(frozen=True)
