@@ -58,13 +58,13 @@ def build_prepared(example: str, dofs: int | None, damping: str = "modal"):
 
     Returns
     -------
-    prepared : pymorembs.prepare.PreparedModel
+    prepared : pymorembs.preparation.PreparedModel
     build_s : float
         Wall time of building the FE model.
     """
     from pymorembs.body import Damping
     from pymorembs.examples import build_example
-    from pymorembs.prepare import Frame, Port, prepare
+    from pymorembs.preparation import Frame, Port, prepare
 
     tick = time.perf_counter()
     options = {"dofs": dofs} if example == "rack-solid" else {}

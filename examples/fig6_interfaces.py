@@ -32,7 +32,7 @@ from pymorembs.analysis.error import relative_error
 from pymorembs.analysis.transfer import transfer_function
 from pymorembs.body import Damping
 from pymorembs.examples import build_example
-from pymorembs.prepare import Frame, Port, prepare
+from pymorembs.preparation import Frame, Port, prepare
 from pymorembs.reduction.krylov import krylov_reduction
 from pymorembs.reduction.projection import reduced_model
 

@@ -17,6 +17,7 @@ from threadpoolctl import threadpool_limits
 
 from conftest import spring_lattice
 from lattice_jobs import lattice_job
+from processes import live_children, running
 from pymorembs import progress
 from pymorembs.analysis.transfer import transfer_function
 from pymorembs.errors import NumericalError
@@ -244,30 +245,6 @@ def test_finish_ends_a_bar_at_its_count(capsys):
         bar.finish()
         assert bar.total == bar.count == 18
     assert "18/18" in capsys.readouterr().err
-
-
-def live_children(pid: int) -> list[int]:
-    """Processes whose parent is ``pid`` and that are not zombies (from /proc)."""
-    found = []
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit():
-            continue
-        try:
-            fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
-        except OSError:
-            continue
-        if int(fields[1]) == pid and fields[0] != "Z":
-            found.append(int(entry.name))
-    return found
-
-
-def running(pid: int) -> bool:
-    """Whether ``pid`` exists and is not a zombie."""
-    try:
-        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
-    except OSError:
-        return False
-    return state != "Z"
 
 
 def wait_until(condition, seconds: float) -> bool:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+import types
 from pathlib import Path
 
 TESTS = Path(__file__).parent
@@ -164,7 +165,7 @@ def test_every_public_module_says_what_it_offers():
 #: module stands on the layer of the longest name here that it is or lies under (``pymorembs``
 #: itself, the package's top level, names only itself). The saved reduced body
 #: (``io.reduced_file``) is a file of what the methods make, so it stands above them, with the
-#: exports; every other reader and writer of ``io`` stands below ``prepare``, which reads
+#: exports; every other reader and writer of ``io`` stands below ``preparation``, which reads
 #: matrices and meshes through them. The method registry (``methods``: the options and their one
 #: check) stands low, so that the algorithms of ``reduction`` take its checked options.
 LAYERS: tuple[tuple[str, ...], ...] = (
@@ -174,7 +175,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("surface", "system"),
     ("body",),
     ("io", "units"),
-    ("prepare", "examples"),
+    ("preparation", "examples"),
     ("reduction",),
     ("io.reduced_file", "export"),
     ("analysis",),
@@ -256,7 +257,7 @@ def test_no_module_imports_from_a_layer_above_its_own():
 
 def test_the_layer_check_finds_what_it_is_for():
     assert layer_of("pymorembs.io.reduced_file") > layer_of("pymorembs.reduction.krylov")
-    assert layer_of("pymorembs.io.matrix_market") < layer_of("pymorembs.prepare.stiffening")
+    assert layer_of("pymorembs.io.matrix_market") < layer_of("pymorembs.preparation.stiffening")
     assert layer_of("pymorembs") == layer_of("pymorembs.api") < layer_of("pymorembs.job.app")
     assert layer_of("pymorembs.nothing") is None
     lazy = "def f():\n    from pymorembs.report.time_plots import plot_large_motion\n"
@@ -380,6 +381,60 @@ def test_the_check_of_export_kinds_finds_what_it_is_for():
     assert string_kinds('"""Writes ``sid``."""\nif "npz" in outputs: pass', kinds) == {"npz"}
     assert quoted_kinds('<input value="sid"> kinds: ["npz", \'mtx\'] npzfile', kinds) == kinds
     assert quoted_kinds("reduced.npz and the sid file", kinds) == set()
+
+
+def shadowed_modules(package: types.ModuleType) -> list[str]:
+    """The modules and subpackages of ``package`` whose name the package's top level binds to
+    something else (``import package.name as x`` would give that, not the module)."""
+    import pkgutil
+
+    return [
+        info.name
+        for info in pkgutil.iter_modules(package.__path__)
+        if hasattr(package, info.name)
+        and not isinstance(getattr(package, info.name), types.ModuleType)
+    ]
+
+
+def test_no_name_of_the_top_level_shadows_a_module():
+    """Issue #28: the steps of a preparation live in ``pymorembs.preparation``; ``pm.prepare``
+    is the function, and no name of the top level hides a module of the package."""
+    import pymorembs
+    import pymorembs.preparation as preparation
+
+    assert isinstance(preparation, types.ModuleType)
+    assert preparation.__name__ == "pymorembs.preparation"
+    assert callable(pymorembs.prepare) and not isinstance(pymorembs.prepare, types.ModuleType)
+    assert pymorembs.prepare.__module__ == "pymorembs.api"
+    assert shadowed_modules(pymorembs) == []
+
+
+def test_the_shadow_check_finds_what_it_is_for(tmp_path):
+    package = types.ModuleType("package")
+    package.__path__ = [str(tmp_path)]
+    (tmp_path / "steps.py").write_text("")
+    (tmp_path / "tools.py").write_text("")
+    (tmp_path / "other.py").write_text("")
+    package.steps = lambda: None  # a function named like the module: shadowed
+    package.tools = types.ModuleType("package.tools")  # the module itself: fine
+    assert shadowed_modules(package) == ["steps"]
+
+
+def design_layers(text: str) -> list[tuple[str, ...]]:
+    """The layers as the table of the section "The layers" of ``docs/design.md`` lists them:
+    the module names in backticks of each row, the package's top level as ``""``."""
+    section = text.split("\n## The layers\n", 1)[1].split("\n## ", 1)[0]
+    rows = re.findall(r"^\| \d+ \| (.*?) \|", section, flags=re.M)
+    top = ("",)  # the package's top level, named in words
+    return [
+        tuple(re.findall(r"`([\w.]+)`", row)) + (top if "top level" in row else ()) for row in rows
+    ]
+
+
+def test_the_design_page_lists_the_layers_of_the_tree():
+    """docs/design.md draws the layers that LAYERS holds, in its order."""
+    text = (ROOT / "docs" / "design.md").read_text(encoding="utf-8")
+    assert design_layers(text) == [tuple(names) for names in LAYERS]
 
 
 def named_kinds(text: str, kinds: set[str]) -> set[str]:

@@ -10,7 +10,7 @@ import pytest
 
 from pymorembs.examples import build_example
 from pymorembs.job.cli import main
-from pymorembs.prepare import Frame, Port, prepare
+from pymorembs.preparation import Frame, Port, prepare
 from pymorembs.reduction.modal import eigenmodes
 from pymorembs.units import SYSTEMS, convert_body, detect_units, frequency_warnings
 

@@ -18,8 +18,8 @@ from pymorembs.api import ErrorCurve, ReducedBody, example, facts, load, prepare
 from pymorembs.body import DIRECTIONS, ConstraintEquations, Damping, DofTable, ElasticBody
 from pymorembs.errors import AccuracyNotMet, NumericalError, PymorembsError, UserError
 from pymorembs.methods import METHODS, method_options
-from pymorembs.prepare import Frame, Port, PreparedModel
-from pymorembs.prepare.interface import InterfaceSpec, select_nodes
+from pymorembs.preparation import Frame, Port, PreparedModel
+from pymorembs.preparation.interface import InterfaceSpec, select_nodes
 from pymorembs.reduction.projection import ReducedModel
 from pymorembs.system import SecondOrderSystem
 

@@ -57,10 +57,10 @@ from pymorembs.io.formats import read_body
 from pymorembs.io.reduced_file import SavedBody, read_reduced_body, write_reduced_body
 from pymorembs.kinds import FrameType, choices
 from pymorembs.methods import ReductionOptions, method_options
-from pymorembs.prepare import Frame, Port, PreparedModel, with_inertia_loads
-from pymorembs.prepare import prepare as prepare_body
-from pymorembs.prepare.interface import InterfaceSpec, add_interface_node
-from pymorembs.prepare.stiffening import (
+from pymorembs.preparation import Frame, Port, PreparedModel, check_consistency, with_inertia_loads
+from pymorembs.preparation import prepare as prepare_body
+from pymorembs.preparation.interface import InterfaceSpec, add_interface_node
+from pymorembs.preparation.stiffening import (
     stiffening_from_matrices,
     stiffening_from_mesh,
     with_stiffening,
@@ -228,6 +228,7 @@ def prepare(
     nodes = (
         [] if plain(stiffening_nodes) is None else node_ids("stiffening_nodes", stiffening_nodes)
     )
+    consistency = check_consistency(body)  # a wrong dof map or unit mix: UserError, before work
     if damping is not None:
         body = _with_damping(body, damping)
     for spec in interfaces:
@@ -236,6 +237,11 @@ def prepare(
     outs = ins if outputs is None else _ports(outputs, "outputs")
     cases = _inertia_cases(inertia_loads)
     prepared = prepare_body(body, frame, ins, outs)
+    prepared = replace(
+        prepared,
+        warnings=(*consistency["warnings"], *prepared.warnings),
+        notes=(*consistency["notes"], *prepared.notes),
+    )
     if cases is not None:
         prepared = (
             with_inertia_loads(prepared) if cases == () else with_inertia_loads(prepared, cases)

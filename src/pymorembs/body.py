@@ -211,7 +211,7 @@ class ConstraintEquations:
         Equation indices of the dependent dofs ``q_d``.
     matrix : sparse matrix, shape (n_d, n_dof)
         ``G`` over all equations of the body. A column of a dependent dof may be non-zero
-        (chained constraints); :func:`pymorembs.prepare.elimination` resolves such chains.
+        (chained constraints); :func:`pymorembs.preparation.elimination` resolves such chains.
     offset : ndarray, shape (n_d,)
         The constant part ``g`` (same unit as the dependent dof).
     """
@@ -503,6 +503,14 @@ class ElasticBody:
         it (single-precision binary ``2^-24``, decimal text of ``d`` digits ``0.5 * 10^(1 - d)``;
         entries transformed after reading, e.g. rotated to the basic system, no longer show
         it). ``None``: told from the values (:func:`pymorembs.linalg.rounding.relative_rounding`).
+    nodes_near_supports : ndarray of int, optional
+        What only a reader of an FE program's element assembly knows: the ids of the support
+        nodes (with fixed dofs) and of the nodes that share an element with one (empty for a
+        free body). Their rows carry the supports' reactions; every other row of such a
+        stiffness (no prestress, no spring that resists rigid rotation) must fit the rigid-body
+        fields, so the consistency check refuses a map they refute there
+        (:func:`pymorembs.preparation.consistency.check_map`). ``None``: the supports' reach is
+        judged by distance and rows that only the rotations fail are a warning.
     """
 
     node_ids: np.ndarray
@@ -521,6 +529,7 @@ class ElasticBody:
     precision: float | None = None
     mesh: ElementMesh | None = None
     surface: Surface | None = None
+    nodes_near_supports: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         node_ids = np.asarray(self.node_ids, dtype=np.int64).ravel()
@@ -594,6 +603,9 @@ class ElasticBody:
         object.__setattr__(self, "coordinates", coordinates)
         object.__setattr__(self, "constraints", constraints)
         object.__setattr__(self, "fixed", fixed)
+        if self.nodes_near_supports is not None:
+            near = sorted_unique(np.asarray(self.nodes_near_supports, dtype=np.int64).ravel())
+            object.__setattr__(self, "nodes_near_supports", near)
         object.__setattr__(self, "notes", tuple(str(note) for note in self.notes))
 
     # ----------------------------------------------------------------- facts

@@ -2,7 +2,7 @@
 
 Every list of kinds of the library comes from here: the frame types (``[frame] type``), the
 damping kinds (``[damping] kind``, :class:`~pymorembs.body.Damping`), the interface kinds
-(``[[interface]] kind``, :class:`~pymorembs.prepare.interface.InterfaceSpec`) and the reference
+(``[[interface]] kind``, :class:`~pymorembs.preparation.interface.InterfaceSpec`) and the reference
 kinds (``[band] reference``). Each kind is a :class:`Kind`, a string enum whose members compare
 equal to their names (``FrameType.TANGENT == "tangent"``) and carry the :class:`Parameter` s the
 kind takes besides its name. The job parser checks against them, the app's page builds its lists

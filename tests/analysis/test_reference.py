@@ -28,7 +28,7 @@ from pymorembs.job.cli import main
 from pymorembs.job.run import run_reduction
 from pymorembs.job.schema import ReductionSpec, load_job
 from pymorembs.methods import method_options
-from pymorembs.prepare import Frame, Port, prepare
+from pymorembs.preparation import Frame, Port, prepare
 from pymorembs.reduction.projection import reduced_model
 
 DEMO = Path(__file__).resolve().parents[2] / "examples" / "rack-beams-demo.toml"

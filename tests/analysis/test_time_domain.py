@@ -30,7 +30,7 @@ from pymorembs.analysis.time_domain import (
 from pymorembs.body import Damping
 from pymorembs.errors import UserError
 from pymorembs.examples import build_example
-from pymorembs.prepare import Frame, Port, prepare
+from pymorembs.preparation import Frame, Port, prepare
 from pymorembs.reduction.krylov import krylov_reduction
 from pymorembs.reduction.modal import modal_reduction
 from pymorembs.reduction.projection import reduced_model

@@ -88,8 +88,8 @@ def test_rotating_beam_elements_stiffen_like_the_ritz_beam(hub):
     """The mesh route on two-node beams: a body of 30 beams, K_G of the centrifugal load case."""
     from pymorembs.body import DofTable, ElasticBody, ElementMesh
     from pymorembs.elements.beam import BeamSection, assemble_beams
-    from pymorembs.prepare import Frame, prepare
-    from pymorembs.prepare.stiffening import stiffening_from_mesh
+    from pymorembs.preparation import Frame, prepare
+    from pymorembs.preparation.stiffening import stiffening_from_mesh
 
     section = BeamSection.rectangular(B, H, E=E, nu=NU, rho=RHO)
     ids = np.arange(1, 32)

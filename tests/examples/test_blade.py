@@ -9,7 +9,7 @@ from pymorembs.errors import UserError
 from pymorembs.examples import build_example
 from pymorembs.io.native import read_body_h5
 from pymorembs.job.cli import main
-from pymorembs.prepare import Frame, prepare
+from pymorembs.preparation import Frame, prepare
 from pymorembs.reduction.modal import eigenmodes
 
 E, RHO, B, H, L = 2.1e11, 7850.0, 0.04, 0.01, 1.0

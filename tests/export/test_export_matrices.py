@@ -11,7 +11,7 @@ from pymorembs.analysis.transfer import transfer_function
 from pymorembs.body import Damping
 from pymorembs.errors import UserError
 from pymorembs.export.matrices import reduced_arrays, to_pymor, write_reduced_mat
-from pymorembs.prepare import Frame, Port, prepare
+from pymorembs.preparation import Frame, Port, prepare
 from pymorembs.reduction.krylov import krylov_reduction
 from pymorembs.reduction.projection import reduced_model
 

@@ -25,7 +25,7 @@ from pymorembs.export.exudyn_body import (
     write_exudyn_body,
 )
 from pymorembs.export.invariants import BodyInvariants, compute_invariants
-from pymorembs.prepare import Frame, Port, PreparedModel, prepare
+from pymorembs.preparation import Frame, Port, PreparedModel, prepare
 from pymorembs.reduction.krylov import krylov_reduction
 from pymorembs.reduction.projection import reduced_model
 

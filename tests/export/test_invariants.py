@@ -287,7 +287,7 @@ def test_rack_beams_torsion_mode_keeps_its_plate_inertia():
     but the rods' own torsional inertia."""
     from pymorembs.examples import build_example
     from pymorembs.export.source import body_invariants
-    from pymorembs.prepare import Frame, Port, prepare
+    from pymorembs.preparation import Frame, Port, prepare
     from pymorembs.reduction.modal import modal_reduction
     from pymorembs.reduction.projection import reduced_model
 

@@ -22,7 +22,7 @@ from pymorembs.export.sid import (
     write_sid,
 )
 from pymorembs.linalg.products import extended_product
-from pymorembs.prepare import Frame, Port, prepare
+from pymorembs.preparation import Frame, Port, prepare
 from pymorembs.reduction.modal import modal_reduction
 from pymorembs.reduction.projection import reduced_model
 

@@ -25,6 +25,7 @@ import scipy.sparse.linalg as spla
 from pymorembs.errors import UserError
 from pymorembs.io.ansys import RIGID_BODY_TOLERANCE, read_ansys_full, read_ansys_mmf
 from pymorembs.io.ansys_cdb import read_cdb
+from pymorembs.preparation.consistency import body_rounding, check_map
 
 reader = pytest.importorskip("ansys.mapdl.reader")
 
@@ -265,13 +266,15 @@ def test_full_fixed_dofs_and_dof_table(full_body):
 
 
 def test_hexbeam_coordinates_from_the_archive():
-    """The .cdb gives the coordinates; the rigid-body check proves them away from the clamp."""
+    """The .cdb gives the coordinates and the nodes next to the clamp; the consistency check
+    proves them away from the clamp."""
     body = read_ansys_full(FULL, nodes=CDB)
     assert body.has_coordinates and body.n_nodes == 321
     archive = reader.Archive(str(CDB), parse_vtk=False)
     np.testing.assert_array_equal(body.node_ids, archive.nnum)
     np.testing.assert_allclose(body.coordinates, archive.nodes, rtol=0, atol=1e-14)
-    assert any("verified by the rigid-body check on the 810 equations" in n for n in body.notes)
+    proof = check_map(body, body_rounding(body))
+    assert proof.proved and "leave no force in 810 of 900 rows" in proof.reason, proof
     # the check itself, computed here: K r on the equations of the nodes far from the clamp
     clamped = {int(n) for n in body.dofs.nodes[body.fixed]}
     near = set()
@@ -321,13 +324,14 @@ def test_wrong_coordinates_are_refused(tmp_path):
     lines[a], lines[b] = lines[a][:27] + lines[b][27:], lines[b][:27] + lines[a][27:]
     bad = tmp_path / "swapped.cdb"
     bad.write_text("\n".join(lines))
-    with pytest.raises(UserError, match="the coordinates do not belong to the matrices") as info:
-        read_ansys_full(FULL, nodes=bad)
-    message = _one_line_error(info, bad)
-    assert "translations 5" in message or "translations " in message
+    body = read_ansys_full(FULL, nodes=bad)
+    with pytest.raises(UserError, match="this map does not fit K") as info:
+        check_map(body, body_rounding(body))
+    message = _one_line_error(info, "[model]: ")
+    assert "the dof table or the node coordinates do not belong to the matrices" in message
 
 
-def test_nodes_csv_on_the_clamped_beam_is_noted_not_checked(tmp_path):
+def test_nodes_csv_on_the_clamped_beam_is_proved_by_the_reach_of_the_supports(tmp_path):
     archive = read_cdb(CDB)
     rows = [
         f"{n},{x!r},{y!r},{z!r}"
@@ -338,9 +342,9 @@ def test_nodes_csv_on_the_clamped_beam_is_noted_not_checked(tmp_path):
     body = read_ansys_full(FULL, nodes=nodes, name="beam")
     assert body.name == "beam" and body.has_coordinates
     np.testing.assert_array_equal(body.node_position(318), [0.75, 0.5, 3.0])
-    assert (
-        "not checked: the model has constrained dofs and no element connectivity" in body.notes[-1]
-    )
+    assert body.nodes_near_supports is None  # no elements: the consistency check judges by reach
+    proof = check_map(body, body_rounding(body))
+    assert proof.proved and "leave no force in 810 of 900 rows" in proof.reason, proof
     short = tmp_path / "short.csv"
     short.write_text("id,x,y,z\n" + "\n".join(rows[1:]) + "\n")
     with pytest.raises(UserError, match="node 1 ") as info:

@@ -84,7 +84,9 @@ def test_free_export_gives_calculix_frequencies_and_six_rigid_body_modes(capsys)
     np.testing.assert_array_equal(modes, np.arange(7, 13))  # 1-6 are the rigid-body modes
     found = np.array(facts["eigenfrequencies_hz"][6:12])
     assert np.all(np.abs(found - expected) <= printed_tolerance(expected)), (found, expected)
-    assert any("verified by the rigid-body check" in note for note in facts["notes"])
+    proof = facts["consistency"]["map"]
+    assert proof["status"] == "map proved" and proof["rows_near_supports"] == 0, proof
+    assert "leave no force in 96 of 96 rows" in proof["reason"], proof
 
 
 def test_constrained_export_gives_calculix_frequencies(capsys):
@@ -95,8 +97,8 @@ def test_constrained_export_gives_calculix_frequencies(capsys):
     np.testing.assert_array_equal(modes, np.arange(1, 13))
     found = np.array(facts["eigenfrequencies_hz"][:12])
     assert np.all(np.abs(found - expected) <= printed_tolerance(expected)), (found, expected)
-    proof = [note for note in facts["notes"] if note.startswith("dof map")]
-    assert proof and "verified" in proof[0] and "36 equations" in proof[0], proof
+    proof = facts["consistency"]["map"]
+    assert proof["status"] == "map proved" and "in 36 of 85 rows" in proof["reason"], proof
 
 
 def test_read_gives_the_files_matrices_and_the_decks_fixed_dofs():
@@ -228,12 +230,16 @@ def test_the_dof_file_of_another_run_is_one_line(capsys):
 
 @pytest.mark.parametrize("name", ["free", "fixed"])
 def test_a_map_shifted_by_one_node_is_refused(export, capsys, name):
-    """The same dofs in another order: only the rigid-body check can tell, and it does."""
+    """The same dofs in another order: only the consistency checks can tell, and they do (the
+    rigid-body fields for the free body, the rigid-body mass already for the fixed one)."""
     lines = (export / f"{name}.dof").read_text().split()
     (export / f"{name}.dof").write_text("\n".join(lines[3:] + lines[:3]) + "\n")
     line = refused(capsys, export / f"{name}.sti")
-    expected = rf"{name}\.dof: the dof map does not fit {name}\.inp and the matrices: K maps"
-    assert re.search(expected + " the rigid-body", line), line
+    expected = {
+        "free": r"\[model\]: this map does not fit K: in \d+ of 96 rows away from the supports",
+        "fixed": r"\[model\]: the mass matrix does not fit the dof table: the rigid translations",
+    }[name]
+    assert re.search(expected, line), line
 
 
 def test_a_dof_file_naming_nodes_the_deck_lacks_is_refused(export, capsys):

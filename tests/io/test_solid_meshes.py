@@ -41,8 +41,8 @@ from pymorembs.io.abaqus import read_abaqus, read_abaqus_stiffness
 from pymorembs.io.native import read_body_h5, write_body_h5
 from pymorembs.io.solid_mesh import mesh_problem
 from pymorembs.job.cli import main
-from pymorembs.prepare import Frame, prepare
-from pymorembs.prepare.stiffening import geometric_stiffness, stiffening_from_mesh
+from pymorembs.preparation import Frame, prepare
+from pymorembs.preparation.stiffening import geometric_stiffness, stiffening_from_mesh
 
 BLOCKS = "exudyn_abaqus_blocks"
 BEAM = "juliafem_abaqus_tetra_beam"

@@ -213,7 +213,7 @@ def test_the_count_is_what_with_inertia_loads_keeps(beam_folder):
     beam's axis all but wxx and wyz; the free beam in the Buckens frame only the centrifugal
     ones of those (its accelerations are balanced by the rigid-body motion)."""
     from pymorembs.io.native import read_body_h5
-    from pymorembs.prepare import Frame, Port, inertia_load_cases, prepare, with_inertia_loads
+    from pymorembs.preparation import Frame, Port, inertia_load_cases, prepare, with_inertia_loads
 
     body = read_body_h5(beam_folder / "beam.h5")
     tip = [Port.parse(21, "ux uy uz")]

@@ -621,3 +621,14 @@ def test_a_job_file_opens_in_the_editor(tmp_path):
     assert state["job"]["model"] == {"file": str(tmp_path / "model.h5")}
     assert state["job"]["export"] == {"outputs": ["npz", "sid"]}
     assert state["error"] == "" and 'outputs = ["npz", "sid"]' in state["toml"]
+
+
+def test_the_page_gets_the_viewer_of_the_html_report(server):
+    """The app serves the same viewer.js as the report embeds (report.viewer_script)."""
+    from pymorembs.report import viewer_script
+
+    _, base = server
+    with urllib.request.urlopen(base + "/viewer.js", timeout=30) as response:
+        assert response.headers["Content-Type"] == "text/javascript"
+        text = response.read().decode("utf-8")
+    assert text == viewer_script() and "PymorembsViewer" in text

@@ -26,6 +26,7 @@ import pytest
 from conftest import spring_lattice
 from lattice_jobs import SOAGA
 from lattice_jobs import lattice_job as job_text
+from processes import live_children, running
 from pymorembs.errors import UserError
 from pymorembs.io.native import write_body_h5
 from pymorembs.job.cli import main
@@ -63,27 +64,6 @@ def command(*argv: str) -> subprocess.Popen:
     )
 
 
-def children(pid: int) -> list[int]:
-    """Living (not zombie) child processes of ``pid``, from /proc."""
-    found = []
-    for entry in Path("/proc").iterdir():
-        if entry.name.isdigit():
-            try:
-                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
-            except OSError:
-                continue
-            if int(fields[1]) == pid and fields[0] != "Z":
-                found.append(int(entry.name))
-    return found
-
-
-def alive(pid: int) -> bool:
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
-    except OSError:
-        return False
-
-
 def signal_at(process: subprocess.Popen, line_starts: str, sig: int) -> tuple[str, list[int]]:
     """Send ``sig`` once the child printed a stage line starting with ``line_starts`` (after
     its time stamp); the lines it printed and its children then."""
@@ -92,7 +72,7 @@ def signal_at(process: subprocess.Popen, line_starts: str, sig: int) -> tuple[st
         lines.append(line)
         if line.split("] ", 1)[-1].startswith(line_starts):
             time.sleep(0.3)  # into the stage
-            workers = children(process.pid)
+            workers = live_children(process.pid)
             process.send_signal(sig)
             return "".join(lines), workers
     raise AssertionError(f"the run ended before '{line_starts}': {''.join(lines)}")
@@ -115,7 +95,7 @@ def test_ctrl_c_during_the_sweep_of_two_workers(lattice_job, tmp_path):
             run.kill()
     assert run.returncode == 130
     assert err == "pymorembs: interrupted\n"
-    assert not any(alive(pid) for pid in workers)
+    assert not any(running(pid) for pid in workers)
     assert not out.exists() and staging_left(tmp_path) == []
 
 

@@ -243,7 +243,7 @@ def test_exudyn_step_response_of_a_tangent_frame_body_matches_our_integration():
     from pymorembs.body import Damping
     from pymorembs.export.exudyn_body import exudyn_arrays
     from pymorembs.export.source import body_invariants
-    from pymorembs.prepare import Frame, Port, prepare
+    from pymorembs.preparation import Frame, Port, prepare
     from pymorembs.reduction.modal import modal_reduction
     from pymorembs.reduction.projection import reduced_model
 

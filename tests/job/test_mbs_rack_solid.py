@@ -24,7 +24,7 @@ from pymorembs.export.source import body_invariants
 from pymorembs.job.run import run_reduction
 from pymorembs.job.schema import ReductionSpec
 from pymorembs.methods import method_options
-from pymorembs.prepare import Frame, Port, prepare
+from pymorembs.preparation import Frame, Port, prepare
 from pymorembs.reduction.projection import reduced_model
 
 

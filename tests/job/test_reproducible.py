@@ -232,7 +232,7 @@ def test_a_bad_reduced_model_is_refused_and_nothing_written(change, message, tmp
     from pymorembs.body import Damping
     from pymorembs.errors import NumericalError
     from pymorembs.export.outputs import write_outputs
-    from pymorembs.prepare import Frame, Port, prepare
+    from pymorembs.preparation import Frame, Port, prepare
     from pymorembs.reduction.krylov import krylov_reduction
     from pymorembs.reduction.projection import reduced_model
 

@@ -10,7 +10,7 @@ from pymorembs.errors import UserError
 from pymorembs.job.run import run_reduction
 from pymorembs.job.schema import ReductionSpec, load_job, parse_job
 from pymorembs.methods import KrylovOptions, method_options
-from pymorembs.prepare import Frame, Port, prepare
+from pymorembs.preparation import Frame, Port, prepare
 from pymorembs.reduction import dispatch, krylov
 
 

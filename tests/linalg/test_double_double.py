@@ -149,7 +149,7 @@ def test_plain_moments_give_the_accuracy_of_refined_ones(monkeypatch) -> None:
     from pymorembs.analysis.transfer import transfer_function
     from pymorembs.examples import build_example
     from pymorembs.linalg import factorization
-    from pymorembs.prepare import Frame, Port, prepare
+    from pymorembs.preparation import Frame, Port, prepare
     from pymorembs.reduction.krylov import krylov_reduction
     from pymorembs.reduction.projection import reduced_model
 

@@ -22,7 +22,7 @@ from pymorembs.analysis.error import relative_error
 from pymorembs.analysis.transfer import transfer_function
 from pymorembs.examples.rack_solid import rack_solid
 from pymorembs.linalg.inertia_relief import InertiaRelief
-from pymorembs.prepare import Frame, Port, prepare
+from pymorembs.preparation import Frame, Port, prepare
 from pymorembs.reduction.krylov import krylov_reduction
 from pymorembs.reduction.projection import reduced_model
 from pymorembs.system import SecondOrderSystem

@@ -33,7 +33,7 @@ from pymorembs.errors import NumericalError, UserError
 from pymorembs.io.matrix_market import write_matrix_files
 from pymorembs.job.cli import main
 from pymorembs.linalg.mass_split import condensed_dense_eigh, mass_split
-from pymorembs.prepare import Frame, Port, eliminate, prepare, validate_prepared
+from pymorembs.preparation import Frame, Port, eliminate, prepare, validate_prepared
 from pymorembs.reduction.gramian import gramian_reduction
 from pymorembs.reduction.krylov import krylov_reduction
 from pymorembs.reduction.modal import eigenmodes

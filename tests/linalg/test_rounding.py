@@ -16,7 +16,7 @@ from test_massless import beam_body, dense_reference, hz
 from pymorembs.analysis.spectrum import model_spectrum
 from pymorembs.body import ElasticBody
 from pymorembs.linalg.rounding import relative_rounding, significant_digits
-from pymorembs.prepare import Frame, prepare
+from pymorembs.preparation import Frame, prepare
 
 
 def rounded(values: np.ndarray, digits: int) -> np.ndarray:

@@ -11,7 +11,7 @@ from pymorembs.analysis.error import relative_error
 from pymorembs.analysis.transfer import transfer_function
 from pymorembs.errors import UserError
 from pymorembs.examples import build_example
-from pymorembs.prepare import Frame, Port, centre_of_gravity, prepare
+from pymorembs.preparation import Frame, Port, centre_of_gravity, prepare
 from pymorembs.reduction.krylov import krylov_reduction
 from pymorembs.reduction.modal import modal_reduction
 from pymorembs.reduction.projection import reduced_model

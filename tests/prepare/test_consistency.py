@@ -28,9 +28,9 @@ from pymorembs.examples import build_example
 from pymorembs.io.formats import read_body
 from pymorembs.io.native import write_body_h5
 from pymorembs.job.cli import main
-from pymorembs.prepare import validate_body
-from pymorembs.prepare.consistency import check_consistency, mechanism_or_map
-from pymorembs.prepare.stiffening import geometric_stiffness
+from pymorembs.preparation import validate_body
+from pymorembs.preparation.consistency import check_consistency, mechanism_or_map
+from pymorembs.preparation.stiffening import geometric_stiffness
 
 DATA = Path(__file__).parents[1] / "data"
 CALCULIX = DATA / "calculix_map_check"
@@ -174,6 +174,19 @@ def test_lumped_mass_direction_major(tmp_path):
     np.testing.assert_allclose(masses, 11600.0, rtol=1e-12)  # the totals cannot tell
     with pytest.raises(UserError, match=r"different centres of gravity.*214 of 214"):
         validate_body(moved)
+
+
+def test_pm_prepare_refuses_the_wrong_order_and_the_unit_mix_too():
+    """The Python API runs the same checks as info and jobs, before any work."""
+    import pymorembs as pm
+
+    body = pm.example("rack-beams")
+    order = np.lexsort((body.dofs.nodes, body.dofs.directions))
+    with pytest.raises(UserError, match="the mass matrix does not fit the dof table"):
+        pm.prepare(replace(body, mass=body.mass[order][:, order]), "tangent", node=2)
+    with pytest.raises(UserError, match="the coordinates look like mm"):
+        pm.prepare(replace(body, coordinates=1e3 * body.coordinates), "tangent", node=2)
+    assert pm.prepare(body, "tangent", node=2, inputs=[(1, "ux")]).warnings == ()
 
 
 def test_coordinates_in_mm_on_the_beam_model(capsys, rack_files, tmp_path):

@@ -19,14 +19,14 @@ from pymorembs.io.matrix_market import write_matrix_files
 from pymorembs.job.cli import main
 from pymorembs.job.run import inertia_warning
 from pymorembs.job.schema import parse_job
-from pymorembs.prepare import (
+from pymorembs.preparation import (
     INERTIA_LOAD_CASES,
     Frame,
     Port,
     prepare,
     with_inertia_loads,
 )
-from pymorembs.prepare.inertia_loads import acceleration_fields
+from pymorembs.preparation.inertia_loads import acceleration_fields
 from pymorembs.reduction.krylov import krylov_reduction
 from pymorembs.reduction.modal_family import craig_bampton
 from pymorembs.reduction.projection import reduced_model

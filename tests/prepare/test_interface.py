@@ -9,8 +9,8 @@ from test_prepare import lagrange_response
 from conftest import space_truss, spring_lattice
 from pymorembs.analysis.transfer import transfer_function
 from pymorembs.errors import UserError
-from pymorembs.prepare import Frame, Port, prepare
-from pymorembs.prepare.interface import (
+from pymorembs.preparation import Frame, Port, prepare
+from pymorembs.preparation.interface import (
     LIGHT_STIFF_BEAM,
     InterfaceSpec,
     add_interface_node,

@@ -19,8 +19,8 @@ from pymorembs.io.native import write_body_h5
 from pymorembs.job.cli import main
 from pymorembs.job.run import run_job
 from pymorembs.job.schema import load_job
-from pymorembs.prepare import Frame, Port, prepare
-from pymorembs.prepare.interface import InterfaceSpec, add_interface_node
+from pymorembs.preparation import Frame, Port, prepare
+from pymorembs.preparation.interface import InterfaceSpec, add_interface_node
 
 
 def body_with_ports(with_outputs: bool = True):

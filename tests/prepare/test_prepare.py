@@ -12,7 +12,7 @@ from conftest import spring_lattice
 from pymorembs.analysis.transfer import transfer_function
 from pymorembs.body import ConstraintEquations, DofTable, ElasticBody
 from pymorembs.errors import UserError
-from pymorembs.prepare import Frame, Port, prepare, tangent_frame
+from pymorembs.preparation import Frame, Port, prepare, tangent_frame
 
 PORTS = [Port.parse(120, "ux uz"), Port.parse(50, "uy"), Port.parse(110, "ux")]  # 120: dependent
 

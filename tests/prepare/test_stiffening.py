@@ -210,8 +210,8 @@ exudyn_run = pytest.mark.slow
 
 def exudyn_models(elements: int = ELEMENTS, order: int = 8):
     from pymorembs.export.source import body_invariants
-    from pymorembs.prepare import Frame, Port, prepare
-    from pymorembs.prepare.stiffening import stiffening_from_mesh, with_stiffening
+    from pymorembs.preparation import Frame, Port, prepare
+    from pymorembs.preparation.stiffening import stiffening_from_mesh, with_stiffening
     from pymorembs.reduction.modal import modal_reduction
     from pymorembs.reduction.projection import reduced_model
 

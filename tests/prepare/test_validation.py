@@ -1,4 +1,4 @@
-"""Input validation before anything expensive (``pymorembs.prepare.validation``).
+"""Input validation before anything expensive (``pymorembs.preparation.validation``).
 
 Each bad model is built here by one deliberate change of a good one; each check must name the
 place (node and direction) of the problem.
@@ -16,8 +16,8 @@ from conftest import space_truss, spring_lattice
 from pymorembs.body import ConstraintEquations, DofTable, ElasticBody
 from pymorembs.errors import NumericalError, UserError
 from pymorembs.examples import build_example
-from pymorembs.prepare import Frame, Port, prepare
-from pymorembs.prepare.validation import (
+from pymorembs.preparation import Frame, Port, prepare
+from pymorembs.preparation.validation import (
     validate_body,
     validate_prepared,
     worst_asymmetry,
@@ -293,7 +293,7 @@ def test_a_stiffness_matrix_given_as_the_mass_is_refused():
     multiple) is refused, and so is a free body whose "mass" matrix, like its stiffness, gives
     a rigid translation no energy (an independent stiffness-like matrix: springs between
     random node pairs, written here)."""
-    from pymorembs.prepare.validation import validate_body
+    from pymorembs.preparation.validation import validate_body
 
     lattice = spring_lattice()
     for factor in (1.0, 3.0):

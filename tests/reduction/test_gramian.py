@@ -18,7 +18,7 @@ from pymorembs.analysis.transfer import transfer_function
 from pymorembs.body import Damping
 from pymorembs.errors import UserError
 from pymorembs.frequencies import frequency_grid
-from pymorembs.prepare import Frame, Port, prepare
+from pymorembs.preparation import Frame, Port, prepare
 from pymorembs.reduction import gramian
 from pymorembs.reduction.gramian import (
     frequency_weighted_gramians,

@@ -14,7 +14,7 @@ from pymorembs.analysis.transfer import transfer_function
 from pymorembs.body import Damping
 from pymorembs.errors import UserError
 from pymorembs.frequencies import frequency_grid
-from pymorembs.prepare import Frame, Port, prepare
+from pymorembs.preparation import Frame, Port, prepare
 from pymorembs.reduction.krylov import krylov_reduction
 from pymorembs.reduction.modal import modal_reduction
 from pymorembs.reduction.projection import reduced_model

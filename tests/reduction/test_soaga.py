@@ -16,7 +16,7 @@ from pymorembs.body import Damping
 from pymorembs.errors import NumericalError, UserError
 from pymorembs.frequencies import frequency_grid
 from pymorembs.linalg.factorization import Factorization
-from pymorembs.prepare import Port
+from pymorembs.preparation import Port
 from pymorembs.reduction.krylov import krylov_reduction
 from pymorembs.reduction.projection import Projection, reduced_model
 from pymorembs.reduction.soaga import GlobalSecondOrderArnoldi, soaga_reduction

@@ -12,7 +12,7 @@ from pymorembs.errors import UserError
 from pymorembs.examples import build_example
 from pymorembs.job.cli import main
 from pymorembs.job.schema import parse_job
-from pymorembs.prepare import Frame, Port, prepare
+from pymorembs.preparation import Frame, Port, prepare
 from pymorembs.reduction.krylov import krylov_reduction
 from pymorembs.reduction.projection import explicit_step_s, reduced_model, without_stiff_directions
 

@@ -10,8 +10,8 @@ import pytest
 
 from pymorembs.errors import UserError
 from pymorembs.examples import build_example
-from pymorembs.prepare import Frame
-from pymorembs.prepare.interface import InterfaceSpec, add_interface_node
+from pymorembs.preparation import Frame
+from pymorembs.preparation.interface import InterfaceSpec, add_interface_node
 from pymorembs.report.scene import attached_nodes, body_scene, viewer_script
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pymorembs.prepare.inertia_loads import is_inertia_label
+from pymorembs.preparation.inertia_loads import is_inertia_label
 from pymorembs.system import SecondOrderSystem
 
 

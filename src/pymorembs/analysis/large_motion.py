@@ -38,7 +38,7 @@ from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
 from pymorembs.export.exudyn_body import exudyn_arrays
 from pymorembs.export.source import body_invariants
-from pymorembs.prepare import Frame, PreparedModel
+from pymorembs.preparation import Frame, PreparedModel
 from pymorembs.reduction.modal import modal_reduction
 from pymorembs.reduction.projection import ReducedModel, reduced_model
 

@@ -42,8 +42,8 @@ from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
 from pymorembs.linalg.mass_split import MassSplit, dense_condensation, mass_split
 from pymorembs.linalg.rounding import eigenvalue_bounds, relative_rounding
-from pymorembs.prepare import PreparedModel, with_rigid_modes
-from pymorembs.prepare.rigid_modes import NAMES, admissible_rigid_fields
+from pymorembs.preparation import PreparedModel, with_rigid_modes
+from pymorembs.preparation.rigid_modes import NAMES, admissible_rigid_fields
 from pymorembs.reduction.modal import eigenmodes
 
 #: Up to this many independent dofs the eigenproblem is solved densely (all eigenpairs).

@@ -54,7 +54,7 @@ from pymorembs.display import one_line, port_labels
 from pymorembs.errors import NumericalError, UserError
 from pymorembs.linalg.backends import factorize
 from pymorembs.linalg.mass_split import mass_split
-from pymorembs.prepare import Frame, Port, prepare
+from pymorembs.preparation import Frame, Port, prepare
 from pymorembs.progress import Progress
 from pymorembs.system import SecondOrderSystem
 

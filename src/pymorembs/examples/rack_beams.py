@@ -68,7 +68,7 @@ import scipy.sparse as sp
 from pymorembs.body import Damping, DofTable, ElasticBody, ElementMesh
 from pymorembs.elements.beam import BeamSection, assemble_beams
 from pymorembs.elements.rigid import rigid_body_mass_matrix
-from pymorembs.prepare.interface import rigid_links
+from pymorembs.preparation.interface import rigid_links
 from pymorembs.surface import outer_surface
 
 #: Steel of rods and plates: Young's modulus (N/m²), Poisson's ratio, density (kg/m³).

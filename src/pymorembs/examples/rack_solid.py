@@ -43,7 +43,8 @@ Node ids: node 1 is the centre of the lower plate's bottom face, ``(0, 0, -0.004
 mesh nodes are numbered 1001, 1002, ... in the order lower plate, rods 1..4, upper plate, and
 within a part by z, then y, then x (ascending). Node 2 is no mesh node: the interface node in
 the centre of the hole, ``(0, 0, 0.2125)`` (mid-plane of the upper plate, as in rack-beams),
-coupled to all nodes on the hole's surface by :func:`pymorembs.prepare.interface.add_interface_node`
+coupled to all nodes on the hole's surface by
+:func:`pymorembs.preparation.interface.add_interface_node`
 (paper section 2.2, :data:`INTERFACES`):
 
 =================  ==========================================================================
@@ -677,7 +678,7 @@ def _with_interface(
     body: ElasticBody, design: RackDesign, parameters: dict[str, str | float]
 ) -> ElasticBody:
     """Add node 2 in the centre of the hole, coupled to all nodes of the hole's surface."""
-    from pymorembs.prepare.interface import InterfaceSpec, add_interface_node, select_nodes
+    from pymorembs.preparation.interface import InterfaceSpec, add_interface_node, select_nodes
 
     plate = design.upper_plate
     z_mid = design.node2_height

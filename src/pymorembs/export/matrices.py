@@ -19,7 +19,7 @@ import scipy.sparse as sp
 
 from pymorembs.errors import UserError
 from pymorembs.export import deterministic
-from pymorembs.prepare import PreparedModel
+from pymorembs.preparation import PreparedModel
 from pymorembs.reduction.projection import ReducedModel
 from pymorembs.system import SecondOrderSystem
 

@@ -48,7 +48,7 @@ def node_fields(
         Its dof table maps the rows of ``vectors`` to (node, direction).
     vectors : ndarray, shape (n_dof, k)
         Columns over all equations of ``body`` (e.g. a basis expanded by
-        :meth:`~pymorembs.prepare.PreparedModel.expand`).
+        :meth:`~pymorembs.preparation.PreparedModel.expand`).
     nodes : ndarray of int, shape (n,), optional
         Node ids to take (default: all nodes of the body, in the order of ``body.node_ids``).
 

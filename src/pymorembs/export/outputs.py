@@ -11,7 +11,7 @@ from pathlib import Path
 
 from pymorembs.export.registry import EXPORTS, BodyOptions
 from pymorembs.export.source import ExportSource, check_before_writing
-from pymorembs.prepare import PreparedModel
+from pymorembs.preparation import PreparedModel
 from pymorembs.reduction.projection import ReducedModel
 
 

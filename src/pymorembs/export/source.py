@@ -17,7 +17,7 @@ import numpy as np
 from pymorembs.errors import NumericalError, UserError
 from pymorembs.export.invariants import BodyInvariants, StiffeningTerms, compute_invariants
 from pymorembs.export.matrices import reduced_arrays
-from pymorembs.prepare import PreparedModel
+from pymorembs.preparation import PreparedModel
 from pymorembs.reduction.projection import ReducedModel
 from pymorembs.system import check_damping
 

@@ -58,7 +58,7 @@ from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
 from pymorembs.export.nodal import node_fields
 from pymorembs.io.atomic import atomic_path
-from pymorembs.prepare import PreparedModel
+from pymorembs.preparation import PreparedModel
 from pymorembs.reduction.projection import ReducedModel
 
 __all__ = [
@@ -98,7 +98,7 @@ def static_fields(prepared: PreparedModel) -> dict[str, np.ndarray]:
     Parameters
     ----------
     prepared : PreparedModel
-        Its :attr:`~pymorembs.prepare.PreparedModel.static_response` (``K^+ B`` of the ports
+        Its :attr:`~pymorembs.preparation.PreparedModel.static_response` (``K^+ B`` of the ports
         and the inertia loads, one factorization kept with the model).
 
     Returns

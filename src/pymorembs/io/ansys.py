@@ -24,13 +24,16 @@ equivalence table, dofs per node, dof information), and refuses what the library
 zlib records, 16-bit integer records, and compressed records in the matrix blocks (which the
 library reads raw).
 
-The rigid-body check: for a body without constraints, ``K`` maps each of the six rigid-body
-fields to zero (:meth:`~pymorembs.body.ElasticBody.rigid_body_residuals`); the three
-translations need no coordinates, the rotations need the right coordinates. Residuals up to
-:data:`RIGID_BODY_TOLERANCE` count as zero. An Ansys ``.full`` file of a constrained model has
-zero couplings between the constrained and the free dofs, so there the check uses only the
-equations of nodes that share no element with a constrained node (element connectivity from the
-``.cdb``).
+The rigid-body check of the ``ansys-mmf`` equation order: for a body without constraints, ``K``
+maps each of the six rigid-body fields to zero
+(:meth:`~pymorembs.body.ElasticBody.rigid_body_residuals`); the three translations need no
+coordinates, the rotations need the right coordinates. Residuals up to
+:data:`RIGID_BODY_TOLERANCE` count as zero. The dof table and coordinates of a ``.full`` body
+are proved as every model's are, by the consistency check
+(:func:`~pymorembs.preparation.consistency.check_map`); the reader hands over what only the
+``.cdb`` tells: an Ansys ``.full`` file of a constrained model has zero couplings between the
+constrained and the free dofs, so the nodes that share an element with a constrained node are
+the body's ``nodes_near_supports``, whose rows carry the reactions.
 
 Every mistake raises :class:`~pymorembs.errors.UserError` with one line ``file: problem`` or
 ``file:line: problem``; no exception of ``ansys-mapdl-reader`` escapes.
@@ -259,7 +262,8 @@ def read_ansys_full(
     fixed = np.flatnonzero(info.const < 0)
     _check_no_empty_dofs(stiffness, mass, table, fixed, path)
     geometry = _coordinates(table, nodes, path)
-    notes = [_full_note(path, info, table, fixed.size)]
+    coordinates_note, near_supports = _supports(table, fixed, geometry)
+    notes = [_full_note(path, info, table, fixed.size), coordinates_note]
     body = make_body(
         path,
         node_ids=geometry.node_ids,
@@ -272,9 +276,9 @@ def read_ansys_full(
         name=path.stem if name is None else name,
         has_coordinates=geometry.source is not None,
         notes=tuple(notes),
+        nodes_near_supports=near_supports,
     )
-    note = _check_coordinates(body, geometry)
-    return _with_mesh(body.with_notes(note), geometry)
+    return _with_mesh(body, geometry)
 
 
 def _full_note(path: Path, info: _FullInfo, table: DofTable, n_fixed: int) -> str:
@@ -1097,59 +1101,27 @@ def _coordinates(table: DofTable, nodes: PathLike | None, source: Path) -> _Geom
     return _Geometry(archive.node_ids, archive.coordinates, path, archive)
 
 
-def _check_coordinates(body: ElasticBody, geometry: _Geometry) -> str:
-    """Check the coordinates of a ``.full`` body with the rigid-body check (module docstring).
-
-    Returns the note to add; raises when the translations vanish but a rotation does not (the
-    coordinates do not belong to the matrices).
-    """
+def _supports(
+    table: DofTable, fixed: np.ndarray, geometry: _Geometry
+) -> tuple[str, np.ndarray | None]:
+    """The note on the coordinates of a ``.full`` body and what only the archive tells of its
+    supports: the ids of the constrained nodes and of the nodes that share an element with one
+    (``ElasticBody.nodes_near_supports``; Ansys removes their couplings, so their rows carry
+    the reactions), empty for a free body; None where no elements name them. The consistency
+    check proves the coordinates with them (module docstring)."""
     if geometry.source is None:
-        return "no coordinates (nodes not given): all nodes lie at the origin"
-    source = geometry.source.name
-    rows = f"all {body.n_dof - body.fixed.size} free equations"
-    probe = body
-    if body.fixed.size:
-        archive = geometry.archive
-        if archive is None or not archive.has_elements:
-            return (
-                f"coordinates from {source}, not checked: the model has constrained "
-                "dofs and no element connectivity (give the .cdb archive to check them)"
-            )
-        near = archive.neighbours(body.dofs.nodes[body.fixed])
-        excluded = np.flatnonzero(np.isin(body.dofs.nodes, near))
-        probe = body.with_fixed(excluded)
-        remaining = body.n_dof - probe.fixed.size
-        if remaining == 0:
-            return (
-                f"coordinates from {source}, not checked: every node shares an element "
-                "with a constrained node"
-            )
-        rows = f"the {remaining} equations of nodes that share no element with a constrained node"
-    residuals = probe.rigid_body_residuals()
-    translations = [j for j in range(3) if np.isfinite(residuals[j])]
-    rotations = [j for j in range(3, 6) if np.isfinite(residuals[j])]
-    worst_t = max((residuals[j] for j in translations), default=0.0)
-    if worst_t > RIGID_BODY_TOLERANCE:
+        return "no coordinates (nodes not given): all nodes lie at the origin", None
+    note = f"coordinates from {geometry.source.name}"
+    if not fixed.size:
+        return note, np.zeros(0, dtype=np.int64)
+    archive = geometry.archive
+    if archive is None or not archive.has_elements:
         return (
-            f"coordinates from {source}, not checked: K maps the rigid-body translations "
-            f"on {rows} to a residual of {worst_t:.1e} (prestressed or grounded model?)"
+            f"{note}; the model has constrained dofs and no element connectivity, so the rows "
+            "next to the supports are judged by distance (give the .cdb archive to name them)",
+            None,
         )
-    if rotations:
-        worst = max(rotations, key=lambda j: residuals[j])
-        if residuals[worst] > RIGID_BODY_TOLERANCE:
-            raise located_error(
-                geometry.source,
-                None,
-                f"the coordinates do not belong to the matrices: K maps the rigid-body "
-                f"{_FIELD_NAMES[worst]} of these nodes to a residual of "
-                f"{residuals[worst]:.1e} on {rows} (translations {worst_t:.1e}, at most "
-                f"{RIGID_BODY_TOLERANCE:g} expected)",
-            )
-    largest = max((residuals[j] for j in translations + rotations), default=0.0)
-    return (
-        f"coordinates from {source}, verified by the rigid-body check on {rows} "
-        f"(max residual {largest:.1e})"
-    )
+    return note, archive.neighbours(table.nodes[fixed])
 
 
 def _with_mesh(body: ElasticBody, geometry: _Geometry) -> ElasticBody:

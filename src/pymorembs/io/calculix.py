@@ -45,13 +45,13 @@ triangle mirrored exactly (a file that stores both triangles must be symmetric).
 by ``*BOUNDARY`` are added to the dof table as fixed dofs (``ElasticBody.fixed``) with empty rows
 and columns, as the Ansys ``.full`` reader records the dofs Ansys constrains.
 
-The equation order is the ``.dof`` file's, never derived; it is proved by the rigid-body check
-(:meth:`~pymorembs.body.ElasticBody.rigid_body_residuals`, at most
-:data:`~pymorembs.io.abaqus.RIGID_BODY_TOLERANCE`): for a free export on every equation; for a
-constrained one on the equations of the nodes that share no element with a node that has a
-fixed dof (CalculiX drops the couplings to the fixed dofs, so the rows next to a support do not
-vanish), or, where every node shares an element with a support, not at all (the note says so).
-A map that fails the check is refused.
+The equation order is the ``.dof`` file's, never derived. What only the deck knows goes with the
+body: the dofs ``*BOUNDARY`` fixes are its fixed dofs, and the nodes that share an element with
+a node that has one are its ``nodes_near_supports`` (CalculiX drops the couplings to the fixed
+dofs, so their rows carry the reactions). The one proof of the map is the consistency check
+(:func:`~pymorembs.preparation.consistency.check_map`, run by
+:func:`~pymorembs.preparation.validation.validate_body` for ``pymorembs info`` and every job):
+the rigid-body fields on every other equation; a map they refute is refused there (exit 2).
 
 Speed: a matrix file of 16 MiB or more is parsed and checked in one compiled pass over a memory
 map (:func:`pymorembs.io.fast_text.parse_coordinate_lines`, on both cores) into arrays where
@@ -75,7 +75,6 @@ import scipy.sparse as sp
 
 from pymorembs.body import DIRECTIONS, DofTable, ElasticBody
 from pymorembs.errors import located_error
-from pymorembs.io.abaqus import RIGID_BODY_TOLERANCE
 from pymorembs.io.abaqus_inp import (
     MAX_LABEL,
     InpModel,
@@ -219,15 +218,14 @@ def read_calculix(
     ElasticBody
         Dof table: the equations of the ``.dof`` file in their order, then the dofs fixed by
         ``*BOUNDARY`` (fixed dofs, empty rows and columns); coordinates, surface and solid mesh
-        from the deck; notes: the files read and what the rigid-body check proved.
+        from the deck; notes: the files read and the supports.
 
     Raises
     ------
     UserError
         A missing file, a ``.dof``, deck or matrix that does not fit the others, an element type
-        whose equations CalculiX renumbers, a dof that CalculiX eliminated by a constraint, or a
-        dof map the rigid-body check refutes; one line ``file[:line]: problem`` (module
-        docstring).
+        whose equations CalculiX renumbers, or a dof that CalculiX eliminated by a constraint;
+        one line ``file[:line]: problem`` (module docstring).
     """
     paths = calculix_files(stiffness, mass, dofs, inp)
     k_path = paths["stiffness"]
@@ -247,8 +245,8 @@ def read_calculix(
         fixed=np.arange(n, total),
         name=name if name is not None else plain_path(k_path).stem,
         notes=tuple(layout.notes(k_path, paths)),
+        nodes_near_supports=layout.near_supports,
     )
-    body = body.with_notes(_proof(body, layout, paths))
     body = attach_surface(body, surface_elements(model))
     return attach_mesh(body, solid_blocks(model))
 
@@ -368,10 +366,8 @@ class _Layout:
     table: DofTable  # the .dof equations, then the fixed dofs
     node_ids: np.ndarray
     node_rows: np.ndarray  # row of each node in the deck's arrays
-    equation_rows: np.ndarray  # row of the node of each equation of the table in the deck
     types: str  # the element types of the deck
-    elements: list[np.ndarray]  # node rows of the elements, one array (elements, nodes) a block
-    supported: np.ndarray  # whether each node of the deck has a fixed dof
+    near_supports: np.ndarray  # ids of the nodes with fixed dofs and of their element neighbours
     n_fixed: int
     boundary_note: str
 
@@ -487,17 +483,11 @@ def _layout(dofs: DofFile, model: InpModel, deck: Path) -> _Layout:
     )
     supported = np.zeros(model.node_ids.size, dtype=bool)
     supported[fixed_nodes] = True
-    return _Layout(
-        table,
-        node_ids,
-        node_rows,
-        np.concatenate([index, fixed_nodes]),
-        types,
-        elements,
-        supported,
-        int(fixed_nodes.size),
-        note,
-    )
+    near = supported.copy()
+    for block in elements:
+        near[block[supported[block].any(axis=1)].ravel()] = True
+    near_ids = model.node_ids[near]
+    return _Layout(table, node_ids, node_rows, types, near_ids, int(fixed_nodes.size), note)
 
 
 def _element_rows(model: InpModel, deck: Path) -> tuple[list[np.ndarray], str]:
@@ -530,45 +520,6 @@ def _element_rows(model: InpModel, deck: Path) -> tuple[list[np.ndarray], str]:
         if block.type.upper() not in types:
             types.append(block.type.upper())
     return blocks, " ".join(types)
-
-
-# ============================================================================ the proof
-def _proof(body: ElasticBody, layout: _Layout, paths: dict[str, Path]) -> str:
-    """The note of the rigid-body check of the dof map, or a :class:`UserError` when it fails."""
-    dof_name = paths["dofs"].name
-    probe, rows = body, f"all {body.n_dof} equations"
-    if layout.n_fixed:
-        near = np.zeros(layout.supported.size, dtype=bool)  # shares an element with a support
-        for block in layout.elements:
-            near[block[layout.supported[block].any(axis=1)].ravel()] = True
-        probe = body.with_fixed(np.flatnonzero(near[layout.equation_rows]))
-        remaining = body.n_dof - probe.fixed.size
-        if remaining == 0:
-            return (
-                f"dof map of {dof_name} not proved by the rigid-body check: every node shares "
-                "an element with a node that has a fixed dof (CalculiX drops their couplings)"
-            )
-        rows = f"the {remaining} equations of nodes that share no element with a fixed dof's node"
-    residuals = probe.rigid_body_residuals()
-    present = [j for j in range(6) if np.isfinite(residuals[j])]
-    worst = max(present, key=lambda j: residuals[j], default=None)
-    if worst is None:  # pragma: no cover - a body of solid elements has translations
-        return f"dof map of {dof_name} not proved: no rigid-body field has entries"
-    largest = float(residuals[worst])
-    if not largest <= RIGID_BODY_TOLERANCE:
-        field_name = ("translation", "rotation")[worst // 3] + f" {'xyz'[worst % 3]}"
-        raise located_error(
-            paths["dofs"],
-            None,
-            f"the dof map does not fit {paths['inp'].name} and the matrices: K maps the "
-            f"rigid-body {field_name} of the deck's nodes to a residual of {largest:.1e} on "
-            f"{rows} (at most {RIGID_BODY_TOLERANCE:g} when map, coordinates and matrices "
-            "belong together); are the .dof, .sti and .inp of the same run?",
-        )
-    return (
-        f"dof map of {dof_name} verified by the rigid-body check of the translations and "
-        f"rotations on {rows} (max residual {largest:.0e})"
-    )
 
 
 # ============================================================================ the matrices

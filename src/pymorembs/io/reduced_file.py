@@ -77,10 +77,10 @@ from pymorembs.io.native import (
     write_body_group,
 )
 from pymorembs.io.native import FORMAT as BODY_FORMAT
-from pymorembs.prepare import Frame, PreparedModel
-from pymorembs.prepare.elimination import Elimination
-from pymorembs.prepare.inertia_loads import InertiaLoads
-from pymorembs.prepare.stiffening import Stiffening
+from pymorembs.preparation import Frame, PreparedModel
+from pymorembs.preparation.elimination import Elimination
+from pymorembs.preparation.inertia_loads import InertiaLoads
+from pymorembs.preparation.stiffening import Stiffening
 from pymorembs.reduction.projection import Projection, ReducedModel
 from pymorembs.system import SecondOrderSystem
 

@@ -47,7 +47,7 @@ from pymorembs.job.run import load_job_model, output_errors, run_job, validate_j
 from pymorembs.job.schema import MODEL_FORMATS, load_job
 from pymorembs.job.summary import Accuracy, JobSummary
 from pymorembs.parallel import dask_client, usable_cores
-from pymorembs.prepare import ValidationReport, mechanism_or_map, prepare, validate_body
+from pymorembs.preparation import ValidationReport, mechanism_or_map, prepare, validate_body
 from pymorembs.units import detect_units, frequency_warnings
 
 
@@ -314,7 +314,7 @@ def _prepared_for_info(
     args: argparse.Namespace,
 ) -> tuple[ElasticBody, PreparedModel, ValidationReport]:
     """The model of ``info``: a job (with its interfaces and frame) or model files as they are,
-    with the report of :func:`~pymorembs.prepare.validate_body`."""
+    with the report of :func:`~pymorembs.preparation.validate_body`."""
     given = {key: getattr(args, key) for key in INFO_FILES if getattr(args, key) is not None}
     if args.model is not None and args.model.suffix.lower() == ".toml":
         if given or args.format:

@@ -59,7 +59,7 @@ from pymorembs.job.schema import Job, ModelSpec, ReductionSpec
 from pymorembs.job.summary import Accuracy, InertiaErrors, JobSummary, ReductionSummary
 from pymorembs.job.time_domain_checks import time_domain_checks
 from pymorembs.linalg import default_backend, mass_split
-from pymorembs.prepare import (
+from pymorembs.preparation import (
     ValidationReport,
     add_interface_node,
     inertia_load_cases,
@@ -151,7 +151,7 @@ def job_interfaces(body: ElasticBody, job: Job) -> list[tuple[str, int, np.ndarr
 def prepare_job(job: Job) -> tuple[ElasticBody, PreparedModel]:
     """Load the model of a job, add its interface nodes, set its damping and prepare it.
 
-    The O(nnz) checks of :mod:`pymorembs.prepare.validation` run on the way (not the
+    The O(nnz) checks of :mod:`pymorembs.preparation.validation` run on the way (not the
     factorization); see :func:`prepare_and_validate`.
     """
     body, prepared, _ = prepare_and_validate(job, deep=False)
@@ -163,11 +163,11 @@ def prepare_and_validate(
 ) -> tuple[ElasticBody, PreparedModel, ValidationReport]:
     """Load, check and prepare the model of a job; nothing expensive runs before the checks.
 
-    Order: model and interfaces; :func:`~pymorembs.prepare.validation.validate_body` (sizes,
+    Order: model and interfaces; :func:`~pymorembs.preparation.validation.validate_body` (sizes,
     symmetry, finiteness, diagonals, constraints, the job's nodes and ports);
     :func:`check_requests` (export and time-domain requests); frame and elimination (with the
-    structural rigid-body-mode check of :func:`~pymorembs.prepare.prepare`);
-    :func:`~pymorembs.prepare.validation.validate_prepared` (dangling and free dofs, orders,
+    structural rigid-body-mode check of :func:`~pymorembs.preparation.prepare`);
+    :func:`~pymorembs.preparation.validation.validate_prepared` (dangling and free dofs, orders,
     inputs, and with ``deep`` one factorization for inertia and mechanisms).
 
     Returns
@@ -195,7 +195,7 @@ def prepare_and_validate(
 
 
 def validate_job_body(body: ElasticBody, job: Job) -> ValidationReport:
-    """:func:`~pymorembs.prepare.validation.validate_body`, then the job's nodes on the body."""
+    """:func:`~pymorembs.preparation.validation.validate_body`, then the job's nodes on the body."""
     try:
         report = validate_body(body)
     except PymorembsError as exc:
@@ -289,7 +289,7 @@ class InputBlock:
         frame dof adds nothing).
     loads : tuple of str
         The inertia load cases that will be inputs and outputs
-        (:func:`~pymorembs.prepare.inertia_load_cases`).
+        (:func:`~pymorembs.preparation.inertia_load_cases`).
     """
 
     inputs: int

@@ -35,7 +35,7 @@ from pymorembs.methods import (
     method_options,
     renamed_message,
 )
-from pymorembs.prepare import INERTIA_LOAD_CASES
+from pymorembs.preparation import INERTIA_LOAD_CASES
 
 MODEL_FILE_KEYS = (
     "file", "stiffness", "mass", "damping", "dofs", "nodes", "constraints", "fixed", "mapping",
@@ -184,7 +184,7 @@ class InertiaLoadSpec:
 
     ``enabled`` None: on when the job exports a body for a multibody code
     (:data:`~pymorembs.export.registry.BODY_OUTPUTS`), off otherwise. ``cases``: the load cases
-    (:data:`~pymorembs.prepare.INERTIA_LOAD_CASES`).
+    (:data:`~pymorembs.preparation.INERTIA_LOAD_CASES`).
     """
 
     enabled: bool | None = None

@@ -27,7 +27,7 @@ from pymorembs.job.schema import (
 )
 from pymorembs.kinds import DampingKind, FrameType, InterfaceKind, Kind, ReferenceKind
 from pymorembs.methods import METHODS, option_fields
-from pymorembs.prepare import INERTIA_LOAD_CASES
+from pymorembs.preparation import INERTIA_LOAD_CASES
 
 #: The job's tables that are one dataclass each, its fields the table's keys.
 DATACLASS_TABLES: dict[str, type] = {

@@ -31,7 +31,7 @@ it. :func:`condensed_dense_eigh` does the same densely for small models.
 
 The condensation needs ``K_00 = Q_0^T K Q_0`` regular. Directions with neither mass nor stiffness
 (massless mechanisms) are found by :mod:`pymorembs.linalg.massless_mechanisms` and removed from
-the body before any of this by :func:`pymorembs.prepare.prepare`.
+the body before any of this by :func:`pymorembs.preparation.prepare`.
 """
 
 from __future__ import annotations
@@ -303,7 +303,7 @@ def dense_condensation(
     """Condense the massless directions of a dense pencil (see :class:`DenseCondensation`).
 
     ``K_00`` must be regular: a massless mechanism has no finite answer (:func:`pymorembs.
-    prepare.prepare` removes those decoupled from the massive dofs).
+    preparation.prepare` removes those decoupled from the massive dofs).
 
     Raises
     ------

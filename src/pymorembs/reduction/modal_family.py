@@ -29,7 +29,7 @@ from pymorembs.linalg.inertia_relief import InertiaRelief
 from pymorembs.linalg.mass_split import condensed_dense_eigh
 from pymorembs.linalg.orthogonalization import OrthonormalBasis
 from pymorembs.methods import CraigBamptonOptions, ModalOptions
-from pymorembs.prepare.inertia_loads import is_inertia_label
+from pymorembs.preparation.inertia_loads import is_inertia_label
 from pymorembs.reduction.modal import DEFAULT_SHIFT_HZ, eigenmodes, modal_reduction
 from pymorembs.reduction.projection import Projection
 from pymorembs.system import SecondOrderSystem

@@ -25,8 +25,8 @@ import scipy.sparse as sp
 from pymorembs.body import SCALAR, ElasticBody
 from pymorembs.errors import UserError
 from pymorembs.export.nodal import node_fields
-from pymorembs.prepare import Frame, PreparedModel, centre_of_gravity
-from pymorembs.prepare.interface import InterfaceSpec
+from pymorembs.preparation import Frame, PreparedModel, centre_of_gravity
+from pymorembs.preparation.interface import InterfaceSpec
 from pymorembs.reduction.projection import ReducedModel
 
 __all__ = [
@@ -86,12 +86,12 @@ def body_scene(
     shape_names : sequence of str, optional
         One name per column of ``basis`` (default ``"shape 1"``, ...).
     frame : Frame, mapping or (origin, axes), optional
-        The reference frame drawn as an axis triad: a :class:`pymorembs.prepare.Frame`
+        The reference frame drawn as an axis triad: a :class:`pymorembs.preparation.Frame`
         (tangent: at its node; Buckens: at the centre of gravity; none: no triad), a mapping
         ``{"origin": [3], "axes": [[3], [3], [3]]}`` or a pair ``(origin, axes)``; axes are the
         rows, default the model's axes.
     interfaces : sequence, optional
-        Interface nodes with their coupled nodes: :class:`~pymorembs.prepare.interface.
+        Interface nodes with their coupled nodes: :class:`~pymorembs.preparation.interface.
         InterfaceSpec`, mappings ``{"name", "node", "coupled"}`` or tuples
         ``(name, node, coupled)``, node ids of the body.
     max_shapes : int, optional

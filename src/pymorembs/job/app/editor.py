@@ -24,7 +24,7 @@ import numpy as np
 from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
 from pymorembs.job.schema import Job, parse_job
-from pymorembs.prepare.interface import select_nodes
+from pymorembs.preparation.interface import select_nodes
 
 #: Tables in the order of the job reference; keys not listed follow in their own order.
 TABLE_ORDER = (
@@ -128,7 +128,7 @@ def hole_selection(body: ElasticBody, nodes: np.ndarray) -> dict[str, Any]:
     A round hole (the nodes lie on a cylinder) is written as ``cylinder = { point, direction,
     radius, tolerance }`` with a ``box`` around the nodes, the way ``docs/jobs.md`` selects a
     hole's surface; any other set (a flat face, an irregular patch) as ``nodes = [ids]``. The
-    cylinder is kept only when :func:`~pymorembs.prepare.interface.select_nodes` gives back
+    cylinder is kept only when :func:`~pymorembs.preparation.interface.select_nodes` gives back
     exactly ``nodes`` with the rounded numbers written.
 
     Returns

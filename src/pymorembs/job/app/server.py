@@ -66,13 +66,11 @@ from pymorembs.job.schema import MODEL_FILE_KEYS, ModelSpec, load_job
 from pymorembs.job.shape import job_schema
 from pymorembs.job.summary import JobSummary
 from pymorembs.methods import METHODS, option_fields
-from pymorembs.prepare import centre_of_gravity
-from pymorembs.report.scene import body_scene
+from pymorembs.preparation import centre_of_gravity
+from pymorembs.report import body_scene, viewer_script
 from pymorembs.surface import smooth_patch
 
 STATIC = Path(__file__).parent / "static"
-#: The 3D viewer shared with the HTML report (``pymorembs.report``).
-VIEWER = Path(__file__).resolve().parents[2] / "report" / "viewer.js"
 #: What the results give of each reduction's summary entry.
 RESULT_KEYS = (
     "name", "method", "order", "max_rel_error", "static_rel_error", "error_estimate",
@@ -699,7 +697,7 @@ class Handler(BaseHTTPRequestHandler):
             name = Path(unquote(route[len("/static/") :])).name
             return self._file(STATIC / name)
         if route == "/viewer.js":
-            return self._file(VIEWER)
+            return self._send(200, viewer_script().encode(), "text/javascript")
         if route.startswith("/files/"):
             try:
                 path = self.app.file(unquote(route[len("/files/") :]))

@@ -33,7 +33,7 @@ from pymorembs.errors import NumericalError, UserError
 from pymorembs.linalg.mass_split import mass_split
 from pymorembs.linalg.massless_mechanisms import MasslessMechanisms, massless_mechanisms
 from pymorembs.linalg.rounding import relative_rounding
-from pymorembs.prepare.elimination import Elimination
+from pymorembs.preparation.elimination import Elimination
 
 #: A port acts on (reads) a removed direction from this share of its norm on.
 PORT_SHARE = 1e-6
@@ -95,7 +95,7 @@ def remove_massless_mechanisms(
     body : ElasticBody
         The body in its frame.
     elimination : Elimination
-        Its elimination (:func:`~pymorembs.prepare.elimination.eliminate`).
+        Its elimination (:func:`~pymorembs.preparation.elimination.eliminate`).
     mass, stiffness : sparse matrix, shape (n_i, n_i)
         ``T^T M T`` and ``T^T K T`` of its independent dofs.
 

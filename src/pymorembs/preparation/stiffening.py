@@ -3,7 +3,7 @@
 A rotating or accelerated body is prestressed by its own inertia loads: the centrifugal load of
 a spinning blade puts it in tension, which stiffens bending (a blade's first flapwise frequency
 at the speed of its non-rotating frequency rises by about 48 %). For every unit load case ``L``
-of the frame motion (the d'Alembert loads of :mod:`pymorembs.prepare.inertia_loads`, SID_NOTES
+of the frame motion (the d'Alembert loads of :mod:`pymorembs.preparation.inertia_loads`, SID_NOTES
 §4.6: ``ax .. az``, ``alx .. alz``, ``wxx .. wxz``) and for unit forces (and moments) at the
 frame nodes of the exported body, the geometric stiffness ``K_G(sigma_L)`` of the prestress is
 formed on the independent dofs; the exported body gets its projection ``K0_L = V^T K_G V``
@@ -46,10 +46,14 @@ from pymorembs.elements.solid import (
 from pymorembs.errors import UserError
 from pymorembs.io.matrix_market import read_matrix_market
 from pymorembs.io.solid_mesh import mesh_problem
-from pymorembs.prepare.inertia_loads import INERTIA_LOAD_CASES, acceleration_fields, static_solver
+from pymorembs.preparation.inertia_loads import (
+    INERTIA_LOAD_CASES,
+    acceleration_fields,
+    static_solver,
+)
 
-if TYPE_CHECKING:  # pymorembs.prepare re-exports this module's functions
-    from pymorembs.prepare import PreparedModel
+if TYPE_CHECKING:  # pymorembs.preparation re-exports this module's functions
+    from pymorembs.preparation import PreparedModel
 
 __all__ = [
     "STIFFENING_KINDS",
@@ -77,7 +81,7 @@ class Stiffening:
     source : str
         ``"mesh"`` or ``"matrices"``.
     cases : dict of str -> sparse matrix, shape (n_i, n_i)
-        Load case (:data:`~pymorembs.prepare.inertia_loads.INERTIA_LOAD_CASES`) -> ``K_G``.
+        Load case (:data:`~pymorembs.preparation.inertia_loads.INERTIA_LOAD_CASES`) -> ``K_G``.
     nodes : dict of (node id, direction code) -> sparse matrix, shape (n_i, n_i)
         Unit force (directions 0-2) or moment (3-5) at a frame node -> ``K_G``.
     """
@@ -188,7 +192,7 @@ def stiffening_from_mesh(
     """``K_G`` of the load cases and of unit loads at ``nodes`` from the body's elements.
 
     One static factorization for all loads; ``u = T K^+ T^T f`` with the frame's support
-    (:func:`~pymorembs.prepare.inertia_loads.static_solver`), then :func:`geometric_stiffness`,
+    (:func:`~pymorembs.preparation.inertia_loads.static_solver`), then :func:`geometric_stiffness`,
     then ``T^T K_G T``.
     """
     body, elimination, system = prepared.body, prepared.elimination, prepared.system

@@ -4,7 +4,8 @@
 independent dofs, ``M* q'' + D* q' + K* q = B* u + f*,  y = C* q`` (eqs. 11-17), and keeps the map
 back to all dofs (eq. 18). A public subpackage (``docs/api.md``, "The public surface"): besides
 :func:`prepare` its ``__all__`` holds the other steps of :func:`pymorembs.prepare` (interface
-nodes, inertia loads, geometric stiffening) and the checks of :mod:`~pymorembs.prepare.validation`.
+nodes, inertia loads, geometric stiffening) and the checks of
+:mod:`~pymorembs.preparation.validation`.
 """
 
 from __future__ import annotations
@@ -19,28 +20,28 @@ from pymorembs.display import html_table, one_line, port_rows
 from pymorembs.errors import NumericalError, UserError
 from pymorembs.kinds import FrameType, choices
 from pymorembs.linalg.mass_split import mass_split
-from pymorembs.prepare.buckens_frame import buckens_frame, centre_of_gravity
-from pymorembs.prepare.consistency import check_consistency, mechanism_or_map
-from pymorembs.prepare.elimination import Elimination, eliminate
-from pymorembs.prepare.inertia_loads import (
+from pymorembs.preparation.buckens_frame import buckens_frame, centre_of_gravity
+from pymorembs.preparation.consistency import check_consistency, mechanism_or_map
+from pymorembs.preparation.elimination import Elimination, eliminate
+from pymorembs.preparation.inertia_loads import (
     INERTIA_LOAD_CASES,
     InertiaLoads,
     elastic_loads,
     inertia_loads,
     static_solver,
 )
-from pymorembs.prepare.interface import InterfaceSpec, add_interface_node, select_nodes
-from pymorembs.prepare.mechanism_removal import mechanism_ports, remove_massless_mechanisms
-from pymorembs.prepare.ports import Port, selection_matrix
-from pymorembs.prepare.rigid_modes import free_rigid_body_modes
-from pymorembs.prepare.stiffening import (
+from pymorembs.preparation.interface import InterfaceSpec, add_interface_node, select_nodes
+from pymorembs.preparation.mechanism_removal import mechanism_ports, remove_massless_mechanisms
+from pymorembs.preparation.ports import Port, selection_matrix
+from pymorembs.preparation.rigid_modes import free_rigid_body_modes
+from pymorembs.preparation.stiffening import (
     Stiffening,
     stiffening_from_matrices,
     stiffening_from_mesh,
     with_stiffening,
 )
-from pymorembs.prepare.tangent_frame import tangent_frame
-from pymorembs.prepare.validation import ValidationReport, validate_body, validate_prepared
+from pymorembs.preparation.tangent_frame import tangent_frame
+from pymorembs.preparation.validation import ValidationReport, validate_body, validate_prepared
 from pymorembs.system import SecondOrderSystem
 
 __all__ = [
@@ -120,7 +121,7 @@ class PreparedModel:
         (:func:`with_inertia_loads`).
     stiffening : Stiffening or None
         Geometric stiffness of the unit loads of the frame motion
-        (:mod:`pymorembs.prepare.stiffening`), when the exported bodies carry it.
+        (:mod:`pymorembs.preparation.stiffening`), when the exported bodies carry it.
     frame : Frame or None
         The reference frame the body was prepared in.
     notes : tuple of str
@@ -313,7 +314,7 @@ def with_inertia_loads(
 ) -> PreparedModel:
     """The prepared model with the inertia loads of the frame motion as further inputs.
 
-    See :mod:`pymorembs.prepare.inertia_loads` (load cases, scaling). Costs one factorization of
+    See :mod:`pymorembs.preparation.inertia_loads` (load cases, scaling). Costs one factorization of
     the stiffness (the compliances that scale the loads). Load cases without elastic effect are
     dropped and named in the warnings.
     """

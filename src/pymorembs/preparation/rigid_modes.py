@@ -15,7 +15,7 @@ import numpy as np
 
 from pymorembs.body import ElasticBody
 from pymorembs.linalg.rounding import relative_rounding
-from pymorembs.prepare.elimination import Elimination
+from pymorembs.preparation.elimination import Elimination
 from pymorembs.system import SecondOrderSystem
 
 NAMES = (

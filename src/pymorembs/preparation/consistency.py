@@ -1,7 +1,7 @@
 """Do the mass matrix, the dof map and the coordinates belong to the stiffness matrix?
 
 Cheap checks of a body as read (a few sparse products with up to nine vectors, no
-factorization), run by :func:`~pymorembs.prepare.validation.validate_body` for ``pymorembs
+factorization), run by :func:`~pymorembs.preparation.validation.validate_body` for ``pymorembs
 info`` and before every job. They catch what the checks of single matrices cannot: a mass
 matrix in another dof order, a dof table shifted by a node, coordinates in mm with matrices in
 SI units. A wrong map or a unit mix is a :class:`~pymorembs.errors.UserError` (exit 2) with one
@@ -63,6 +63,12 @@ said so (``map not proved``).
      rows, or held by springs to ground of a tenth of its elements' stiffness at most of its
      nodes, cannot be told from a wrong map and is refused too (neither is a body for a
      multibody simulation).
+
+   A reader of an FE program's element assembly (CalculiX, the Ansys ``.full`` with its
+   archive) hands over what only it knows, the nodes next to the supports by their elements
+   (:attr:`~pymorembs.body.ElasticBody.nodes_near_supports`): then exactly their rows are
+   excused, and a row elsewhere that only the rotations fail refutes the map (exit 2), for
+   such a stiffness holds no prestress and no spring that resists rigid rotation.
 
    Without coordinates, rotational fields or :data:`MIN_PROOF_ROWS` fitting rows the map is
    not proved. A real mechanism leaves all six fields in the null space (the map is proved); a
@@ -504,11 +510,16 @@ def check_map(body: ElasticBody, rounding: Rounding) -> MapProof:
     # a row next to a support carries its reaction; away from the supports, a row that a
     # translation leaves a force in is held by a spring to ground (or a support the files do
     # not show), one that only the rotations fail is unexplained
-    away = failing & ~_near_supports(body, failing)
+    if body.nodes_near_supports is None:
+        away = failing & ~_near_supports(body, failing)
+    else:  # the reader's elements name the rows next to a support
+        away = failing & ~np.isin(body.dofs.nodes, body.nodes_near_supports)
     unexplained = away & ~fit.reactions
     n_unexplained = int(unexplained.sum())
     if n_unexplained and products.has_rotations:
         _check_coordinate_scale(body, products, n_unexplained, n_judged)
+    if n_unexplained and body.nodes_near_supports is not None:
+        _refuse_assembly_map(body, unexplained, relative, n_judged)
     large = away & (relative >= WRONG_RESIDUAL)
     displaced = _displaced_nodes(body, unexplained & large)
     if int(large.sum()) > WRONG_FRACTION * n_judged or displaced.size >= MIN_DISPLACED_NODES:
@@ -540,6 +551,22 @@ def check_map(body: ElasticBody, rounding: Rounding) -> MapProof:
         f"(largest relative residual {residual:.1e}){reactions}"
     )
     return MapProof(True, residual, n_judged, excused, 0, reason)
+
+
+def _refuse_assembly_map(
+    body: ElasticBody, unexplained: np.ndarray, relative: np.ndarray, judged: int
+) -> None:
+    """The :class:`UserError` of a map that a reader's element assembly (no prestress, its
+    supports named: ``ElasticBody.nodes_near_supports``) does not fit: rows away from the
+    supports that only the rotations fail."""
+    worst = int(np.argmax(np.where(unexplained, relative, -1.0)))
+    raise UserError(
+        f"[model]: this map does not fit K: in {int(unexplained.sum())} of {judged} rows away "
+        f"from the supports the rigid rotations of the nodes leave a force (largest at "
+        f"{_label(body, worst)}, relative residual {relative[worst]:.1e}), which an element "
+        "assembly without prestress never does: the dof table or the node coordinates do not "
+        "belong to the matrices (files of different runs?)"
+    )
 
 
 def _displaced_nodes(body: ElasticBody, rows: np.ndarray) -> np.ndarray:

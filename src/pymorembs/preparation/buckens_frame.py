@@ -33,7 +33,7 @@ def buckens_frame(body: ElasticBody) -> ElasticBody:
     """The body with coordinates measured from its centre of gravity (nothing fixed).
 
     The mass-orthogonality of the shape functions to the rigid-body modes is imposed when the
-    body is prepared (:func:`pymorembs.prepare.prepare`) and kept by every reduction.
+    body is prepared (:func:`pymorembs.preparation.prepare`) and kept by every reduction.
     """
     if body.fixed.size:
         raise UserError(

@@ -15,12 +15,12 @@ orders fit the model; ``pymorembs info`` runs :func:`validate_body`):
   translation that ``K`` lets move freely;
 * no dependent dof of a constraint equation is also fixed;
 * the mass matrix, the dof map and the coordinates fit the stiffness matrix
-  (:mod:`~pymorembs.prepare.consistency`: rigid-body mass, M's pattern within K's, the map
+  (:mod:`~pymorembs.preparation.consistency`: rigid-body mass, M's pattern within K's, the map
   proved by the rigid-body fields, the coordinates' length unit, the material of a solid mesh,
   the centre of gravity and inertia within the node cloud); ``facts["consistency"]``.
 
 :func:`validate_prepared` -- on the system of the independent dofs (after frame and
-elimination, whose structural rigid-body check runs in :func:`~pymorembs.prepare.prepare`):
+elimination, whose structural rigid-body check runs in :func:`~pymorembs.preparation.prepare`):
 
 * no independent dof without mass and stiffness (dangling) or without stiffness (free);
 * with ``deep=True`` (the default of a job run):
@@ -55,10 +55,10 @@ import scipy.sparse as sp
 from pymorembs.body import DIRECTIONS, ElasticBody
 from pymorembs.errors import NumericalError, UserError
 from pymorembs.linalg.rounding import COMPUTATION_EPS, relative_rounding
-from pymorembs.prepare.consistency import check_consistency
+from pymorembs.preparation.consistency import check_consistency
 
 if TYPE_CHECKING:  # pragma: no cover
-    from pymorembs.prepare import PreparedModel
+    from pymorembs.preparation import PreparedModel
 
 #: Largest accepted ``|a_ij - a_ji|`` relative to the largest ``|a_ij|`` of the matrix.
 SYMMETRY_TOL = 1e-8
@@ -293,7 +293,7 @@ def validate_body(body: ElasticBody) -> ValidationReport:
 
 
 def _check_consistency(body: ElasticBody, report: ValidationReport) -> None:
-    """:func:`~pymorembs.prepare.consistency.check_consistency` into the report: its facts as
+    """:func:`~pymorembs.preparation.consistency.check_consistency` into the report: its facts as
     ``facts["consistency"]``, its warnings with the report's."""
     consistency = check_consistency(body)
     report.facts["consistency"] = consistency

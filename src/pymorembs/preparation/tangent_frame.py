@@ -21,7 +21,7 @@ import scipy.sparse as sp
 
 from pymorembs.body import ConstraintEquations, ElasticBody
 from pymorembs.errors import UserError
-from pymorembs.prepare.elimination import eliminate
+from pymorembs.preparation.elimination import eliminate
 
 
 def tangent_frame(body: ElasticBody, node: int) -> ElasticBody:
