@@ -169,7 +169,7 @@ def test_every_public_module_says_what_it_offers():
 #: matrices and meshes through them. The method registry (``methods``: the options and their one
 #: check) stands low, so that the algorithms of ``reduction`` take its checked options.
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("errors", "arrays", "display", "progress", "sparse_rows", "arguments", "frequencies"),
+    ("errors", "arrays", "display", "progress", "sparse_rows", "arguments", "frequencies", "kinds"),
     ("methods",),
     ("linalg", "elements", "parallel"),
     ("surface", "system"),
@@ -435,3 +435,42 @@ def test_the_design_page_lists_the_layers_of_the_tree():
     """docs/design.md draws the layers that LAYERS holds, in its order."""
     text = (ROOT / "docs" / "design.md").read_text(encoding="utf-8")
     assert design_layers(text) == [tuple(names) for names in LAYERS]
+
+
+def named_kinds(text: str, kinds: set[str]) -> set[str]:
+    """The ``kinds`` that a static file (HTML, JavaScript, CSS) names as a value of its own: a
+    quoted string (``"rigid"``), the text of an element (``<option>rigid</option>``) or an
+    object key (``rigid: [...]``)."""
+    return {
+        kind
+        for kind in kinds
+        if re.search(rf"""(["'`]){kind}\1|>\s*{kind}\s*<|(?<![\w.-]){kind}\s*:(?!:)""", text)
+    }
+
+
+def test_no_list_of_job_kinds_in_the_static_files():
+    """Issue #28 item 1: the frame types, damping, interface and reference kinds (with their
+    parameters) are written once, in ``pymorembs/kinds.py``; the page builds its lists and
+    forms from the schema the server serves (``GET /api/schema``), no static file lists them."""
+    from pymorembs.kinds import DampingKind, FrameType, InterfaceKind, ReferenceKind
+
+    found = []
+    for path in sorted((SOURCE / "job" / "app" / "static").iterdir()):
+        text = path.read_text(encoding="utf-8")
+        for family in (FrameType, DampingKind, InterfaceKind, ReferenceKind):
+            named = named_kinds(text, set(family.names()))
+            if len(named) >= 2:
+                found.append(f"{path.relative_to(SOURCE)} lists {family.__name__} {sorted(named)}")
+    assert found == []
+
+
+def test_the_check_of_job_kinds_finds_what_it_is_for():
+    kinds = {"rigid", "beams", "springs"}
+    assert named_kinds("<select><option>rigid</option><option>beams</option></select>", kinds) == {
+        "rigid",
+        "beams",
+    }
+    assert named_kinds('const P = { beams: ["a"], springs: [] }; x === "rigid"', kinds) == kinds
+    assert (
+        named_kinds("light stiff beams and rigid links; a.beams: 1; display: none", kinds) == set()
+    )

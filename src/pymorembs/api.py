@@ -55,6 +55,7 @@ from pymorembs.export.source import ExportSource, body_invariants, check_before_
 from pymorembs.frequencies import frequency_grid
 from pymorembs.io.formats import read_body
 from pymorembs.io.reduced_file import SavedBody, read_reduced_body, write_reduced_body
+from pymorembs.kinds import FrameType, choices
 from pymorembs.methods import ReductionOptions, method_options
 from pymorembs.preparation import Frame, Port, PreparedModel, check_consistency, with_inertia_loads
 from pymorembs.preparation import prepare as prepare_body
@@ -215,8 +216,9 @@ def prepare(
     if isinstance(frame, str):
         frame = Frame(frame, node)
     elif not isinstance(frame, Frame):
-        raise OptionError("frame", f"must be a Frame or 'tangent', 'buckens' or 'none', got "
-                                   f"{described(frame)}")  # fmt: skip
+        raise OptionError(
+            "frame", f"must be a Frame or {choices(FrameType)}, got {described(frame)}"
+        )
     elif node is not None:
         raise UserError("prepare: give node only with a frame given by name")
     if isinstance(interfaces, InterfaceSpec) or not all(

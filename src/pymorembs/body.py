@@ -32,6 +32,7 @@ from pymorembs.arrays import first_duplicate, missing_from, sorted_unique
 from pymorembs.display import html_table, one_line, port_labels
 from pymorembs.elements.beam import BeamSection
 from pymorembs.errors import UserError
+from pymorembs.kinds import DampingKind, choices
 from pymorembs.sparse_rows import abs_row_sums
 from pymorembs.surface import Surface
 
@@ -254,11 +255,8 @@ class ConstraintEquations:
 
 
 #: The values each damping kind takes (the keys of a job's ``[damping]`` table besides ``kind``).
-DAMPING_KEYS: dict[str, tuple[str, ...]] = {
-    "none": (),
-    "rayleigh": ("alpha", "beta"),
-    "modal": ("ratio",),
-}
+#: Written once, in :class:`~pymorembs.kinds.DampingKind`.
+DAMPING_KEYS: dict[str, tuple[str, ...]] = {kind.value: kind.keys for kind in DampingKind}
 
 
 @dataclass(frozen=True)
@@ -285,7 +283,7 @@ class Damping:
         object.__setattr__(self, "kind", plain(self.kind))
         if not isinstance(self.kind, str) or self.kind not in DAMPING_KEYS:
             raise UserError(
-                f"damping kind {described(self.kind)} is unknown; use 'none', 'rayleigh' or 'modal'"
+                f"damping kind {described(self.kind)} is unknown; use {choices(DampingKind)}"
             )
         for name in ("alpha", "beta", "ratio"):
             value = plain(getattr(self, name))

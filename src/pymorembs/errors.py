@@ -40,13 +40,13 @@ class AccuracyNotMet(PymorembsError):
 
     Attributes
     ----------
-    summary : dict
-        The job's summary, as written to ``summary.json``.
+    summary : pymorembs.job.summary.JobSummary
+        The job's summary, written to ``summary.json`` (its ``to_json``).
     """
 
     exit_code = 4
 
-    def __init__(self, message: str, summary: dict[str, Any]) -> None:
+    def __init__(self, message: str, summary: Any) -> None:
         super().__init__(message)
         self.summary = summary
 

@@ -286,7 +286,7 @@ def test_a_tolerance_given_is_the_limit(gated):
     assert row.endswith("! above its limit 1e-12: body not written")
     table = np.loadtxt(out_dir / "soaga" / "error.csv", delimiter=",", skiprows=1)
     without = judge_accuracy(reduction_spec("soaga", "soaga", order=26), table[:, 1], table[:, 2])
-    assert without["met"] and without["exported"] and without["limit_from"] == "default"
+    assert without.met and without.exported and without.limit_from == "default"
 
 
 def test_export_inaccurate_writes_the_body_marked(beam, capsys):
@@ -363,9 +363,9 @@ def poor_run(lattice_folder):
 def test_run_job_raises_accuracy_not_met_after_writing(poor_run):
     error, out = poor_run
     assert isinstance(error, PymorembsError) and error.exit_code == 4
-    assert error.summary["accuracy"]["not_exported"] == ["modal-4"]
+    assert error.summary.accuracy["not_exported"] == ["modal-4"]
     written = json.loads((out / "summary.json").read_text())
-    assert written["reductions"][0]["accuracy"] == error.summary["reductions"][0]["accuracy"]
+    assert written["reductions"][0]["accuracy"] == error.summary.reductions[0].accuracy.to_json()
     assert files_in(out / "modal-4") == {"error.csv", "error.png"}
 
 

@@ -264,6 +264,27 @@ def test_the_export_kinds_are_the_job_parsers(server):
     assert "vtu" in reply["kinds"]  # the page's own list had no vtu
 
 
+def test_the_schema_is_the_job_parsers(server):
+    """Issue #28: the page builds its forms and lists of kinds from the served schema; its
+    kinds are the job parser's, each with the parameters the parser takes."""
+    from pymorembs.kinds import DampingKind, FrameType, InterfaceKind, ReferenceKind
+
+    _, base = server
+    status, schema = call(base, "/api/schema")
+    assert status == 200
+    kinds = schema["kinds"]
+    for name, kind in [("frame", FrameType), ("damping", DampingKind),
+                       ("interface", InterfaceKind), ("reference", ReferenceKind)]:  # fmt: skip
+        assert list(kinds[name]) == list(kind.names())
+    assert [p["name"] for p in kinds["interface"]["springs"]] == ["stiffness", "damping"]
+    assert [p["name"] for p in kinds["damping"]["rayleigh"]] == ["alpha", "beta"]
+    assert list(kinds["export"]) == list(EXPORT_KINDS)
+    assert schema["default_exports"] == list(DEFAULT_EXPORTS)
+    assert list(kinds["method"]) == list(call(base, "/api/methods")[1])
+    band = {key["name"]: key for key in schema["tables"]["band"]}
+    assert band["points"]["default"] == 400 and band["f_max_hz"]["required"]
+
+
 def test_api_refusals_are_one_line(server, tmp_path):
     _, base = server
     for path, body, message in [

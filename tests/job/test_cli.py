@@ -700,8 +700,8 @@ export_inaccurate = true  # max error 1.8: the test is about the job file's hash
 """
     job = parse_job(tomllib.loads(text), tmp_path / "never-written.toml")
     summary = run_job(job, tmp_path / "out")
-    assert summary["reductions"][0]["order"] == 6
-    assert str(tmp_path / "never-written.toml") not in summary["provenance"]["inputs"]
+    assert summary.reductions[0].order == 6
+    assert str(tmp_path / "never-written.toml") not in summary.provenance["inputs"]
 
 
 @pytest.mark.parametrize("below", ["", "out"])

@@ -157,7 +157,7 @@ def test_job_on_a_corpus_body_reports_the_true_error(case, tmp_path):
     job_file = _job(case, tmp_path)
     out = tmp_path / "out"
     summary = run_job(load_job(job_file), out, None, workers=1)
-    assert [r["name"] for r in summary["reductions"]] == ["modal", "krylov"]
+    assert [r.name for r in summary.reductions] == ["modal", "krylov"]
     _, prepared = prepare_job(load_job(job_file))
     for name in ("modal", "krylov"):
         curve = np.loadtxt(out / name / "error.csv", delimiter=",", skiprows=1)
@@ -177,10 +177,10 @@ def test_job_on_a_corpus_body_reports_the_true_error(case, tmp_path):
         # 2 %, and the precision of the dense reference itself: its solves with these
         # matrices (condition up to 1e10) are good to about 1e-8
         assert np.all(np.abs(error - reported) <= 0.02 * error + 3e-8), (name, error, reported)
-        entry = next(r for r in summary["reductions"] if r["name"] == name)
-        assert entry["max_rel_error"] == pytest.approx(curve[:, 1].max())
+        entry = next(r for r in summary.reductions if r.name == name)
+        assert entry.max_rel_error == pytest.approx(curve[:, 1].max())
         # issue #27: the accuracy gate judged by the independent error at the curve's maximum
-        assert entry["accuracy"]["met"] == (error.max() <= entry["accuracy"]["limit"])
-    errors = {r["name"]: r["max_rel_error"] for r in summary["reductions"]}
+        assert entry.accuracy.met == (error.max() <= entry.accuracy.limit)
+    errors = {r.name: r.max_rel_error for r in summary.reductions}
     assert errors["krylov"] < 1e-3, errors
     (tmp_path / "summary.txt").write_text(json.dumps(errors))

@@ -367,8 +367,8 @@ def test_every_method_reduces_a_model_with_massless_dofs(massless_rack, frame, e
     job_file.write_text(JOB.format(frame=frame, extra=extra))
     out = massless_rack / f"out_{job_file.stem}"
     summary = run_job(load_job(job_file), out, None, workers=1)
-    assert summary["model"]["n_massless"] > 1900
-    errors = {r["name"]: r["max_rel_error"] for r in summary["reductions"]}
+    assert summary.model["n_massless"] > 1900
+    errors = {r.name: r.max_rel_error for r in summary.reductions}
     assert errors["krylov"] < 1e-6 and errors["soaga"] < 1e-5 and errors["pod"] < 1e-6
     assert errors["gramian"] < 1e-5 and errors["modal"] < 1e-2
     # the full transfer function, independently: plain sparse LU of the prepared system

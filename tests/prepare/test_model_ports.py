@@ -84,8 +84,8 @@ def test_a_job_without_inputs_reduces_for_the_model_ports(tmp_path):
     write_body_h5(body, tmp_path / "model.h5")
     (tmp_path / "job.toml").write_text(JOB)
     summary = run_job(load_job(tmp_path / "job.toml"), tmp_path / "out", None, workers=1)
-    assert summary["model"]["inputs"] == ["f", "p"]
-    assert summary["model"]["outputs"] == ["a", "b", "c"]
+    assert summary.model["inputs"] == ["f", "p"]
+    assert summary.model["outputs"] == ["a", "b", "c"]
     data = np.load(tmp_path / "out" / "krylov" / "reduced.npz")
     k, m = body.stiffness.toarray(), body.mass.toarray()
     for f in (0.0, 200.0):  # the expansion points: the reduced model interpolates H there

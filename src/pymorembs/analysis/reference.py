@@ -45,10 +45,11 @@ import numpy as np
 from pymorembs.analysis.error import relative_error
 from pymorembs.analysis.transfer import transfer_function
 from pymorembs.errors import UserError
+from pymorembs.kinds import ReferenceKind
 from pymorembs.system import SecondOrderSystem
 
 #: What the error of eq. 27 is measured against (``[band] reference``).
-REFERENCE_KINDS = ("auto", "full", "surrogate")
+REFERENCE_KINDS = ReferenceKind.names()
 #: Frequencies where a surrogate reference is checked against the full model, besides 0 Hz and
 #: the maximum of every error curve (``[band] check_points``).
 DEFAULT_CHECKS = 4

@@ -45,6 +45,7 @@ from pymorembs.examples import EXAMPLES, RACK_SOLID_INTERFACES, build_example
 from pymorembs.io import read_body, write_body_h5, write_matrix_files
 from pymorembs.job.run import load_job_model, output_errors, run_job, validate_job_body
 from pymorembs.job.schema import MODEL_FORMATS, load_job
+from pymorembs.job.summary import Accuracy, JobSummary
 from pymorembs.parallel import dask_client, usable_cores
 from pymorembs.preparation import ValidationReport, mechanism_or_map, prepare, validate_body
 from pymorembs.units import detect_units, frequency_warnings
@@ -512,40 +513,40 @@ def _reduce_job(
 STDERR_LINES = ("warning: ", "note: ")
 
 
-def _print_summary(summary: dict[str, Any], out: Path) -> None:
-    inertia = summary["model"].get("inertia_loads") is not None
+def _print_summary(summary: JobSummary, out: Path) -> None:
+    inertia = summary.inertia_loads is not None
     print()
     print(
         f"{'reduction':<20} {'method':<14} {'order':>5} {'max rel. error':>15} "
         f"{'error at 0 Hz':>14}" + (f" {'inertia loads':>14}" if inertia else "") + " time [s]"
     )
-    for r in summary["reductions"]:
-        static = "-" if r["static_rel_error"] is None else f"{r['static_rel_error']:.2e}"
-        loads = f" {r['inertia_loads']['max_rel_error']:>14.3e}" if inertia else ""
+    for r in summary.reductions:
+        static = "-" if r.static_rel_error is None else f"{r.static_rel_error:.2e}"
+        loads = f" {r.inertia_loads.max_rel_error:>14.3e}" if inertia and r.inertia_loads else ""
         print(
-            f"{r['name']:<20} {r['method']:<14} {r['order']:>5} "
-            f"{r['max_rel_error']:>15.3e} {static:>14}{loads} {r['time_s']:>8.2f}"
-            + accuracy_mark(r["accuracy"])
+            f"{r.name:<20} {r.method:<14} {r.order:>5} "
+            f"{r.max_rel_error:>15.3e} {static:>14}{loads} {r.time_s:>8.2f}"
+            + accuracy_mark(r.accuracy)
         )
     covers = "errors over the ports"
     if inertia:
-        cases = " ".join(summary["model"]["inertia_loads"]["cases"])
+        cases = " ".join(summary.inertia_loads["cases"])
         covers += f"; 'inertia loads': over the inertia loads of the frame motion ({cases})"
     print(
-        f"\nband {summary['band_hz'][0]:g}-{summary['band_hz'][1]:g} Hz, "
-        f"{summary['n_frequencies']} frequencies, {covers}; results in {out}/summary.json"
+        f"\nband {summary.band_hz[0]:g}-{summary.band_hz[1]:g} Hz, "
+        f"{summary.n_frequencies} frequencies, {covers}; results in {out}/summary.json"
     )
 
 
-def accuracy_mark(accuracy: dict[str, Any]) -> str:
+def accuracy_mark(accuracy: Accuracy) -> str:
     """The mark of a table row whose reduction missed its accuracy limit ("" if it met it)."""
-    if accuracy["met"]:
+    if accuracy.met:
         return ""
-    written = "written (export_inaccurate)" if accuracy["exported"] else "body not written"
-    return f"  ! above its limit {accuracy['limit']:.0e}: {written}"
+    written = "written (export_inaccurate)" if accuracy.exported else "body not written"
+    return f"  ! above its limit {accuracy.limit:.0e}: {written}"
 
 
-def _job_task(path: str, out: str, threads: int) -> tuple[int, str, dict[str, Any] | None]:
+def _job_task(path: str, out: str, threads: int) -> tuple[int, str, JobSummary | None]:
     """A whole job on a Dask worker: ``(exit code, one-line message, summary)``; the summary
     is None where the job wrote none, the message empty for success."""
     try:

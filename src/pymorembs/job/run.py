@@ -56,6 +56,7 @@ from pymorembs.analysis import (
 from pymorembs.export import BODY_OUTPUTS, MATRIX_OUTPUTS, write_outputs
 from pymorembs.io import atomic_path, check_output_folder, model_files, read_body, write_text
 from pymorembs.job.schema import Job, ModelSpec, ReductionSpec
+from pymorembs.job.summary import Accuracy, InertiaErrors, JobSummary, ReductionSummary
 from pymorembs.job.time_domain_checks import time_domain_checks
 from pymorembs.linalg import default_backend, mass_split
 from pymorembs.preparation import (
@@ -491,8 +492,9 @@ def run_job(
     progress: Progress | None = None,
     workers: int | None = 1,
     scheduler: str | None = None,
-) -> dict[str, Any]:
-    """Run ``job`` and write its results into ``out_dir``; return the summary.
+) -> JobSummary:
+    """Run ``job`` and write its results into ``out_dir``; return the summary (written as
+    ``summary.json`` by its :meth:`~pymorembs.job.summary.JobSummary.to_json`).
 
     Written: ``summary.json``, ``error.png`` (all reductions), per reduction a folder with the
     files of ``[export] outputs``, ``error.csv`` and ``error.png``, and with ``[time_domain]``
@@ -526,9 +528,7 @@ def run_job(
         quota or read-only (the output folder is then left as it was).
     """
     say = progress or (lambda _msg: None)
-    n_stages = (
-        2 + len(job.reductions) + (job.time_domain is not None) + (job.large_motion is not None)
-    )
+    n_stages = job.stage_count()
     started = [False]
     with ProgressBar(f"job {Path(job.path).stem}", total=n_stages, unit="stage", every=1) as bar:
 
@@ -551,28 +551,28 @@ def _run_job(
     stage: Callable[..., None],
     workers: int | None,
     scheduler: str | None,
-) -> dict[str, Any]:
+) -> JobSummary:
     """The steps of :func:`run_job`: prepare, reference, reductions, checks, summary."""
     check_output_folder(out_dir)  # a file in the way fails now, not after all the work
     with output_errors(out_dir), _staging(out_dir) as staging:  # an unwritable device: now
         summary = _run_in(job, staging, say, stage, workers, scheduler)
-    failed = [r for r in summary["reductions"] if not r["accuracy"]["exported"]]
+    failed = [r for r in summary.reductions if not r.accuracy.exported]
     if failed:
         raise AccuracyNotMet(_accuracy_message(job, failed), summary)
     return summary
 
 
-def _accuracy_message(job: Job, failed: list[dict[str, Any]]) -> str:
+def _accuracy_message(job: Job, failed: list[ReductionSummary]) -> str:
     """The one line of :class:`AccuracyNotMet`: the reductions, their errors and limits."""
     parts = []
     for entry in failed:
-        accuracy = entry["accuracy"]
-        where = f"ports {accuracy['ports']:.2g}"
-        if accuracy["inertia_loads"] is not None:
-            where += f", inertia loads {accuracy['inertia_loads']:.2g}"
+        accuracy = entry.accuracy
+        where = f"ports {accuracy.ports:.2g}"
+        if accuracy.inertia_loads is not None:
+            where += f", inertia loads {accuracy.inertia_loads:.2g}"
         parts.append(
-            f"reduction '{entry['name']}' max error {accuracy['max']:.2g} > "
-            f"{accuracy['limit']:.2g} ({where})"
+            f"reduction '{entry.name}' max error {accuracy.max:.2g} > "
+            f"{accuracy.limit:.2g} ({where})"
         )
     its = "its" if len(failed) == 1 else "their"
     return (
@@ -589,7 +589,7 @@ def _run_in(
     stage: Callable[..., None],
     workers: int | None,
     scheduler: str | None,
-) -> dict[str, Any]:
+) -> JobSummary:
     """Everything of :func:`_run_job` that writes into the ``staging`` folder."""
     timings: dict[str, float] = {}
     clock = time.perf_counter()
@@ -607,7 +607,7 @@ def _run_in(
     results = _judged(job, prepared, reference, reduced_runs, staging, nodes, warnings, say)
     entries, errors, estimates, decay, models = results
     timings["reference_s"] = reference.seconds
-    computed = [f for e in entries for f in e["eigenfrequencies_hz"]]
+    computed = [f for e in entries for f in e.eigenfrequencies_hz]
     for warning in frequency_warnings(units, job.band_hz, np.asarray(computed)):
         warnings.append(warning)
         say(f"warning: {warning}")
@@ -623,29 +623,28 @@ def _run_in(
         checks[key] = result
         overview.append(figure[0].name)
         figures.append(figure)
-        _attach_rows(entries, key, result)
+        entries = _attach_rows(entries, key, result)
     if "report" in job.export.outputs:
         overview.append("report.html")
     timings["total_s"] = time.perf_counter() - clock
-    summary = {
-        "pymorembs_version": __version__,
-        "job": str(job.path),
-        "model": _model_summary(job, body, prepared),
-        "units": units.as_dict(),
-        "validation": validation.as_dict(),
-        "band_hz": list(job.band_hz),
-        "n_frequencies": int(reference.frequencies_hz.size),
-        "reference": reference.as_dict(),
-        "reductions": entries,
-        "warnings": warnings,
-        "notes": list(prepared.notes),
-        "timings_s": timings,
-        "accuracy": _accuracy_summary(entries),
-        "files": overview,
-        "provenance": provenance(job, validation),
-        **checks,
-        **({"title": job.title} if job.title else {}),
-    }
+    summary = JobSummary(
+        pymorembs_version=__version__,
+        job=str(job.path),
+        model=_model_summary(job, body, prepared),
+        units=units.as_dict(),
+        validation=validation.as_dict(),
+        band_hz=job.band_hz,
+        n_frequencies=int(reference.frequencies_hz.size),
+        reference=reference.as_dict(),
+        reductions=tuple(entries),
+        warnings=warnings,
+        notes=list(prepared.notes),
+        timings_s=timings,
+        files=overview,
+        provenance=provenance(job, validation),
+        checks=checks,
+        title=job.title,
+    )
     scene = None
     if "report" in job.export.outputs:
         scene = reductions_scene(prepared, models, interfaces=job_interfaces(body, job))
@@ -876,16 +875,17 @@ def _checks_in_time(
 
 def _write_summary(
     job: Job,
-    summary: dict[str, Any],
+    summary: JobSummary,
     figures: list[tuple[Path, str]],
     scene: dict[str, Any] | None,
     staging: Path,
 ) -> None:
     """``report.html`` (if asked for, with the 3D ``scene``) and ``summary.json`` into
     ``staging``."""
+    data = summary.to_json()
     if "report" in job.export.outputs:
-        write_report(staging / "report.html", summary, figures, _job_text(job.path), scene=scene)
-    write_text(staging / "summary.json", json.dumps(summary, indent=2, allow_nan=False) + "\n")
+        write_report(staging / "report.html", data, figures, _job_text(job.path), scene=scene)
+    write_text(staging / "summary.json", json.dumps(data, indent=2, allow_nan=False) + "\n")
 
 
 def _judged(
@@ -897,7 +897,7 @@ def _judged(
     nodes: list[int],
     warnings: list[str],
     say: Progress,
-) -> tuple[list[dict[str, Any]], dict, dict, dict, dict[str, ReducedModel]]:
+) -> tuple[list[ReductionSummary], dict, dict, dict, dict[str, ReducedModel]]:
     """Every reduction's errors against the same reference (settled for all of them,
     :meth:`ReferenceResponse.settled_all`), its files written into ``staging`` and its summary
     entry; the warnings they call for are added.
@@ -919,11 +919,11 @@ def _judged(
             eps_inertia = relative_error(reference.response, response, inertia)
             eps = relative_error(reference.response, response, ports)
         accuracy = judge_accuracy(spec, eps, eps_inertia)
-        outputs = job.export.outputs if accuracy["exported"] else ()
+        outputs = job.export.outputs if accuracy.exported else ()
         entry = _write_one(
             prepared, spec, model, (eps, eps_inertia), elapsed, reference, staging, outputs, nodes,
+            accuracy,
         )  # fmt: skip
-        entry["accuracy"] = accuracy
         projection = model.projection
         models[spec.name] = model
         if projection.error_curve is not None:
@@ -932,9 +932,9 @@ def _judged(
             values = np.asarray(projection.parameters.get(key, []), dtype=float)
             if values.size and not any(np.array_equal(values, v) for v in decay.values()):
                 decay[f"{spec.name}: {label}"] = values
-        if spec.method == "krylov" and spec.order is not None and entry["order"] < spec.order:
+        if spec.method == "krylov" and spec.order is not None and entry.order < spec.order:
             warnings.append(
-                f"reduction '{spec.name}': order {entry['order']} instead of {spec.order}: "
+                f"reduction '{spec.name}': order {entry.order} instead of {spec.order}: "
                 "the Krylov space is exhausted (the reduced model is exact for these ports)"
             )
             say(f"warning: {warnings[-1]}")
@@ -951,7 +951,7 @@ def _judged(
 
 def judge_accuracy(
     spec: ReductionSpec, eps: np.ndarray, eps_inertia: np.ndarray | None
-) -> dict[str, Any]:
+) -> Accuracy:
     """Whether a reduction meets its accuracy limit, and whether its body files are written.
 
     Parameters
@@ -965,7 +965,7 @@ def judge_accuracy(
 
     Returns
     -------
-    dict
+    Accuracy
         The ``accuracy`` entry of the reduction in ``summary.json``: ``met`` (max error <=
         limit), ``limit``, ``limit_from`` (``"tolerance"`` or ``"default"``), ``max`` (over the
         ports and the inertia loads), ``ports``, ``inertia_loads`` (None without them),
@@ -977,38 +977,34 @@ def judge_accuracy(
     loads = None if eps_inertia is None else float(np.max(eps_inertia))
     largest = max(ports, loads or 0.0)
     met = largest <= limit
-    return {
-        "met": met,
-        "limit": limit,
-        "limit_from": source,
-        "max": largest,
-        "ports": ports,
-        "inertia_loads": loads,
-        "export_inaccurate": spec.export_inaccurate,
-        "exported": met or spec.export_inaccurate,
-    }
+    return Accuracy(
+        met=met,
+        limit=limit,
+        limit_from=source,
+        max=largest,
+        ports=ports,
+        inertia_loads=loads,
+        export_inaccurate=spec.export_inaccurate,
+        exported=met or spec.export_inaccurate,
+    )
 
 
-def _accuracy_summary(entries: list[dict[str, Any]]) -> dict[str, Any]:
-    """The job's ``accuracy`` entry: whether every reduction met its limit, and which did not
-    (written anyway, or not)."""
-    missed = [e for e in entries if not e["accuracy"]["met"]]
-    return {
-        "met": not missed,
-        "not_met": [e["name"] for e in missed],
-        "not_exported": [e["name"] for e in missed if not e["accuracy"]["exported"]],
-    }
-
-
-def _attach_rows(entries: list[dict[str, Any]], key: str, checks: dict[str, Any]) -> None:
-    """Give each reduction's summary entry its rows of a check (per case name)."""
-    for entry in entries:
-        entry[key] = {
-            case["name"]: row
-            for case in checks["cases"]
-            for row in case["reductions"]
-            if row["name"] == entry["name"]
-        }
+def _attach_rows(
+    entries: list[ReductionSummary], key: str, checks: dict[str, Any]
+) -> list[ReductionSummary]:
+    """Each reduction's summary entry with its rows of a check (per case name)."""
+    return [
+        entry.with_check(
+            key,
+            {
+                case["name"]: row
+                for case in checks["cases"]
+                for row in case["reductions"]
+                if row["name"] == entry.name
+            },
+        )
+        for entry in entries
+    ]
 
 
 def _error_figure(
@@ -1211,8 +1207,10 @@ def _write_one(
     staging: Path,
     outputs: tuple[str, ...],
     nodes: list[int],
-) -> dict[str, Any]:
-    """Write a reduction's files into ``staging/<name>``; its entry of the summary.
+    accuracy: Accuracy,
+) -> ReductionSummary:
+    """Write a reduction's files into ``staging/<name>``; its entry of the summary (with its
+    ``accuracy``, :func:`judge_accuracy`).
 
     ``errors``: ``eps(f)`` over the ports and over the inertia loads (None without them);
     ``outputs``: the body files to write (none for a body that missed its accuracy limit),
@@ -1258,31 +1256,30 @@ def _write_one(
                 comments="",
             )
         files.append("error_estimate.csv")
-    entry = {
-        "name": spec.name,
-        "method": spec.method,
-        "order": model.projection.order,
-        "max_rel_error": float(np.max(eps)),
-        "static_rel_error": static,
-        "error_estimate": projection.error_estimate,
-        "error_bound": projection.error_bound,
-        "reference_resolved": reference.resolved(eps),
-        "error_covers": "ports: the port outputs to the port inputs",
-        "time_s": elapsed,
-        "parameters": _jsonable(projection.parameters),
-        "eigenfrequencies_hz": model.eigenfrequencies_hz.tolist(),
-        "highest_frequency_hz": float(model.eigenfrequencies_hz.max(initial=0.0)),
-        "explicit_step_s": explicit_step_s(model.eigenfrequencies_hz),
-        "files": [f"{spec.name}/{name}" for name in files],
-    }
+    inertia = None
     if eps_inertia is not None:
-        entry["inertia_loads"] = {
-            "max_rel_error": float(np.max(eps_inertia)),
-            "static_rel_error": float(eps_inertia[0]) if frequencies[0] == 0.0 else None,
-            "covers": "the inertia loads of the frame motion to the port outputs and their "
-            "collocated outputs, and the port inputs to those",
-        }
-    return entry
+        inertia = InertiaErrors(
+            max_rel_error=float(np.max(eps_inertia)),
+            static_rel_error=float(eps_inertia[0]) if frequencies[0] == 0.0 else None,
+        )
+    return ReductionSummary(
+        name=spec.name,
+        method=spec.method,
+        order=model.projection.order,
+        max_rel_error=float(np.max(eps)),
+        static_rel_error=static,
+        error_estimate=projection.error_estimate,
+        error_bound=projection.error_bound,
+        reference_resolved=reference.resolved(eps),
+        time_s=elapsed,
+        parameters=_jsonable(projection.parameters),
+        eigenfrequencies_hz=model.eigenfrequencies_hz.tolist(),
+        highest_frequency_hz=float(model.eigenfrequencies_hz.max(initial=0.0)),
+        explicit_step_s=explicit_step_s(model.eigenfrequencies_hz),
+        files=[f"{spec.name}/{name}" for name in files],
+        accuracy=accuracy,
+        inertia_loads=inertia,
+    )
 
 
 def _reference_marks(reference: ReferenceResponse) -> dict[str, Any]:

@@ -26,6 +26,7 @@ from pymorembs.analysis import (
 )
 from pymorembs.export import BODY_OUTPUTS, DEFAULT_EXPORTS, EXPORT_KINDS
 from pymorembs.io import FORMATS
+from pymorembs.kinds import DampingKind, FrameType, InterfaceKind, ReferenceKind, choices
 from pymorembs.methods import (
     METHODS,
     RENAMED_OPTIONS,
@@ -41,7 +42,7 @@ MODEL_FILE_KEYS = (
     "inp",
 )  # fmt: skip
 MODEL_FORMATS = FORMATS
-INTERFACE_KINDS = ("rigid", "distributing", "beams", "springs")
+INTERFACE_KINDS = InterfaceKind.names()
 _NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$")
 #: Files of the job folder a reduction (a sub-folder of that name) must not shadow.
 RESERVED_NAMES = frozenset(("summary.json", "error.png", "decay.png", "time.png", "report.html"))
@@ -131,6 +132,22 @@ class ReductionSpec:
 
 
 @dataclass(frozen=True)
+class BandSpec:
+    """``[band]``: the frequency band of the error curves and what they are measured against.
+
+    ``points`` log-spaced frequencies from ``f_min_hz`` to ``f_max_hz`` (Hz, plus 0 Hz);
+    ``reference`` one of :class:`~pymorembs.kinds.ReferenceKind`; ``check_points``: the
+    frequencies where a surrogate reference is checked against the full model.
+    """
+
+    f_max_hz: float
+    f_min_hz: float = 0.0
+    points: int = 400
+    reference: str = ReferenceKind.AUTO.value
+    check_points: int = DEFAULT_CHECKS
+
+
+@dataclass(frozen=True)
 class ExportSpec:
     """``[export]``: which files to write and for which nodes (SID frame, Exudyn markers).
 
@@ -205,17 +222,41 @@ class Job:
     frame: Frame
     inputs: tuple[Port, ...]
     outputs: tuple[Port, ...]
-    band_hz: tuple[float, float]
-    points: int
+    band: BandSpec
     reductions: tuple[ReductionSpec, ...]
     title: str = ""
     export: ExportSpec = ExportSpec()
     time_domain: TimeDomainSpec | None = None
-    reference: str = "auto"
-    check_points: int = DEFAULT_CHECKS
     inertia_loads: InertiaLoadSpec = InertiaLoadSpec()
     large_motion: LargeMotionSettings | None = None
     stiffening: StiffeningSpec = StiffeningSpec()
+
+    @property
+    def band_hz(self) -> tuple[float, float]:
+        """``(f_min_hz, f_max_hz)`` of ``[band]`` (Hz)."""
+        return (self.band.f_min_hz, self.band.f_max_hz)
+
+    @property
+    def points(self) -> int:
+        """``[band] points``."""
+        return self.band.points
+
+    @property
+    def reference(self) -> str:
+        """``[band] reference``."""
+        return self.band.reference
+
+    @property
+    def check_points(self) -> int:
+        """``[band] check_points``."""
+        return self.band.check_points
+
+    def stage_count(self) -> int:
+        """The progress stages of a run of the job (``pymorembs reduce`` and the app's run): the
+        model, the reference, one per reduction, the time domain and the large motion (each when
+        the job asks for it)."""
+        checks = (self.time_domain is not None) + (self.large_motion is not None)
+        return 2 + len(self.reductions) + checks
 
 
 class _Table:
@@ -339,7 +380,7 @@ def parse_job(data: dict[str, Any], path: Path) -> Job:
     f_min = band.number("f_min_hz", 0.0, minimum=0.0)
     f_max = band.number("f_max_hz", required=True)
     points = band.integer("points", 400, minimum=200)
-    reference = band.string("reference", "auto")
+    reference = band.string("reference", ReferenceKind.AUTO.value)
     if reference not in REFERENCE_KINDS:
         kinds = ", ".join(map(repr, REFERENCE_KINDS))
         raise band.error("reference", f"must be one of {kinds}, got {reference!r}")
@@ -364,14 +405,11 @@ def parse_job(data: dict[str, Any], path: Path) -> Job:
         frame,
         inputs,
         outputs,
-        (f_min, f_max),
-        points,
+        BandSpec(f_max, f_min, points, reference, check_points),
         reductions,
         title,
         export,
         time_domain,
-        reference,
-        check_points,
         inertia,
         large_motion,
         stiffening,
@@ -473,12 +511,8 @@ def _interfaces(data: Any, path: Path) -> tuple[InterfaceNodeSpec, ...]:
             sub = _Table(table.get("box"), f"[[interface]] #{k}.box", path)
             box = (_vector(sub, "min", required=True), _vector(sub, "max", required=True))
             sub.done()
-        allowed = {
-            "beams": ("youngs_modulus", "density", "diameter", "poisson"),
-            "springs": ("stiffness", "damping"),
-        }.get(kind, ())
         parameters = {}
-        for key in allowed:
+        for key in InterfaceKind(kind).keys:
             value = table.number(key, minimum=0.0)
             if value is not None:
                 parameters[key] = value
@@ -519,8 +553,8 @@ def _damping(data: Any, path: Path) -> Damping | None:
         return None
     table = _Table(data, "[damping]", path)
     kind = table.string("kind", required=True)
-    if kind not in ("none", "rayleigh", "modal"):
-        raise table.error("kind", f"must be 'none', 'rayleigh' or 'modal', got {kind!r}")
+    if kind not in DampingKind.names():
+        raise table.error("kind", f"must be {choices(DampingKind)}, got {kind!r}")
     alpha = beta = ratio = 0.0
     if kind == "rayleigh":
         alpha = table.number("alpha", 0.0, minimum=0.0)
@@ -683,15 +717,15 @@ def _large_motion(data: Any, path: Path) -> LargeMotionSettings | None:
 
 
 def _frame(table: _Table) -> Frame:
-    kind = table.string("type", "tangent")
-    if kind == "tangent":
+    kind = table.string("type", FrameType.TANGENT.value)
+    if kind == FrameType.TANGENT:
         node = table.integer("node", required=True, minimum=-(2**62))
         table.done()
         return Frame("tangent", node)
-    if kind in ("buckens", "none"):
+    if kind in FrameType.names():
         table.done()
         return Frame(kind)
-    raise table.error("type", f"must be 'tangent', 'buckens' or 'none', got {kind!r}")
+    raise table.error("type", f"must be {choices(FrameType)}, got {kind!r}")
 
 
 def _ports(data: Any, key: str, path: Path) -> tuple[Port, ...]:

@@ -18,6 +18,7 @@ import numpy as np
 from pymorembs.body import ElasticBody
 from pymorembs.display import html_table, one_line, port_rows
 from pymorembs.errors import NumericalError, UserError
+from pymorembs.kinds import FrameType, choices
 from pymorembs.linalg.mass_split import mass_split
 from pymorembs.preparation.buckens_frame import buckens_frame, centre_of_gravity
 from pymorembs.preparation.consistency import check_consistency, mechanism_or_map
@@ -98,7 +99,7 @@ class Frame:
             return buckens_frame(body)
         if self.kind == "none":
             return body
-        raise UserError(f"frame type {self.kind!r} is unknown; use 'tangent', 'buckens' or 'none'")
+        raise UserError(f"frame type {self.kind!r} is unknown; use {choices(FrameType)}")
 
 
 @dataclass(frozen=True, eq=False)

@@ -32,8 +32,9 @@ from pymorembs.body import ConstraintEquations, DofTable, ElasticBody
 from pymorembs.elements.beam import BeamSection, assemble_beams
 from pymorembs.elements.rigid import skew
 from pymorembs.errors import UserError
+from pymorembs.kinds import InterfaceKind
 
-KINDS = ("rigid", "distributing", "beams", "springs")
+KINDS = InterfaceKind.names()
 
 #: The paper's light stiff beams: Young's modulus (N/m^2) and density (kg/m^3).
 LIGHT_STIFF_BEAM = {"youngs_modulus": 1e18, "density": 100.0}

@@ -40,7 +40,7 @@ class Run:
     out : Path
         The output folder (``summary.json`` there once it succeeded).
     stages : int
-        The stages the job has (model, reference, one per reduction, time domain, large motion).
+        The stages the job has (:meth:`~pymorembs.job.schema.Job.stage_count`).
     state : str
         ``"running"``, ``"done"``, ``"failed"`` or ``"cancelled"``. A run that ended with
         exit code 4 (accuracy not met) is ``"done"``: its results are written, the bodies

@@ -10,6 +10,8 @@ the server). Only requests addressed to 127.0.0.1 or localhost are answered, and
 must be JSON objects: another web site open in the same browser cannot drive the app.
 
 =======================  ==================================================================
+``GET  /api/schema``      every table of a job, its keys and every list of kinds
+                          (:func:`~pymorembs.job.shape.job_schema`): the page's forms
 ``GET  /api/methods``     every method's options, from the method registry (the form)
 ``GET  /api/examples``    the built-in models and their options
 ``GET  /api/exports``     the files a job can write, and the default ones (``[export]``)
@@ -61,6 +63,8 @@ from pymorembs.job.app.editor import check_job_text, free_node_id, hole_selectio
 from pymorembs.job.app.runner import Run, start_run
 from pymorembs.job.run import add_interfaces, load_job_model, load_model
 from pymorembs.job.schema import MODEL_FILE_KEYS, ModelSpec, load_job
+from pymorembs.job.shape import job_schema
+from pymorembs.job.summary import JobSummary
 from pymorembs.methods import METHODS, option_fields
 from pymorembs.preparation import centre_of_gravity
 from pymorembs.report import body_scene, viewer_script
@@ -392,9 +396,7 @@ class App:
             self.runs += 1
             job = self.workdir / f"job-{self.runs}.toml"
             write_text(job, text)
-            parsed = check_job_text(text, job)
-            stages = 2 + len(parsed.reductions)
-            stages += (parsed.time_domain is not None) + (parsed.large_motion is not None)
+            stages = check_job_text(text, job).stage_count()
             self._bases.clear()
             self.run = start_run(job, self.workdir / f"run-{self.runs}", stages)
             return self.run.as_dict()
@@ -409,23 +411,25 @@ class App:
             self.run.cancel()
         return self.status()
 
-    def _summary(self) -> tuple[Run, dict[str, Any]]:
+    def _summary(self) -> tuple[Run, JobSummary]:
         run = self.run
         if run is None or run.state != "done":
             raise UserError("no finished run yet")
-        return run, json.loads((run.out / "summary.json").read_text(encoding="utf-8"))
+        data = json.loads((run.out / "summary.json").read_text(encoding="utf-8"))
+        return run, JobSummary.from_json(data)
 
     def results(self) -> dict[str, Any]:
         """Per reduction: order, errors, estimate and bound, eigenfrequencies, the eps curve
         (and the estimator's), read from the run's ``summary.json`` and ``error*.csv``."""
         run, summary = self._summary()
         rows = []
-        for entry in summary["reductions"]:
-            folder = run.out / entry["name"]
+        for reduction in summary.reductions:
+            entry = reduction.to_json()
+            folder = run.out / reduction.name
             table = np.loadtxt(folder / "error.csv", delimiter=",", skiprows=1, ndmin=2)
             curve: dict[str, Any] = {"frequency_hz": table[:, 0].tolist(),
                                      "relative": table[:, 1].tolist()}  # fmt: skip
-            if entry.get("inertia_loads"):
+            if reduction.inertia_loads:
                 curve["inertia"] = table[:, 2].tolist()
             estimate = folder / "error_estimate.csv"
             if estimate.exists():
@@ -434,21 +438,22 @@ class App:
                                      "relative": est[:, 1].tolist()}  # fmt: skip
             row = {key: entry.get(key) for key in RESULT_KEYS}
             row["curve"] = curve
-            row["max_rel_error_inertia"] = (entry.get("inertia_loads") or {}).get("max_rel_error")
+            inertia = reduction.inertia_loads
+            row["max_rel_error_inertia"] = None if inertia is None else inertia.max_rel_error
             rows.append(row)
         return {
             "reductions": rows,
-            "band_hz": summary["band_hz"],
-            "reference": summary["reference"].get("kind"),
-            "warnings": summary.get("warnings", []),
-            "accuracy": summary.get("accuracy"),
+            "band_hz": list(summary.band_hz),
+            "reference": summary.reference.get("kind"),
+            "warnings": summary.warnings,
+            "accuracy": summary.accuracy,
             "out": str(run.out),
             "job": str(run.job),
         }
 
     def _basis(self, name: str) -> dict[str, np.ndarray]:
         run, summary = self._summary()
-        if name not in [r["name"] for r in summary["reductions"]]:
+        if name not in [r.name for r in summary.reductions]:
             raise UserError(f"no reduction named {name!r} in the last run")
         key = (str(run.out), name)
         if key not in self._bases:
@@ -701,6 +706,7 @@ class Handler(BaseHTTPRequestHandler):
             return self._file(path, download=True)
         app = self.app
         actions = {
+            "/api/schema": job_schema,
             "/api/methods": methods,
             "/api/examples": examples,
             "/api/exports": exports,

@@ -1,9 +1,10 @@
 // The page of `pymorembs app`: a job editor. `job` is the job file as an object (the same
 // tables and keys as the TOML); every change is sent to the server, which writes the TOML and
-// checks it with the job parser of `pymorembs reduce`.
+// checks it with the job parser of `pymorembs reduce`. Every list of kinds and every form comes
+// from the job's schema the server serves (GET /api/schema): none is written here.
 "use strict";
 const $ = (id) => document.getElementById(id);
-const app = { job: null, methods: {}, exports: { kinds: [], default: [] }, scene: null,
+const app = { job: null, schema: null, methods: {}, exports: { kinds: [], default: [] }, scene: null,
   viewer: null, picking: false, selection: null, results: null, shapeCache: {} };
 window.app = app;
 
@@ -27,6 +28,19 @@ function el(tag, attrs, ...children) {
 }
 const numbers = (text) => String(text).split(/[\s,;]+/).filter((s) => s !== "").map(Number);
 const fmt = (x) => (x === null || x === undefined) ? "–" : Number(x).toPrecision(4);
+// the schema's parameters of a kind (interface, damping, frame ...), and a table key's default
+const kindParameters = (list, kind) => (app.schema.kinds[list][kind] || []);
+const tableDefault = (table, key) => app.schema.tables[table].find((k) => k.name === key).default;
+function kindOptions(id, list) {
+  const kinds = Object.keys(app.schema.kinds[list]).map((k) => el("option", { value: k, text: k }));
+  $(id).append(...kinds);
+}
+function parameterInputs(box, list, kind, attrs) {
+  for (const p of kindParameters(list, kind)) {
+    const title = `${p.meaning}${p.unit ? ` [${p.unit}]` : ""}${p.required ? ", required" : ""}`;
+    box.append(el("label", { title }, ` ${p.name} `, el("input", { "data-key": p.name, ...attrs })), " ");
+  }
+}
 function busy(text) { $("busy").textContent = text || ""; }
 function fail(error) { $("job-error").textContent = String(error.message || error); busy(""); }
 
@@ -62,11 +76,12 @@ function renderLists() {
       el("button", { text: "remove", onclick: () => { job[key].splice(k, 1); changed(); } }))));
   }
   const frame = job.frame || {};
-  $("frame-type").value = frame.type || "tangent";
+  $("frame-type").value = frame.type || tableDefault("frame", "type");
   $("frame-node").value = frame.node ?? "";
   const band = job.band || {};
   $("band-fmin").value = band.f_min_hz ?? 0; $("band-fmax").value = band.f_max_hz ?? "";
-  $("band-points").value = band.points ?? 400; $("band-reference").value = band.reference || "auto";
+  $("band-points").value = band.points ?? tableDefault("band", "points");
+  $("band-reference").value = band.reference || tableDefault("band", "reference");
   renderReductions();
   renderExports();
 }
@@ -176,10 +191,9 @@ $("select-numbers").onclick = async () => {
     selected({ ...sel, selection, position: request.cylinder ? request.cylinder.point : c, radius: null }, "selected");
   } catch (e) { $("selection").textContent = e.message; }
 };
-const IFACE_PARAMS = { beams: ["youngs_modulus", "density", "diameter", "poisson"], springs: ["stiffness", "damping"] };
 $("iface-kind").onchange = () => {
   const box = $("iface-params"); box.replaceChildren();
-  for (const key of IFACE_PARAMS[$("iface-kind").value] || []) box.append(el("label", {}, `${key} `, el("input", { "data-key": key, size: 7 })), " ");
+  parameterInputs(box, "interface", $("iface-kind").value, { size: 7 });
 };
 $("add-interface").onclick = () => {
   const sel = app.selection; if (!sel) return;
@@ -198,7 +212,8 @@ $("add-interface").onclick = () => {
 // ---- frame, ports, band, damping --------------------------------------------------------------
 function frameChanged() {
   const type = $("frame-type").value;
-  app.job.frame = type === "tangent" ? { type, node: Number($("frame-node").value) } : { type };
+  const takesNode = kindParameters("frame", type).some((p) => p.name === "node");
+  app.job.frame = takesNode ? { type, node: Number($("frame-node").value) } : { type };
   changed();
 }
 $("frame-type").onchange = frameChanged; $("frame-node").onchange = frameChanged;
@@ -210,14 +225,13 @@ $("add-input").onclick = () => addPort("inputs"); $("add-output").onclick = () =
 for (const id of ["band-fmin", "band-fmax", "band-points", "band-reference"]) {
   $(id).onchange = () => {
     const band = { f_min_hz: Number($("band-fmin").value), f_max_hz: Number($("band-fmax").value), points: Number($("band-points").value) };
-    if ($("band-reference").value !== "auto") band.reference = $("band-reference").value;
+    if ($("band-reference").value !== tableDefault("band", "reference")) band.reference = $("band-reference").value;
     app.job.band = band; changed();
   };
 }
-const DAMPING = { modal: ["ratio"], rayleigh: ["alpha", "beta"], none: [], "": [] };
 $("damping-kind").onchange = () => {
   const kind = $("damping-kind").value, box = $("damping-values"); box.replaceChildren();
-  for (const key of DAMPING[kind]) box.append(el("label", {}, ` ${key} `, el("input", { "data-key": key, size: 6, onchange: dampingChanged })));
+  parameterInputs(box, "damping", kind, { size: 6, onchange: dampingChanged });
   dampingChanged();
 };
 function dampingChanged() {
@@ -440,9 +454,12 @@ $("open-example").onclick = () => {
 };
 $("open-path").onclick = () => openModel({ path: $("model-path").value });
 (async function start() {
-  app.methods = await api("/api/methods");
+  app.schema = await api("/api/schema");
+  app.methods = app.schema.kinds.method;
   $("method").replaceChildren(...Object.keys(app.methods).map((m) => el("option", { value: m, text: m })));
-  app.exports = await api("/api/exports");
+  app.exports = { kinds: Object.keys(app.schema.kinds.export), default: app.schema.default_exports };
+  kindOptions("iface-kind", "interface"); kindOptions("frame-type", "frame");
+  kindOptions("band-reference", "reference"); kindOptions("damping-kind", "damping");
   const examples = await api("/api/examples");
   $("example-name").replaceChildren(...Object.keys(examples).map((m) => el("option", { value: m, text: m })));
   $("example-name").value = "rack-solid";
