@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 from abaqus_models import genuine
+from info_runs import refused
 from pymorembs.body import ElasticBody
 from pymorembs.io import detect_format, read_body, write_body_h5, write_matrix_files
 from pymorembs.job.cli import main
@@ -59,15 +60,6 @@ def temporary(tmp_path, monkeypatch) -> Path:
     folder.mkdir()
     monkeypatch.setattr(tempfile, "tempdir", str(folder))
     return folder
-
-
-def refused(capsys, *args: str | Path) -> str:
-    code = main(["info", *map(str, args)])
-    captured = capsys.readouterr()
-    assert code == 2, captured.out
-    lines = captured.err.strip().splitlines()
-    assert len(lines) == 1 and "Traceback" not in captured.err, captured.err
-    return lines[0].removeprefix("pymorembs: error: ")
 
 
 def test_a_compressed_matrix_market_file_reads_like_the_plain_one(tmp_path, temporary, capsys):

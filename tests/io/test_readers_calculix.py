@@ -19,6 +19,7 @@ import pytest
 import scipy.linalg
 
 import pymorembs as pm
+from info_runs import info_facts, refused
 from pymorembs.errors import UserError
 from pymorembs.io import calculix, detect_format, read_body
 from pymorembs.job.cli import main
@@ -38,23 +39,6 @@ def ccx_frequencies(name: str) -> tuple[np.ndarray, np.ndarray]:
 def printed_tolerance(values: np.ndarray) -> np.ndarray:
     """Half a unit of the 7th significant digit CalculiX prints (``0.5148680E+04``)."""
     return 0.5 * 10.0 ** (np.floor(np.log10(values)) - 6)
-
-
-def info(capsys, *args: str | Path, modes: int = 12) -> dict:
-    code = main(["info", *map(str, args), "--modes", str(modes), "--json"])
-    captured = capsys.readouterr()
-    assert code == 0, captured.err
-    return json.loads(captured.out)
-
-
-def refused(capsys, *args: str | Path) -> str:
-    """The one line of an exit-2 ``info``."""
-    code = main(["info", *map(str, args)])
-    captured = capsys.readouterr()
-    assert code == 2, captured.out
-    lines = captured.err.strip().splitlines()
-    assert len(lines) == 1 and "Traceback" not in captured.err, captured.err
-    return lines[0].removeprefix("pymorembs: error: ")
 
 
 def dense_file(path: Path, n: int) -> np.ndarray:
@@ -77,7 +61,7 @@ def export(tmp_path: Path) -> Path:
 
 # ============================================================================ genuine exports
 def test_free_export_gives_calculix_frequencies_and_six_rigid_body_modes(capsys):
-    facts = info(capsys, DATA / "free.sti")
+    facts = info_facts(capsys, DATA / "free.sti")
     assert facts["n_dof"] == 96 and facts["n_fixed"] == 0 and facts["has_coordinates"]
     assert facts["rigid_body_modes"] == 6 and facts["mechanisms"] == 0
     modes, expected = ccx_frequencies("free")
@@ -90,7 +74,7 @@ def test_free_export_gives_calculix_frequencies_and_six_rigid_body_modes(capsys)
 
 
 def test_constrained_export_gives_calculix_frequencies(capsys):
-    facts = info(capsys, DATA / "fixed.sti")
+    facts = info_facts(capsys, DATA / "fixed.sti")
     assert facts["n_dof"] == 96 and facts["n_fixed"] == 11  # 85 equations + 11 fixed dofs
     assert facts["rigid_body_modes"] == 0 and facts["mechanisms"] == 0
     modes, expected = ccx_frequencies("fixed")
@@ -182,7 +166,7 @@ def test_a_job_names_the_export_by_its_sti_file(tmp_path, capsys):
         '[[reduction]]\nname = "krylov"\nmethod = "krylov"\nexpansion_points_hz = [0, 1000]\n'
         'order = 24\n\n[export]\noutputs = ["npz"]\n'
     )
-    facts = info(capsys, job, modes=3)
+    facts = info_facts(capsys, job, modes=3)
     _, expected = ccx_frequencies("fixed")
     found = np.array(facts["eigenfrequencies_hz"][:3])
     assert np.all(np.abs(found - expected[:3]) <= printed_tolerance(expected[:3]))

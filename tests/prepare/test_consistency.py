@@ -10,7 +10,6 @@ of ``tests/data/calculix_map_check`` and the built-in examples.
 from __future__ import annotations
 
 import hashlib
-import json
 import lzma
 from dataclasses import replace
 from pathlib import Path
@@ -22,6 +21,7 @@ import scipy.sparse as sp
 
 from abaqus_models import genuine
 from conftest import spring_lattice
+from info_runs import info_facts, refused
 from pymorembs.body import DofTable
 from pymorembs.errors import UserError
 from pymorembs.examples import build_example
@@ -42,22 +42,6 @@ CALCULIX_SHA256 = {
     "free.mas": "1a541c3394cd24f39d85408548f5221bbc8e2355fd64460de0c4192676a4080e",
 }
 DIRECTION = {"1": "ux", "2": "uy", "3": "uz"}
-
-
-def one_error(capsys, *args) -> str:
-    """Run ``pymorembs info``; it must exit 2 with one line on stderr, returned."""
-    code = main(["info", *map(str, args), "--modes", "2"])
-    err = capsys.readouterr().err
-    assert code == 2, err
-    assert err.count("\n") == 1 and "Traceback" not in err
-    return err
-
-
-def info_json(capsys, *args) -> dict:
-    code = main(["info", *map(str, args), "--modes", "2", "--json"])
-    captured = capsys.readouterr()
-    assert code == 0, captured.err
-    return json.loads(captured.out)
 
 
 # ------------------------------------------------------------------------------ CalculiX
@@ -99,7 +83,7 @@ def test_calculix_exports_prove_their_map(capsys, path, fitting, near):
     constrained ones (``*BOUNDARY`` removed the fixed dofs) in the rows of the nodes that share
     no element with a held node -- the count CalculiX's deck gives -- while the rows beside the
     supports carry their reactions."""
-    facts = info_json(capsys, DATA / path)
+    facts = info_facts(capsys, DATA / path)
     proof = facts["consistency"]["map"]
     assert proof["status"] == "map proved"
     assert (proof["rows"] - near, proof["rows_near_supports"]) == (fitting, near)
@@ -110,7 +94,7 @@ def test_calculix_exports_prove_their_map(capsys, path, fitting, near):
 def test_calculix_export_read_as_abaqus_files_proves_its_map(capsys, tmp_path):
     """The same clamped export with a hand-written dofs.csv: the reader no longer knows the
     removed nodes, so the 36 rows beside them are rows held by springs to ground."""
-    facts = info_json(capsys, *calculix("clamped", tmp_path))
+    facts = info_facts(capsys, *calculix("clamped", tmp_path))
     proof = facts["consistency"]["map"]
     assert proof["status"] == "map proved"
     assert (proof["rows"], proof["rows_near_supports"]) == (108, 36)
@@ -118,7 +102,7 @@ def test_calculix_export_read_as_abaqus_files_proves_its_map(capsys, tmp_path):
 
 @pytest.mark.parametrize("job", ["free", "clamped"])
 def test_calculix_map_shifted_by_one_node_is_refused(capsys, tmp_path, job):
-    err = one_error(capsys, *calculix(job, tmp_path, shift=1))
+    err = refused(capsys, *calculix(job, tmp_path, shift=1))
     assert "this map does not fit K" in err and "shifted by a node" in err
 
 
@@ -139,7 +123,7 @@ def matrix_files(folder: Path, **replaced: Path) -> list[str | Path]:
 
 
 def test_rack_files_pass(capsys, rack_files):
-    facts = info_json(capsys, *matrix_files(rack_files))
+    facts = info_facts(capsys, *matrix_files(rack_files))
     assert facts["consistency"]["map"]["status"] == "map proved"
     assert facts["consistency"]["map"]["residual"] < 1e-14
     assert facts["consistency"]["rigid_mass"]["rigid"] is True
@@ -158,7 +142,7 @@ def test_mass_in_direction_major_order_is_refused(capsys, rack_files, tmp_path):
     order = np.lexsort((table["node"], directions))  # file row k holds equation order[k]
     moved = tmp_path / "M_direction_major.mtx"
     scipy.io.mmwrite(moved, mass[order][:, order])
-    err = one_error(capsys, *matrix_files(rack_files, mass=moved))
+    err = refused(capsys, *matrix_files(rack_files, mass=moved))
     assert "the mass matrix does not fit" in err and "direction-major where K is node-major" in err
 
 
@@ -196,7 +180,7 @@ def test_coordinates_in_mm_on_the_beam_model(capsys, rack_files, tmp_path):
         scaled, np.column_stack([nodes[:, 0], 1e3 * nodes[:, 1:]]), delimiter=",",
         header="id,x,y,z", comments="", fmt=["%d", "%.17g", "%.17g", "%.17g"],
     )  # fmt: skip
-    err = one_error(capsys, *matrix_files(rack_files, nodes=scaled))
+    err = refused(capsys, *matrix_files(rack_files, nodes=scaled))
     assert "the coordinates look like mm while K and M are in m-kg-s-N units" in err
     assert "times 0.001" in err
 
@@ -287,7 +271,7 @@ def test_a_loose_pair_of_nodes_is_a_mechanism_not_a_wrong_map(capsys, tmp_path):
         mass=sp.block_diag([body.mass, sp.eye(6)], format="csr"),
     )
     write_body_h5(loose, tmp_path / "loose.h5")
-    facts = info_json(capsys, tmp_path / "loose.h5")
+    facts = info_facts(capsys, tmp_path / "loose.h5")
     assert (facts["rigid_body_modes"], facts["mechanisms"]) == (0, 3)
     proof = facts["consistency"]["map"]
     assert proof["status"] == "map not proved" and proof["rows_unexplained"] == 6
