@@ -95,6 +95,7 @@ def test_the_error_curve_equals_dense_solutions_of_both_models(files):
     np.testing.assert_allclose(coarse.relative[::8], expected, rtol=1e-5, atol=5e-8)
 
 
+@pytest.mark.slow  # 4-10 s: in the slow set (make test stays within its budget)
 def test_api_and_job_give_the_same_body(files, tmp_path):
     """The same reduction through a job file: the same order, frequencies and errors."""
     job = tmp_path / "job.toml"

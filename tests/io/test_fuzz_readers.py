@@ -984,7 +984,13 @@ def test_random_input(key: str) -> None:
     check()
 
 
-@pytest.mark.parametrize("key", sorted(TARGETS))
+@pytest.mark.parametrize(
+    "key",  # the Abaqus COORDINATE case takes ~8 s: in the slow set
+    [
+        pytest.param(k, marks=pytest.mark.slow) if k == "abaqus-coordinate" else k
+        for k in sorted(TARGETS)
+    ],
+)
 def test_mutated_valid_file(key: str) -> None:
     """A valid file with lines, numbers, counts or bytes broken: the same property."""
     target = TARGETS[key]

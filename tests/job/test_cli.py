@@ -398,6 +398,7 @@ def test_invalid_toml_names_the_line(tmp_path, capsys):
     assert f"{job}:5: invalid TOML: " in err and "(column 8)" in err
 
 
+@pytest.mark.slow  # 4-10 s: in the slow set (make test stays within its budget)
 def test_ports_at_the_frame_node_are_notes_unless_outputs_are_asked_there(tmp_path, capsys):
     """The demo's ports at the frame node (node 2): forces there move the reference frame only,
     the usual joint of a multibody model -- a note, one line per node and side. Outputs asked

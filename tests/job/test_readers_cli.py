@@ -55,6 +55,7 @@ def test_info_on_the_ansys_example_full_file(capsys):
     assert frequencies == pytest.approx([1283.20, 1283.20, 5781.97, 6919.40], abs=0.01)
 
 
+@pytest.mark.slow  # 4-10 s: in the slow set (make test stays within its budget)
 def test_info_on_rack_solid(tmp_path, capsys):
     assert run(["example", "rack-solid", "--dofs", 8000, "--out", tmp_path], capsys)[0] == 0
     code, out, _ = run(["info", tmp_path / "model.h5", "--modes", 3, "--json"], capsys)

@@ -67,6 +67,7 @@ def test_inertia_relief_static_response_against_a_bordered_system():
     assert np.linalg.norm(h_small - h0) < 1e-6 * np.linalg.norm(h0)
 
 
+@pytest.mark.slow  # 4-10 s: in the slow set (make test stays within its budget)
 def test_modal_reduction_of_the_free_rack_gives_its_elastic_modes(rack):
     prepared = prepare(rack, Frame("buckens"), RACK_PORTS)
     system = prepared.system
