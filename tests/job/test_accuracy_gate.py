@@ -28,8 +28,8 @@ from lattice_jobs import SOAGA, lattice_job
 from pymorembs.elements.beam import BeamSection
 from pymorembs.errors import AccuracyNotMet, PymorembsError, UserError
 from pymorembs.io.native import write_body_h5
+from pymorembs.job.app import App
 from pymorembs.job.app.runner import start_run
-from pymorembs.job.app.server import App
 from pymorembs.job.cli import SEVERITY, main, worst
 from pymorembs.job.run import judge_accuracy, prepare_and_validate, run_job
 from pymorembs.job.schema import DEFAULT_ACCURACY_LIMIT, ReductionSpec, load_job
@@ -403,18 +403,18 @@ def test_the_app_shows_a_run_that_missed_its_accuracy(poor_run, tmp_path, monkey
     script.chmod(0o755)
     monkeypatch.setattr(sys, "executable", str(script))
     app = App(tmp_path / "work")
-    app.run = start_run(tmp_path / "job.toml", tmp_path / "work" / "run-1", stages=3)
+    app.runs.run = start_run(tmp_path / "job.toml", tmp_path / "work" / "run-1", stages=3)
     deadline = time.monotonic() + 30
-    while app.run.ended is None:  # the thread that follows the child has seen its end
+    while app.runs.run.ended is None:  # the thread that follows the child has seen its end
         assert time.monotonic() < deadline
         time.sleep(0.05)
-    status = app.status()
+    status = app.runs.status()
     assert status["state"] == "done" and status["exit_code"] == 4
     assert "accuracy not met" in status["error"]
-    results = app.results()
+    results = app.results.table()
     (row,) = results["reductions"]
     assert row["accuracy"]["met"] is False and row["accuracy"]["exported"] is False
     assert results["accuracy"]["not_exported"] == ["modal-4"]
-    assert app.file("modal-4/error.csv").is_file()
+    assert app.results.file("modal-4/error.csv").is_file()
     with pytest.raises(UserError, match=r"no file 'modal-4/reduced\.npz'"):
-        app.file("modal-4/reduced.npz")
+        app.results.file("modal-4/reduced.npz")

@@ -25,8 +25,9 @@ from pymorembs import METHODS, example, method_options, select_nodes
 from pymorembs.body import DofTable, ElasticBody
 from pymorembs.errors import UserError
 from pymorembs.job.app import App, make_server
-from pymorembs.job.app.editor import check_job_text, hole_selection, job_text
+from pymorembs.job.app.editor import check_job_text, job_text
 from pymorembs.job.app.runner import Run, start_run
+from pymorembs.job.app.selection import hole_selection
 from pymorembs.job.cli import main
 from pymorembs.job.schema import DEFAULT_EXPORTS, EXPORT_KINDS
 from pymorembs.methods import OptionError, option_fields
@@ -44,8 +45,8 @@ def server(tmp_path):
     http = make_server(app, 0)
     threading.Thread(target=http.serve_forever, daemon=True).start()
     yield app, f"http://127.0.0.1:{http.server_address[1]}"
-    if app.run is not None:
-        app.run.cancel()
+    if app.runs.run is not None:
+        app.runs.run.cancel()
     http.shutdown()
     http.server_close()
 
@@ -185,9 +186,9 @@ def test_api_open_pick_select_and_check(server):
     assert status == 200 and reply["model"]["n_dof"] == 10359
     assert reply["error"] == "job.toml: job: missing key 'reduction'"
     status, scene = call(base, "/api/scene")
-    assert len(scene["triangles"]) == 3 * app.body.surface.triangles.shape[0]
-    reference = hole(app.body)
-    status, picked = call(base, "/api/pick", {"triangle": wall_triangle(app.body)})
+    assert len(scene["triangles"]) == 3 * app.model.body.surface.triangles.shape[0]
+    reference = hole(app.model.body)
+    status, picked = call(base, "/api/pick", {"triangle": wall_triangle(app.model.body)})
     assert status == 200 and picked["count"] == reference.size and picked["free_id"] == 2
     ids = np.asarray(scene["node_ids"])[picked["rows"]]
     assert np.array_equal(np.sort(ids), np.sort(reference))  # the rows index the scene's nodes
@@ -218,7 +219,7 @@ def test_the_view_draws_the_jobs_frame_and_interfaces(server):
     app, base = server
     opened = {"example": "rack-solid", "options": {"dofs": 10000, "interface": "none"}}
     state = call(base, "/api/open", opened)[1]
-    body = app.body
+    body = app.model.body
     # Buckens (the new job's frame): the centre of gravity, independently from the lumped
     # masses of the x translations (row sums of M, exact for consistent element masses)
     x = body.dofs.directions == 0
@@ -304,7 +305,7 @@ def test_api_refusals_are_one_line(server, tmp_path):
 def test_a_pick_outside_the_views_nodes_is_refused(server):
     app, base = server
     call(base, "/api/open", {"example": "rack-solid", "options": {"dofs": 10000}})
-    count = len(app.scene["node_ids"])
+    count = len(app.model.scene["node_ids"])
     for row in (count, -1):  # past the end; not the last node either
         status, reply = call(base, "/api/pick", {"node": row})
         assert status == 400 and reply["error"] == (
@@ -344,7 +345,7 @@ def test_a_job_with_tables_of_the_wrong_type_is_shown(server):
     assert call(base, "/api/state")[0] == 200
     job |= {"frame": {"type": "none"}, "interface": ["x", {"node": "two"}, {"node": 1}]}
     assert call(base, "/api/job", {"job": job})[0] == 200
-    status, picked = call(base, "/api/pick", {"triangle": wall_triangle(app.body)})
+    status, picked = call(base, "/api/pick", {"triangle": wall_triangle(app.model.body)})
     assert status == 200 and picked["free_id"] == 2  # node 1 taken by the model
 
 
@@ -354,7 +355,7 @@ def test_other_web_sites_cannot_drive_the_app(server):
         base, "/api/open", {"example": "rack-beams"}, {"Content-Type": "text/plain"}
     )
     assert status == 415 and reply["error"] == "send JSON"
-    assert status == 415 and app.body is None  # a cross-site 'simple' POST
+    assert status == 415 and app.model.body is None  # a cross-site 'simple' POST
     status, _ = call(base, "/api/state", None, {"Host": "evil.example:80"})
     assert status == 403  # DNS rebinding
     status, reply = call(
@@ -399,7 +400,7 @@ def test_an_unexpected_error_is_answered(server, monkeypatch, capsys):
     def broken():
         raise RuntimeError("a bug\nin two lines")
 
-    monkeypatch.setattr(app, "status", broken)
+    monkeypatch.setattr(app.runs, "status", broken)
     status, reply = call(base, "/api/status")
     assert status == 500 and reply["error"] == "internal error: a bug in two lines"
     assert "RuntimeError" in capsys.readouterr().err  # the traceback for the bug report
@@ -469,11 +470,11 @@ def test_run_results_shapes_mac_save_and_cancel(server, tmp_path):
     status, run = call(base, "/api/run", {})
     deadline = time.time() + 60
     while "reduction 'big'" not in call(base, "/api/status")[1]["stage"]:
-        assert time.time() < deadline and app.run.state == "running"
+        assert time.time() < deadline and app.runs.run.state == "running"
         time.sleep(0.05)
     call(base, "/api/cancel", {})
     deadline = time.time() + 30
-    while app.run.process.poll() is None and time.time() < deadline:
+    while app.runs.run.process.poll() is None and time.time() < deadline:
         time.sleep(0.1)
     time.sleep(0.3)
     assert call(base, "/api/status")[1]["state"] == "cancelled"
@@ -552,21 +553,21 @@ def test_a_run_killed_after_the_grace_time_leaves_no_temporary_folder(stubborn_c
 def test_no_second_run_while_a_cancelled_one_is_ending(stubborn_child, tmp_path):
     app = App(tmp_path / "work")
     state = app.open({"example": "rack-beams"})
-    app.set_job(
+    app.edit(
         state["job"]
         | {"frame": {"type": "none"}, "reduction": [{"name": "m", "method": "modal", "order": 4}]}
     )
     first = app.start()
-    stubborn_child.append(app.run)
+    stubborn_child.append(app.runs.run)
     assert first["state"] == "running"
-    wait_for(lambda: app.run.stage == "loading the model")  # SIGINT ignored from here on
-    assert app.cancel()["state"] == "cancelled" and app.run.alive
+    wait_for(lambda: app.runs.run.stage == "loading the model")  # SIGINT ignored from here on
+    assert app.runs.cancel()["state"] == "cancelled" and app.runs.run.alive
     with pytest.raises(UserError, match="the cancelled run is still ending"):
         app.start()
-    os.killpg(app.run.process.pid, signal.SIGKILL)
-    wait_for(lambda: app.run.ended is not None)
+    os.killpg(app.runs.run.process.pid, signal.SIGKILL)
+    wait_for(lambda: app.runs.run.ended is not None)
     assert app.start()["out"].endswith("run-2")  # ended: the next run may start
-    stubborn_child.append(app.run)
+    stubborn_child.append(app.runs.run)
 
 
 def test_cli_app_refuses_a_bad_model_and_a_busy_port(tmp_path, capsys, monkeypatch):
@@ -600,9 +601,9 @@ def test_the_body_without_surface_cannot_be_picked(tmp_path):
         stiffness=np.array([[1.0, -1.0], [-1.0, 1.0]]),
     )
     app = App(tmp_path)
-    app.body = body
+    app.model.body = body
     with pytest.raises(Exception, match="no surface to pick on"):
-        app.pick({"triangle": 0})
+        app.model.pick({"triangle": 0})
 
 
 def test_a_job_file_opens_in_the_editor(tmp_path):

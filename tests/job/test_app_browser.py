@@ -57,8 +57,8 @@ def served(tmp_path):
     thread = threading.Thread(target=server.serve_forever, daemon=True)
     thread.start()
     yield app, f"http://127.0.0.1:{server.server_address[1]}/"
-    if app.run is not None:
-        app.run.cancel()
+    if app.runs.run is not None:
+        app.runs.run.cancel()
     server.shutdown()
     server.server_close()
 
@@ -140,7 +140,7 @@ def test_pick_run_save_and_reduce_again(browser, served, tmp_path):
     page.wait_for_function("window.app.viewer && window.app.viewer.frames > 0")
     page.wait_for_selector("#first-modes", timeout=120_000)
     shot("opened")
-    assert app.body.n_dof == 10359
+    assert app.model.body.n_dof == 10359
     # the new job's Buckens frame is drawn at the centre of gravity, no interface yet
     page.wait_for_selector("#canvas[data-decorations='1,0']")
     opened = page.evaluate(PIXELS, HOLE_CENTRE)

@@ -7,9 +7,17 @@ shown as it changes, saved on request and run exactly as ``pymorembs reduce`` ru
 results -- error curves, estimators, eigenfrequencies, MAC between bases, shape functions --
 come from the run's own output folder. See ``docs/app.md``.
 
-* :mod:`~pymorembs.job.app.editor` -- the job as a dictionary, its TOML text, picked selections;
+* :mod:`~pymorembs.job.app.application` -- :class:`App`, the composition of the four objects
+  below (open a model or job file, the page's state, a run of the edited job);
+* :mod:`~pymorembs.job.app.opened_model` -- the opened body, its scene and facts, picking, the
+  3D view's decorations of the job;
+* :mod:`~pymorembs.job.app.editor` -- the job being edited: draft, TOML text, the parsed job;
+* :mod:`~pymorembs.job.app.selection` -- node selections (a picked hole as a cylinder and box);
+* :mod:`~pymorembs.job.app.runs` -- the runs of the job, one at a time, in the work folder;
 * :mod:`~pymorembs.job.app.runner` -- a run of the job in a child process (progress, cancel);
-* :mod:`~pymorembs.job.app.server` -- the HTTP server and its JSON API; ``static/`` the page.
+* :mod:`~pymorembs.job.app.results` -- results, shapes and MAC of the last finished run;
+* :mod:`~pymorembs.job.app.routes` -- the table of the HTTP API's routes and their handlers;
+* :mod:`~pymorembs.job.app.server` -- the HTTP server; ``static/`` the page and its ES modules.
 """
 
 from __future__ import annotations
@@ -21,7 +29,8 @@ import webbrowser
 from pathlib import Path
 
 from pymorembs.errors import UserError
-from pymorembs.job.app.server import DEFAULT_EXAMPLE, App, make_server
+from pymorembs.job.app.application import DEFAULT_EXAMPLE, App
+from pymorembs.job.app.server import make_server
 
 __all__ = ["DEFAULT_PORT", "App", "make_server", "serve"]
 
@@ -65,7 +74,7 @@ def serve(
     try:
         _serve_app(app, model, port, open_browser, format)
     finally:
-        if workdir is None and app.runs == 0:  # leave no empty temporary folder behind
+        if workdir is None and app.runs.runs == 0:  # leave no empty temporary folder behind
             shutil.rmtree(app.workdir, ignore_errors=True)
     return 0
 
@@ -86,7 +95,6 @@ def _serve_app(
         except KeyboardInterrupt:
             sys.stderr.write("pymorembs app: stopped\n")
         finally:
-            if app.run is not None:
-                app.run.cancel()
+            app.runs.cancel()
     finally:
         server.server_close()

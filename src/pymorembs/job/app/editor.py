@@ -1,30 +1,31 @@
-"""The job the page edits: a job file as a dictionary, its TOML text and its checks.
+"""The job the page edits: its draft, its TOML text, the parsed :class:`Job` and their checks.
 
 The page's state *is* the job: the same tables and keys as the TOML file (``[model]``,
 ``[[interface]]``, ``[frame]``, ``[[inputs]]``, ``[band]``, ``[[reduction]]``, ``[export]``),
-held as JSON. :func:`job_text` writes it as TOML in the order of ``docs/jobs.md``;
+held as JSON -- the *draft*, the page's edit buffer, which may be incomplete while the user
+types. :func:`job_text` writes it as TOML in the order of ``docs/jobs.md``;
 :func:`check_job_text` parses that text with the job parser of ``pymorembs reduce``, so what the
 page shows, saves and runs is one file, checked by the same code.
 
-:func:`hole_selection` turns a picked region of the surface (the wall of a hole, a face) into
-the job's own node selection: a cylinder and a box when they select exactly the region's
-nodes, else the list of node ids.
+:class:`JobEditor` does that once per edit and holds the outcome -- the draft, its text, the
+parser's message and, when valid, the typed :class:`~pymorembs.job.schema.Job` -- for every
+reader of the job (the page's state, save, run, the 3D view's decorations, the next free node
+id), none of which parses again.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import threading
 import tomllib
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from pymorembs.body import ElasticBody
-from pymorembs.errors import UserError
-from pymorembs.job.schema import Job, parse_job
-from pymorembs.preparation.interface import select_nodes
+from pymorembs.errors import PymorembsError, UserError
+from pymorembs.export import DEFAULT_EXPORTS
+from pymorembs.io.atomic import write_text
+from pymorembs.job.schema import MODEL_FILE_KEYS, Job, parse_job
 
 #: Tables in the order of the job reference; keys not listed follow in their own order.
 TABLE_ORDER = (
@@ -106,96 +107,127 @@ def check_job_text(text: str, path: Path) -> Job:
     return parse_job(data, path)
 
 
-def free_node_id(body: ElasticBody, taken: list[int] | tuple[int, ...] = ()) -> int:
-    """The smallest positive node id that neither the body nor ``taken`` uses."""
-    used = set(body.node_ids.tolist()) | {int(t) for t in taken}
-    candidate = 1
-    while candidate in used:
-        candidate += 1
-    return candidate
-
-
-def _rounded(values: np.ndarray, size: float) -> list[float]:
-    """Values rounded to a billionth of ``size`` (the model's extent): readable, and exact
-    enough for a selection whose tolerance is a millionth of it."""
-    digits = 9 - math.floor(math.log10(size))
-    return [round(float(v), digits) + 0.0 for v in np.asarray(values, dtype=float)]
-
-
-def hole_selection(body: ElasticBody, nodes: np.ndarray) -> dict[str, Any]:
-    """The job's selection of a set of surface nodes, and where their interface node goes.
-
-    A round hole (the nodes lie on a cylinder) is written as ``cylinder = { point, direction,
-    radius, tolerance }`` with a ``box`` around the nodes, the way ``docs/jobs.md`` selects a
-    hole's surface; any other set (a flat face, an irregular patch) as ``nodes = [ids]``. The
-    cylinder is kept only when :func:`~pymorembs.preparation.interface.select_nodes` gives back
-    exactly ``nodes`` with the rounded numbers written.
-
-    Returns
-    -------
-    dict
-        ``selection``: the keys for the ``[[interface]]`` table (``cylinder`` and ``box``, or
-        ``nodes``); ``position``: [x, y, z] of the interface node (on the axis, halfway along
-        the hole; else the nodes' centroid); ``kind``: ``"cylinder"`` or ``"nodes"``;
-        ``radius`` (None for ``"nodes"``).
-    """
-    ids = np.unique(np.asarray(nodes, dtype=np.int64))
-    if ids.size == 0:
-        raise UserError("interface: no nodes selected")
-    x = body.coordinates[body.node_rows(ids)]
-    centroid = x.mean(axis=0)
-    size = float(np.ptp(body.coordinates, axis=0).max()) or 1.0
-    fallback = {
-        "selection": {"nodes": [int(i) for i in ids]},
-        "position": _rounded(centroid, size),
-        "kind": "nodes",
-        "radius": None,
-    }
-    if ids.size < 6:
-        return fallback
-    # The axis: the direction along which the points vary the most but stay on a circle
-    # around it; try each principal direction and keep the best circle.
-    rel = x - centroid
-    _, _, vt = np.linalg.svd(rel, full_matrices=False)
-    best = None
-    for axis in vt:
-        e1, e2 = vt[[k for k in range(3) if not np.allclose(vt[k], axis)][:2]]
-        u, v = rel @ e1, rel @ e2
-        matrix = np.column_stack([u, v, np.ones_like(u)])
-        coef, *_ = np.linalg.lstsq(matrix, u**2 + v**2, rcond=None)
-        cu, cv = coef[0] / 2.0, coef[1] / 2.0
-        radius = math.sqrt(max(coef[2] + cu**2 + cv**2, 0.0))
-        spread = np.abs(np.hypot(u - cu, v - cv) - radius).max()
-        if radius > 0 and (best is None or spread < best[0]):
-            along = rel @ axis
-            middle = centroid + cu * e1 + cv * e2 + 0.5 * (along.max() + along.min()) * axis
-            best = (spread, axis, middle, radius)
-    if best is None or best[0] > 1e-3 * best[3]:
-        return fallback
-    spread, axis, middle, radius = best
-    axis = axis * np.sign(axis[np.argmax(np.abs(axis))])
-    tolerance = float(f"{max(spread * 2.0, 1e-6 * size):.2g}")
-    pad = 2.0 * tolerance
-    cylinder = {
-        "point": _rounded(middle, size),
-        "direction": [round(float(a), 6) + 0.0 for a in axis],
-        "radius": _rounded([radius], size)[0],
-        "tolerance": tolerance,
-    }
-    box = {"min": _rounded(x.min(axis=0) - pad, size), "max": _rounded(x.max(axis=0) + pad, size)}
-    try:
-        again = select_nodes(
-            body,
-            cylinder=(cylinder["point"], cylinder["direction"], cylinder["radius"], tolerance),
-            box=(box["min"], box["max"]),
-        )
-    except UserError:
-        return fallback
-    if not np.array_equal(np.sort(again), ids):
-        return fallback
+def default_job(model: dict[str, Any]) -> dict[str, Any]:
+    """A new job on a model: Buckens frame, band 0-1000 Hz, no reductions yet."""
     return {
-        "selection": {"cylinder": cylinder, "box": box},
-        "position": cylinder["point"],
-        "kind": "cylinder",
-        "radius": cylinder["radius"],
+        "title": "",
+        "model": model,
+        "interface": [],
+        "frame": {"type": "buckens"},
+        "inputs": [],
+        "band": {"f_min_hz": 0.0, "f_max_hz": 1000.0, "points": 200},
+        "reduction": [],
+        "export": {"outputs": ["npz"]},
     }
+
+
+def job_file_draft(path: Path) -> dict[str, Any]:
+    """A job file as the editor's draft: its model files made absolute (the saved job runs from
+    any folder), ``npz`` added to ``[export] outputs`` (the page reads the bases from
+    ``reduced.npz``)."""
+    data = tomllib.loads(path.read_text(encoding="utf-8-sig"))
+    model = dict(data.get("model", {}))
+    for key in MODEL_FILE_KEYS:
+        if isinstance(model.get(key), str):
+            model[key] = str((path.parent / model[key]).resolve())
+    data["model"] = model
+    export = dict(data.get("export", {}))
+    outputs = list(export.get("outputs", DEFAULT_EXPORTS))
+    if "npz" not in outputs:
+        export["outputs"] = ["npz", *outputs]
+        data["export"] = export
+    return data
+
+
+def _without_empty(job: dict[str, Any]) -> dict[str, Any]:
+    """The job without empty lists of tables and empty strings (not written)."""
+    return {k: v for k, v in job.items() if v not in ([], "", None)}
+
+
+class JobEditor:
+    """The job being edited: the page's draft, parsed once per edit.
+
+    Attributes
+    ----------
+    draft : dict
+        The job as the page sent it (the tables and keys of the TOML file; may be invalid).
+    text : str
+        Its TOML text ('' when it cannot be written, e.g. a number that is not finite).
+    error : str
+        The parser's message in one line ('' when the job is valid).
+    job : Job or None
+        The parsed job when it is valid (read as ``job.toml`` of the current folder).
+    """
+
+    def __init__(self, draft: dict[str, Any]) -> None:
+        self.lock = threading.Lock()
+        self.draft: dict[str, Any] = {}
+        self.text = ""
+        self.error = ""
+        self.job: Job | None = None
+        self.edit(draft)
+
+    def edit(self, draft: Any) -> None:
+        """Hold a new draft: write its text and parse it (the one parse of this edit).
+
+        Raises
+        ------
+        UserError
+            ``draft`` is not an object (a JSON object from the page).
+        """
+        if not isinstance(draft, dict):
+            raise UserError("job: expected an object")
+        job: Job | None = None
+        try:
+            text, error = job_text(_without_empty(draft)), ""
+        except UserError as exc:
+            text, error = "", str(exc)
+        if not error:
+            try:
+                job = check_job_text(text, Path("job.toml"))
+            except PymorembsError as exc:
+                error = " ".join(str(exc).split())
+        with self.lock:
+            self.draft, self.text, self.error, self.job = draft, text, error, job
+
+    def valid(self) -> tuple[str, Job]:
+        """The job's text and parsed job.
+
+        Raises
+        ------
+        UserError
+            The job is not valid yet (the parser's message).
+        """
+        with self.lock:
+            text, error, job = self.text, self.error, self.job
+        if job is None:
+            raise UserError(f"the job is not valid yet: {error}")
+        return text, job
+
+    def interface_ids(self) -> list[int]:
+        """The node ids of the job's ``[[interface]]`` tables: the parsed job's when it is valid,
+        else the whole numbers of the draft's tables."""
+        with self.lock:
+            job, draft = self.job, self.draft
+        if job is not None:
+            return [spec.node for spec in job.interfaces]
+        items = draft.get("interface")
+        if not isinstance(items, list):
+            return []
+        nodes = [item.get("node") for item in items if isinstance(item, dict)]
+        return [n for n in nodes if isinstance(n, int) and not isinstance(n, bool)]
+
+    def save(self, request: dict[str, Any]) -> dict[str, Any]:
+        """Write the job's TOML text to ``request["path"]`` (a ``.toml`` file), if it is valid."""
+        text, _ = self.valid()
+        path = Path(str(request.get("path", ""))).expanduser()
+        if path.suffix.lower() != ".toml":
+            raise UserError(f"save: {path}: a job file ends in .toml")
+        if path.is_dir():
+            raise UserError(f"save: {path} is a folder")
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:  # a file in the way, no permission
+            raise UserError(f"save: {path}: cannot create its folder ({exc.strerror})") from None
+        write_text(path, text)
+        return {"path": str(path.resolve()), "toml": text}
