@@ -276,5 +276,5 @@ def test_the_export_boxes_are_the_job_parsers_and_keep_the_jobs_outputs(browser,
     assert page.is_checked("[data-export='vtu']") and not page.is_checked("[data-export='mtx']")
     page.check("[data-export='mtx']")
     page.wait_for_function("document.getElementById('toml').textContent.includes('\"mtx\"')")
-    assert app.job["export"]["outputs"] == ["npz", "mtx", "sid", "vtu"]
+    assert app.editor.draft["export"]["outputs"] == ["npz", "mtx", "sid", "vtu"]
     assert errors == []
