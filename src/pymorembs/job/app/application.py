@@ -27,12 +27,7 @@ DEFAULT_EXAMPLE = {"example": "rack-solid", "options": {"dofs": 35000, "interfac
 
 
 class App:
-    """What the page works on.
-
-    Parameters
-    ----------
-    workdir : Path, optional
-        Where runs write (``job-1.toml``, ``run-1/``, ...); default a new temporary folder.
+    """What the page works on; ``workdir`` is the runs' folder (:class:`RunController`).
 
     Attributes
     ----------
