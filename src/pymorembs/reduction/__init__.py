@@ -5,10 +5,10 @@ through :func:`pymorembs.reduce` (options checked by :mod:`pymorembs.methods`, r
 :func:`method_projection`); the method functions below take a prepared system directly, check
 their options by the same options classes (``soaga_reduction`` and ``rational_krylov_gramians``,
 wider interfaces, check their own arguments), and give a :class:`Projection` (``V``, ``W`` and
-how they were made); below them the algorithms take checked values. :func:`first_stage` is the Gramian method's choice of its first stage.
-:func:`reduced_model` projects, diagonalises and checks it (:class:`ReducedModel`);
-:func:`without_stiff_directions` and :func:`explicit_step_s` concern the highest frequencies of
-the reduced model.
+how they were made); below them the algorithms take checked values. :func:`first_stage` is
+the Gramian method's choice of its first stage. :func:`reduced_model` projects, diagonalises
+and checks it (:class:`ReducedModel`); :func:`without_stiff_directions` and
+:func:`explicit_step_s` concern the highest frequencies of the reduced model.
 """
 
 from pymorembs.reduction.dispatch import method_projection
