@@ -95,7 +95,7 @@ Frequencies are in Hz at the interface, ``w = 2 pi f`` in rad/s inside.
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -380,19 +380,14 @@ def rational_krylov_gramians(
     band_hz: Sequence[float],
     tol: float = DEFAULT_TOL,
     max_dim: int = DEFAULT_MAX_DIM,
-    max_shifts: int = DEFAULT_MAX_SHIFTS,
-    moments: int = 2,
-    initial_shifts_hz: Sequence[float] | None = None,
-    grid_points: int = DEFAULT_GRID_POINTS,
-    n_sigma: int | None = None,
-    patience: int = 1,
-    min_dim: int = 0,
-    damping_ratio: float | None = None,
-    deflation_tol: float = 1e-10,
+    **keywords: Any,
 ) -> RationalKrylovGramians:
     """Frequency-weighted Gramians ``P_p^w``, ``Q_pv^w`` of a large sparse model, low rank.
 
     Galerkin projection on an adaptive second-order rational Krylov subspace (module notes).
+
+    The arguments are checked here (:func:`check_solver_keywords`); :func:`galerkin_gramians`
+    runs on them and holds the defaults of the further keywords.
 
     Parameters
     ----------
@@ -439,16 +434,14 @@ def rational_krylov_gramians(
     """
     if not (np.isfinite(tol) and tol > 0):
         raise UserError(f"rational-krylov: tol must be a number > 0, got {tol!r}")
-    check_solver_keywords(initial_shifts_hz, max_dim=max_dim, max_shifts=max_shifts,
-                          moments=moments, grid_points=grid_points, patience=patience)  # fmt: skip
-    return galerkin_gramians(system, band_hz, tol, max_dim, max_shifts, moments,
-                             initial_shifts_hz, grid_points, n_sigma, patience, min_dim,
-                             damping_ratio, deflation_tol)  # fmt: skip
+    check_solver_keywords({"max_dim": max_dim, **keywords})
+    return galerkin_gramians(system, band_hz, tol, max_dim, **keywords)
 
 
-def check_solver_keywords(initial_shifts_hz: Sequence[float] | None, **counts: Any) -> None:
-    """Check the solver keywords of :func:`rational_krylov_gramians` that no options class
-    holds: the initial shifts (Hz) and the whole numbers of :data:`LEAST_COUNTS` given.
+def check_solver_keywords(keywords: Mapping[str, Any]) -> None:
+    """Check the keywords of :func:`galerkin_gramians` given in ``keywords``: the whole numbers
+    of :data:`LEAST_COUNTS` and the initial shifts (Hz). The others (``n_sigma``, ``min_dim``,
+    ``damping_ratio``, ``deflation_tol``) are used as given.
 
     Raises
     ------
@@ -456,13 +449,13 @@ def check_solver_keywords(initial_shifts_hz: Sequence[float] | None, **counts: A
         A count that is no whole number or below its least value, or a shift that is no
         frequency >= 0.
     """
-    for name, value in counts.items():
-        low = LEAST_COUNTS[name]
+    for name, low in LEAST_COUNTS.items():
+        value = keywords.get(name, low)
         if int(value) != value or value < low:
             raise UserError(f"rational-krylov: {name} must be an integer >= {low}, got {value!r}")
-    if initial_shifts_hz is None:
+    if keywords.get("initial_shifts_hz") is None:
         return
-    shifts = [float(f) for f in initial_shifts_hz]
+    shifts = [float(f) for f in keywords["initial_shifts_hz"]]
     if not shifts or any(not (np.isfinite(f) and f >= 0) for f in shifts):
         raise UserError(f"rational-krylov: initial shifts must be frequencies >= 0 Hz: {shifts}")
 
@@ -488,6 +481,7 @@ def galerkin_gramians(
     :func:`rational_krylov_gramians`, or as ``convergence_tolerance`` and ``first_order`` of a
     :class:`~pymorembs.methods.GramianOptions`; the other keywords by
     :func:`check_solver_keywords`. The band and what depends on the system are checked here.
+    Parameters and result as in :func:`rational_krylov_gramians`.
     """
     w1, w2 = band_in_rad_s(band_hz, allow_infinite=False)
     f_min, f_max = w1 / (2.0 * np.pi), w2 / (2.0 * np.pi)
@@ -707,8 +701,7 @@ def rational_gramian_reduction(
         first_order=max_dim,
         convergence_tolerance=tol,
     )
-    counts = {key: value for key, value in options.items() if key in LEAST_COUNTS}
-    check_solver_keywords(options.get("initial_shifts_hz"), **counts)
+    check_solver_keywords(options)
     return _rational_projection(
         system,
         band_hz,
