@@ -110,6 +110,14 @@ def _relative(key: str, value: Any, meaning: str) -> float | None:
     return value
 
 
+def _positive(key: str, value: Any) -> float | None:
+    """A number > 0 (a stopping tolerance), or None."""
+    value = number(key, value)
+    if value is not None and not value > 0:
+        raise OptionError(key, f"must be > 0, got {value!r}")
+    return value
+
+
 def _deflation(value: Any) -> float:
     key = "deflation_tolerance"
     tolerance = number(key, value, minimum=1e-15)
@@ -292,7 +300,7 @@ class SoagaOptions(ReductionOptions):
         super().__post_init__()
         self._set("order", whole("order", self.order))
         if self.candidates_hz is not None:
-            self._set("candidates_hz", frequencies("candidates_hz", self.candidates_hz))
+            self._set("candidates_hz", _points("candidates_hz", self.candidates_hz))
         self._set("n_candidates", whole("n_candidates", self.n_candidates))
         tolerance = _relative("tolerance", self.tolerance, "relative error")
         self._set("tolerance", tolerance)
@@ -361,10 +369,9 @@ class GramianOptions(ReductionOptions):
             stages = ("soaga", "krylov", "rational-krylov", "none")
             self._set("first_stage", _choice("first_stage", self.first_stage, stages))
         self._set("first_order", whole("first_order", self.first_order))
-        self._set("first_tolerance", number("first_tolerance", self.first_tolerance, 0.0))
+        self._set("first_tolerance", _positive("first_tolerance", self.first_tolerance))
         self._set(
-            "convergence_tolerance",
-            number("convergence_tolerance", self.convergence_tolerance, 0.0),
+            "convergence_tolerance", _positive("convergence_tolerance", self.convergence_tolerance)
         )
         rational = self.first_stage == "rational-krylov"
         if rational and self.first_tolerance is not None:

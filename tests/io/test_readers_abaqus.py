@@ -23,6 +23,7 @@ from abaqus_models import (
 from pymorembs.elements.beam import BeamSection, element_matrices
 from pymorembs.errors import UserError
 from pymorembs.io.abaqus import read_abaqus, read_abaqus_stiffness, read_inp_nodes
+from pymorembs.preparation.consistency import body_rounding, check_map
 
 NODES = np.array([10, 20, 30])
 COORDS = np.array([[0.0, 0.0, 0.0], [0.5, -1.25, 2.0], [1.0, 3.0e-3, -7.5]])
@@ -385,7 +386,8 @@ def test_coordinate_files_with_a_translated_and_rotated_instance(tmp_path: Path)
     assert body.dofs.describe() == "8 nodes x ux uy uz"
     assert any("cube-1 of part cube translated by (2, 0.5, -1) and rotated by 37 degrees" in n
                for n in body.notes), body.notes  # fmt: skip
-    assert any("verified by the rigid-body check" in n for n in body.notes)
+    proof = check_map(body, body_rounding(body))  # the one proof (the reader writes none)
+    assert proof.proved and "leave no force in 24 of 24 rows" in proof.reason, proof
     # the same matrices with the rotation left out of the input file: refused
     plain = cube_part_inp(tmp_path / "plain.inp", labels, [["2.0, 0.5, -1.0"]])
     with pytest.raises(UserError, match=r"derived from plain\.inp does not fit") as err:
@@ -447,8 +449,9 @@ def test_matrix_input_with_one_rotated_instance(tmp_path: Path) -> None:
     np.testing.assert_array_equal(body.stiffness.toarray(), k[np.ix_(order, order)])
     for label, point in zip(labels, xyz, strict=True):
         np.testing.assert_allclose(body.node_position(label), point, atol=1e-14)
-    assert any("node labels = the labels of instance cube-1 (part cube); verified" in n
-               for n in body.notes)  # fmt: skip
+    assert "node labels = the labels of instance cube-1 (part cube)" in body.notes
+    proof = check_map(body, body_rounding(body))  # the one proof (the reader writes none)
+    assert proof.proved and "leave no force in 24 of 24 rows" in proof.reason, proof
     # matrices of the unrotated cube with the rotated instance: the proof fails
     k0, _ = solid_matrices(cube()[0], tets)
     (tmp_path / "flat_STIF2.mtx").write_text(matrix_input_text(k0, keys))

@@ -783,14 +783,18 @@ def test_mmf_free_truss_proved_with_and_without_coordinates(mmf, tmp_path):
         for n, d in zip(body.dofs.nodes, body.dofs.directions, strict=True)
     ] == dofs
     assert body.name == "truss" and body.fixed.size == 0 and body.has_coordinates
-    assert "verified by the rigid-body check of the translations and rotations" in body.notes[-1]
-    assert float(body.notes[-1].split("max residual ")[1].split(")")[0]) <= 1e-12
+    # the one proof of the map is the consistency check's (the reader writes none)
+    proof = check_map(body, body_rounding(body))
+    assert proof.proved and f"leave no force in {body.n_dof} of {body.n_dof} rows" in proof.reason
+    assert proof.residual <= 1e-12, proof
     # the proof, computed here: K annihilates the six rigid-body fields
     residuals = body.rigid_body_residuals()
     assert residuals.max() < 1e-12
     bare = read_ansys_mmf(**files)
     assert not bare.has_coordinates
-    assert bare.notes[-1].endswith("rotations not checked (no coordinates)")
+    assert "no coordinates (nodes not given): all nodes lie at the origin" in bare.notes
+    proof = check_map(bare, body_rounding(bare))  # the translations alone prove no map
+    assert not proof.proved and "no node coordinates" in proof.reason
     d = tmp_path / "D.mtx"
     d.write_text(mtx(1e-3 * k))
     damped = read_ansys_mmf(**files, damping=d, name="s")
@@ -813,7 +817,8 @@ def test_mmf_mapping_in_another_order_is_refused(mmf):
     # two nodes swapped: the translations cannot see it, the rotations with coordinates do
     swapped = [(20 if n == 30 else 30 if n == 20 else n, label) for n, label in dofs]
     files["mapping"].write_text(hbmat_mapping(swapped))
-    assert read_ansys_mmf(**files).notes[-1].endswith("rotations not checked (no coordinates)")
+    bare = read_ansys_mmf(**files)  # read: the translations alone cannot see it ...
+    assert not check_map(bare, body_rounding(bare)).proved  # ... so no proof of the map
     with pytest.raises(
         UserError,
         match=r"rotation about .* the node order of the mapping or the "

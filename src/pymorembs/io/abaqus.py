@@ -40,14 +40,16 @@ coordinate (``FORMAT=COORDINATE``)
     (hybrid, modified, connector, coupled-field, user elements, ...) are refused.
 
 The rigid-body check
-    An equation order or a set of coordinates the reader derived is used only once it is
-    proved: the six rigid-body motions of the nodes must give no force,
+    An equation order or a set of coordinates the reader derived is used only where it fits
+    the matrices: the six rigid-body motions of the nodes must give no force,
     ``|K r| / (|K|_inf |r|) <= 1e-6`` for each (:meth:`~pymorembs.body.ElasticBody.
     rigid_body_residuals`, over the rows of dofs that are not fixed). Consistent files give
-    1e-17 to 1e-12; a wrong order or wrong coordinates give 1e-4 and more. A model whose
-    stiffness is tied to the ground (springs to ground, elastic foundations) cannot pass it:
-    give ``dofs.csv`` or a model without parts then. The notes of the body say what was derived
-    and the residual.
+    1e-17 to 1e-12; a wrong order or wrong coordinates give 1e-4 and more. The reader uses it
+    to choose the one order that fits and to refuse the files where none does (or two do); a
+    model whose stiffness is tied to the ground (springs to ground, elastic foundations)
+    cannot pass it: give ``dofs.csv`` or a model without parts then. The notes of the body say
+    what was derived; the proof of the map, with its residual, is the consistency check's
+    (:func:`~pymorembs.preparation.consistency.check_map`), as for every model.
 
 Boundary conditions of the matrix step (``*BOUNDARY``)
     Abaqus keeps the rows and columns of constrained dofs and writes a penalty diagonal of
@@ -543,9 +545,9 @@ def _matrix_input_body(
             "the matrices); give "
             "the coordinates as a nodes.csv or write the input file without parts and assemblies",
         )
-    proof = f"node labels = the labels of {scope.describe()}; verified by the rigid-body check "
-    proof += f"(max residual {worst:.0e})"
-    return release_penalties(body.with_notes(proof))
+    # the labels fit the matrices (the check above refuses them otherwise); the one proof of the
+    # map and its note are the consistency check's (preparation.consistency.check_map)
+    return release_penalties(body.with_notes(f"node labels = the labels of {scope.describe()}"))
 
 
 def _coordinate_body(
@@ -615,12 +617,8 @@ def _coordinate_body(
             None,
             f"the equation order derived from {model.path.name} {problem}; {_GIVE_DOFS}",
         )
-    worst, body, note = proved[0]
-    notes = list(body.notes)
-    notes[notes.index(note)] = (
-        f"{note}; verified by the rigid-body check (max residual {worst:.0e})"
-    )
-    return release_penalties(replace(body, notes=tuple(notes)))
+    # the one order that fits is taken; the consistency check proves the map and says so
+    return release_penalties(proved[0][1])
 
 
 def _worst_residual(body: ElasticBody) -> float:

@@ -811,8 +811,8 @@ def read_ansys_mmf(
     Returns
     -------
     ElasticBody
-        Equations in the order of the matrices (equation ``i`` is mapping row ``i``). ``notes``
-        say what the rigid-body check proved.
+        Equations in the order of the matrices (equation ``i`` is mapping row ``i``); the
+        consistency check proves the map (``pymorembs info``: ``dof map``).
 
     Raises
     ------
@@ -837,6 +837,10 @@ def read_ansys_mmf(
             f"{fixed.size} equations with only a diagonal stiffness entry and no mass (Ansys' "
             "form of a constrained dof) are fixed dofs"
         )
+    if geometry.source is None:
+        notes.append("no coordinates (nodes not given): all nodes lie at the origin")
+    else:
+        notes.append(f"coordinates from {geometry.source.name}")
     body = make_body(
         k_path,
         node_ids=geometry.node_ids,
@@ -849,8 +853,11 @@ def read_ansys_mmf(
         name=map_path.stem if name is None else name,
         has_coordinates=geometry.source is not None,
         notes=tuple(notes),
+        # the export of a free body: no support, every row is judged (lone diagonals: unknown)
+        nodes_near_supports=None if fixed.size else np.zeros(0, dtype=np.int64),
     )
-    return _with_mesh(body.with_notes(_prove_mapping_order(body, map_path, geometry)), geometry)
+    _refuse_unproved_order(body, map_path, geometry)
+    return _with_mesh(body, geometry)
 
 
 def _lone_diagonals(
@@ -869,8 +876,11 @@ def _lone_diagonals(
     return np.flatnonzero(alone)
 
 
-def _prove_mapping_order(body: ElasticBody, mapping: Path, geometry: _Geometry) -> str:
-    """Prove the equation order of an MMF export with the rigid-body check, or refuse."""
+def _refuse_unproved_order(body: ElasticBody, mapping: Path, geometry: _Geometry) -> None:
+    """Refuse an MMF export whose equation order the rigid-body check does not prove (the
+    mapping is of other matrices, or the model is constrained). The proof of a map that fits,
+    with its note, is the consistency check's
+    (:func:`~pymorembs.preparation.consistency.check_map`), as for every model."""
     residuals = body.rigid_body_residuals()
     names = _FIELD_NAMES
     checked = range(6) if body.has_coordinates else range(3)
@@ -902,16 +912,6 @@ def _prove_mapping_order(body: ElasticBody, mapping: Path, geometry: _Geometry) 
             f"the equation order is not proved: K maps the rigid-body {names[worst]} to a "
             f"residual of {largest:.1e} (at most {RIGID_BODY_TOLERANCE:g} for a free body); {why}",
         )
-    what = "translations and rotations" if max(present) >= 3 else "translations"
-    text = (
-        f"equation order of {mapping.name} verified by the rigid-body check of the {what} "
-        f"(max residual {largest:.1e})"
-    )
-    if not body.has_coordinates:
-        text += "; rotations not checked (no coordinates)"
-    else:
-        text += f"; coordinates from {geometry.source.name}"
-    return text
 
 
 def _read_mmf_matrix(path: Path, n: int, mapping: Path) -> sp.csr_matrix:

@@ -3,11 +3,12 @@
 A public subpackage (``docs/api.md``, "The public surface"). A method is usually chosen by name
 through :func:`pymorembs.reduce` (options checked by :mod:`pymorembs.methods`, run by
 :func:`method_projection`); the method functions below take a prepared system directly, check
-their options by the same options classes, and give a :class:`Projection` (``V``, ``W`` and how
-they were made). :func:`first_stage` is the Gramian method's choice of its first stage.
-:func:`reduced_model` projects, diagonalises and checks it (:class:`ReducedModel`);
-:func:`without_stiff_directions` and :func:`explicit_step_s` concern the highest frequencies of
-the reduced model.
+their options by the same options classes (``soaga_reduction`` and ``rational_krylov_gramians``,
+wider interfaces, check their own arguments), and give a :class:`Projection` (``V``, ``W`` and
+how they were made); below them the algorithms take checked values. :func:`first_stage` is
+the Gramian method's choice of its first stage. :func:`reduced_model` projects, diagonalises
+and checks it (:class:`ReducedModel`); :func:`without_stiff_directions` and
+:func:`explicit_step_s` concern the highest frequencies of the reduced model.
 """
 
 from pymorembs.reduction.dispatch import method_projection

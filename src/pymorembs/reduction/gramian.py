@@ -124,7 +124,7 @@ from pymorembs.linalg.products import extended_product
 from pymorembs.methods import GramianOptions, PodOptions
 from pymorembs.reduction.krylov import moment_matching
 from pymorembs.reduction.projection import Projection, ReducedModel, reduced_model
-from pymorembs.reduction.soaga import soaga_reduction
+from pymorembs.reduction.soaga import adaptive_arnoldi, candidate_points
 from pymorembs.system import SecondOrderSystem
 
 #: Largest number of dofs for which dense Gramians of the full model are computed.
@@ -632,13 +632,17 @@ def medium_model(
     if stage == "none":
         return None
     if stage == "soaga":
+        band_in_rad_s(band_hz, allow_infinite=False)  # the band is no option: checked here
+        f_min, f_max = (float(f) for f in band_hz)
         tolerance = options.first_tolerance
         order = options.first_order
-        return soaga_reduction(
+        return adaptive_arnoldi(
             system,
-            band_hz,
-            max_order=FIRST_SOAGA_ORDER if order is None else order,
-            tolerance=FIRST_SOAGA_TOLERANCE if tolerance is None else tolerance,
+            (f_min, f_max),
+            candidate_points(f_min, f_max, None, None),
+            FIRST_SOAGA_TOLERANCE if tolerance is None else tolerance,
+            FIRST_SOAGA_ORDER if order is None else order,
+            1e-10,
         )
     return moment_matching(
         system, options.expansion_points_hz, options.moments, options.first_order, 1e-10, False
@@ -790,12 +794,11 @@ def quadrature(
 
     ``rule = "gauss"``: Gauss-Legendre in ``w`` (nodes inside the band);
     ``"trapezoid"``: equally spaced nodes including both ends (0 Hz if the band starts there).
-    The weights sum to ``w2 - w1``.
+    The weights sum to ``w2 - w1``. ``n_snapshots`` is checked by the caller (the ``snapshots``
+    of :class:`~pymorembs.methods.PodOptions`, at least 4).
     """
     w1, w2 = band_in_rad_s(band_hz, allow_infinite=False)
-    count = int(n_snapshots)
-    if count != n_snapshots or count < 2:
-        raise UserError(f"pod: n_snapshots must be an integer >= 2, got {n_snapshots!r}")
+    count = n_snapshots
     if rule == "gauss":
         x, wts = np.polynomial.legendre.leggauss(count)
         nodes = 0.5 * (w2 - w1) * x + 0.5 * (w1 + w2)
@@ -896,8 +899,8 @@ def pod_reduction(
     order, tolerance :
         As in :func:`gramian_reduction`; the order is at most the number of snapshot columns.
     n_snapshots : int
-        Number of quadrature nodes (one factorization each). Resonances narrower than the node
-        spacing make the Gramian estimate rough, the subspace less so.
+        Number of quadrature nodes (one factorization each), at least 4. Resonances narrower
+        than the node spacing make the Gramian estimate rough, the subspace less so.
     rule : {"gauss", "trapezoid"}
         Quadrature in ``w`` (see :func:`quadrature`). The trapezoid rule includes 0 Hz when the
         band starts there (inertia relief for a free body).
@@ -915,14 +918,15 @@ def pod_reduction(
     Raises
     ------
     OptionError
-        A bad ``order`` or ``tolerance``, checked by :class:`~pymorembs.methods.PodOptions`.
+        A bad ``order``, ``tolerance`` or ``n_snapshots`` (its ``snapshots``), checked by
+        :class:`~pymorembs.methods.PodOptions` with its message.
     UserError
-        A bad band, ``n_snapshots`` or ``rule``, a system without inputs and outputs, or an
-        order above the snapshot columns.
+        A bad band or ``rule``, a system without inputs and outputs, or an order above the
+        snapshot columns.
     """
-    checked = PodOptions(order=order, tolerance=tolerance)
+    checked = PodOptions(order=order, tolerance=tolerance, snapshots=n_snapshots)
     return _snapshot_projection(
-        system, band_hz, checked.order, checked.tolerance, n_snapshots, rule
+        system, band_hz, checked.order, checked.tolerance, checked.snapshots, rule
     )
 
 
@@ -943,7 +947,7 @@ def _snapshot_projection(
     n_snapshots: int,
     rule: str,
 ) -> Projection:
-    """:func:`pod_reduction` with ``order`` and ``tolerance`` checked."""
+    """:func:`pod_reduction` with ``order``, ``tolerance`` and ``n_snapshots`` checked."""
     frequencies, weights = quadrature(band_hz, n_snapshots, rule)
     if system.n_inputs == 0 and system.n_outputs == 0:
         raise UserError("pod: the system has neither inputs nor outputs")

@@ -16,6 +16,7 @@ import scipy.sparse.linalg as spla
 from pymorembs.errors import NumericalError, UserError
 from pymorembs.linalg.factorization import Factorization
 from pymorembs.linalg.mass_split import mass_split
+from pymorembs.methods import ModalOptions
 from pymorembs.reduction.projection import Projection
 from pymorembs.system import SecondOrderSystem
 
@@ -43,7 +44,8 @@ def eigenmodes(
     system : SecondOrderSystem
         Sparse full system.
     count : int
-        Number of modes.
+        Number of modes, >= 1 (checked by the caller: the ``order`` of
+        :class:`~pymorembs.methods.ModalOptions`, or a count the caller computed).
     shift_hz : float
         The shift is ``sigma = -(2 pi shift_hz)^2``.
     elastic_only : bool
@@ -56,10 +58,13 @@ def eigenmodes(
         ``omega_i^2`` in (rad/s)^2, ascending.
     modes : ndarray, shape (n, count)
         Mass-normalised modes, ``modes^T M modes = I``.
+
+    Raises
+    ------
+    UserError
+        More modes than the model has (with mass).
     """
     n = system.order
-    if count < 1:
-        raise UserError(f"number of modes must be at least 1, got {count}")
     split = mass_split(system.mass)
     free = elastic_only and system.rigid_modes is not None
     available = split.rank - (system.rigid_modes.shape[1] if free else 0)
@@ -151,7 +156,26 @@ def _complement_operator(
 def modal_reduction(
     system: SecondOrderSystem, order: int, shift_hz: float = DEFAULT_SHIFT_HZ
 ) -> Projection:
-    """Projection on the ``order`` lowest eigenmodes (``V = W``)."""
+    """Projection on the ``order`` lowest eigenmodes (``V = W``).
+
+    ``order`` and ``shift_hz`` (Hz) are those of the ``modal`` method, checked by its options
+    class :class:`~pymorembs.methods.ModalOptions` (the one check of a job file,
+    :func:`pymorembs.reduce` and this function alike); :func:`lowest_modes` computes them.
+
+    Raises
+    ------
+    OptionError
+        A bad argument (:class:`~pymorembs.methods.ModalOptions`, with its message).
+    UserError
+        More modes than the model has.
+    """
+    options = ModalOptions(order=order, shift_hz=shift_hz)
+    return lowest_modes(system, options.order, options.shift_hz)
+
+
+def lowest_modes(system: SecondOrderSystem, order: int, shift_hz: float) -> Projection:
+    """The projection of :func:`modal_reduction` from checked values (``order >= 1`` modes, the
+    shift in Hz >= 0); only what depends on the system is checked here."""
     values, modes = eigenmodes(system, order, shift_hz, elastic_only=True)
     frequencies = np.sqrt(np.clip(values, 0.0, None)) / (2.0 * np.pi)
     return Projection(

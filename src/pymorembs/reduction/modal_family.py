@@ -28,9 +28,9 @@ from pymorembs.linalg.factorization import Factorization
 from pymorembs.linalg.inertia_relief import InertiaRelief
 from pymorembs.linalg.mass_split import condensed_dense_eigh
 from pymorembs.linalg.orthogonalization import OrthonormalBasis
-from pymorembs.methods import CraigBamptonOptions, ModalOptions
+from pymorembs.methods import CraigBamptonOptions, ModalOptions, OptionError
 from pymorembs.preparation.inertia_loads import is_inertia_label
-from pymorembs.reduction.modal import DEFAULT_SHIFT_HZ, eigenmodes, modal_reduction
+from pymorembs.reduction.modal import DEFAULT_SHIFT_HZ, eigenmodes, lowest_modes
 from pymorembs.reduction.projection import Projection
 from pymorembs.system import SecondOrderSystem
 
@@ -247,19 +247,47 @@ def best_modes(
         ``approximate_hsv_modes`` (the candidate index of each of those values),
         ``damping_source``, ``negligible_modes_chosen``, ``repeated_eigenvalue_clusters`` and
         ``highest_candidate_chosen`` (True: more candidates might change the choice).
+
+    Raises
+    ------
+    OptionError
+        A bad ``order``, ``candidates`` or ``shift_hz``, checked by
+        :class:`~pymorembs.methods.ModalOptions` (``select = "best"``) with its message.
+    UserError
+        What only the system can tell (:func:`ranked_modes`).
+    """
+    options = ModalOptions(order=order, select="best", candidates=candidates, shift_hz=shift_hz)
+    return ranked_modes(system, options.order, options.candidates, damping_ratio, options.shift_hz)
+
+
+def ranked_modes(
+    system: SecondOrderSystem,
+    order: int,
+    candidates: int | None,
+    damping_ratio: float | None,
+    shift_hz: float,
+) -> Projection:
+    """The projection of :func:`best_modes` from checked values.
+
+    ``order >= 1``, ``candidates`` (None or above ``order``) and ``shift_hz`` (Hz) are those of
+    a :class:`~pymorembs.methods.ModalOptions`, checked there; only what depends on the system
+    is checked here.
+
+    Raises
+    ------
+    UserError
+        An order or a number of candidates not below the independent dofs, or a system without
+        inputs or outputs.
     """
     n = system.order
-    order = int(order)
-    if order < 1:
-        raise UserError(f"best modes: order must be at least 1, got {order}")
     if order >= n:
         raise UserError(
             f"best modes: {order} modes requested but the model has only {n} independent dofs"
         )
     if system.n_inputs == 0 or system.n_outputs == 0:
         raise UserError("best modes: the system needs inputs and outputs to rank its modes")
-    count = default_candidates(order, n) if candidates is None else int(candidates)
-    if not order <= count < n:
+    count = default_candidates(order, n) if candidates is None else candidates
+    if count >= n:
         raise UserError(
             f"best modes: candidates must lie between the order {order} and {n - 1}, got {count}"
         )
@@ -361,18 +389,45 @@ def modes_with_frm(
         ``V`` with orthonormal columns (Euclidean), ``order + sum(frm_directions)`` of them.
         ``parameters``: those of the eigenmodes, and ``frm_hz``, ``frm_directions`` (directions
         each frequency added), ``frm_deflated`` (inputs whose modes were dropped there).
+
+    Raises
+    ------
+    OptionError
+        A bad ``order``, ``candidates``, ``shift_hz`` or frequency, checked by
+        :class:`~pymorembs.methods.ModalOptions` with its message (``modes``, its ``select``,
+        with this function's).
+    UserError
+        No frequency, or what only the system can tell (:func:`modes_and_responses`).
     """
-    points = [float(frm_hz)] if np.isscalar(frm_hz) else [float(f) for f in frm_hz]
-    if not points:
+    if np.ndim(frm_hz) > 0 and np.size(frm_hz) == 0:
         raise UserError("modes with FRM: at least one frequency response mode frequency is needed")
-    if any(not np.isfinite(f) or f < 0 for f in points):
-        raise UserError(f"modes with FRM: frequencies must be finite and >= 0 Hz, got {points}")
+    try:
+        options = ModalOptions(order=order, select=modes, candidates=candidates, frm_hz=frm_hz,
+                               shift_hz=shift_hz)  # fmt: skip
+    except OptionError as error:
+        if error.key != "select":
+            raise
+        # the argument is called `modes` here: the options' check, said in its name
+        raise UserError(
+            f"modes with FRM: modes must be 'best' or 'lowest', got {modes!r}"
+        ) from None
+    return modes_and_responses(system, options, tol, damping_ratio)
+
+
+def modes_and_responses(
+    system: SecondOrderSystem,
+    options: ModalOptions,
+    tol: float = 1e-10,
+    damping_ratio: float | None = None,
+) -> Projection:
+    """The projection of :func:`modes_with_frm` on checked ``modal`` options with ``frm_hz``
+    (``order``, ``select``, ``candidates``, ``shift_hz``); only what depends on the system is
+    checked here."""
+    order, modes, shift_hz, points = (options.order, options.select, options.shift_hz,
+                                      list(options.frm_hz))  # fmt: skip
     if modes == "best":
-        eigen = best_modes(system, order, candidates, damping_ratio, shift_hz)
-    elif modes == "lowest":
-        order = int(order)
-        if order < 1:
-            raise UserError(f"modes with FRM: order must be at least 1, got {order}")
+        eigen = ranked_modes(system, order, options.candidates, damping_ratio, shift_hz)
+    else:
         values, vectors = eigenmodes(system, order, shift_hz, elastic_only=True)
         frequencies = np.sqrt(np.clip(values, 0.0, None)) / (2.0 * np.pi)
         eigen = Projection(
@@ -386,8 +441,6 @@ def modes_with_frm(
                 "mode_frequencies_hz": frequencies.tolist(),
             },
         )
-    else:
-        raise UserError(f"modes with FRM: modes must be 'best' or 'lowest', got {modes!r}")
     if system.n_inputs == 0:
         raise UserError("modes with FRM: the system has no inputs")
 
@@ -504,7 +557,31 @@ def craig_bampton(
         ``parameters``: ``boundary_dofs``,
         ``constraint_modes``, ``fixed_modes``, ``static_load_modes``,
         ``fixed_interface_frequencies_hz``.
+
+    Raises
+    ------
+    OptionError
+        A bad ``n_fixed_modes`` (its ``fixed_modes``) or ``shift_hz``, checked by
+        :class:`~pymorembs.methods.CraigBamptonOptions` with its message.
+    UserError
+        Bad boundary dofs, or what only the system can tell (:func:`fixed_interface_basis`).
     """
+    options = CraigBamptonOptions(fixed_modes=n_fixed_modes, shift_hz=shift_hz)
+    return fixed_interface_basis(system, boundary_dofs, options.fixed_modes, options.shift_hz,
+                                 tol, static_loads)  # fmt: skip
+
+
+def fixed_interface_basis(
+    system: SecondOrderSystem,
+    boundary_dofs: Sequence[int] | np.ndarray,
+    n_fixed_modes: int,
+    shift_hz: float,
+    tol: float = 1e-10,
+    static_loads: np.ndarray | None = None,
+) -> Projection:
+    """The projection of :func:`craig_bampton` from checked ``fixed_modes >= 0`` and shift (Hz)
+    of a :class:`~pymorembs.methods.CraigBamptonOptions`; the boundary dofs and what depends on
+    the system (the modes the interior has, the support of a free body) are checked here."""
     n = system.order
     boundary = np.asarray(boundary_dofs).ravel()
     if boundary.size == 0:
@@ -517,8 +594,8 @@ def craig_bampton(
         raise UserError("craig-bampton: boundary dofs repeat")
     interior = np.setdiff1d(np.arange(n), boundary)
     n_i = interior.size
-    k = int(n_fixed_modes)
-    if not 0 <= k <= n_i:
+    k = n_fixed_modes
+    if k > n_i:
         raise UserError(
             f"craig-bampton: the number of fixed-interface modes must lie in [0, {n_i}] "
             f"(interior dofs), got {k}"
@@ -638,16 +715,14 @@ def _interior_modes(
 def modal_from_options(
     system: SecondOrderSystem, options: ModalOptions, band_hz: tuple[float, float] | None = None
 ) -> Projection:
-    """The ``modal`` method on its checked options: the lowest modes, the best ones
-    (:func:`best_modes`), or either with frequency-response modes (:func:`modes_with_frm`);
-    ``band_hz`` unused."""
+    """The ``modal`` method on its checked options: the lowest modes
+    (:func:`~pymorembs.reduction.modal.lowest_modes`), the best ones (:func:`ranked_modes`), or
+    either with frequency-response modes (:func:`modes_and_responses`); ``band_hz`` unused."""
     if options.frm_hz:
-        return modes_with_frm(system, options.order, options.frm_hz, modes=options.select,
-                              candidates=options.candidates, shift_hz=options.shift_hz)  # fmt: skip
+        return modes_and_responses(system, options)
     if options.select == "best":
-        return best_modes(system, options.order, candidates=options.candidates,
-                          shift_hz=options.shift_hz)  # fmt: skip
-    return modal_reduction(system, options.order, shift_hz=options.shift_hz)
+        return ranked_modes(system, options.order, options.candidates, None, options.shift_hz)
+    return lowest_modes(system, options.order, options.shift_hz)
 
 
 def craig_bampton_from_options(
@@ -660,7 +735,7 @@ def craig_bampton_from_options(
     held (``band_hz`` unused)."""
     inertia = np.array([is_inertia_label(label) for label in system.input_labels], dtype=bool)
     ports = dataclasses.replace(system, input_matrix=system.input_matrix[:, ~inertia])
-    return craig_bampton(
+    return fixed_interface_basis(
         system,
         boundary_dofs_of_inputs(ports),
         options.fixed_modes,

@@ -95,7 +95,7 @@ Frequencies are in Hz at the interface, ``w = 2 pi f`` in rad/s inside.
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -121,6 +121,8 @@ from pymorembs.system import SecondOrderSystem
 DEFAULT_TOL = 1e-8
 #: Default largest basis dimension.
 DEFAULT_MAX_DIM = 300
+#: The least value of each whole-number keyword of the solver (:func:`check_solver_keywords`).
+LEAST_COUNTS = {"max_dim": 1, "max_shifts": 1, "moments": 1, "grid_points": 2, "patience": 1}
 #: Default largest number of shifts (= sparse factorizations).
 DEFAULT_MAX_SHIFTS = 40
 #: Default number of log-spaced (and as many equidistant) frequencies of the shift grid.
@@ -378,19 +380,14 @@ def rational_krylov_gramians(
     band_hz: Sequence[float],
     tol: float = DEFAULT_TOL,
     max_dim: int = DEFAULT_MAX_DIM,
-    max_shifts: int = DEFAULT_MAX_SHIFTS,
-    moments: int = 2,
-    initial_shifts_hz: Sequence[float] | None = None,
-    grid_points: int = DEFAULT_GRID_POINTS,
-    n_sigma: int | None = None,
-    patience: int = 1,
-    min_dim: int = 0,
-    damping_ratio: float | None = None,
-    deflation_tol: float = 1e-10,
+    **keywords: Any,
 ) -> RationalKrylovGramians:
     """Frequency-weighted Gramians ``P_p^w``, ``Q_pv^w`` of a large sparse model, low rank.
 
     Galerkin projection on an adaptive second-order rational Krylov subspace (module notes).
+
+    The arguments are checked here (:func:`check_solver_keywords`); :func:`galerkin_gramians`
+    runs on them and holds the defaults of the further keywords.
 
     Parameters
     ----------
@@ -435,24 +432,62 @@ def rational_krylov_gramians(
     RationalKrylovGramians
         ``V``, ``X_P``, ``X_Q`` and the diagnostics (shifts in Hz, factorizations, history).
     """
-    w1, w2 = band_in_rad_s(band_hz, allow_infinite=False)
-    f_min, f_max = w1 / (2.0 * np.pi), w2 / (2.0 * np.pi)
     if not (np.isfinite(tol) and tol > 0):
         raise UserError(f"rational-krylov: tol must be a number > 0, got {tol!r}")
-    for name, value, low in (
-        ("max_dim", max_dim, 1),
-        ("max_shifts", max_shifts, 1),
-        ("moments", moments, 1),
-        ("grid_points", grid_points, 2),
-        ("patience", patience, 1),
-    ):
+    check_solver_keywords({"max_dim": max_dim, **keywords})
+    return galerkin_gramians(system, band_hz, tol, max_dim, **keywords)
+
+
+def check_solver_keywords(keywords: Mapping[str, Any]) -> None:
+    """Check the keywords of :func:`galerkin_gramians` given in ``keywords``: the whole numbers
+    of :data:`LEAST_COUNTS` and the initial shifts (Hz). The others (``n_sigma``, ``min_dim``,
+    ``damping_ratio``, ``deflation_tol``) are used as given.
+
+    Raises
+    ------
+    UserError
+        A count that is no whole number or below its least value, or a shift that is no
+        frequency >= 0.
+    """
+    for name, low in LEAST_COUNTS.items():
+        value = keywords.get(name, low)
         if int(value) != value or value < low:
             raise UserError(f"rational-krylov: {name} must be an integer >= {low}, got {value!r}")
+    if keywords.get("initial_shifts_hz") is None:
+        return
+    shifts = [float(f) for f in keywords["initial_shifts_hz"]]
+    if not shifts or any(not (np.isfinite(f) and f >= 0) for f in shifts):
+        raise UserError(f"rational-krylov: initial shifts must be frequencies >= 0 Hz: {shifts}")
+
+
+def galerkin_gramians(
+    system: SecondOrderSystem,
+    band_hz: Sequence[float],
+    tol: float,
+    max_dim: int,
+    max_shifts: int = DEFAULT_MAX_SHIFTS,
+    moments: int = 2,
+    initial_shifts_hz: Sequence[float] | None = None,
+    grid_points: int = DEFAULT_GRID_POINTS,
+    n_sigma: int | None = None,
+    patience: int = 1,
+    min_dim: int = 0,
+    damping_ratio: float | None = None,
+    deflation_tol: float = 1e-10,
+) -> RationalKrylovGramians:
+    """The iteration of :func:`rational_krylov_gramians` from checked values.
+
+    ``tol > 0`` and ``max_dim >= 1`` are checked by the caller: by
+    :func:`rational_krylov_gramians`, or as ``convergence_tolerance`` and ``first_order`` of a
+    :class:`~pymorembs.methods.GramianOptions`; the other keywords by
+    :func:`check_solver_keywords`. The band and what depends on the system are checked here.
+    Parameters and result as in :func:`rational_krylov_gramians`.
+    """
+    w1, w2 = band_in_rad_s(band_hz, allow_infinite=False)
+    f_min, f_max = w1 / (2.0 * np.pi), w2 / (2.0 * np.pi)
     if system.n_inputs == 0 and system.n_outputs == 0:
         raise UserError("rational-krylov: the system has neither inputs nor outputs")
     shifts = [f_min, f_max] if initial_shifts_hz is None else [float(f) for f in initial_shifts_hz]
-    if not shifts or any(not (np.isfinite(f) and f >= 0) for f in shifts):
-        raise UserError(f"rational-krylov: initial shifts must be frequencies >= 0 Hz: {shifts}")
     rigid_count = 0 if system.rigid_modes is None else system.rigid_modes.shape[1]
     max_dim = min(int(max_dim), system.order - rigid_count)
 
@@ -652,18 +687,28 @@ def rational_gramian_reduction(
     Raises
     ------
     OptionError
-        A bad ``order`` or ``tolerance``, checked by :class:`~pymorembs.methods.GramianOptions`.
+        A bad ``order``, ``tolerance``, ``tol`` (its ``convergence_tolerance``) or ``max_dim``
+        (its ``first_order``), checked by :class:`~pymorembs.methods.GramianOptions` with its
+        message.
     UserError
-        A bad band or solver keyword, or an order above ``max_dim``.
+        A bad band or further solver keyword (:func:`check_solver_keywords`), or an order above
+        ``max_dim``.
     """
-    checked = GramianOptions(order=order, tolerance=tolerance)
+    checked = GramianOptions(
+        order=order,
+        tolerance=tolerance,
+        first_stage="rational-krylov",
+        first_order=max_dim,
+        convergence_tolerance=tol,
+    )
+    check_solver_keywords(options)
     return _rational_projection(
         system,
         band_hz,
         checked.order,
         checked.tolerance,
-        tol,
-        max_dim,
+        checked.convergence_tolerance,
+        checked.first_order,
         damping_ratio,
         kappa_points,
         **options,
@@ -692,13 +737,14 @@ def _rational_projection(
     kappa_points: int = KAPPA_POINTS,
     **options: Any,
 ) -> Projection:
-    """:func:`rational_gramian_reduction` with ``order`` and ``tolerance`` checked."""
+    """:func:`rational_gramian_reduction` with ``order``, ``tolerance``, ``tol``, ``max_dim`` and
+    the solver keywords checked."""
     w1, w2 = band_in_rad_s(band_hz, allow_infinite=False)
     if tol is None:
         tol = DEFAULT_TOL if tolerance is None else min(DEFAULT_TOL, 1e-2 * tolerance)
     if order is not None and order > min(max_dim, system.order):
         raise UserError(f"order {order} exceeds max_dim = {min(max_dim, system.order)}")
-    result = rational_krylov_gramians(
+    result = galerkin_gramians(
         system,
         band_hz,
         tol=tol,

@@ -72,7 +72,6 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 import scipy.linalg as sla
@@ -291,6 +290,12 @@ def soaga_reduction(
 ) -> Projection:
     """Second-order adaptive global Arnoldi reduction with an error estimator (SOAGA).
 
+    The arguments are checked here, once, and :func:`adaptive_arnoldi` runs on them. They are a
+    wider interface than the ``soaga`` method's options (:class:`~pymorembs.methods.SoagaOptions`,
+    the one check of a job file and :func:`pymorembs.reduce`, whose checked object
+    :func:`soaga_from_options` hands to :func:`adaptive_arnoldi` directly): the error reference
+    and the tests set the step, the grid and a tolerance outside ``(0, 1)``.
+
     Parameters
     ----------
     system : SecondOrderSystem
@@ -342,14 +347,10 @@ def soaga_reduction(
     estimator.
     """
     f_min, f_max = _check_band(band_hz)
-    if candidates_hz is None:
-        if n_candidates < 1:
-            raise UserError(f"soaga: n_candidates must be at least 1, got {n_candidates}")
-        lower = max(f_min, 1e-3 * f_max)
-        candidates = np.linspace(lower, f_max, n_candidates) if n_candidates > 1 else [lower]
-        candidates = [float(f) for f in candidates]
-    else:
-        candidates = checked_points(
+    if candidates_hz is None and n_candidates < 1:
+        raise UserError(f"soaga: n_candidates must be at least 1, got {n_candidates}")
+    if candidates_hz is not None:
+        candidates_hz = checked_points(
             sorted(float(f) for f in candidates_hz),
             "soaga",
             "candidate expansion point",
@@ -361,13 +362,68 @@ def soaga_reduction(
         raise UserError("soaga: give 'tolerance' (estimated max relative error) or 'max_order'")
     if tolerance is not None and not (np.isfinite(tolerance) and tolerance > 0):
         raise UserError(f"soaga: tolerance must be a number > 0, got {tolerance}")
-    if max_order is not None and not 1 <= max_order <= system.order:
-        raise UserError(
-            f"soaga: max_order must lie in [1, {system.order}] (the independent dofs), "
-            f"got {max_order}"
-        )
+    if max_order is not None and max_order < 1:
+        raise UserError(_max_order_message(system, max_order))
     if grid_points < 2:
         raise UserError(f"soaga: grid_points must be at least 2, got {grid_points}")
+    candidates = candidate_points(f_min, f_max, candidates_hz, n_candidates)
+    return adaptive_arnoldi(
+        system,
+        (f_min, f_max),
+        candidates,
+        tolerance,
+        None if max_order is None else int(max_order),
+        tol,
+        block_per_step=int(block_per_step),
+        grid_points=int(grid_points),
+        label=label,
+        tolerance_label=tolerance_label,
+    )
+
+
+def candidate_points(
+    f_min: float, f_max: float, candidates_hz: Sequence[float] | None, n_candidates: int | None
+) -> list[float]:
+    """The candidate expansion points (Hz, ascending): the given ones, or ``n_candidates``
+    (default :data:`DEFAULT_CANDIDATES`) equidistant from ``max(f_min, 1e-3 f_max)`` to
+    ``f_max``; the values are checked by the caller."""
+    if candidates_hz is not None:
+        return sorted(float(f) for f in candidates_hz)
+    count = DEFAULT_CANDIDATES if n_candidates is None else n_candidates
+    lower = max(f_min, 1e-3 * f_max)
+    return [float(f) for f in np.linspace(lower, f_max, count)] if count > 1 else [lower]
+
+
+def adaptive_arnoldi(
+    system: SecondOrderSystem,
+    band_hz: tuple[float, float],
+    candidates: list[float],
+    tolerance: float | None,
+    max_order: int | None,
+    tol: float,
+    *,
+    block_per_step: int = 1,
+    grid_points: int = DEFAULT_GRID_POINTS,
+    label: str = "soaga",
+    tolerance_label: str = "tolerance",
+) -> Projection:
+    """The SOAGA iteration of :func:`soaga_reduction` from checked values.
+
+    The band ``(f_min, f_max)`` (Hz, checked), the candidate points (:func:`candidate_points`),
+    the estimated error target, the largest order and the deflation tolerance are those of a
+    :class:`~pymorembs.methods.SoagaOptions` (or of the SOAGA first stage of a
+    :class:`~pymorembs.methods.GramianOptions`), or the arguments :func:`soaga_reduction`
+    checked: used here as they are. Only what depends on the system is checked here.
+
+    Raises
+    ------
+    UserError
+        A largest order above the independent dofs, a system without inputs, or inputs that
+        are zero on the independent dofs.
+    """
+    f_min, f_max = band_hz
+    if max_order is not None and max_order > system.order:
+        raise UserError(_max_order_message(system, max_order))
     if system.n_inputs == 0:
         raise UserError("soaga: the system has no inputs")
     limit = system.order if max_order is None else int(max_order)
@@ -518,13 +574,16 @@ def soaga_from_options(
     system: SecondOrderSystem, options: SoagaOptions, band_hz: tuple[float, float]
 ) -> Projection:
     """The ``soaga`` method on its checked options over the band (Hz)."""
-    extra: dict[str, Any] = {}
-    if options.candidates_hz is not None:
-        extra["candidates_hz"] = options.candidates_hz
-    if options.n_candidates is not None:
-        extra["n_candidates"] = options.n_candidates
-    return soaga_reduction(system, band_hz, tolerance=options.tolerance, max_order=options.order,
-                           tol=options.deflation_tolerance, **extra)  # fmt: skip
+    f_min, f_max = _check_band(band_hz)
+    candidates = candidate_points(f_min, f_max, options.candidates_hz, options.n_candidates)
+    return adaptive_arnoldi(system, (f_min, f_max), candidates, options.tolerance, options.order,
+                            options.deflation_tolerance)  # fmt: skip
+
+
+def _max_order_message(system: SecondOrderSystem, max_order: int) -> str:
+    return (
+        f"soaga: max_order must lie in [1, {system.order}] (the independent dofs), got {max_order}"
+    )
 
 
 def _room_for_a_factorization(processes: list[GlobalSecondOrderArnoldi]) -> bool:
