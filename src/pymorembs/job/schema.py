@@ -71,7 +71,7 @@ class InterfaceNodeSpec:
 
     node: int
     position: tuple[float, float, float]
-    kind: str
+    kind: InterfaceKind
     ids: tuple[int, ...] | None
     cylinder: tuple | None
     box: tuple | None
@@ -484,9 +484,10 @@ def _interfaces(data: Any, path: Path) -> tuple[InterfaceNodeSpec, ...]:
         table = _Table(item, f"[[interface]] #{k}", path)
         node = table.integer("node", required=True, minimum=-(2**62))
         position = _vector(table, "position", required=True)
-        kind = table.string("kind", required=True)
-        if kind not in INTERFACE_KINDS:
-            raise table.error("kind", f"must be one of {', '.join(INTERFACE_KINDS)}, got {kind!r}")
+        name = table.string("kind", required=True)
+        kind = InterfaceKind.lookup(name)
+        if kind is None:
+            raise table.error("kind", f"must be one of {', '.join(INTERFACE_KINDS)}, got {name!r}")
         ids = table.get("nodes")
         if ids is not None and (
             not isinstance(ids, list)
@@ -512,7 +513,7 @@ def _interfaces(data: Any, path: Path) -> tuple[InterfaceNodeSpec, ...]:
             box = (_vector(sub, "min", required=True), _vector(sub, "max", required=True))
             sub.done()
         parameters = {}
-        for key in InterfaceKind(kind).keys:
+        for key in kind.keys:
             value = table.number(key, minimum=0.0)
             if value is not None:
                 parameters[key] = value
@@ -522,7 +523,7 @@ def _interfaces(data: Any, path: Path) -> tuple[InterfaceNodeSpec, ...]:
                 f"{path}: [[interface]] #{k}: give 'nodes', 'cylinder' or 'box' "
                 "to select the coupled nodes"
             )
-        if kind == "springs" and "stiffness" not in parameters:
+        if kind is InterfaceKind.SPRINGS and "stiffness" not in parameters:
             raise UserError(f"{path}: [[interface]] #{k}: springs need 'stiffness' (N/m)")
         specs.append(
             InterfaceNodeSpec(
@@ -721,7 +722,7 @@ def _frame(table: _Table) -> Frame:
     if kind == FrameType.TANGENT:
         node = table.integer("node", required=True, minimum=-(2**62))
         table.done()
-        return Frame("tangent", node)
+        return Frame(FrameType.TANGENT, node)
     if kind in FrameType.names():
         table.done()
         return Frame(kind)
