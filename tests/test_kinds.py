@@ -6,7 +6,7 @@ import pytest
 
 from pymorembs import Damping, Frame, UserError
 from pymorembs.job.schema import parse_job
-from pymorembs.kinds import DampingKind, FrameType, InterfaceKind
+from pymorembs.kinds import DampingKind, FrameType, InterfaceKind, ReferenceKind
 from pymorembs.preparation import InterfaceSpec
 
 
@@ -47,3 +47,20 @@ def test_a_job_holds_the_kinds_of_its_frame_damping_and_interfaces():
     assert job.frame.kind is FrameType.TANGENT
     assert job.damping is not None and job.damping.kind is DampingKind.MODAL
     assert job.interfaces[0].kind is InterfaceKind.SPRINGS
+
+
+def test_a_job_holds_its_export_and_reference_kinds():
+    from pymorembs.export import EXPORTS, OutputKind
+
+    assert [kind.value for kind in OutputKind] == list(EXPORTS)  # made from the registry
+    data = {
+        "model": {"example": "rack-beams"},
+        "frame": {"type": "none"},
+        "band": {"f_max_hz": 100.0, "reference": "full"},
+        "reduction": [{"method": "modal", "order": 4}],
+        "export": {"outputs": ["sid", "npz"]},
+    }
+    job = parse_job(data, Path("job.toml"))
+    assert job.export.outputs == (OutputKind.SID, OutputKind.NPZ)
+    assert all(type(kind) is OutputKind for kind in job.export.outputs)
+    assert job.band.reference is ReferenceKind.FULL and job.reference == "full"

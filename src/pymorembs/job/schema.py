@@ -24,7 +24,7 @@ from pymorembs.analysis import (
     REFERENCE_KINDS,
     LargeMotionSettings,
 )
-from pymorembs.export import BODY_OUTPUTS, DEFAULT_EXPORTS, EXPORT_KINDS
+from pymorembs.export import BODY_OUTPUTS, DEFAULT_EXPORTS, EXPORT_KINDS, OutputKind
 from pymorembs.io import FORMATS
 from pymorembs.kinds import DampingKind, FrameType, InterfaceKind, ReferenceKind, choices
 from pymorembs.methods import (
@@ -143,19 +143,26 @@ class BandSpec:
     f_max_hz: float
     f_min_hz: float = 0.0
     points: int = 400
-    reference: str = ReferenceKind.AUTO.value
+    reference: ReferenceKind = ReferenceKind.AUTO
     check_points: int = DEFAULT_CHECKS
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "reference", ReferenceKind(self.reference))
 
 
 @dataclass(frozen=True)
 class ExportSpec:
     """``[export]``: which files to write and for which nodes (SID frame, Exudyn markers).
 
-    ``nodes`` None: the nodes of the inputs and outputs.
+    ``outputs``: kinds of the export registry (:data:`~pymorembs.export.OutputKind`, a name is
+    taken too); ``nodes`` None: the nodes of the inputs and outputs.
     """
 
-    outputs: tuple[str, ...] = DEFAULT_EXPORTS
+    outputs: tuple[OutputKind, ...] = tuple(map(OutputKind, DEFAULT_EXPORTS))
     nodes: tuple[int, ...] | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "outputs", tuple(map(OutputKind, self.outputs)))
 
 
 @dataclass(frozen=True)
@@ -242,7 +249,7 @@ class Job:
         return self.band.points
 
     @property
-    def reference(self) -> str:
+    def reference(self) -> ReferenceKind:
         """``[band] reference``."""
         return self.band.reference
 
