@@ -64,3 +64,25 @@ def test_a_job_holds_its_export_and_reference_kinds():
     assert job.export.outputs == (OutputKind.SID, OutputKind.NPZ)
     assert all(type(kind) is OutputKind for kind in job.export.outputs)
     assert job.band.reference is ReferenceKind.FULL and job.reference == "full"
+
+
+def test_a_jobs_example_options_are_typed():
+    from pymorembs.examples import ExampleOptions
+    from pymorembs.job.schema import ModelSpec
+
+    data = {
+        "model": {"example": "blade", "hub_radius": 0.1, "elements": 8},
+        "frame": {"type": "none"},
+        "band": {"f_max_hz": 100.0},
+        "reduction": [{"method": "modal", "order": 4}],
+    }
+    job = parse_job(data, Path("job.toml"))
+    assert job.model.options == ExampleOptions(hub_radius=0.1, elements=8)
+    assert job.model.options.given() == {"hub_radius": 0.1, "elements": 8}
+    given = ModelSpec(example="rack-solid", options={"dofs": 2000})  # by name, as the app gives
+    assert given.options == ExampleOptions(dofs=2000)
+    with pytest.raises(UserError, match="example blade has no option 'dofs'"):
+        ModelSpec(example="blade", options={"dofs": 2000})
+    data["model"]["elements"] = 2
+    with pytest.raises(UserError, match=r"\[model\]\.elements: must be >= 4, got 2"):
+        parse_job(data, Path("job.toml"))
