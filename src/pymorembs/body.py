@@ -22,7 +22,6 @@ from __future__ import annotations
 import copy
 from dataclasses import dataclass, field, replace
 from functools import cached_property
-from typing import Literal
 
 import numpy as np
 import scipy.sparse as sp
@@ -263,7 +262,8 @@ DAMPING_KEYS: dict[str, tuple[str, ...]] = {kind.value: kind.keys for kind in Da
 class Damping:
     """Damping model of the body.
 
-    ``kind``:
+    ``kind``, a :class:`~pymorembs.kinds.DampingKind` (its name is taken too:
+    ``Damping("modal", ratio=0.02).kind is DampingKind.MODAL``):
 
     * ``"none"`` -- undamped (or only the explicit damping matrix of the body, if any);
     * ``"rayleigh"`` -- ``D = alpha M + beta K`` (alpha in 1/s, beta in s);
@@ -274,17 +274,19 @@ class Damping:
       which equals the modal damping at every resonance.
     """
 
-    kind: Literal["none", "rayleigh", "modal"] = "none"
+    kind: DampingKind = DampingKind.NONE
     alpha: float = 0.0
     beta: float = 0.0
     ratio: float = 0.0
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "kind", plain(self.kind))
-        if not isinstance(self.kind, str) or self.kind not in DAMPING_KEYS:
+        name = plain(self.kind)
+        kind = DampingKind.lookup(name)  # a name ("modal") is stored as its kind
+        if kind is None:
             raise UserError(
-                f"damping kind {described(self.kind)} is unknown; use {choices(DampingKind)}"
+                f"damping kind {described(name)} is unknown; use {choices(DampingKind)}"
             )
+        object.__setattr__(self, "kind", kind)
         for name in ("alpha", "beta", "ratio"):
             value = plain(getattr(self, name))
             if isinstance(value, bool) or not isinstance(value, int | float):
@@ -297,7 +299,8 @@ class Damping:
         if unused:
             takes = " and ".join(DAMPING_KEYS[self.kind]) or "no values"
             raise UserError(
-                f"damping {unused[0]} does not belong to kind {self.kind!r}, which takes {takes}"
+                f"damping {unused[0]} does not belong to kind {self.kind.value!r}, "
+                f"which takes {takes}"
             )
         if self.kind == "modal" and not 0 < self.ratio < 1:
             raise UserError(f"modal damping ratio must lie in (0, 1), got {self.ratio!r}")
@@ -305,9 +308,9 @@ class Damping:
     def describe(self, matrix: bool = False) -> str:
         """One phrase, e.g. ``"modal, ratio 0.02"`` or ``"rayleigh, alpha 2 1/s, beta 1e-05 s"``;
         with ``matrix``, a body's explicit damping matrix is named too."""
-        if self.kind == "modal":
+        if self.kind is DampingKind.MODAL:
             text = f"modal, ratio {self.ratio:g}"
-        elif self.kind == "rayleigh":
+        elif self.kind is DampingKind.RAYLEIGH:
             text = f"rayleigh, alpha {self.alpha:g} 1/s, beta {self.beta:g} s"
         else:
             return "damping matrix" if matrix else "none"

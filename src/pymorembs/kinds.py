@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import Any
+from typing import Any, Self
 
 __all__ = [
     "DampingKind",
@@ -73,6 +73,17 @@ class Kind(StrEnum):
     def names(cls) -> tuple[str, ...]:
         """Every kind's name, in the order of the definition."""
         return tuple(member.value for member in cls)
+
+    @classmethod
+    def lookup(cls, value: object) -> Self | None:
+        """The kind named ``value`` (a member or its name), None if ``value`` names none.
+
+        The typed fields of the library (``Frame.kind``, ``Damping.kind``,
+        ``InterfaceSpec.kind``) take a name at construction and store the kind through it.
+        """
+        if isinstance(value, str):
+            return cls._value2member_map_.get(str(value))  # type: ignore[return-value]
+        return None
 
     @property
     def keys(self) -> tuple[str, ...]:

@@ -136,12 +136,17 @@ def test_port_on_fixed_dof_gives_zero_column_and_a_note_or_warning():
         (Frame("tangent", 20), [Port.parse(77, "ux")], "node 77"),
         (Frame("tangent", 20), [Port.parse(50, "rx")], "no dof rx"),
         (Frame("tangent", 20), [Port.parse(50, "ux"), Port.parse(50, "ux uy")], "twice"),
-        (Frame("spinning", 20), PORTS, "frame type"),
     ],
 )
 def test_bad_preparation_is_a_user_error(frame, ports, message):
     with pytest.raises(UserError, match=message):
         prepare(spring_lattice(), frame, ports)
+
+
+def test_unknown_frame_type_is_a_user_error():
+    """The frame's kind is a FrameType: an unknown name fails where the Frame is made."""
+    with pytest.raises(UserError, match="frame type"):
+        prepare(spring_lattice(), Frame("spinning", 20), PORTS)
 
 
 def test_tangent_frame_at_a_node_without_rotations_is_a_mechanism():

@@ -31,6 +31,7 @@ from pymorembs.export.registry import (
     MATRIX_OUTPUTS,
     BodyOptions,
     ExportKind,
+    OutputKind,
     exports_table,
 )
 from pymorembs.export.sid import check_sid, read_sid, write_sid
@@ -46,6 +47,7 @@ __all__ = [
     "BodyOptions",
     "ExportKind",
     "ExportSource",
+    "OutputKind",
     "body_invariants",
     "check_before_writing",
     "check_sid",

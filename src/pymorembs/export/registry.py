@@ -2,7 +2,8 @@
 
 The counterpart of the method registry (:mod:`pymorembs.methods`): every kind of ``[export]
 outputs`` is one :class:`ExportKind` in :data:`EXPORTS` with its writer, the dataclass of its
-options (None without options), the names of the files it writes and a one-line description.
+options (None without options), the names of the files it writes and a one-line description;
+:data:`OutputKind`, the enum of the kinds' names, is made from it.
 The job file (:mod:`pymorembs.job.schema`), :func:`~pymorembs.export.outputs.write_outputs`, the
 ``ReducedBody.to_*`` methods of the Python API, the job reference (:func:`exports_table`, in
 ``docs/jobs.md``) and the app's list of kinds all read it.
@@ -18,6 +19,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
+from enum import StrEnum
 from pathlib import Path
 from typing import Any
 
@@ -199,6 +201,10 @@ EXPORTS: dict[str, ExportKind] = {
     )
 }
 
+#: The kinds of ``[export] outputs`` as a string enum (``OutputKind.SID == "sid"``), made from
+#: :data:`EXPORTS`, their one definition, in its order: a job's ``[export] outputs`` holds them.
+OutputKind = StrEnum("OutputKind", [(name.upper(), name) for name in EXPORTS])
+OutputKind.__doc__ = "A kind of ``[export] outputs``, one per entry of :data:`EXPORTS`."
 #: The kinds of ``[export] outputs``, in the order of :data:`EXPORTS`.
 EXPORT_KINDS = tuple(EXPORTS)
 #: The kinds a job writes when its ``[export]`` has no ``outputs``.

@@ -146,7 +146,7 @@ def write_body_group(f: h5py.Group, body: ElasticBody) -> None:
     put_csr(f, "constraints/matrix", body.constraints.matrix)
     put_array(f, "fixed", body.fixed, np.int64)
     damping = f.create_group("damping")
-    damping.attrs["kind"] = body.damping.kind
+    damping.attrs["kind"] = body.damping.kind.value  # h5py takes a plain str only
     for key in ("alpha", "beta", "ratio"):
         damping.attrs[key] = np.float64(getattr(body.damping, key))
     if body.mesh is not None:

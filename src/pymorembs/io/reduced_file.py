@@ -193,7 +193,7 @@ def _put_system(group: h5py.Group, system: SecondOrderSystem) -> None:
 
 def _put_prepared(group: h5py.Group, prepared: PreparedModel) -> None:
     frame = prepared.frame
-    group.attrs["frame_kind"] = "" if frame is None else frame.kind
+    group.attrs["frame_kind"] = "" if frame is None else frame.kind.value  # a plain str
     group.attrs["frame_node"] = -1 if frame is None or frame.node is None else int(frame.node)
     _put_texts(group, "warnings", prepared.warnings)
     _put_texts(group, "notes", prepared.notes)

@@ -24,6 +24,7 @@ import time
 import traceback
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import fields
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -41,7 +42,7 @@ from pymorembs import (
     progress,
 )
 from pymorembs.analysis import model_facts
-from pymorembs.examples import EXAMPLES, RACK_SOLID_INTERFACES, build_example
+from pymorembs.examples import EXAMPLES, RACK_SOLID_INTERFACES, ExampleOptions, build_example
 from pymorembs.io import read_body, write_body_h5, write_matrix_files
 from pymorembs.job.run import load_job_model, output_errors, run_job, validate_job_body
 from pymorembs.job.schema import MODEL_FORMATS, load_job
@@ -276,12 +277,8 @@ BUG_REPORT = (
 
 
 def _example(args: argparse.Namespace) -> int:
-    options = {
-        key: getattr(args, key)
-        for key in ("dofs", "interface", "hub_radius", "elements")
-        if getattr(args, key) is not None
-    }
-    body = build_example(args.name, **options)
+    given = {option.name: getattr(args, option.name) for option in fields(ExampleOptions)}
+    body = build_example(args.name, **ExampleOptions(**given).given())
     out: Path = args.out
     if out.exists() and not out.is_dir():
         raise UserError(f"{out}: exists and is not a folder")

@@ -95,7 +95,7 @@ DECAY_SERIES = (
 def load_model(spec: ModelSpec) -> ElasticBody:
     """The body a job's ``[model]`` names: a built-in example or model files of any format."""
     if spec.example is not None:
-        return example(spec.example, **spec.options)
+        return example(spec.example, **spec.options.given())
     return read_body(format=spec.format, **spec.files, **spec.names)
 
 
@@ -1379,7 +1379,7 @@ def provenance(job: Job, validation: ValidationReport | None = None) -> dict[str
     return {
         "inputs": inputs,
         "model": (
-            {"example": job.model.example, "options": dict(job.model.options)}
+            {"example": job.model.example, "options": job.model.options.given()}
             if job.model.example is not None
             else {
                 "format": job.model.format,

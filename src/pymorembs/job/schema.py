@@ -13,7 +13,8 @@ import difflib
 import math
 import re
 import tomllib
-from dataclasses import dataclass, field
+import typing
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +25,8 @@ from pymorembs.analysis import (
     REFERENCE_KINDS,
     LargeMotionSettings,
 )
-from pymorembs.export import BODY_OUTPUTS, DEFAULT_EXPORTS, EXPORT_KINDS
+from pymorembs.examples import ExampleOptions
+from pymorembs.export import BODY_OUTPUTS, DEFAULT_EXPORTS, EXPORT_KINDS, OutputKind
 from pymorembs.io import FORMATS
 from pymorembs.kinds import DampingKind, FrameType, InterfaceKind, ReferenceKind, choices
 from pymorembs.methods import (
@@ -41,6 +43,8 @@ MODEL_FILE_KEYS = (
     "file", "stiffness", "mass", "damping", "dofs", "nodes", "constraints", "fixed", "mapping",
     "inp",
 )  # fmt: skip
+#: The keys of ``[model]`` that name a matrix inside a model file (Nastran).
+MATRIX_NAME_KEYS = ("stiffness_name", "mass_name", "damping_name")
 MODEL_FORMATS = FORMATS
 INTERFACE_KINDS = InterfaceKind.names()
 _NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$")
@@ -48,21 +52,70 @@ _NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$")
 RESERVED_NAMES = frozenset(("summary.json", "error.png", "decay.png", "time.png", "report.html"))
 
 
+#: The key of a dataclass field's metadata that says how a job file writes the field.
+IN_FILE = "job_file"
+
+
+@dataclass(frozen=True)
+class InFile:
+    """How a job file writes a field of a table's dataclass, where the field's name, annotation
+    and default do not say it (read by :func:`pymorembs.job.shape.job_schema`).
+
+    Attributes
+    ----------
+    key : str or None
+        The key in the file (None: the field's name).
+    type : str or None
+        The type as the schema shows it (None: the field's annotation).
+    required : bool or None
+        The file must give it (None: the field has no default).
+    keys : tuple of str
+        The field holds these keys of the file (each of ``type``), e.g. the model's files.
+    inline : bool
+        The field is a dataclass whose fields are keys of the same table.
+    absent : bool
+        No key of the file: derived by the parser, or the table's kind and its parameters
+        (:data:`~pymorembs.job.shape.KIND_TABLES`).
+    """
+
+    key: str | None = None
+    type: str | None = None
+    required: bool | None = None
+    keys: tuple[str, ...] = ()
+    inline: bool = False
+    absent: bool = False
+
+
+def in_file(**how: Any) -> dict[str, InFile]:
+    """The metadata of a field that a job file writes as ``how`` says (:class:`InFile`)."""
+    return {IN_FILE: InFile(**how)}
+
+
 @dataclass(frozen=True)
 class ModelSpec:
     """Where the body comes from.
 
-    Either a built-in ``example`` (with its ``options``, e.g. ``dofs`` and ``interface`` of
-    ``rack-solid``), or model files (``files``: ``file`` for one-file formats, ``stiffness`` and
+    Either a built-in ``example`` (with its ``options``, an
+    :class:`~pymorembs.examples.ExampleOptions`: ``dofs`` and ``interface`` of ``rack-solid``
+    ...), or model files (``files``: ``file`` for one-file formats, ``stiffness`` and
     ``mass`` with their companions otherwise) in a ``format`` (None: detected from the content),
     with ``names`` of the matrices inside a file where the format has names (Nastran).
     """
 
-    example: str | None = None
-    options: dict[str, Any] = field(default_factory=dict)
-    format: str | None = None
-    files: dict[str, Path] = field(default_factory=dict)
-    names: dict[str, str] = field(default_factory=dict)
+    example: str | None = field(default=None, metadata=in_file(type="str"))
+    format: str | None = field(default=None, metadata=in_file(type="str"))
+    files: dict[str, Path] = field(
+        default_factory=dict, metadata=in_file(keys=MODEL_FILE_KEYS, type="str")
+    )
+    names: dict[str, str] = field(
+        default_factory=dict, metadata=in_file(keys=MATRIX_NAME_KEYS, type="str")
+    )
+    options: ExampleOptions = field(default_factory=ExampleOptions, metadata=in_file(inline=True))
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.options, ExampleOptions):  # by name, as the app's form gives them
+            options = ExampleOptions.of(self.example or "", self.options)
+            object.__setattr__(self, "options", options)
 
 
 @dataclass(frozen=True)
@@ -71,11 +124,13 @@ class InterfaceNodeSpec:
 
     node: int
     position: tuple[float, float, float]
-    kind: str
-    ids: tuple[int, ...] | None
-    cylinder: tuple | None
-    box: tuple | None
-    parameters: dict[str, float]
+    kind: InterfaceKind = field(metadata=in_file(absent=True))
+    ids: tuple[int, ...] | None = field(default=None, metadata=in_file(key="nodes"))
+    cylinder: tuple | None = field(
+        default=None, metadata=in_file(type="table: point, direction, radius, tolerance")
+    )
+    box: tuple | None = field(default=None, metadata=in_file(type="table: min, max"))
+    parameters: dict[str, float] = field(default_factory=dict, metadata=in_file(absent=True))
 
 
 #: The accuracy limit of a reduction whose method has no error target of its own: the largest
@@ -101,10 +156,10 @@ class ReductionSpec:
     (:attr:`accuracy_limit`).
     """
 
-    name: str
-    options: ReductionOptions
+    name: str = field(metadata=in_file(required=False))  # the file's default: the method
+    options: ReductionOptions = field(metadata=in_file(key="method", type="str", required=True))
     export_inaccurate: bool = False
-    written: tuple[str, ...] = ()
+    written: tuple[str, ...] = field(default=(), metadata=in_file(absent=True))
 
     @property
     def method(self) -> str:
@@ -143,19 +198,26 @@ class BandSpec:
     f_max_hz: float
     f_min_hz: float = 0.0
     points: int = 400
-    reference: str = ReferenceKind.AUTO.value
+    reference: ReferenceKind = ReferenceKind.AUTO
     check_points: int = DEFAULT_CHECKS
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "reference", ReferenceKind(self.reference))
 
 
 @dataclass(frozen=True)
 class ExportSpec:
     """``[export]``: which files to write and for which nodes (SID frame, Exudyn markers).
 
-    ``nodes`` None: the nodes of the inputs and outputs.
+    ``outputs``: kinds of the export registry (:data:`~pymorembs.export.OutputKind`, a name is
+    taken too); ``nodes`` None: the nodes of the inputs and outputs.
     """
 
-    outputs: tuple[str, ...] = DEFAULT_EXPORTS
+    outputs: tuple[OutputKind, ...] = tuple(map(OutputKind, DEFAULT_EXPORTS))
     nodes: tuple[int, ...] | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "outputs", tuple(map(OutputKind, self.outputs)))
 
 
 @dataclass(frozen=True)
@@ -213,9 +275,9 @@ class StiffeningSpec:
 
 @dataclass(frozen=True)
 class Job:
-    """A parsed reduction job."""
+    """A parsed reduction job; a field that holds a dataclass is a table of the file."""
 
-    path: Path
+    path: Path = field(metadata=in_file(absent=True))
     model: ModelSpec
     interfaces: tuple[InterfaceNodeSpec, ...]
     damping: Damping | None
@@ -242,7 +304,7 @@ class Job:
         return self.band.points
 
     @property
-    def reference(self) -> str:
+    def reference(self) -> ReferenceKind:
         """``[band] reference``."""
         return self.band.reference
 
@@ -442,21 +504,9 @@ def _inertia_loads(data: Any, path: Path) -> InertiaLoadSpec:
 def _model(table: _Table, base: Path) -> ModelSpec:
     example = table.string("example")
     if example is not None:
-        options = {}
-        size = table.integer("dofs", minimum=1000)
-        if size is not None:
-            options["dofs"] = size
-        variant = table.string("interface")
-        if variant is not None:
-            options["interface"] = variant
-        hub = table.number("hub_radius", minimum=0.0)
-        if hub is not None:
-            options["hub_radius"] = hub
-        count = table.integer("elements", minimum=4)
-        if count is not None:
-            options["elements"] = count
+        options = {option.name: _example_option(table, option) for option in fields(ExampleOptions)}
         table.done()
-        return ModelSpec(example=example, options=options)
+        return ModelSpec(example=example, options=ExampleOptions(**options))
     fmt = table.string("format")
     if fmt is not None and fmt not in MODEL_FORMATS:
         hint = difflib.get_close_matches(fmt, MODEL_FORMATS, n=1)
@@ -464,7 +514,7 @@ def _model(table: _Table, base: Path) -> ModelSpec:
         raise table.error("format", f"unknown format {fmt!r}{more}")
     files = {key: table.string(key) for key in MODEL_FILE_KEYS}
     files = {key: base / value for key, value in files.items() if value is not None}
-    names = {key: table.string(key) for key in ("stiffness_name", "mass_name", "damping_name")}
+    names = {key: table.string(key) for key in MATRIX_NAME_KEYS}
     names = {key: value for key, value in names.items() if value is not None}
     table.done()
     if not files:
@@ -476,6 +526,17 @@ def _model(table: _Table, base: Path) -> ModelSpec:
     return ModelSpec(format=fmt, files=files, names=names)
 
 
+def _example_option(table: _Table, option: dataclasses.Field) -> Any:
+    """One option of a built-in example from ``[model]``, checked as its field declares it."""
+    minimum = option.metadata.get("minimum")
+    types = typing.get_args(typing.get_type_hints(ExampleOptions)[option.name])
+    if int in types:
+        return table.integer(option.name, minimum=minimum)
+    if float in types:
+        return table.number(option.name, minimum=minimum)
+    return table.string(option.name)
+
+
 def _interfaces(data: Any, path: Path) -> tuple[InterfaceNodeSpec, ...]:
     if not isinstance(data, list):
         raise UserError(f"{path}: interface: expected one or more [[interface]] tables")
@@ -484,9 +545,10 @@ def _interfaces(data: Any, path: Path) -> tuple[InterfaceNodeSpec, ...]:
         table = _Table(item, f"[[interface]] #{k}", path)
         node = table.integer("node", required=True, minimum=-(2**62))
         position = _vector(table, "position", required=True)
-        kind = table.string("kind", required=True)
-        if kind not in INTERFACE_KINDS:
-            raise table.error("kind", f"must be one of {', '.join(INTERFACE_KINDS)}, got {kind!r}")
+        name = table.string("kind", required=True)
+        kind = InterfaceKind.lookup(name)
+        if kind is None:
+            raise table.error("kind", f"must be one of {', '.join(INTERFACE_KINDS)}, got {name!r}")
         ids = table.get("nodes")
         if ids is not None and (
             not isinstance(ids, list)
@@ -512,7 +574,7 @@ def _interfaces(data: Any, path: Path) -> tuple[InterfaceNodeSpec, ...]:
             box = (_vector(sub, "min", required=True), _vector(sub, "max", required=True))
             sub.done()
         parameters = {}
-        for key in InterfaceKind(kind).keys:
+        for key in kind.keys:
             value = table.number(key, minimum=0.0)
             if value is not None:
                 parameters[key] = value
@@ -522,7 +584,7 @@ def _interfaces(data: Any, path: Path) -> tuple[InterfaceNodeSpec, ...]:
                 f"{path}: [[interface]] #{k}: give 'nodes', 'cylinder' or 'box' "
                 "to select the coupled nodes"
             )
-        if kind == "springs" and "stiffness" not in parameters:
+        if kind is InterfaceKind.SPRINGS and "stiffness" not in parameters:
             raise UserError(f"{path}: [[interface]] #{k}: springs need 'stiffness' (N/m)")
         specs.append(
             InterfaceNodeSpec(
@@ -721,7 +783,7 @@ def _frame(table: _Table) -> Frame:
     if kind == FrameType.TANGENT:
         node = table.integer("node", required=True, minimum=-(2**62))
         table.done()
-        return Frame("tangent", node)
+        return Frame(FrameType.TANGENT, node)
     if kind in FrameType.names():
         table.done()
         return Frame(kind)

@@ -77,29 +77,37 @@ __all__ = [
 class Frame:
     """Choice of the reference frame.
 
+    ``kind`` is a :class:`~pymorembs.kinds.FrameType`; its name is taken too
+    (``Frame("tangent", 2).kind is FrameType.TANGENT``); an unknown name is a :class:`UserError`.
     ``kind = "tangent"`` with ``node``: tangent frame at that node (paper section 2.1).
     ``kind = "buckens"``: Buckens frame, origin in the centre of gravity, shape functions
     mass-orthogonal to the rigid-body modes (free body).
     ``kind = "none"``: the body as given (its own fixed dofs only).
     """
 
-    kind: str = "tangent"
+    kind: FrameType = FrameType.TANGENT
     node: int | None = None
+
+    def __post_init__(self) -> None:
+        kind = FrameType.lookup(self.kind)  # a name ("tangent") is taken and stored as its kind
+        if kind is None:
+            raise UserError(f"frame type {self.kind!r} is unknown; use {choices(FrameType)}")
+        object.__setattr__(self, "kind", kind)
 
     def describe(self) -> str:
         """One phrase, e.g. ``"tangent at node 2"``, ``"buckens"``."""
-        return f"{self.kind} at node {self.node}" if self.kind == "tangent" else self.kind
+        if self.kind is FrameType.TANGENT:
+            return f"{self.kind.value} at node {self.node}"
+        return self.kind.value
 
     def apply(self, body: ElasticBody) -> ElasticBody:
-        if self.kind == "tangent":
+        if self.kind is FrameType.TANGENT:
             if self.node is None:
                 raise UserError("tangent frame needs a node")
             return tangent_frame(body, self.node)
-        if self.kind == "buckens":
+        if self.kind is FrameType.BUCKENS:
             return buckens_frame(body)
-        if self.kind == "none":
-            return body
-        raise UserError(f"frame type {self.kind!r} is unknown; use {choices(FrameType)}")
+        return body  # FrameType.NONE: the body as given
 
 
 @dataclass(frozen=True, eq=False)

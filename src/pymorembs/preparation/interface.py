@@ -52,8 +52,9 @@ class InterfaceSpec:
         Its coordinates (model length unit).
     coupled : tuple of int
         Ids of the nodes it is coupled to (see :func:`select_nodes`).
-    kind : str
-        ``"rigid"``, ``"distributing"``, ``"beams"`` or ``"springs"``.
+    kind : InterfaceKind
+        ``"rigid"``, ``"distributing"``, ``"beams"`` or ``"springs"``
+        (:class:`~pymorembs.kinds.InterfaceKind`; its name is taken and stored as the kind).
     youngs_modulus, density, diameter, poisson : float
         Beams: material (N/m^2, kg/m^3), circular cross-section diameter (m), Poisson's ratio.
     stiffness, damping : float
@@ -63,7 +64,7 @@ class InterfaceSpec:
     node: int
     position: tuple[float, float, float]
     coupled: tuple[int, ...]
-    kind: str = "rigid"
+    kind: InterfaceKind = InterfaceKind.RIGID
     youngs_modulus: float = 2.1e11
     density: float = 7850.0
     diameter: float = 1e-3
@@ -72,8 +73,10 @@ class InterfaceSpec:
     damping: float = 0.0
 
     def __post_init__(self) -> None:
-        if self.kind not in KINDS:
+        kind = InterfaceKind.lookup(self.kind)
+        if kind is None:
             raise UserError(f"interface kind {self.kind!r} is unknown; use one of {KINDS}")
+        object.__setattr__(self, "kind", kind)
         if len(self.position) != 3 or not np.all(np.isfinite(self.position)):
             raise UserError(f"interface node {self.node}: position must be 3 finite numbers")
         if len(self.coupled) == 0:
