@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from pymorembs.body import ElasticBody, ElementMesh
+from pymorembs.body import ElasticBody, ElementMesh, mesh_problem
 from pymorembs.elements.solid import SOLID_KINDS, solid_kind, solid_point_matrices
 from pymorembs.errors import UserError
 from pymorembs.stress.extrapolation import extrapolation_matrix
@@ -165,9 +165,10 @@ def von_mises(components: np.ndarray, axis: int = -1) -> np.ndarray:
 def _solid_mesh(body: ElasticBody) -> ElementMesh:
     mesh = body.mesh
     if mesh is None:
+        why = mesh_problem(body)
         raise UserError(
-            f"stresses of {body.name or 'the body'}: the body has no element mesh (its elements "
-            "and material; `pymorembs info` notes why the reader attached none)"
+            f"stresses of {body.name}: the body has no element mesh (its solid elements and "
+            "material)" + (f": {why}" if why else "")
         )
     if mesh.element not in SOLID_KINDS:
         raise UserError(f"stresses are not supported for {mesh.element} elements")
