@@ -1,10 +1,11 @@
 """Stresses of the full model against CalculiX's on the same meshes (issue #29 item 1).
 
 The parts of tests/data/calculix_stress_parts (README there): a plate with a hole of C3D10 and
-a bar of C3D20 and of C3D20R, clamped at x = 0, a rigid interface at the far end, six static
-unit loads at its reference node (forces x, y, z, moments about x, y, z). CalculiX printed the
-stresses ``S``, strains ``E`` and coordinates of the integration points of a few elements
-(``*EL PRINT``) and the nodal stresses it extrapolates and averages (``*EL FILE``, ``.frd``).
+of C3D4, a bar of C3D20, of C3D20R and of C3D8, clamped at x = 0, a rigid interface at the far
+end, six static unit loads at its reference node (forces x, y, z, moments about x, y, z).
+CalculiX printed the stresses ``S``, strains ``E`` and coordinates of the integration points of
+a few elements (``*EL PRINT``) and the nodal stresses it extrapolates and averages (``*EL
+FILE``, ``.frd``).
 
 pymorembs's route is that of a job: read the matrix export with its deck (``pm.read``), add
 a rigid interface node at CalculiX's reference node coupled to the same face nodes, solve the
@@ -31,8 +32,8 @@ from pymorembs.preparation import Frame, Port, add_interface_node, prepare
 from pymorembs.preparation.interface import InterfaceSpec
 
 DATA = Path(__file__).parents[1] / "data" / "calculix_stress_parts"
-PARTS = ("bar", "barr", "plate")
-KINDS = {"bar": "hex20", "barr": "hex20r", "plate": "tet10"}
+KINDS = {"bar": "hex20", "barr": "hex20r", "plate": "tet10", "bar8": "hex8", "plate4": "tet4"}
+PARTS = tuple(KINDS)
 
 
 @cache

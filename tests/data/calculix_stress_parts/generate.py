@@ -13,6 +13,8 @@ Parts (``PARTS``):
 ``bar``
     A bar 0.08 x 0.02 x 0.016 of 6 x 2 x 2 serendipity hexahedra, written twice: C3D20
     (``bar``) and C3D20R (``barr``).
+``plate4``, ``bar8``
+    The same geometries meshed with linear elements: tetrahedra C3D4 and hexahedra C3D8.
 
 Decks per part ``P``:
 
@@ -54,22 +56,24 @@ def abaqus_order(nodes: np.ndarray, xyz: dict[int, np.ndarray], corners: int, ed
     return out
 
 
-def mesh_plate() -> tuple[dict[int, np.ndarray], list[list[int]], float]:
-    gmsh.model.add("plate")
+def mesh_plate(order: int) -> tuple[dict[int, np.ndarray], list[list[int]], float]:
+    gmsh.model.add(f"plate{order}")
     box = gmsh.model.occ.addBox(0, 0, 0, 0.10, 0.03, 0.012)
     hole = gmsh.model.occ.addCylinder(0.05, 0.015, -0.01, 0, 0, 0.032, 0.006)
     gmsh.model.occ.cut([(3, box)], [(3, hole)])
     gmsh.model.occ.synchronize()
     gmsh.option.setNumber("Mesh.MeshSizeMax", 0.01)
     gmsh.option.setNumber("Mesh.MeshSizeMin", 0.004)
-    gmsh.option.setNumber("Mesh.ElementOrder", 2)
+    gmsh.option.setNumber("Mesh.ElementOrder", order)
     gmsh.option.setNumber("Mesh.SecondOrderLinear", 1)  # straight edges: mid-nodes at the middle
     gmsh.model.mesh.generate(3)
+    if order == 1:
+        return *collect(4, 4, []), 0.10
     return *collect(11, 4, ABAQUS_TET10_EDGES), 0.10
 
 
-def mesh_bar() -> tuple[dict[int, np.ndarray], list[list[int]], float]:
-    gmsh.model.add("bar")
+def mesh_bar(order: int) -> tuple[dict[int, np.ndarray], list[list[int]], float]:
+    gmsh.model.add(f"bar{order}")
     box = gmsh.model.occ.addBox(0, 0, 0, 0.08, 0.02, 0.016)
     gmsh.model.occ.synchronize()
     for _, curve in gmsh.model.getEntities(1):
@@ -81,9 +85,11 @@ def mesh_bar() -> tuple[dict[int, np.ndarray], list[list[int]], float]:
         gmsh.model.mesh.setRecombine(2, surface)
     gmsh.model.mesh.setTransfiniteVolume(box)
     gmsh.model.mesh.setRecombine(3, box)
-    gmsh.option.setNumber("Mesh.ElementOrder", 2)
+    gmsh.option.setNumber("Mesh.ElementOrder", order)
     gmsh.option.setNumber("Mesh.SecondOrderIncomplete", 1)
     gmsh.model.mesh.generate(3)
+    if order == 1:
+        return *collect(5, 8, []), 0.08
     return *collect(17, 8, ABAQUS_HEX20_EDGES), 0.08
 
 
@@ -150,14 +156,19 @@ def write_decks(name: str, element: str, xyz, elements, length: float) -> None:
         f.write(text + coupling + "".join(steps))
 
 
-PARTS = {"plate": (mesh_plate, ["C3D10"]), "bar": (mesh_bar, ["C3D20", "C3D20R"])}
+#: The meshes (mesher, element order) and the decks written of each: element type -> name.
+PARTS = {
+    (mesh_plate, 2): {"C3D10": "plate"},
+    (mesh_bar, 2): {"C3D20": "bar", "C3D20R": "barr"},
+    (mesh_plate, 1): {"C3D4": "plate4"},
+    (mesh_bar, 1): {"C3D8": "bar8"},
+}
 
 if __name__ == "__main__":
     gmsh.initialize()
     gmsh.option.setNumber("General.Terminal", 0)
-    for part, (make, types) in PARTS.items():
-        xyz, elements, length = make()
-        for element in types:
-            name = part if element != "C3D20R" else part + "r"
+    for (make, order), decks in PARTS.items():
+        xyz, elements, length = make(order)
+        for element, name in decks.items():
             write_decks(name, element, xyz, elements, length)
     gmsh.finalize()
