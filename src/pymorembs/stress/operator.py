@@ -56,8 +56,8 @@ LOCATIONS = ("integration", "nodes", "element_nodes")
 #: ``"strain"`` (tensor components: the shear entries are ``eps_xy = gamma_xy / 2``, as CalculiX
 #: prints ``E``).
 QUANTITIES = ("stress", "strain")
-_ENTRIES_PER_CHUNK = 4_000_000  # floats of element point matrices per batch
-_NODAL_ENTRIES_PER_BLOCK = 16_000_000  # the same for the elements of a block of nodes
+_ENTRIES_PER_CHUNK = 2_000_000  # floats of element point matrices per batch
+_NODAL_ENTRIES_PER_BLOCK = 8_000_000  # the same for the elements of a block of nodes
 
 
 @dataclass(frozen=True, eq=False)
