@@ -10,6 +10,7 @@ import pytest
 import scipy.sparse as sp
 from box_meshes import box_mesh, solid_body
 
+import pymorembs as pm
 from pymorembs.analysis import frequency_grid, reference_response, transfer_function
 from pymorembs.body import ElementMesh
 from pymorembs.elements.beam import BeamSection
@@ -168,10 +169,22 @@ def test_bad_specs_and_bodies_are_refused(cantilever):
     with pytest.raises(UserError, match=r"\[stress\]\.count: must be a whole number >= 1"):
         StressSpec(count=0)
     no_mesh = replace(cantilever, body=replace(cantilever.body, mesh=None))
-    with pytest.raises(UserError, match=r"\[stress\]: the body has no element mesh"):
+    with pytest.raises(
+        UserError, match=r"\[stress\]: stresses of .*: the body has no element mesh"
+    ):
         with_stress_outputs(no_mesh, StressSpec())
     section = BeamSection.circular(1.0, E=YOUNG, nu=POISSON, rho=DENSITY)
     beams = ElementMesh("beam2", [[1, 2]], YOUNG, POISSON, section=section)
     with pytest.raises(UserError, match="stresses are not supported for beam2 elements"):
         with_stress_outputs(replace(cantilever, body=replace(cantilever.body, mesh=beams)),
                             StressSpec())  # fmt: skip
+
+
+def test_saved_body_keeps_its_stress_outputs(found, tmp_path):
+    reduced = pm.reduce(found, "krylov", expansion_points_hz=[0.0], order=6)
+    again = pm.load(reduced.save(tmp_path / "bar.h5"))
+    for system in (again.prepared.system, again.model.system):
+        assert system.n_stress == 60 and system.stress_labels == found.system.stress_labels
+    assert sp.issparse(again.prepared.system.stress_matrix)
+    first = reduced.error(band_hz=BAND, points=20).stress
+    np.testing.assert_array_equal(again.error(band_hz=BAND, points=20).stress, first)

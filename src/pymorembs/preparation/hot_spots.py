@@ -23,7 +23,6 @@ import numpy as np
 import scipy.sparse as sp
 
 from pymorembs.body import ElasticBody
-from pymorembs.elements.solid import SOLID_KINDS
 from pymorembs.errors import UserError
 from pymorembs.stress import StressOperator, stress_operator, von_mises
 
@@ -130,17 +129,11 @@ def check_stress_spec(body: ElasticBody, spec: StressSpec) -> None:
     UserError
         One line naming the key of ``[stress]`` and the first unknown id or missing mesh.
     """
-    mesh = body.mesh
-    if mesh is None:
-        raise UserError(
-            f"{WHERE}: the body has no element mesh: stresses need the model's elements "
-            "and material (read a deck or a file with its elements)"
-        )
-    if mesh.element not in SOLID_KINDS:
-        raise UserError(
-            f"{WHERE}: stresses are not supported for {mesh.element} elements "
-            f"(solids only: {', '.join(SOLID_KINDS)})"
-        )
+    try:  # a solid mesh with its material: the operator of one element, which costs nothing
+        first = None if body.mesh is None else body.mesh.element_ids[:1]
+        stress_operator(body, elements=first)
+    except UserError as exc:
+        raise UserError(f"{WHERE}: {exc}") from None
     unknown = np.setdiff1d(np.asarray(spec.nodes, dtype=np.int64), body.node_ids)
     if unknown.size:
         raise UserError(f"{WHERE}.nodes: node {unknown[0]} is not in the model")
