@@ -18,7 +18,7 @@ from pymorembs.errors import UserError
 from pymorembs.methods import method_options
 from pymorembs.preparation import Frame, Port, StressSpec, prepare, with_stress_outputs
 from pymorembs.reduction import method_projection, reduced_model
-from pymorembs.stress import stress_operator
+from pymorembs.stress import stress_operator, von_mises
 
 LENGTH, WIDTH = 200.0, 20.0  # mm
 YOUNG, POISSON, DENSITY = 210000.0, 0.3, 7.85e-9  # N/mm², t/mm³
@@ -89,6 +89,21 @@ def test_found_hot_spots_are_the_highest_von_mises_points(found):
     # mirror-symmetric points score alike: compare the scores, not which twin was taken
     np.testing.assert_allclose(np.sort(score[picked]), np.sort(score)[-10:], rtol=1e-9)
     assert found.hot_spots.chosen == "highest von Mises" and system.n_stress == 60
+
+
+def test_found_nodes_are_nodes_of_highest_averaged_von_mises(found):
+    nodal = with_stress_outputs(found, StressSpec(count=3, location="nodes")).hot_spots.operator
+    everything = stress_operator(found.body, location="nodes")
+    body, system = found.body, found.system
+    free = np.setdiff1d(np.arange(body.n_dof), body.fixed)
+    u = np.zeros((body.n_dof, system.n_inputs))
+    k = body.stiffness.toarray()[np.ix_(free, free)]
+    u[free] = np.linalg.solve(k, system.input_matrix)
+    vm = von_mises(everything(u), axis=1)
+    score = (vm / vm.max(axis=0)).max(axis=1)
+    picked = np.searchsorted(everything.node_ids, nodal.node_ids)
+    assert nodal.n_points == 3 and (nodal.element_ids == -1).all()
+    np.testing.assert_allclose(np.sort(score[picked]), np.sort(score)[-3:], rtol=1e-9)
 
 
 def test_stress_error_against_a_dense_direct_computation(found):

@@ -32,8 +32,9 @@ LOCATIONS = ("integration", "nodes")
 WHERE = "[stress]"
 #: Hot spots found when none are given.
 DEFAULT_COUNT = 10
-#: Elements per block when every point of the mesh is scored (memory of one block's rows).
-ELEMENTS_PER_BLOCK = 20_000
+#: Elements (nodes) per block when every point of the mesh is scored: the memory of one
+#: block's stress rows.
+BLOCK_SIZE = 20_000
 
 
 @dataclass(frozen=True)
@@ -204,43 +205,49 @@ def _given(body: ElasticBody, spec: StressSpec) -> tuple[np.ndarray | None, np.n
 def _highest_von_mises(
     body: ElasticBody, spec: StressSpec, responses: np.ndarray | None
 ) -> StressOperator:
-    """The ``spec.count`` points of highest relative von Mises stress (module docstring)."""
+    """The ``spec.count`` points of highest relative von Mises stress (module docstring).
+
+    The points are scored a block of elements (nodes) at a time, keeping only their von Mises
+    values (n_points, k): the operator of the whole mesh never exists at once. The operator of
+    the chosen points is built again from their own elements (nodes).
+    """
     if responses is None or responses.shape[1] == 0:
         raise UserError("no inputs: hot spots are found from the static responses to the inputs")
-    ids = body.mesh.element_ids
-    if spec.location == "nodes":
-        blocks = [(None, body.node_ids)]
-    else:
-        blocks = [(ids[i : i + ELEMENTS_PER_BLOCK], None)
-                  for i in range(0, ids.size, ELEMENTS_PER_BLOCK)]  # fmt: skip
-    scores, points = [], []
-    for elements, nodes in blocks:
-        operator = stress_operator(body, location=spec.location, elements=elements, nodes=nodes)
-        fields = von_mises(operator(responses), axis=1)  # (n_points, k)
-        scores.append(fields)
-        points.append(operator)
-    fields = np.vstack(scores)
-    largest = fields.max(axis=0)
-    relative = fields[:, largest > 0] / largest[largest > 0]
-    score = relative.max(axis=1) if relative.shape[1] else np.zeros(fields.shape[0])
-    chosen = np.sort(np.argsort(-score, kind="stable")[: spec.count])
-    return _rows_of(points, chosen)
+    nodal = spec.location == "nodes"
+    ids = body.node_ids if nodal else body.mesh.element_ids
+    key = "nodes" if nodal else "elements"
+    fields, owners, numbers = [], [], []
+    for first in range(0, ids.size, BLOCK_SIZE):
+        block = ids[first : first + BLOCK_SIZE]
+        if nodal:  # the nodes of the elements only: a node without an element has no stress
+            block = block[np.isin(block, body.mesh.connectivity)]
+        operator = stress_operator(body, location=spec.location, **{key: block})
+        fields.append(von_mises(operator(responses), axis=1))  # (n_points, k)
+        owners.append(operator.node_ids if nodal else operator.element_ids)
+        numbers.append(operator.point_numbers)
+    values = np.vstack(fields)
+    largest = values.max(axis=0)
+    relative = values[:, largest > 0] / largest[largest > 0]
+    score = relative.max(axis=1) if relative.shape[1] else np.zeros(values.shape[0])
+    chosen = np.argsort(-score, kind="stable")[: spec.count]
+    wanted = set(zip(np.concatenate(owners)[chosen], np.concatenate(numbers)[chosen], strict=True))
+    operator = stress_operator(
+        body, location=spec.location, **{key: np.unique([owner for owner, _ in wanted])}
+    )
+    own = operator.node_ids if nodal else operator.element_ids
+    keep = [i for i, pair in enumerate(zip(own, operator.point_numbers, strict=True))
+            if pair in wanted]  # fmt: skip
+    return _points_of(operator, np.asarray(keep))
 
 
-def _rows_of(operators: list[StressOperator], chosen: np.ndarray) -> StressOperator:
-    """The points ``chosen`` (indices over the operators one after the other) as one operator."""
-    offsets = np.cumsum([0] + [op.n_points for op in operators])
-    parts = []
-    for k, op in enumerate(operators):
-        local = chosen[(chosen >= offsets[k]) & (chosen < offsets[k + 1])] - offsets[k]
-        if local.size:
-            parts.append((op, local))
-    rows = [op.matrix[(6 * local[:, None] + np.arange(6)).ravel()] for op, local in parts]
+def _points_of(operator: StressOperator, points: np.ndarray) -> StressOperator:
+    """The operator at some of its points (indices, in their order)."""
+    rows = (6 * points[:, None] + np.arange(6)).ravel()
     return replace(
-        parts[0][0],
-        matrix=sp.vstack(rows, "csr"),
-        coordinates=np.vstack([op.coordinates[local] for op, local in parts]),
-        element_ids=np.concatenate([op.element_ids[local] for op, local in parts]),
-        node_ids=np.concatenate([op.node_ids[local] for op, local in parts]),
-        point_numbers=np.concatenate([op.point_numbers[local] for op, local in parts]),
+        operator,
+        matrix=sp.csr_matrix(operator.matrix[rows]),
+        coordinates=operator.coordinates[points],
+        element_ids=operator.element_ids[points],
+        node_ids=operator.node_ids[points],
+        point_numbers=operator.point_numbers[points],
     )
