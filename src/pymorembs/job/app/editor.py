@@ -30,7 +30,7 @@ from pymorembs.job.schema import MODEL_FILE_KEYS, Job, parse_job
 #: Tables in the order of the job reference; keys not listed follow in their own order.
 TABLE_ORDER = (
     "model", "damping", "interface", "frame", "inputs", "outputs", "band", "reduction", "export",
-    "inertia_loads", "stiffening", "time_domain", "large_motion",
+    "inertia_loads", "stiffening", "stress", "time_domain", "large_motion",
 )  # fmt: skip
 
 
