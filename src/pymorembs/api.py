@@ -327,12 +327,16 @@ class ErrorCurve:
         The same over the inertia loads (None without them).
     reference : str
         ``"full"`` or ``"surrogate"``: what ``H`` is.
+    stress : ndarray, shape (n_f,), or None
+        ``eps_s``: the same over the stress outputs at the hot spots under every input (None
+        without them; :func:`~pymorembs.analysis.error.stress_block`).
     """
 
     frequencies_hz: np.ndarray
     relative: np.ndarray
     inertia: np.ndarray | None
     reference: str
+    stress: np.ndarray | None = None
 
     @property
     def max(self) -> float:
@@ -350,6 +354,8 @@ class ErrorCurve:
         ]
         if self.inertia is not None:
             rows.append(("max inertia loads", f"{self.max_inertia:.3e}"))
+        if self.stress is not None:
+            rows.append(("max stresses", f"{self.max_stress:.3e}"))
         rows.append(("reference", self.reference))
         return rows
 
@@ -363,6 +369,11 @@ class ErrorCurve:
     def max_inertia(self) -> float | None:
         """The largest error over the inertia loads, or None."""
         return None if self.inertia is None else float(np.max(self.inertia))
+
+    @property
+    def max_stress(self) -> float | None:
+        """The largest error over the stress outputs, or None."""
+        return None if self.stress is None else float(np.max(self.stress))
 
 
 @dataclass(frozen=True, eq=False)
@@ -477,6 +488,7 @@ class ReducedBody:
             relative_error(ref.response, response, ports),
             None if inertia is None else relative_error(ref.response, response, inertia),
             ref.kind,
+            ref.stress_errors(response),
         )
 
     def save(self, path: PathLike) -> Path:

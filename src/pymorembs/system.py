@@ -9,7 +9,7 @@ omega in rad/s.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -46,6 +46,21 @@ class SecondOrderSystem:
     rigid_modes : ndarray, shape (n, r), optional
         Mass-orthonormal rigid-body modes of a free body (Buckens frame): ``K`` is singular,
         ``B`` and ``C`` act on the elastic part only, static solves use inertia relief.
+    stress_matrix : sparse matrix or ndarray, shape (r_s, n), optional
+        ``C_s``: further outputs, the stress components at hot spots (rows of a
+        :class:`~pymorembs.stress.StressOperator` on the independent dofs, model stress unit
+        per model length). Sparse for full models, dense ``C_s V`` for reduced ones. They are
+        outputs of the transfer function (:attr:`observed_matrix`, after ``C``) but not of the
+        reduction methods unless ``stress_targeted`` is set (:meth:`targeted`).
+    stress_labels : tuple of str
+        Names of the stress outputs, e.g. ``"e12.ip3:sxx"``.
+    stress_weight : float
+        Factor on ``C_s`` where the stress outputs join ``C`` for a reduction method
+        (:meth:`targeted`): it gives the stress block the weight of the port block, since
+        stresses and displacements differ in unit and size.
+    stress_targeted : bool
+        Whether the reduction methods take the stress outputs as outputs (stress-targeted
+        reduction: two-sided Krylov, the Gramians' output weighting, SOAGA's estimator).
     """
 
     mass: sp.csr_matrix | np.ndarray
@@ -59,6 +74,10 @@ class SecondOrderSystem:
     output_labels: tuple[str, ...] = ()
     static_load: np.ndarray | None = field(default=None)
     rigid_modes: np.ndarray | None = field(default=None)
+    stress_matrix: sp.csr_matrix | np.ndarray | None = field(default=None)
+    stress_labels: tuple[str, ...] = ()
+    stress_weight: float = 1.0
+    stress_targeted: bool = False
 
     def __post_init__(self) -> None:
         n = self.mass.shape[0]
@@ -71,6 +90,18 @@ class SecondOrderSystem:
             raise ValueError(f"input matrix has shape {b.shape}, expected ({n}, p)")
         if c.ndim != 2 or c.shape[1] != n:
             raise ValueError(f"output matrix has shape {c.shape}, expected (r, {n})")
+        if self.stress_matrix is not None:
+            stress = self.stress_matrix
+            stress = sp.csr_matrix(stress) if sp.issparse(stress) else np.asarray(stress)
+            if stress.ndim != 2 or stress.shape[1] != n:
+                raise ValueError(f"stress matrix has shape {stress.shape}, expected (r, {n})")
+            if len(self.stress_labels) != stress.shape[0]:
+                raise ValueError(
+                    f"{len(self.stress_labels)} stress labels for {stress.shape[0]} stress outputs"
+                )
+            object.__setattr__(self, "stress_matrix", stress)
+        elif self.stress_labels:
+            raise ValueError("stress labels without a stress matrix")
         object.__setattr__(self, "input_matrix", b)
         object.__setattr__(self, "output_matrix", c)
         if not self.input_labels:
@@ -95,6 +126,9 @@ class SecondOrderSystem:
         ]
         if self.rigid_modes is not None:
             rows.append(("rigid-body modes", str(self.rigid_modes.shape[1])))
+        if self.stress_matrix is not None:
+            targeted = ", targeted" if self.stress_targeted else ""
+            rows.append(("stress outputs", f"{self.n_stress}{targeted}"))
         return rows
 
     def __repr__(self) -> str:
@@ -112,6 +146,51 @@ class SecondOrderSystem:
     @property
     def n_outputs(self) -> int:
         return int(self.output_matrix.shape[0])
+
+    @property
+    def n_stress(self) -> int:
+        """Number of stress outputs (rows of :attr:`stress_matrix`; 0 without)."""
+        return 0 if self.stress_matrix is None else int(self.stress_matrix.shape[0])
+
+    @property
+    def observed_matrix(self) -> sp.csr_matrix | np.ndarray:
+        """All rows of the transfer function: ``C`` and below it ``C_s``, shape
+        (n_outputs + n_stress, n).
+
+        Sparse (CSR) when the stress matrix is sparse: nothing of ``C_s`` becomes dense.
+        """
+        if self.stress_matrix is None:
+            return self.output_matrix
+        if sp.issparse(self.stress_matrix):
+            return sp.vstack([sp.csr_matrix(self.output_matrix), self.stress_matrix], "csr")
+        return np.vstack([self.output_matrix, self.stress_matrix])
+
+    @property
+    def observed_labels(self) -> tuple[str, ...]:
+        """Labels of the rows of :attr:`observed_matrix`: the outputs, then the stresses."""
+        return (*self.output_labels, *self.stress_labels)
+
+    def targeted(self) -> SecondOrderSystem:
+        """The system a reduction method sees.
+
+        Itself, unless ``stress_targeted`` is set: then the stress outputs, scaled by
+        ``stress_weight``, are appended to ``C`` as ordinary outputs, so that every method that
+        uses ``C`` (two-sided Krylov's output space, the Gramians' output weighting) aims at
+        them. ``C_s`` becomes dense here, ``8 r_s n`` bytes: the size of the ``r_s`` solves a
+        method does with ``C^T`` anyway.
+        """
+        if not self.stress_targeted or self.stress_matrix is None:
+            return self
+        stress = self.stress_matrix
+        dense = stress.toarray() if sp.issparse(stress) else np.asarray(stress)
+        return replace(
+            self,
+            output_matrix=np.vstack([self.output_matrix, self.stress_weight * dense]),
+            output_labels=self.observed_labels,
+            stress_matrix=None,
+            stress_labels=(),
+            stress_targeted=False,
+        )
 
     @property
     def is_sparse(self) -> bool:
@@ -154,6 +233,7 @@ class SecondOrderSystem:
             reduced = w.T @ extended_product(matrix, v)
             return 0.5 * (reduced + reduced.T) if one_sided else reduced
 
+        stress = None if self.stress_matrix is None else np.asarray(self.stress_matrix @ v)
         return SecondOrderSystem(
             mass=reduce(self.mass),
             stiffness=reduce(self.stiffness),
@@ -165,6 +245,9 @@ class SecondOrderSystem:
             input_labels=self.input_labels,
             output_labels=self.output_labels,
             static_load=None if self.static_load is None else w.T @ self.static_load,
+            stress_matrix=stress,
+            stress_labels=self.stress_labels,
+            stress_weight=self.stress_weight,
         )
 
     def check_reduced(self) -> None:

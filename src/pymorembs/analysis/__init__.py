@@ -4,7 +4,7 @@ A public subpackage (``docs/api.md``, "The public surface"): the names below are
 the modules behind them are not.
 
 * frequency responses and errors: :func:`transfer_function`, :func:`frequency_grid`,
-  :func:`relative_error`, :func:`error_blocks`;
+  :func:`relative_error`, :func:`error_blocks`, :func:`stress_block`;
 * the reference the errors are measured against (:mod:`~pymorembs.analysis.reference`):
   :func:`reference_response`, :class:`ReferenceResponse`;
 * the spectrum of a body as read: :func:`model_facts`;
@@ -18,7 +18,7 @@ the modules behind them are not.
   :class:`LargeMotionResult`.
 """
 
-from pymorembs.analysis.error import error_blocks, relative_error
+from pymorembs.analysis.error import error_blocks, relative_error, stress_block
 from pymorembs.analysis.exudyn_model import build_exudyn_model, simulate_exudyn
 from pymorembs.analysis.large_motion import (
     LARGE_MOTION_CASES,
@@ -93,6 +93,7 @@ __all__ = [
     "relative_error",
     "simulate",
     "simulate_exudyn",
+    "stress_block",
     "stress_history",
     "stress_settings",
     "transfer_function",

@@ -10,6 +10,7 @@ batched dense solves, or a closed form when the reduced model is in modal form
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 
 from pymorembs.linalg.factorization import Factorization
 from pymorembs.linalg.inertia_relief import InertiaRelief
@@ -51,7 +52,9 @@ def transfer_function(
 
     Returns
     -------
-    ndarray, complex, shape (n_f, n_outputs, n_inputs)
+    ndarray, complex, shape (n_f, n_outputs + n_stress, n_inputs)
+        The rows of :attr:`SecondOrderSystem.observed_matrix`: the outputs, then the stress
+        outputs (if any).
     """
     frequencies_hz = np.asarray(frequencies_hz, dtype=float).ravel()
     if system.is_sparse:
@@ -68,13 +71,14 @@ def _sparse_response(
     scheduler: str | None = None,
     label: str = "frequency response",
 ) -> np.ndarray:
-    out = np.zeros((frequencies_hz.size, system.n_outputs, system.n_inputs), dtype=complex)
+    observed = system.observed_matrix  # sparse CSR with stress outputs: stays sparse
+    out = np.zeros((frequencies_hz.size, observed.shape[0], system.n_inputs), dtype=complex)
     # inputs/outputs on fixed dofs are zero columns of B / rows of C: nothing to solve for
     cols = np.flatnonzero(np.any(system.input_matrix != 0, axis=0))
-    rows = np.flatnonzero(np.any(system.output_matrix != 0, axis=1))
+    rows = _nonzero_rows(observed)
     if cols.size == 0 or rows.size == 0 or frequencies_hz.size == 0:
         return out
-    context = (system, system.input_matrix[:, cols], system.output_matrix[rows])
+    context = (system, system.input_matrix[:, cols], observed[rows])
     n_f = frequencies_hz.size
     if workers == 1 and scheduler is None:
         tasks = [range(k, k + 1) for k in range(n_f)]
@@ -95,6 +99,13 @@ def _sparse_response(
     return out
 
 
+def _nonzero_rows(matrix: sp.csr_matrix | np.ndarray) -> np.ndarray:
+    """Indices of the rows of a dense or sparse matrix with a nonzero entry."""
+    if sp.issparse(matrix):
+        return np.flatnonzero(abs(matrix).max(axis=1).toarray().ravel())
+    return np.flatnonzero(np.any(matrix != 0, axis=1))
+
+
 def _response_chunk(
     context: tuple[SecondOrderSystem, np.ndarray, np.ndarray], frequencies_hz: np.ndarray
 ) -> np.ndarray:
@@ -112,7 +123,7 @@ def _response_chunk(
             x = factorization.solve(b)
             if system.rigid_modes is not None:
                 x = _in_complement(factorization, system.mass, system.rigid_modes, x)
-        out[k] = (c @ x) / scale
+        out[k] = np.asarray(c @ x) / scale
         del factorization  # free the factors before the next ones: one live factorization
     return out
 
@@ -139,7 +150,7 @@ def _dense_response(
     s = 2j * np.pi * frequencies_hz
     m, k, d = system.mass, system.stiffness, system.damping
     k_factor = 1.0 + 1j * system.loss_factor
-    b, c = system.input_matrix, system.output_matrix
+    b, c = system.input_matrix, system.observed_matrix
     diagonal = _is_diagonal(m) and _is_diagonal(k) and (d is None or _is_diagonal(d))
     if diagonal:
         dd = np.zeros(m.shape[0]) if d is None else np.diag(d)

@@ -512,14 +512,21 @@ STDERR_LINES = ("warning: ", "note: ")
 
 def _print_summary(summary: JobSummary, out: Path) -> None:
     inertia = summary.inertia_loads is not None
+    stress = summary.model.get("stress")
     print()
     print(
         f"{'reduction':<20} {'method':<14} {'order':>5} {'max rel. error':>15} "
-        f"{'error at 0 Hz':>14}" + (f" {'inertia loads':>14}" if inertia else "") + " time [s]"
+        f"{'error at 0 Hz':>14}"
+        + (f" {'inertia loads':>14}" if inertia else "")
+        + (f" {'stresses':>10} {'estimate':>9}" if stress else "")
+        + " time [s]"
     )
     for r in summary.reductions:
         static = "-" if r.static_rel_error is None else f"{r.static_rel_error:.2e}"
         loads = f" {r.inertia_loads.max_rel_error:>14.3e}" if inertia and r.inertia_loads else ""
+        if stress and r.stress:
+            estimate = "-" if r.stress.estimate is None else f"{r.stress.estimate:.2e}"
+            loads += f" {r.stress.max_rel_error:>10.3e} {estimate:>9}"
         print(
             f"{r.name:<20} {r.method:<14} {r.order:>5} "
             f"{r.max_rel_error:>15.3e} {static:>14}{loads} {r.time_s:>8.2f}"
@@ -529,6 +536,12 @@ def _print_summary(summary: JobSummary, out: Path) -> None:
     if inertia:
         cases = " ".join(summary.inertia_loads["cases"])
         covers += f"; 'inertia loads': over the inertia loads of the frame motion ({cases})"
+    if stress:
+        aimed = ", targeted" if stress["targeted"] else ""
+        covers += (
+            f"; 'stresses': over the stresses at {stress['points']} hot spots ({stress['chosen']}"
+            f"{aimed}) under every input, 'estimate' SOAGA's"
+        )
     print(
         f"\nband {summary.band_hz[0]:g}-{summary.band_hz[1]:g} Hz, "
         f"{summary.n_frequencies} frequencies, {covers}; results in {out}/summary.json"

@@ -56,12 +56,19 @@ from pymorembs.analysis import (
 from pymorembs.export import BODY_OUTPUTS, MATRIX_OUTPUTS, write_outputs
 from pymorembs.io import atomic_path, check_output_folder, model_files, read_body, write_text
 from pymorembs.job.schema import Job, ModelSpec, ReductionSpec
-from pymorembs.job.summary import Accuracy, InertiaErrors, JobSummary, ReductionSummary
+from pymorembs.job.summary import (
+    Accuracy,
+    InertiaErrors,
+    JobSummary,
+    ReductionSummary,
+    StressErrors,
+)
 from pymorembs.job.time_domain_checks import time_domain_checks
 from pymorembs.linalg import default_backend, mass_split
 from pymorembs.preparation import (
     ValidationReport,
     add_interface_node,
+    check_stress_spec,
     inertia_load_cases,
     prepare,
     stiffening_from_matrices,
@@ -70,6 +77,7 @@ from pymorembs.preparation import (
     validate_prepared,
     with_inertia_loads,
     with_stiffening,
+    with_stress_outputs,
 )
 from pymorembs.progress import Progress as ProgressBar
 from pymorembs.reduction import Projection, explicit_step_s, first_stage, method_projection
@@ -184,6 +192,11 @@ def prepare_and_validate(
         body = body.with_damping(job.damping)
     report = validate_job_body(body, job)
     check_requests(job, body)
+    if job.stress is not None:  # the hot spots' ids and the mesh: cheap, before the frame
+        try:
+            check_stress_spec(body, job.stress)
+        except UserError as exc:
+            raise UserError(f"{job.path}: {exc}") from None
     try:
         prepared = prepare(body, job.frame, list(job.inputs), list(job.outputs))
     except PymorembsError as exc:  # also a massless mechanism that K cannot have (exit 3)
@@ -680,6 +693,14 @@ def _prepared_for_job(
         say(f"geometric stiffening from the {job.stiffening.source} (one static factorization)")
         prepared = _with_stiffening(prepared, job)
         timings["stiffening_s"] = time.perf_counter() - tick
+    if job.stress is not None:
+        tick = time.perf_counter()
+        say("stresses at the hot spots as further outputs")
+        try:
+            prepared = with_stress_outputs(prepared, job.stress)
+        except UserError as exc:
+            raise UserError(f"{job.path}: {exc}") from None
+        timings["stress_s"] = time.perf_counter() - tick
     return body, prepared, validation
 
 
@@ -921,8 +942,8 @@ def _judged(
     :meth:`ReferenceResponse.settled_all`), its files written into ``staging`` and its summary
     entry; the warnings they call for are added.
 
-    Returns the entries, the error curves (ports and inertia loads), the estimator curves, the
-    singular value decays and the reduced models, by reduction name.
+    Returns the entries, the error curves (ports, inertia loads and stresses), the estimator
+    curves, the singular value decays and the reduced models, by reduction name.
     """
     entries, errors, estimates, decay, models = [], {}, {}, {}, {}
     all_eps = [
@@ -937,11 +958,12 @@ def _judged(
         if inertia is not None:  # eq. 27 over the ports, and over the inertia loads
             eps_inertia = relative_error(reference.response, response, inertia)
             eps = relative_error(reference.response, response, ports)
-        accuracy = judge_accuracy(spec, eps, eps_inertia)
+        eps_stress = reference.stress_errors(response)  # and over the hot spots' stresses
+        accuracy = judge_accuracy(spec, eps, eps_inertia, eps_stress)
         outputs = job.export.outputs if accuracy.exported else ()
         entry = _write_one(
-            prepared, spec, model, (eps, eps_inertia), elapsed, reference, staging, outputs, nodes,
-            accuracy,
+            prepared, spec, model, (eps, eps_inertia, eps_stress), elapsed, reference, staging,
+            outputs, nodes, accuracy,
         )  # fmt: skip
         projection = model.projection
         models[spec.name] = model
@@ -965,11 +987,16 @@ def _judged(
         errors[spec.name] = eps
         if eps_inertia is not None:
             errors[f"{spec.name} (inertia loads)"] = eps_inertia
+        if eps_stress is not None:
+            errors[f"{spec.name} (stresses)"] = eps_stress
     return entries, errors, estimates, decay, models
 
 
 def judge_accuracy(
-    spec: ReductionSpec, eps: np.ndarray, eps_inertia: np.ndarray | None
+    spec: ReductionSpec,
+    eps: np.ndarray,
+    eps_inertia: np.ndarray | None,
+    eps_stress: np.ndarray | None = None,
 ) -> Accuracy:
     """Whether a reduction meets its accuracy limit, and whether its body files are written.
 
@@ -981,20 +1008,23 @@ def judge_accuracy(
         ``eps(f)`` of eq. 27 over the ports.
     eps_inertia : ndarray or None
         ``eps(f)`` over the inertia loads (None: they are not inputs).
+    eps_stress : ndarray or None
+        ``eps(f)`` over the stress outputs at the hot spots (None: no ``[stress]``).
 
     Returns
     -------
     Accuracy
         The ``accuracy`` entry of the reduction in ``summary.json``: ``met`` (max error <=
         limit), ``limit``, ``limit_from`` (``"tolerance"`` or ``"default"``), ``max`` (over the
-        ports and the inertia loads), ``ports``, ``inertia_loads`` (None without them),
-        ``export_inaccurate`` (the job's flag) and ``exported`` (the body files are written:
-        met, or allowed by the flag).
+        ports, the inertia loads and the stresses), ``ports``, ``inertia_loads`` (None without
+        them), ``stress`` (None without stress outputs), ``export_inaccurate`` (the job's flag)
+        and ``exported`` (the body files are written: met, or allowed by the flag).
     """
     limit, source = spec.accuracy_limit
     ports = float(np.max(eps))
     loads = None if eps_inertia is None else float(np.max(eps_inertia))
-    largest = max(ports, loads or 0.0)
+    stress = None if eps_stress is None else float(np.max(eps_stress))
+    largest = max(ports, loads or 0.0, stress or 0.0)
     met = largest <= limit
     return Accuracy(
         met=met,
@@ -1005,6 +1035,7 @@ def judge_accuracy(
         inertia_loads=loads,
         export_inaccurate=spec.export_inaccurate,
         exported=met or spec.export_inaccurate,
+        stress=stress,
     )
 
 
@@ -1083,6 +1114,7 @@ def _model_summary(job: Job, body: ElasticBody, prepared: PreparedModel) -> dict
         "inputs": list(prepared.system.input_labels),
         "outputs": list(prepared.system.output_labels),
         "inertia_loads": _inertia_summary(prepared),
+        "stress": None if prepared.hot_spots is None else prepared.hot_spots.as_dict(),
         "stiffening": None
         if prepared.stiffening is None
         else {
@@ -1220,7 +1252,7 @@ def _write_one(
     prepared: PreparedModel,
     spec: ReductionSpec,
     model: ReducedModel,
-    errors: tuple[np.ndarray, np.ndarray | None],
+    errors: tuple[np.ndarray, np.ndarray | None, np.ndarray | None],
     elapsed: float,
     reference: ReferenceResponse,
     staging: Path,
@@ -1231,11 +1263,12 @@ def _write_one(
     """Write a reduction's files into ``staging/<name>``; its entry of the summary (with its
     ``accuracy``, :func:`judge_accuracy`).
 
-    ``errors``: ``eps(f)`` over the ports and over the inertia loads (None without them);
+    ``errors``: ``eps(f)`` over the ports, over the inertia loads and over the stresses (None
+    without them);
     ``outputs``: the body files to write (none for a body that missed its accuracy limit),
     besides its error curve and plot, which are always written.
     """
-    eps, eps_inertia = errors
+    eps, eps_inertia, eps_stress = errors
     projection = model.projection
     frequencies = reference.frequencies_hz
     static = float(eps[0]) if frequencies[0] == 0.0 else None
@@ -1246,6 +1279,8 @@ def _write_one(
     curves = {spec.name: eps}
     if eps_inertia is not None:
         curves[f"{spec.name} (inertia loads)"] = eps_inertia
+    if eps_stress is not None:
+        curves[f"{spec.name} (stresses)"] = eps_stress
     plot_relative_errors(
         frequencies,
         curves,
@@ -1259,6 +1294,9 @@ def _write_one(
     if eps_inertia is not None:
         table = np.column_stack([table, eps_inertia])
         header += ",relative_error_inertia_loads"
+    if eps_stress is not None:
+        table = np.column_stack([table, eps_stress])
+        header += ",relative_error_stresses"
     if reference.kind == "surrogate":  # 1: measured against the full model, 0: surrogate
         table = np.column_stack([table, reference.exact.astype(float)])
         header += ",checked_against_full_model"
@@ -1298,6 +1336,24 @@ def _write_one(
         files=[f"{spec.name}/{name}" for name in files],
         accuracy=accuracy,
         inertia_loads=inertia,
+        stress=_stress_errors(eps_stress, frequencies, projection, prepared),
+    )
+
+
+def _stress_errors(
+    eps_stress: np.ndarray | None,
+    frequencies: np.ndarray,
+    projection: Projection,
+    prepared: PreparedModel,
+) -> StressErrors | None:
+    """A reduction's ``stress`` entry: ε over the stress outputs, SOAGA's estimate of it."""
+    if eps_stress is None:
+        return None
+    return StressErrors(
+        max_rel_error=float(np.max(eps_stress)),
+        static_rel_error=float(eps_stress[0]) if frequencies[0] == 0.0 else None,
+        estimate=projection.parameters.get("stress_estimate"),
+        targeted=bool(prepared.system.stress_targeted),
     )
 
 

@@ -37,7 +37,7 @@ from pymorembs.methods import (
     method_options,
     renamed_message,
 )
-from pymorembs.preparation import INERTIA_LOAD_CASES
+from pymorembs.preparation import INERTIA_LOAD_CASES, StressSpec
 
 MODEL_FILE_KEYS = (
     "file", "stiffness", "mass", "damping", "dofs", "nodes", "constraints", "fixed", "mapping",
@@ -292,6 +292,7 @@ class Job:
     inertia_loads: InertiaLoadSpec = InertiaLoadSpec()
     large_motion: LargeMotionSettings | None = None
     stiffening: StiffeningSpec = StiffeningSpec()
+    stress: StressSpec | None = None
 
     @property
     def band_hz(self) -> tuple[float, float]:
@@ -458,6 +459,7 @@ def parse_job(data: dict[str, Any], path: Path) -> Job:
     inertia = _inertia_loads(top.get("inertia_loads"), path)
     large_motion = _large_motion(top.get("large_motion"), path)
     stiffening = _stiffening(top.get("stiffening"), path)
+    stress = _stress(top.get("stress"), path)
     top.done()
     return Job(
         path,
@@ -475,6 +477,7 @@ def parse_job(data: dict[str, Any], path: Path) -> Job:
         inertia,
         large_motion,
         stiffening,
+        stress,
     )
 
 
@@ -726,6 +729,37 @@ def _stiffening(data: Any, path: Path) -> StiffeningSpec:
         if not file.is_file():
             raise table.error("matrices", f"{case}: file {file} not found")
     return StiffeningSpec(source, matrices, kind)
+
+
+def _stress(data: Any, path: Path) -> StressSpec | None:
+    """``[stress]``: the hot spots whose stresses are outputs (:class:`StressSpec`)."""
+    if data is None:
+        return None
+    table = _Table(data, "[stress]", path)
+    ids = {}
+    for key in ("nodes", "elements"):
+        value = table.get(key, [])
+        if not isinstance(value, list) or not all(
+            isinstance(v, int) and not isinstance(v, bool) for v in value
+        ):
+            raise table.error(key, f"must be a list of {key[:-1]} ids, got {value!r}")
+        ids[key] = tuple(value)
+    box = table.get("box")
+    if box is not None:
+        if not isinstance(box, list) or len(box) != 2:
+            raise table.error("box", f"must be [[x, y, z], [x, y, z]] (lower, upper), got {box!r}")
+        corners = _Table({"lower": box[0], "upper": box[1]}, "[stress].box", path)
+        box = (_vector(corners, "lower"), _vector(corners, "upper"))
+    count = table.integer("count", StressSpec.count)
+    location = table.string("location", StressSpec.location)
+    target = table.get("target", False)
+    if not isinstance(target, bool):
+        raise table.error("target", f"must be true or false, got {target!r}")
+    table.done()
+    try:
+        return StressSpec(ids["nodes"], ids["elements"], box, count, location, target)
+    except UserError as exc:
+        raise UserError(f"{path}: {exc}") from None
 
 
 def _large_motion(data: Any, path: Path) -> LargeMotionSettings | None:

@@ -35,7 +35,7 @@ from pymorembs.job.schema import (
 )
 from pymorembs.kinds import DampingKind, FrameType, InterfaceKind, Kind, ReferenceKind
 from pymorembs.methods import METHODS, option_fields
-from pymorembs.preparation import INERTIA_LOAD_CASES, Port
+from pymorembs.preparation import INERTIA_LOAD_CASES, Port, StressSpec
 
 #: The job's tables that are one dataclass each, its fields the table's keys (the fields'
 #: metadata :data:`~pymorembs.job.schema.IN_FILE` says where the file writes them otherwise).
@@ -46,6 +46,7 @@ DATACLASS_TABLES: dict[str, type] = {
     "inertia_loads": InertiaLoadSpec,
     "large_motion": LargeMotionSettings,
     "stiffening": StiffeningSpec,
+    "stress": StressSpec,
 }
 #: The tables whose keys are a kind's name (``key``) and the parameters of that kind.
 KIND_TABLES: dict[str, tuple[str, type[Kind]]] = {

@@ -18,6 +18,11 @@ INERTIA_COVERS = (
     "the inertia loads of the frame motion to the port outputs and their collocated outputs, "
     "and the port inputs to those"
 )
+#: The ``covers`` text of a reduction's errors over the stress outputs.
+STRESS_COVERS = (
+    "the six stress components at every hot spot under every input (port forces and inertia "
+    "loads), against the full model's, eq. 27 over that block"
+)
 #: What a reduction's ``max_rel_error`` covers.
 PORTS_COVER = "ports: the port outputs to the port inputs"
 #: The keys of the checks that add an entry to the summary and rows to every reduction.
@@ -50,7 +55,7 @@ class Accuracy(FlatEntry):
     limit_from : {"tolerance", "default"}
         Where the limit comes from.
     max : float
-        The largest ε over the ports and the inertia loads.
+        The largest ε over the ports, the inertia loads and the stress outputs.
     ports : float
         The largest ε over the ports.
     inertia_loads : float or None
@@ -59,6 +64,8 @@ class Accuracy(FlatEntry):
         The job's flag: write the body files even when the limit is missed.
     exported : bool
         The body files are written (met, or allowed by the flag).
+    stress : float or None
+        The largest ε over the stress outputs at the hot spots (None: no ``[stress]``).
     """
 
     met: bool
@@ -69,6 +76,14 @@ class Accuracy(FlatEntry):
     inertia_loads: float | None
     export_inaccurate: bool
     exported: bool
+    stress: float | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        """The entry as ``summary.json`` holds it (``stress`` only with stress outputs)."""
+        entry = dict(vars(self))
+        if self.stress is None:
+            del entry["stress"]
+        return entry
 
 
 @dataclass(frozen=True)
@@ -82,6 +97,23 @@ class InertiaErrors(FlatEntry):
     max_rel_error: float
     static_rel_error: float | None
     covers: str = INERTIA_COVERS
+
+
+@dataclass(frozen=True)
+class StressErrors(FlatEntry):
+    """A reduction's errors over the stress outputs at the hot spots (its ``stress``).
+
+    ``max_rel_error`` and ``static_rel_error`` (at 0 Hz; None: the band does not start there)
+    are ε of eq. 27 over the stress block (dimensionless); ``estimate`` SOAGA's estimate of its
+    maximum (None: another method); ``targeted`` whether the reduction aimed at the stresses;
+    ``covers`` says over which transfer paths.
+    """
+
+    max_rel_error: float
+    static_rel_error: float | None
+    estimate: float | None
+    targeted: bool
+    covers: str = STRESS_COVERS
 
 
 @dataclass(frozen=True)
@@ -110,6 +142,7 @@ class ReductionSummary:
     accuracy: Accuracy
     inertia_loads: InertiaErrors | None = None
     checks: dict[str, dict[str, Any]] = field(default_factory=dict)
+    stress: StressErrors | None = None
     error_covers: str = PORTS_COVER
 
     def to_json(self) -> dict[str, Any]:
@@ -133,6 +166,8 @@ class ReductionSummary:
         }
         if self.inertia_loads is not None:
             entry["inertia_loads"] = self.inertia_loads.to_json()
+        if self.stress is not None:
+            entry["stress"] = self.stress.to_json()
         entry["accuracy"] = self.accuracy.to_json()
         return entry | self.checks
 
@@ -141,9 +176,11 @@ class ReductionSummary:
         """The entry read back from ``summary.json``."""
         values = {key: value for key, value in data.items() if key not in CHECK_KEYS}
         inertia = values.pop("inertia_loads", None)
+        stress = values.pop("stress", None)
         return cls(
             **values | {"accuracy": Accuracy.from_json(values["accuracy"])},
             inertia_loads=None if inertia is None else InertiaErrors.from_json(inertia),
+            stress=None if stress is None else StressErrors.from_json(stress),
             checks={key: data[key] for key in CHECK_KEYS if key in data},
         )
 

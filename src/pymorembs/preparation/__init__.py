@@ -14,6 +14,7 @@ from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
+import scipy.sparse as sp
 
 from pymorembs.body import ElasticBody
 from pymorembs.display import html_table, one_line, port_rows
@@ -23,6 +24,12 @@ from pymorembs.linalg.mass_split import mass_split
 from pymorembs.preparation.buckens_frame import buckens_frame, centre_of_gravity
 from pymorembs.preparation.consistency import check_consistency, mechanism_or_map
 from pymorembs.preparation.elimination import Elimination, eliminate
+from pymorembs.preparation.hot_spots import (
+    HotSpots,
+    StressSpec,
+    check_stress_spec,
+    hot_spot_operator,
+)
 from pymorembs.preparation.inertia_loads import (
     INERTIA_LOAD_CASES,
     InertiaLoads,
@@ -47,16 +54,19 @@ from pymorembs.system import SecondOrderSystem
 __all__ = [
     "INERTIA_LOAD_CASES",
     "Frame",
+    "HotSpots",
     "InertiaLoads",
     "InterfaceSpec",
     "Port",
     "PreparedModel",
     "Stiffening",
+    "StressSpec",
     "ValidationReport",
     "add_interface_node",
     "buckens_frame",
     "centre_of_gravity",
     "check_consistency",
+    "check_stress_spec",
     "eliminate",
     "inertia_load_cases",
     "mechanism_or_map",
@@ -70,6 +80,7 @@ __all__ = [
     "with_inertia_loads",
     "with_rigid_modes",
     "with_stiffening",
+    "with_stress_outputs",
 ]
 
 
@@ -135,6 +146,8 @@ class PreparedModel:
     notes : tuple of str
         Facts of the setup that are no mistake, e.g. forces at the frame node: they move the
         reference frame only (the usual joint node of a multibody model).
+    hot_spots : HotSpots or None
+        The points whose stresses are outputs of the system (:func:`with_stress_outputs`).
     """
 
     body: ElasticBody
@@ -145,6 +158,7 @@ class PreparedModel:
     stiffening: Stiffening | None = None
     frame: Frame | None = None
     notes: tuple[str, ...] = ()
+    hot_spots: HotSpots | None = None
 
     def summary(self) -> list[tuple[str, str]]:
         """The facts ``repr`` and a notebook show, as (label, text) rows: frame, independent
@@ -331,6 +345,46 @@ def with_inertia_loads(
     if not loads.cases:
         warnings.append("inertia loads: none of the load cases deforms the body in this frame")
     return replace(prepared, inertia=loads if loads.cases else None, warnings=tuple(warnings))
+
+
+def with_stress_outputs(prepared: PreparedModel, spec: StressSpec) -> PreparedModel:
+    """The prepared model with the stresses at the hot spots of ``spec`` as further outputs.
+
+    The six components at each hot spot become rows of
+    :attr:`~pymorembs.system.SecondOrderSystem.stress_matrix` (sparse, ``C_s = S T`` on the
+    independent dofs; :mod:`pymorembs.preparation.hot_spots`). Found hot spots and targeted
+    stresses cost one static factorization of the stiffness (the static responses to every
+    input, ports and inertia loads alike); given ones that are not targeted cost none. A
+    targeted stress block is weighted so that its static response has the Frobenius norm of the
+    outputs' (:attr:`~pymorembs.system.SecondOrderSystem.stress_weight`).
+    """
+    system = prepared.reduction_system
+    static = None
+    if spec.automatic or spec.target:
+        label = "K (static responses to the inputs, for the hot spots)"
+        static = static_solver(system, label).solve(system.input_matrix)
+    responses = None if static is None else prepared.expand(static)
+    operator = hot_spot_operator(prepared.body, spec, responses)
+    stress = sp.csr_matrix(operator.matrix @ prepared.elimination.transform)
+    weight = 1.0
+    if static is not None:
+        outputs = float(np.linalg.norm(system.output_matrix @ static))
+        stresses = float(np.linalg.norm(stress @ static))
+        if outputs > 0 and stresses > 0:
+            weight = outputs / stresses
+    found = "highest von Mises" if spec.automatic else "given"
+    extended = replace(
+        prepared.system,
+        stress_matrix=stress,
+        stress_labels=operator.labels(),
+        stress_weight=weight,
+        stress_targeted=spec.target,
+    )
+    hot_spots = HotSpots(operator, found, spec.target, weight)
+    out = replace(prepared, system=extended, hot_spots=hot_spots)
+    if static is not None:  # K^+ B of the same inputs: the cached static response, solved once
+        out.__dict__["static_response"] = static
+    return out
 
 
 def inertia_load_cases(

@@ -38,7 +38,10 @@ def method_projection(
     Parameters
     ----------
     system : SecondOrderSystem
-        The prepared system (``PreparedModel.reduction_system``).
+        The prepared system (``PreparedModel.reduction_system``). Its stress outputs join the
+        outputs the method aims at when they are targeted
+        (:meth:`~pymorembs.system.SecondOrderSystem.targeted`); SOAGA takes them as they are
+        and holds its estimator to them.
     options : ReductionOptions
         A checked options object (:func:`~pymorembs.methods.method_options`), passed on as it
         is.
@@ -49,6 +52,8 @@ def method_projection(
     -------
     Projection
     """
+    if options.method != "soaga":
+        system = system.targeted()
     if options.method == "gramian":
         if first_stage(options.first_stage, system.order) == "rational-krylov":
             return rational_gramian_from_options(system, options, band_hz)

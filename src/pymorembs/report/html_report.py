@@ -240,6 +240,14 @@ def _covers(summary: dict[str, Any]) -> str:
             " The inertia loads of the frame motion were not inputs ([inertia_loads]): the "
             "error says nothing about the body under the loads of a multibody run."
         )
+    stress = summary["model"].get("stress")
+    if stress:
+        text += (
+            f" stresses: ε(f) over the six stress components at {stress['points']} hot spots "
+            f"({stress['chosen']}, at {stress['location']} points) under every input, against "
+            "the full model; estimate: SOAGA's estimate of it"
+            + (" (the reductions aimed at them, [stress] target)." if stress["targeted"] else ".")
+        )
     return f"<p>{html.escape(text)}</p>"
 
 
@@ -318,45 +326,35 @@ def _reference_text(reference: dict[str, Any]) -> str:
 
 
 def _methods_table(reductions: list[dict[str, Any]]) -> str:
-    header = _row(
-        [
-            "reduction",
-            "method",
-            "order",
-            "max rel. error",
-            "at 0 Hz",
-            "inertia loads",
-            "estimate",
-            "H2 bound (absolute)",
-            "highest f [Hz]",
-            "explicit step [s]",
-            "time [s]",
-            "accuracy",
-        ],
-        header=True,
-        text_columns=2,
-    )
-    rows = [
-        _row(
-            [
-                r["name"],
-                r["method"],
-                str(r["order"]),
-                _number(r.get("max_rel_error")),
-                _number(r.get("static_rel_error")),
-                _number((r.get("inertia_loads") or {}).get("max_rel_error")),
-                _number(r.get("error_estimate")),
-                _number(r.get("error_bound")),
-                _number(r.get("highest_frequency_hz")),
-                _number(r.get("explicit_step_s")),
-                _number(r.get("time_s")),
-                _accuracy_cell(r.get("accuracy")),
-            ],
-            text_columns=2,
-            marked=None if (r.get("accuracy") or {}).get("met", True) else 11,
-        )
-        for r in reductions
-    ]
+    stress = any(r.get("stress") for r in reductions)  # the columns only with [stress]
+    names = ["reduction", "method", "order", "max rel. error", "at 0 Hz", "inertia loads"]
+    names += ["stresses", "stress estimate"] if stress else []
+    names += ["estimate", "H2 bound (absolute)", "highest f [Hz]", "explicit step [s]",
+              "time [s]", "accuracy"]  # fmt: skip
+    header = _row(names, header=True, text_columns=2)
+    rows = []
+    for r in reductions:
+        cells = [
+            r["name"],
+            r["method"],
+            str(r["order"]),
+            _number(r.get("max_rel_error")),
+            _number(r.get("static_rel_error")),
+            _number((r.get("inertia_loads") or {}).get("max_rel_error")),
+        ]
+        if stress:
+            errors = r.get("stress") or {}
+            cells += [_number(errors.get("max_rel_error")), _number(errors.get("estimate"))]
+        cells += [
+            _number(r.get("error_estimate")),
+            _number(r.get("error_bound")),
+            _number(r.get("highest_frequency_hz")),
+            _number(r.get("explicit_step_s")),
+            _number(r.get("time_s")),
+            _accuracy_cell(r.get("accuracy")),
+        ]
+        met = (r.get("accuracy") or {}).get("met", True)
+        rows.append(_row(cells, text_columns=2, marked=None if met else len(cells) - 1))
     return "<table>" + header + "".join(rows) + "</table>"
 
 

@@ -49,7 +49,8 @@ class RunResults:
 
     def table(self) -> dict[str, Any]:
         """Per reduction: order, errors, estimate and bound, eigenfrequencies, the eps curve
-        (and the estimator's), read from the run's ``summary.json`` and ``error*.csv``."""
+        (and the estimator's, and over the stresses), read from the run's ``summary.json`` and
+        ``error*.csv``."""
         run, summary = self._summary()
         rows = []
         for reduction in summary.reductions:
@@ -60,6 +61,8 @@ class RunResults:
                                      "relative": table[:, 1].tolist()}  # fmt: skip
             if reduction.inertia_loads:
                 curve["inertia"] = table[:, 2].tolist()
+            if reduction.stress:  # the column after the inertia loads' (error.csv)
+                curve["stress"] = table[:, 2 + bool(reduction.inertia_loads)].tolist()
             estimate = folder / "error_estimate.csv"
             if estimate.exists():
                 est = np.loadtxt(estimate, delimiter=",", skiprows=1, ndmin=2)
@@ -69,6 +72,8 @@ class RunResults:
             row["curve"] = curve
             inertia = reduction.inertia_loads
             row["max_rel_error_inertia"] = None if inertia is None else inertia.max_rel_error
+            stress = reduction.stress
+            row["max_rel_error_stress"] = None if stress is None else stress.max_rel_error
             rows.append(row)
         return {
             "reductions": rows,

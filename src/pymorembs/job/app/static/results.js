@@ -18,7 +18,7 @@ export async function loadResults() {
         `NOT MET: ${fmt(a.max)} > ${fmt(a.limit)}, ${a.exported ? "written anyway" : "body not written"}` })));
   }
   const missed = res.reductions.filter((r) => r.accuracy && !r.accuracy.met).map((r) => r.name);
-  $("accuracy").textContent = missed.length ? `Accuracy not met: ${missed.join(", ")} (see the table; ε over the ports and the inertia loads)` : "";
+  $("accuracy").textContent = missed.length ? `Accuracy not met: ${missed.join(", ")} (see the table; ε over the ports, the inertia loads and the stresses)` : "";
   plotErrors(res);
   eigenTable(res);
   const names = res.reductions.map((r) => r.name);
@@ -35,6 +35,7 @@ function plotErrors(res) {
   res.reductions.forEach((r, k) => {
     curves.push({ name: r.name, f: r.curve.frequency_hz, e: r.curve.relative, color: COLORS[k % COLORS.length], dash: "" });
     if (r.curve.inertia) curves.push({ name: `${r.name} (inertia loads)`, f: r.curve.frequency_hz, e: r.curve.inertia, color: COLORS[k % COLORS.length], dash: "1,3" });
+    if (r.curve.stress) curves.push({ name: `${r.name} (stresses)`, f: r.curve.frequency_hz, e: r.curve.stress, color: COLORS[k % COLORS.length], dash: "8,2,1,2" });
     if (r.curve.estimate) curves.push({ name: `${r.name} estimate`, f: r.curve.estimate.frequency_hz, e: r.curve.estimate.relative, color: COLORS[k % COLORS.length], dash: "5,3" });
   });
   let fmin = Infinity, fmax = 0, emin = Infinity, emax = 0;

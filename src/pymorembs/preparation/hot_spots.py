@@ -1,0 +1,256 @@
+"""Hot spots: the points of a body whose stresses become outputs of the reduction.
+
+A stress at a point is a sparse row of the mesh's stress operator times the displacements
+(:mod:`pymorembs.stress`), so the six components at each hot spot are six further outputs
+``y_s = C_s q`` of the prepared system (:attr:`~pymorembs.system.SecondOrderSystem.stress_matrix`,
+sparse, on the independent dofs: ``C_s = S T`` with the elimination map ``T``). The transfer
+function, the error of eq. 27 (``eps_s``), SOAGA's estimator and, when the stresses are targeted,
+the reduction methods then see them like the ports.
+
+Hot spots are given (node ids, element ids, a box) or found: the ``count`` points of highest von
+Mises stress in the static responses to every input (ports and inertia loads), from one
+factorization of the stiffness. Each input's von Mises field is taken relative to its own
+largest value over the body, so a moment input (N mm) and a force (N) count alike; a point's
+score is its largest relative value over the inputs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from pymorembs.body import ElasticBody
+from pymorembs.errors import UserError
+from pymorembs.stress import StressOperator, stress_operator, von_mises
+
+#: Where the stresses of hot spots are taken (:func:`pymorembs.stress.stress_operator`).
+LOCATIONS = ("integration", "nodes")
+#: How messages name the spec: the job's table, whose keys are the spec's fields.
+WHERE = "[stress]"
+#: Hot spots found when none are given.
+DEFAULT_COUNT = 10
+#: Elements per block when every point of the mesh is scored (memory of one block's rows).
+ELEMENTS_PER_BLOCK = 20_000
+
+
+@dataclass(frozen=True)
+class StressSpec:
+    """Which hot spots get stress outputs, and whether the reduction aims at them.
+
+    Attributes
+    ----------
+    nodes : tuple of int
+        Node ids: the stresses averaged at these nodes (``location = "nodes"``), or at the
+        integration points of the elements around them (``"integration"``).
+    elements : tuple of int
+        Element ids (``body.mesh.element_ids``): their integration points, or their nodes.
+    box : ((x, y, z), (x, y, z)) or None
+        Lower and upper corner (model length unit): the elements whose centroid lies inside,
+        or the nodes inside.
+    count : int
+        With none of the above: this many points of highest von Mises stress in the static
+        responses to every input (module docstring).
+    location : {"integration", "nodes"}
+        Integration points of the elements, or nodes (extrapolated and averaged).
+    target : bool
+        Aim the reductions at the stress outputs too
+        (:attr:`~pymorembs.system.SecondOrderSystem.stress_targeted`): two-sided Krylov's output
+        space, the Gramians' output weighting, SOAGA's stopping estimate.
+    """
+
+    nodes: tuple[int, ...] = ()
+    elements: tuple[int, ...] = ()
+    box: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None
+    count: int = DEFAULT_COUNT
+    location: str = "integration"
+    target: bool = False
+
+    def __post_init__(self) -> None:
+        if self.location not in LOCATIONS:
+            raise UserError(
+                f"{WHERE}.location: must be one of {', '.join(LOCATIONS)}, got {self.location!r}"
+            )
+        if isinstance(self.count, bool) or not isinstance(self.count, int) or self.count < 1:
+            raise UserError(f"{WHERE}.count: must be a whole number >= 1, got {self.count!r}")
+
+    @property
+    def automatic(self) -> bool:
+        """No hot spots given: they are found (:data:`DEFAULT_COUNT` or ``count``)."""
+        return not self.nodes and not self.elements and self.box is None
+
+
+@dataclass(frozen=True, eq=False)
+class HotSpots:
+    """The hot spots of a prepared model and how they were chosen.
+
+    Attributes
+    ----------
+    operator : StressOperator
+        The stress rows at the hot spots, on all dofs of the body.
+    chosen : str
+        ``"given"`` or ``"highest von Mises"``.
+    target : bool
+        Whether the reductions aim at them.
+    weight : float
+        :attr:`~pymorembs.system.SecondOrderSystem.stress_weight`.
+    """
+
+    operator: StressOperator
+    chosen: str
+    target: bool
+    weight: float
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready description for the summary (``model.stress``)."""
+        op = self.operator
+        return {
+            "points": int(op.n_points),
+            "outputs": int(6 * op.n_points),
+            "location": op.location,
+            "quantity": op.quantity,
+            "chosen": self.chosen,
+            "targeted": self.target,
+            "weight": self.weight,
+            "element_ids": op.element_ids.tolist(),
+            "node_ids": op.node_ids.tolist(),
+            "point_numbers": op.point_numbers.tolist(),
+            "coordinates": op.coordinates.tolist(),
+        }
+
+
+def check_stress_spec(body: ElasticBody, spec: StressSpec) -> None:
+    """The cheap checks of a spec on a body, before anything expensive: a mesh, known ids.
+
+    Raises
+    ------
+    UserError
+        One line naming the key of ``[stress]`` and the first unknown id or missing mesh.
+    """
+    mesh = body.mesh
+    if mesh is None:
+        raise UserError(
+            f"{WHERE}: the body has no element mesh: stresses need the model's elements "
+            "and material (read a deck or a file with its elements)"
+        )
+    unknown = np.setdiff1d(np.asarray(spec.nodes, dtype=np.int64), body.node_ids)
+    if unknown.size:
+        raise UserError(f"{WHERE}.nodes: node {unknown[0]} is not in the model")
+    ids = element_ids(body)
+    unknown = np.setdiff1d(np.asarray(spec.elements, dtype=np.int64), ids)
+    if unknown.size:
+        raise UserError(f"{WHERE}.elements: element {unknown[0]} is not in the mesh")
+    if spec.box is not None:
+        low, high = (np.asarray(corner, dtype=float) for corner in spec.box)
+        if not np.all(low <= high):
+            raise UserError(f"{WHERE}.box: the lower corner {low.tolist()} is not below "
+                            f"the upper corner {high.tolist()}")  # fmt: skip
+
+
+def element_ids(body: ElasticBody) -> np.ndarray:
+    """The element ids of the body's mesh (1 ... n_el where the file gave none)."""
+    mesh = body.mesh
+    ids = getattr(mesh, "element_ids", None)
+    if ids is None:
+        return np.arange(1, mesh.connectivity.shape[0] + 1)
+    return np.asarray(ids, dtype=np.int64)
+
+
+def hot_spot_operator(
+    body: ElasticBody, spec: StressSpec, responses: np.ndarray | None = None
+) -> StressOperator:
+    """The stress rows at the hot spots of ``spec`` on all dofs of ``body``.
+
+    Parameters
+    ----------
+    body : ElasticBody
+        The body in its frame, with its mesh.
+    spec : StressSpec
+    responses : ndarray, shape (n_dof, k), optional
+        Static responses to the inputs on all dofs; needed when the hot spots are found.
+    """
+    check_stress_spec(body, spec)
+    try:
+        if spec.automatic:
+            return _highest_von_mises(body, spec, responses)
+        elements, nodes = _given(body, spec)
+        return stress_operator(body, location=spec.location, elements=elements, nodes=nodes)
+    except UserError as exc:
+        raise UserError(f"{WHERE}: {exc}") from None
+
+
+def _given(body: ElasticBody, spec: StressSpec) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Element and node ids of the given hot spots: integration points of elements, or nodes."""
+    mesh = body.mesh
+    ids = element_ids(body)
+    nodes = np.asarray(spec.nodes, dtype=np.int64)
+    elements = np.asarray(spec.elements, dtype=np.int64)
+    if spec.box is not None:
+        low, high = (np.asarray(corner, dtype=float) for corner in spec.box)
+        index = np.searchsorted(body.node_ids, mesh.connectivity)
+        if spec.location == "nodes":
+            inside = np.all((body.coordinates >= low) & (body.coordinates <= high), axis=1)
+            nodes = np.union1d(nodes, body.node_ids[inside])
+        else:
+            centroids = body.coordinates[index].mean(axis=1)
+            inside = np.all((centroids >= low) & (centroids <= high), axis=1)
+            elements = np.union1d(elements, ids[inside])
+        if not inside.any():
+            raise UserError(f"box: no {'node' if spec.location == 'nodes' else 'element centroid'}"
+                            " lies inside")  # fmt: skip
+    if spec.location == "nodes":
+        if elements.size:  # the nodes of the given elements
+            rows = np.isin(ids, elements)
+            nodes = np.union1d(nodes, mesh.connectivity[rows].ravel())
+        return None, nodes
+    if nodes.size:  # the elements around the given nodes
+        around = np.any(np.isin(mesh.connectivity, nodes), axis=1)
+        elements = np.union1d(elements, ids[around])
+    return elements, None
+
+
+def _highest_von_mises(
+    body: ElasticBody, spec: StressSpec, responses: np.ndarray | None
+) -> StressOperator:
+    """The ``spec.count`` points of highest relative von Mises stress (module docstring)."""
+    if responses is None or responses.shape[1] == 0:
+        raise UserError("no inputs: hot spots are found from the static responses to the inputs")
+    ids = element_ids(body)
+    if spec.location == "nodes":
+        blocks = [(None, body.node_ids)]
+    else:
+        blocks = [(ids[i : i + ELEMENTS_PER_BLOCK], None)
+                  for i in range(0, ids.size, ELEMENTS_PER_BLOCK)]  # fmt: skip
+    scores, points = [], []
+    for elements, nodes in blocks:
+        operator = stress_operator(body, location=spec.location, elements=elements, nodes=nodes)
+        fields = von_mises(operator(responses), axis=1)  # (n_points, k)
+        scores.append(fields)
+        points.append(operator)
+    fields = np.vstack(scores)
+    largest = fields.max(axis=0)
+    relative = fields[:, largest > 0] / largest[largest > 0]
+    score = relative.max(axis=1) if relative.shape[1] else np.zeros(fields.shape[0])
+    chosen = np.sort(np.argsort(-score, kind="stable")[: spec.count])
+    return _rows_of(points, chosen)
+
+
+def _rows_of(operators: list[StressOperator], chosen: np.ndarray) -> StressOperator:
+    """The points ``chosen`` (indices over the operators one after the other) as one operator."""
+    offsets = np.cumsum([0] + [op.n_points for op in operators])
+    parts = []
+    for k, op in enumerate(operators):
+        local = chosen[(chosen >= offsets[k]) & (chosen < offsets[k + 1])] - offsets[k]
+        if local.size:
+            parts.append((op, local))
+    rows = [op.matrix[(6 * local[:, None] + np.arange(6)).ravel()] for op, local in parts]
+    return replace(
+        parts[0][0],
+        matrix=sp.vstack(rows, "csr"),
+        coordinates=np.vstack([op.coordinates[local] for op, local in parts]),
+        element_ids=np.concatenate([op.element_ids[local] for op, local in parts]),
+        node_ids=np.concatenate([op.node_ids[local] for op, local in parts]),
+        point_numbers=np.concatenate([op.point_numbers[local] for op, local in parts]),
+    )
