@@ -99,7 +99,8 @@ class LargeMotionSettings:
 #: The runs of one motion: the reference body's and, by name, every reduced body's; each with
 #: ``times`` (s), ``angular_velocity`` (n_t, 3; rad/s, ground coordinates), ``angle`` (n_t,;
 #: rad, about the hinge), ``deflections`` (node id -> (n_t, 3); m, body frame),
-#: ``wall_time_s`` and, with hot spots, ``stresses`` (a
+#: ``coordinates`` (n_t, n; the body's elastic coordinates), ``wall_time_s`` and, with hot
+#: spots, ``stresses`` (a
 #: :class:`~pymorembs.analysis.stress_history.StressHistory`).
 MotionRuns = tuple[dict[str, Any], dict[str, dict[str, Any]]]
 
@@ -253,6 +254,7 @@ def _run(
         "angular_velocity": result.angular_velocity,
         "angle": angle,
         "deflections": deflections,
+        "coordinates": result.coordinates,
         "wall_time_s": result.wall_time_s,
     }
     if stress is not None:

@@ -633,7 +633,7 @@ def _run_in(
         overview.append("decay.png")
         figures.append((staging / "decay.png", "Decay of singular values (paper Fig. 11)"))
     checks = {}
-    hot_spots = None  # the hot spots of [stress] (issue #29) once the job names them
+    hot_spots = None if prepared.hot_spots is None else prepared.hot_spots.operator
     done = _checks_in_time(
         job, body, prepared, models, nodes, staging, stage, say, timings, hot_spots
     )
