@@ -182,7 +182,7 @@ def _history_figure(
             bottom.grid(True, which="both", alpha=0.3)
         axes[-1, col].set_xlabel("time t [ms]")
         axes[-1, col].set_xlim(float(t_ms[0]), float(t_ms[-1]))
-    fig.suptitle(title)
+    fig.suptitle(title, wrap=True)
     fig.tight_layout()
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png")
