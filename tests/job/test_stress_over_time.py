@@ -17,10 +17,11 @@ import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from conftest import blade_job
 from pymorembs.analysis.time_domain import LoadCase, clamped_full_model
 from pymorembs.job.cli import main
-from pymorembs.job.run import prepare_and_validate
-from pymorembs.job.schema import load_job
+from pymorembs.job.run import prepare_and_validate, run_job
+from pymorembs.job.schema import load_job, parse_job
 from pymorembs.stress import stress_operator, von_mises
 
 #: The blade (8 x 2 x 2 hex20) held at its root (fixed dofs) and, through a rigid interface
@@ -116,50 +117,38 @@ def test_time_domain_stress_histories_of_a_job(tmp_path):
         assert reduction["time_domain"][case["name"]]["stress"] == stress
 
 
-LARGE_MOTION_JOB = """
-[model]
-example = "blade"
-elements = 8
-[damping]
-kind = "rayleigh"
-beta = 1e-5
-[frame]
-type = "none"
-[[inputs]]
-node = 1
-directions = "ux uy uz"
-[band]
-f_max_hz = 200
-points = 200
-[[reduction]]
-name = "krylov"
-method = "krylov"
-expansion_points_hz = [0]
-order = 24
-export_inaccurate = true  # max error 6 near 200 Hz; the spin-up is slow
-[stress]
-elements = [1, 2]
-[export]
-outputs = ["exudyn", "report"]
-[large_motion]
-joint_node = 2
-cases = ["spin-up"]
-duration_s = 0.2
-spin_rad_s = 12.0
-reference_order = 24
-"""
-
-
 @pytest.mark.slow
 def test_large_motion_stress_histories_of_a_job(tmp_path):
     """The job's hot spots in the large motion: each body against the modal reference body
     (measured: Krylov-24 within 9e-4 of modal-24, whose own convergence against modal-12 is
     3.7e-3; the deflections agree to 3e-5)."""
     pytest.importorskip("exudyn")
-    job = tmp_path / "job.toml"
-    job.write_text(LARGE_MOTION_JOB)
+    tables = blade_job(
+        damping={"kind": "rayleigh", "beta": 1e-5},
+        inputs=[{"node": 1, "directions": "ux uy uz"}],
+        band={"f_max_hz": 200.0, "points": 200},
+        reduction=[
+            {
+                "name": "krylov",
+                "method": "krylov",
+                "expansion_points_hz": [0.0],
+                "order": 24,
+                "export_inaccurate": True,
+            }
+        ],
+        stress={"elements": [1, 2]},
+        export={"outputs": ["exudyn", "report"]},
+        large_motion={
+            "joint_node": 2,
+            "cases": ["spin-up"],
+            "duration_s": 0.2,
+            "spin_rad_s": 12.0,
+            "reference_order": 24,
+        },
+    )
+    tables["model"]["elements"] = 8
     out = tmp_path / "out"
-    assert main(["reduce", str(job), "--out", str(out), "--quiet"]) == 0
+    run_job(parse_job(tables, tmp_path / "job.toml"), out)
     data = json.loads((out / "summary.json").read_text())
     entry = data["large_motion"]
     assert "modal reference body of order 24" in entry["stress"]["reference"]
