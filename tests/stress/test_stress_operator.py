@@ -7,11 +7,13 @@ give Hooke's law of it to rounding. Reference: the closed form of isotropic elas
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from box_meshes import box_mesh, solid_body
 
-from pymorembs.body import ElasticBody, ElementMesh
+from pymorembs.body import NO_MESH, ElasticBody, ElementMesh
 from pymorembs.elements.beam import BeamSection
 from pymorembs.errors import UserError
 from pymorembs.stress import extrapolation_matrix, stress_operator, von_mises
@@ -150,11 +152,12 @@ def test_refusals(box):
         stress_operator(_with(box, beams))
     with pytest.raises(UserError, match="has no element mesh"):
         stress_operator(_with(box, None))
+    shells = replace(box, mesh=None, notes=(NO_MESH + "a.inp has elements of type S4R",))
+    with pytest.raises(UserError, match=r"has no element mesh .*: a\.inp has elements of type S4R"):
+        stress_operator(shells)
 
 
 def _with(body: ElasticBody, mesh: ElementMesh | None) -> ElasticBody:
-    from dataclasses import replace
-
     return replace(body, mesh=mesh)
 
 
@@ -163,3 +166,24 @@ def test_element_ids_default_and_checked():
     assert mesh.element_ids.tolist() == [1, 2]
     with pytest.raises(UserError, match="element_ids must be 2 distinct numbers"):
         ElementMesh("tet4", [[1, 2, 3, 4], [2, 3, 4, 5]], E, NU, element_ids=[3, 3])
+
+
+def test_each_element_has_its_own_material():
+    """Two materials: a uniform strain gives each element Hooke's law with its own E and nu."""
+    points, connectivity = box_mesh("hex8", (2, 1, 1), (2.0, 1.0, 1.0))
+    body = solid_body("hex8", points, connectivity, E, NU)
+    young, poisson = np.array([E, 0.5 * E]), np.array([NU, 0.2])
+    body = replace(body, mesh=replace(body.mesh, young=young, poisson=poisson))
+    u, strain, _ = uniform_case(body)
+    op = stress_operator(body)
+    for k in range(2):
+        tensor = np.zeros((3, 3))
+        tensor[[0, 1, 2, 0, 0, 1], [0, 1, 2, 1, 2, 2]] = strain
+        tensor = tensor + np.triu(tensor, 1).T
+        expected = (
+            young[k]
+            / (1 + poisson[k])
+            * (tensor + poisson[k] / (1 - 2 * poisson[k]) * np.trace(tensor) * np.eye(3))
+        )
+        at = op.element_ids == body.mesh.element_ids[k]
+        assert np.allclose(op(u)[at], voigt(expected), rtol=1e-12, atol=1e-9)
