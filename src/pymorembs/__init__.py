@@ -18,7 +18,7 @@ from pymorembs.api import ErrorCurve, ReducedBody, example, facts, load, prepare
 from pymorembs.body import DIRECTIONS, ConstraintEquations, Damping, DofTable, ElasticBody
 from pymorembs.errors import AccuracyNotMet, NumericalError, PymorembsError, UserError
 from pymorembs.methods import METHODS, method_options
-from pymorembs.preparation import Frame, Port, PreparedModel
+from pymorembs.preparation import Frame, Port, PreparedModel, StressSpec
 from pymorembs.preparation.interface import InterfaceSpec, select_nodes
 from pymorembs.reduction.projection import ReducedModel
 from pymorembs.stress import StressOperator, stress_operator, von_mises
@@ -44,6 +44,7 @@ __all__ = [
     "ReducedModel",
     "SecondOrderSystem",
     "StressOperator",
+    "StressSpec",
     "TimeResponse",
     "UserError",
     "__version__",

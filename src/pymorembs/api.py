@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -43,6 +43,7 @@ from pymorembs.arguments import (
     number_list,
     plain,
     whole,
+    whole_list,
 )
 from pymorembs.body import DAMPING_KEYS, Damping, ElasticBody
 from pymorembs.display import html_table, one_line
@@ -57,7 +58,16 @@ from pymorembs.io.formats import read_body
 from pymorembs.io.reduced_file import SavedBody, read_reduced_body, write_reduced_body
 from pymorembs.kinds import FrameType, choices
 from pymorembs.methods import ReductionOptions, method_options
-from pymorembs.preparation import Frame, Port, PreparedModel, check_consistency, with_inertia_loads
+from pymorembs.preparation import (
+    Frame,
+    Port,
+    PreparedModel,
+    StressSpec,
+    check_consistency,
+    check_stress_spec,
+    with_inertia_loads,
+    with_stress_outputs,
+)
 from pymorembs.preparation import prepare as prepare_body
 from pymorembs.preparation.interface import InterfaceSpec, add_interface_node
 from pymorembs.preparation.stiffening import (
@@ -170,6 +180,7 @@ def prepare(
     stiffening: str | Mapping[str, PathLike] | None = None,
     stiffening_nodes: Sequence[int] = (),
     damping: DampingLike | None = None,
+    stress: StressSpec | Mapping[str, Any] | None = None,
 ) -> PreparedModel:
     """The body in its reference frame with its inputs and outputs (paper sections 2.1-2.3).
 
@@ -206,6 +217,13 @@ def prepare(
         matrix read with the model stays and is added. A matrix, sparse or dense, shape
         (n_dof, n_dof), in the body's dof order (force x time / length), replaces the body's
         explicit damping matrix; the damping model stays.
+    stress : StressSpec or mapping, optional
+        Hot spots whose six stress components become further outputs (sparse rows ``C_s``):
+        a :class:`~pymorembs.preparation.StressSpec` or a mapping with the keys of a job's
+        ``[stress]`` table, e.g. ``{"count": 10}`` (the 10 points of highest von Mises stress in
+        the static responses to every input), ``{"elements": [12, 13], "target": True}``.
+        Their error ``eps_s`` is :attr:`ErrorCurve.stress`; ``target`` makes the reductions aim
+        at them. Needs the body's element mesh.
 
     Returns
     -------
@@ -236,6 +254,9 @@ def prepare(
     ins = _ports(inputs, "inputs")
     outs = ins if outputs is None else _ports(outputs, "outputs")
     cases = _inertia_cases(inertia_loads)
+    hot_spots = _stress_spec(stress)
+    if hot_spots is not None:
+        check_stress_spec(body, hot_spots)  # a mesh and known ids, before any work
     prepared = prepare_body(body, frame, ins, outs)
     prepared = replace(
         prepared,
@@ -246,6 +267,8 @@ def prepare(
         prepared = (
             with_inertia_loads(prepared) if cases == () else with_inertia_loads(prepared, cases)
         )
+    if hot_spots is not None:
+        prepared = with_stress_outputs(prepared, hot_spots)
     if stiffening is not None:
         if stiffening == "mesh":
             terms = stiffening_from_mesh(prepared, nodes=nodes)
@@ -297,6 +320,25 @@ def _with_damping(body: ElasticBody, damping: DampingLike) -> ElasticBody:
             raise OptionError("damping", str(exc)) from None
     raise OptionError("damping", f"must be a Damping, a mapping like {{'kind': 'modal', 'ratio': "
                                  f"0.02}} or a matrix, got {described(damping)}")  # fmt: skip
+
+
+def _stress_spec(value: Any) -> StressSpec | None:
+    """``stress``: None, a :class:`StressSpec`, or a mapping of its keys (a job's ``[stress]``)."""
+    if value is None or isinstance(value, StressSpec):
+        return value
+    if not isinstance(value, Mapping):
+        raise OptionError("stress", f"must be a StressSpec or a dict, got {described(value)}")
+    known = [f.name for f in fields(StressSpec)]
+    for key in value:
+        if key not in known:
+            raise OptionError("stress", f"unknown key {key!r} (keys: {', '.join(known)})")
+    values = dict(value)
+    for key in ("nodes", "elements"):
+        if key in values:
+            values[key] = whole_list(f"stress.{key}", values[key], f"{key[:-1]} ids")
+    if values.get("box") is not None:
+        values["box"] = tuple(tuple(float(x) for x in corner) for corner in values["box"])
+    return StressSpec(**values)
 
 
 def _inertia_cases(value: Any) -> tuple[str, ...] | None:

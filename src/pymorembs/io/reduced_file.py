@@ -36,7 +36,10 @@ inputs/outputs, ``k`` inertia loads, ``m`` the order). Matrices are float64, ind
     system:  mass, stiffness, damping (optional): CSR groups (prepared) or (m, m) arrays
              (reduced); input_matrix (n_i or m, p), output_matrix (r, n_i or m); string
              datasets input_labels, output_labels; static_load (optional); rigid_modes
-             (optional, (n_i, 6), Buckens frame); attributes loss_factor, modal_damping_ratio
+             (optional, (n_i, 6), Buckens frame); attributes loss_factor, modal_damping_ratio;
+             optional stress outputs: stress_matrix (CSR group (r_s, n_i) prepared, (r_s, m)
+             array reduced), string dataset stress_labels, attributes stress_weight,
+             stress_targeted
     model:   eigenfrequencies_hz (m,) in Hz; system/ (the reduced system: M = I, K diagonal or
              2x2 blocks, the inputs are the ports followed by the inertia loads);
              projection/V (n_i, m), projection/W (only for an oblique projection);
@@ -189,6 +192,11 @@ def _put_system(group: h5py.Group, system: SecondOrderSystem) -> None:
             put_array(group, key, getattr(system, key), np.float64)
     group.attrs["loss_factor"] = float(system.loss_factor)
     group.attrs["modal_damping_ratio"] = float(system.modal_damping_ratio)
+    if system.stress_matrix is not None:
+        _put_matrix(group, "stress_matrix", system.stress_matrix)
+        _put_texts(group, "stress_labels", system.stress_labels)
+        group.attrs["stress_weight"] = float(system.stress_weight)
+        group.attrs["stress_targeted"] = bool(system.stress_targeted)
 
 
 def _put_prepared(group: h5py.Group, prepared: PreparedModel) -> None:
@@ -342,7 +350,29 @@ def _read_system(group: h5py.Group, n: int) -> SecondOrderSystem:
         output_labels=output_labels,
         static_load=_shaped(group, "static_load", (n,)) if "static_load" in group else None,
         rigid_modes=_shaped(group, "rigid_modes", (n, None)) if "rigid_modes" in group else None,
+        **_stress_outputs(group, n),
     )
+
+
+def _stress_outputs(group: h5py.Group, n: int) -> dict[str, Any]:
+    """The stress outputs of a saved system as keywords of :class:`SecondOrderSystem` (none
+    when it has none)."""
+    if "stress_matrix" not in group:
+        return {}
+    if isinstance(group.get("stress_matrix"), h5py.Group):
+        matrix = get_csr(group, "stress_matrix", n)
+    else:
+        matrix = _shaped(group, "stress_matrix", (None, n))
+    labels = _texts(group, "stress_labels")
+    if len(labels) != matrix.shape[0]:
+        raise UserError(f"/{group.name.strip('/')}: {len(labels)} stress labels for "
+                        f"{matrix.shape[0]} stress outputs")  # fmt: skip
+    return {
+        "stress_matrix": matrix,
+        "stress_labels": labels,
+        "stress_weight": float(group.attrs.get("stress_weight", 1.0)),
+        "stress_targeted": bool(group.attrs.get("stress_targeted", False)),
+    }
 
 
 def _read_prepared(f: h5py.File) -> PreparedModel:

@@ -585,16 +585,25 @@ def _accuracy_message(job: Job, failed: list[ReductionSummary]) -> str:
         where = f"ports {accuracy.ports:.2g}"
         if accuracy.inertia_loads is not None:
             where += f", inertia loads {accuracy.inertia_loads:.2g}"
+        if accuracy.stress is not None:
+            where += f", stresses {accuracy.stress:.2g}"
         parts.append(
             f"reduction '{entry.name}' max error {accuracy.max:.2g} > "
             f"{accuracy.limit:.2g} ({where})"
         )
     its = "its" if len(failed) == 1 else "their"
+    aim = "aim at the stresses ([stress] target = true), " if _stresses_missed(job, failed) else ""
     return (
         f"{job.path}: accuracy not met: {'; '.join(parts)}; {its} body files were not written "
-        "(summary.json and the error plots were): raise the order, choose another method, or "
-        f"set export_inaccurate = true in {its} [[reduction]] to write them anyway"
+        f"(summary.json and the error plots were): raise the order, choose another method, {aim}"
+        f"or set export_inaccurate = true in {its} [[reduction]] to write them anyway"
     )
+
+
+def _stresses_missed(job: Job, failed: list[ReductionSummary]) -> bool:
+    """Whether a reduction missed its limit on the stresses, and they were not targeted."""
+    untargeted = job.stress is not None and not job.stress.target
+    return untargeted and any((e.accuracy.stress or 0.0) > e.accuracy.limit for e in failed)
 
 
 def _run_in(

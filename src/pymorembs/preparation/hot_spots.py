@@ -129,16 +129,15 @@ def check_stress_spec(body: ElasticBody, spec: StressSpec) -> None:
     UserError
         One line naming the key of ``[stress]`` and the first unknown id or missing mesh.
     """
-    mesh = body.mesh
-    if mesh is None:
-        raise UserError(
-            f"{WHERE}: the body has no element mesh: stresses need the model's elements "
-            "and material (read a deck or a file with its elements)"
-        )
+    try:  # a solid mesh with its material: the operator of one element, which costs nothing
+        first = None if body.mesh is None else body.mesh.element_ids[:1]
+        stress_operator(body, elements=first)
+    except UserError as exc:
+        raise UserError(f"{WHERE}: {exc}") from None
     unknown = np.setdiff1d(np.asarray(spec.nodes, dtype=np.int64), body.node_ids)
     if unknown.size:
         raise UserError(f"{WHERE}.nodes: node {unknown[0]} is not in the model")
-    ids = element_ids(body)
+    ids = body.mesh.element_ids
     unknown = np.setdiff1d(np.asarray(spec.elements, dtype=np.int64), ids)
     if unknown.size:
         raise UserError(f"{WHERE}.elements: element {unknown[0]} is not in the mesh")
@@ -147,15 +146,6 @@ def check_stress_spec(body: ElasticBody, spec: StressSpec) -> None:
         if not np.all(low <= high):
             raise UserError(f"{WHERE}.box: the lower corner {low.tolist()} is not below "
                             f"the upper corner {high.tolist()}")  # fmt: skip
-
-
-def element_ids(body: ElasticBody) -> np.ndarray:
-    """The element ids of the body's mesh (1 ... n_el where the file gave none)."""
-    mesh = body.mesh
-    ids = getattr(mesh, "element_ids", None)
-    if ids is None:
-        return np.arange(1, mesh.connectivity.shape[0] + 1)
-    return np.asarray(ids, dtype=np.int64)
 
 
 def hot_spot_operator(
@@ -184,7 +174,7 @@ def hot_spot_operator(
 def _given(body: ElasticBody, spec: StressSpec) -> tuple[np.ndarray | None, np.ndarray | None]:
     """Element and node ids of the given hot spots: integration points of elements, or nodes."""
     mesh = body.mesh
-    ids = element_ids(body)
+    ids = body.mesh.element_ids
     nodes = np.asarray(spec.nodes, dtype=np.int64)
     elements = np.asarray(spec.elements, dtype=np.int64)
     if spec.box is not None:
@@ -217,7 +207,7 @@ def _highest_von_mises(
     """The ``spec.count`` points of highest relative von Mises stress (module docstring)."""
     if responses is None or responses.shape[1] == 0:
         raise UserError("no inputs: hot spots are found from the static responses to the inputs")
-    ids = element_ids(body)
+    ids = body.mesh.element_ids
     if spec.location == "nodes":
         blocks = [(None, body.node_ids)]
     else:
