@@ -8,11 +8,21 @@ import numpy as np
 import pytest
 
 from conftest import blade_job
-from pymorembs.analysis.large_motion import off_axis_node
+from pymorembs.analysis.large_motion import (
+    LargeMotionSettings,
+    large_motion_checks,
+    off_axis_node,
+)
+from pymorembs.body import Damping
+from pymorembs.elements.solid import solid_stresses
 from pymorembs.errors import UserError
 from pymorembs.examples.blade import blade
 from pymorembs.job.cli import main
 from pymorembs.job.schema import parse_job
+from pymorembs.preparation import Frame, Port, prepare
+from pymorembs.reduction.krylov import krylov_reduction
+from pymorembs.reduction.projection import reduced_model
+from pymorembs.stress import stress_operator
 
 pytest.importorskip("exudyn")
 
@@ -208,3 +218,52 @@ def test_port_only_bodies_of_rack_solid_follow_modal_120_in_the_skew_spin_up(tmp
         assert row["nodes"]["1"]["max_rel_deviation"] < 1e-2
         assert row["nodes"][corner]["max_rel_deviation"] < 1e-2
         assert row["frame_max_rel_deviation"] < 1e-2
+
+
+def test_stress_histories_in_a_skew_spin_up_against_the_element_stresses():
+    """Issue #29 item 4: each body's stress history at hot spots in Exudyn, ``C_sigma V q(t)``
+    from its elastic coordinates, equals the element's own stresses of the field ``V q(t)``
+    (:func:`pymorembs.elements.solid.solid_stresses`, not the operator), and its deviation from
+    the modal reference body is the one computed here from the two histories."""
+    body = blade(elements=8).with_damping(Damping("rayleigh", beta=1e-5))
+    tip = Port.parse(1, "ux uy uz")
+    prepared = prepare(body, Frame("none"), inputs=[tip], outputs=[tip])
+    system = prepared.system
+    models = {"krylov": reduced_model(system, krylov_reduction(system, [0.0], 4))}
+    xyz = body.coordinates[body.node_rows(body.mesh.connectivity)]
+    root = body.mesh.element_ids[xyz[:, :, 0].max(axis=1) < 0.2]  # the two root elements
+    operator = stress_operator(prepared.body, elements=root)
+    settings = LargeMotionSettings(joint_node=2, cases=("spin-up",), duration_s=0.1,
+                                   spin_rad_s=12.0, reference_order=24)  # fmt: skip
+    result = large_motion_checks(
+        settings, Frame("none"), prepared, models, [1], lambda _: None, stress=operator
+    )
+    entry = result.summary
+    assert "modal reference body of order 24" in entry["stress"]["reference"]
+    (case,) = entry["cases"]
+    assert len(case["stress_hot_spots"]) == operator.n_points
+    assert case["reference_convergence"]["stress_max_rel_deviation"] < 1.0
+    reference, runs = result.runs["spin-up"]
+    run = runs["krylov"]
+    # C_sigma V q(t) against the element's own kinematics, at a few times
+    basis = prepared.expand(models["krylov"].projection.V)
+    element = int(np.flatnonzero(body.mesh.element_ids == operator.element_ids[0])[0])
+    rows = body.node_rows(body.mesh.connectivity[element])
+    history = run["stresses"]
+    peak = np.abs(history.components).max()
+    assert peak > 1e5  # Pa: the spin-up loads the root
+    for t in (10, 100, len(run["times"]) - 1):
+        field = (basis @ run["coordinates"][t]).reshape(-1, 3)  # equation 3 r + i: direction i
+        tensors = solid_stresses("hex20", body.coordinates[rows][None], field[rows][None],
+                                 body.mesh.young, body.mesh.poisson)[0]  # fmt: skip
+        expected = tensors[:, [0, 1, 2, 0, 0, 1], [0, 1, 2, 1, 2, 2]]  # xx yy zz xy xz yz
+        assert np.abs(history.components[t, :27] - expected).max() < 1e-9 * peak
+    # the deviation from the reference body: largest component deviation over its peak von Mises
+    c_ref = reference["stresses"].components
+    xx, yy, zz, xy, xz, yz = np.moveaxis(c_ref, -1, 0)
+    vm = np.sqrt(0.5 * ((xx - yy) ** 2 + (yy - zz) ** 2 + (zz - xx) ** 2)
+                 + 3 * (xy**2 + xz**2 + yz**2))  # fmt: skip
+    expected = np.abs(history.components - c_ref).max() / vm.max()
+    (row,) = case["reductions"]
+    assert row["stress"]["max_rel_deviation"] == pytest.approx(expected, rel=1e-12)
+    assert row["stress"]["max_rel_deviation"] < 0.05  # Krylov-12 follows modal-24

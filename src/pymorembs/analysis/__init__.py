@@ -10,7 +10,8 @@ the modules behind them are not.
 * the spectrum of a body as read: :func:`model_facts`;
 * the (mass-weighted) modal assurance criterion between two bases: :func:`mac`;
 * time responses (paper section 5.1): :class:`LoadCase`, :func:`simulate`, the clamped full
-  and reduced systems, :func:`compare`;
+  and reduced systems, :func:`compare`; stress histories at hot spots (:class:`StressHistory`,
+  :func:`compare_stresses`, :func:`compare_histories`);
 * an exported body in Exudyn (:mod:`~pymorembs.analysis.exudyn_model`):
   :func:`build_exudyn_model`, :func:`simulate_exudyn`;
 * large motions in Exudyn: :class:`LargeMotionSettings`, :func:`large_motion_checks` and its
@@ -34,12 +35,26 @@ from pymorembs.analysis.reference import (
     reference_response,
 )
 from pymorembs.analysis.spectrum import model_facts
+from pymorembs.analysis.stress_history import (
+    STRESS_COVERS,
+    HotSpotStress,
+    StressComparison,
+    StressHistory,
+    compare_histories,
+    hot_spot_entries,
+    hot_spot_labels,
+    stress_history,
+    stress_settings,
+)
 from pymorembs.analysis.time_domain import (
     LoadCase,
     TimeResponse,
+    clamped_full_model,
     clamped_full_system,
     clamped_reduced_system,
     compare,
+    compare_stresses,
+    full_stress_rows,
     simulate,
 )
 from pymorembs.analysis.transfer import transfer_function
@@ -49,18 +64,28 @@ __all__ = [
     "DEFAULT_CHECKS",
     "LARGE_MOTION_CASES",
     "REFERENCE_KINDS",
+    "STRESS_COVERS",
+    "HotSpotStress",
     "LargeMotionResult",
     "LargeMotionSettings",
     "LoadCase",
     "ReferenceResponse",
+    "StressComparison",
+    "StressHistory",
     "TimeResponse",
     "build_exudyn_model",
     "choose_kind",
+    "clamped_full_model",
     "clamped_full_system",
     "clamped_reduced_system",
     "compare",
+    "compare_histories",
+    "compare_stresses",
     "error_blocks",
     "frequency_grid",
+    "full_stress_rows",
+    "hot_spot_entries",
+    "hot_spot_labels",
     "large_motion_checks",
     "mac",
     "model_facts",
@@ -69,5 +94,7 @@ __all__ = [
     "simulate",
     "simulate_exudyn",
     "stress_block",
+    "stress_history",
+    "stress_settings",
     "transfer_function",
 ]

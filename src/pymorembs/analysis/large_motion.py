@@ -23,6 +23,13 @@ frame's angular velocity (rad/s, ground coordinates) and the elastic deflection 
 of every frame node of the export and of one node off every symmetry axis of the body (the
 node farthest from the three planes through the centre of gravity parallel to the coordinate
 planes).
+
+With hot spots (a :class:`~pymorembs.stress.StressOperator` ``C_sigma``) every run also gives
+the stress history at them, ``C_sigma V q(t)`` from the body's elastic coordinates ``q(t)`` in
+Exudyn (``V`` the body's basis on all dofs). No full model is run through the large motions, so
+each body's history is compared with that of the same modal reference body (and the reference's
+with the modal body of half its order, its convergence); the figures are those of
+:mod:`pymorembs.analysis.stress_history`.
 """
 
 from __future__ import annotations
@@ -34,6 +41,13 @@ from typing import Any
 import numpy as np
 
 from pymorembs.analysis.exudyn_model import build_exudyn_model, simulate_exudyn
+from pymorembs.analysis.stress_history import (
+    compare_histories,
+    hot_spot_entries,
+    hot_spot_labels,
+    stress_history,
+    stress_settings,
+)
 from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
 from pymorembs.export.exudyn_body import exudyn_arrays
@@ -41,6 +55,7 @@ from pymorembs.export.source import body_invariants
 from pymorembs.preparation import Frame, PreparedModel
 from pymorembs.reduction.modal import modal_reduction
 from pymorembs.reduction.projection import ReducedModel, reduced_model
+from pymorembs.stress import StressOperator
 
 __all__ = [
     "LARGE_MOTION_CASES",
@@ -83,8 +98,10 @@ class LargeMotionSettings:
 
 #: The runs of one motion: the reference body's and, by name, every reduced body's; each with
 #: ``times`` (s), ``angular_velocity`` (n_t, 3; rad/s, ground coordinates), ``angle`` (n_t,;
-#: rad, about the hinge), ``deflections`` (node id -> (n_t, 3); m, body frame) and
-#: ``wall_time_s``.
+#: rad, about the hinge), ``deflections`` (node id -> (n_t, 3); m, body frame),
+#: ``coordinates`` (n_t, n; the body's elastic coordinates), ``wall_time_s`` and, with hot
+#: spots, ``stresses`` (a
+#: :class:`~pymorembs.analysis.stress_history.StressHistory`).
 MotionRuns = tuple[dict[str, Any], dict[str, dict[str, Any]]]
 
 
@@ -208,8 +225,11 @@ def _run(
     joint_node: int | None,
     step: float,
     settings: LargeMotionSettings,
+    stress: tuple[np.ndarray, tuple[str, ...]] | None = None,
 ) -> dict[str, Any]:
-    """One Exudyn run: times, frame angular velocity, elastic deflections of the frame nodes."""
+    """One Exudyn run: times, frame angular velocity, elastic deflections of the frame nodes
+    and, with ``stress`` (``C_sigma V`` of the body, shape (6 n_points, n), and the hot spots'
+    labels), the stress history at the hot spots."""
     model = build_exudyn_model(
         arrays,
         clamp=clamp,
@@ -229,13 +249,17 @@ def _run(
     )
     turned = np.einsum("tij,j->ti", result.rotation, helper)
     angle = np.unwrap(np.arctan2(np.cross(helper, turned) @ motion.hinge_axis, turned @ helper))
-    return {
+    run = {
         "times": result.times,
         "angular_velocity": result.angular_velocity,
         "angle": angle,
         "deflections": deflections,
+        "coordinates": result.coordinates,
         "wall_time_s": result.wall_time_s,
     }
+    if stress is not None:
+        run["stresses"] = stress_history(result.times, result.coordinates, *stress)
+    return run
 
 
 def _deviation(run: dict, reference: dict, nodes: list[int]) -> dict[str, Any]:
@@ -254,12 +278,15 @@ def _deviation(run: dict, reference: dict, nodes: list[int]) -> dict[str, Any]:
             "max_abs_deviation_m": error,
             "max_rel_deviation": error / scale,
         }
-    return {
+    deviation = {
         "frame_max_rel_deviation": frame,
         "deflection_max_rel_deviation": max(v["max_rel_deviation"] for v in per_node.values()),
         "nodes": per_node,
         "wall_time_s": run["wall_time_s"],
     }
+    if "stresses" in reference:
+        deviation["stress"] = compare_histories(run["stresses"], reference["stresses"]).to_json()
+    return deviation
 
 
 def _held_by_frame(frame: Frame, prepared: PreparedModel, joint: int) -> bool:
@@ -291,12 +318,15 @@ def large_motion_checks(
     models: dict[str, ReducedModel],
     nodes: list[int],
     say: Callable[[str], None],
+    stress: StressOperator | None = None,
 ) -> LargeMotionResult:
     """Run the checks for every one-sided reduced body.
 
     Returns the summary entry (the reference's order and convergence, the off-axis node, and per
     motion its parameters and per reduction the deviations of :func:`_deviation`) with the runs
-    behind it; plotting them is the caller's.
+    behind it; plotting them is the caller's. With ``stress`` (the hot spots on the dofs of
+    ``prepared.body``) every run gives the stress history there, compared with the reference
+    body's (module docstring).
     """
     joint = settings.joint_node
     extra = off_axis_node(prepared.body, prepared.body.node_position(joint))
@@ -308,8 +338,15 @@ def large_motion_checks(
         bodies[label] = reduced_model(system, modal_reduction(system, count))
     held_by_frame = _held_by_frame(frame, prepared, joint)
     clamp, joint_node = ("frame", None) if held_by_frame else ("joint", joint)
+    every = {**bodies, **models}
     arrays = {name: exudyn_arrays(body_invariants(model, prepared, frame_nodes, name))
-              for name, model in {**bodies, **models}.items()}  # fmt: skip
+              for name, model in every.items()}  # fmt: skip
+    stresses: dict[str, tuple[np.ndarray, tuple[str, ...]] | None] = dict.fromkeys(every)
+    if stress is not None:
+        points = hot_spot_labels(stress)
+        for name, model in every.items():  # C_sigma V: (6 n_points, n), small and dense
+            stresses[name] = (np.asarray(stress.matrix @ prepared.expand(model.projection.V)),
+                              points)  # fmt: skip
     lowest = float(bodies["reference"].eigenfrequencies_hz.min())
     step = settings.step_s or min(1e-3, 1.0 / (STEPS_PER_PERIOD * lowest))
     spin = settings.spin_rad_s or SPIN_FRACTION * 2.0 * np.pi * lowest
@@ -318,7 +355,8 @@ def large_motion_checks(
     for motion in _motions(settings, arrays["reference"], joint_position, spin):
         say(f"large motion '{motion.name}' in Exudyn: reference (modal {order}) and each body")
         runs = {
-            name: _run(a, motion, clamp, joint_node, step, settings) for name, a in arrays.items()
+            name: _run(a, motion, clamp, joint_node, step, settings, stresses[name])
+            for name, a in arrays.items()
         }
         reference = runs.pop("reference")
         convergence = _deviation(runs.pop("reference/2"), reference, frame_nodes)
@@ -336,7 +374,13 @@ def large_motion_checks(
                 "reference_convergence": {
                     k: convergence[k]
                     for k in ("frame_max_rel_deviation", "deflection_max_rel_deviation")
-                },
+                }
+                | (
+                    {"stress_max_rel_deviation": convergence["stress"]["max_rel_deviation"]}
+                    if stress is not None
+                    else {}
+                ),
+                **hot_spot_entries(reference.get("stresses")),
                 "reductions": rows,
             }
         )
@@ -353,4 +397,10 @@ def large_motion_checks(
         "covers": "frame angular velocity and elastic deflections (body frame) of the listed "
         "nodes, each relative to the reference body's peak, over the whole motion",
     }
+    if stress is not None:
+        summary["stress"] = stress_settings(
+            stress,
+            f"the modal reference body of order {order} in Exudyn, C_sigma V q(t) (no full "
+            "model is run through the large motions)",
+        )
     return LargeMotionResult(summary, runs_for_plot, extra)

@@ -49,12 +49,13 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
+from pymorembs.analysis.stress_history import StressComparison, StressHistory, compare_histories
 from pymorembs.body import ElasticBody
 from pymorembs.display import one_line, port_labels
 from pymorembs.errors import NumericalError, UserError
 from pymorembs.linalg.backends import factorize
 from pymorembs.linalg.mass_split import mass_split
-from pymorembs.preparation import Frame, Port, prepare
+from pymorembs.preparation import Frame, Port, PreparedModel, prepare
 from pymorembs.progress import Progress
 from pymorembs.system import SecondOrderSystem
 
@@ -147,6 +148,9 @@ class TimeResponse:
     rho_inf : float
         Spectral radius used.
     output_labels : tuple of str
+    stresses : dict of case name -> StressHistory
+        The stress history at the hot spots per load case (empty: no stress rows were given to
+        :func:`simulate`).
     """
 
     times: np.ndarray
@@ -156,6 +160,7 @@ class TimeResponse:
     order: int
     rho_inf: float
     output_labels: tuple[str, ...] = field(default=())
+    stresses: dict[str, StressHistory] = field(default_factory=dict)
 
     @property
     def step_s(self) -> float:
@@ -213,6 +218,7 @@ def integrate(
     step_s: float,
     n_steps: int,
     rho_inf: float = DEFAULT_RHO_INF,
+    observed: sp.spmatrix | np.ndarray | None = None,
 ) -> tuple[np.ndarray, float]:
     """Generalized-alpha integration from rest of ``M q'' + D q' + K q = B u(t)``, ``y = C q``.
 
@@ -246,11 +252,15 @@ def integrate(
         Number of steps.
     rho_inf : float
         Spectral radius at infinite frequency, in [0, 1].
+    observed : sparse matrix or ndarray, shape (r_o, n), optional
+        Further output rows applied to ``q`` at every step after ``C`` (e.g. the stress rows
+        ``C_sigma`` at hot spots, sparse for a full model: no dense ``r_o x n`` block is formed).
 
     Returns
     -------
-    outputs : ndarray, shape (n_steps + 1, r, n_cases)
-        ``y(t_k)`` at ``t_k = k h``; ``y(0) = 0``.
+    outputs : ndarray, shape (n_steps + 1, r + r_o, n_cases)
+        ``y(t_k)`` at ``t_k = k h`` (the ``r`` outputs, then the ``r_o`` observed rows);
+        ``y(0) = 0``.
     factorization_s : float
         Wall time of the factorization(s), s.
     """
@@ -266,6 +276,11 @@ def integrate(
         raise UserError(f"at least one time step is needed, got {n_steps}")
     if not load_cases:
         raise UserError("no load case given")
+    if observed is not None and observed.shape[1] != system.order:
+        raise UserError(
+            f"the observed rows have {observed.shape[1]} columns, the model {system.order} "
+            "coordinates"
+        )
     for case in load_cases:
         if case.force_n.size != system.n_inputs:
             raise UserError(
@@ -299,7 +314,8 @@ def integrate(
     w = np.zeros((stacked.shape[1], n_cases))  # q, v at t_{n+1-alpha_f}, alpha_m a_n
     q = np.zeros_like(a)
     v = np.zeros_like(a)
-    out = np.zeros((n_steps + 1, c.shape[0], n_cases))
+    r = c.shape[0]
+    out = np.zeros((n_steps + 1, r + (0 if observed is None else observed.shape[0]), n_cases))
     c_qa, c_va, c_a, c_v = h * h * (0.5 - beta), h * (1.0 - gamma), beta * h * h, gamma * h
     label = f"time integration ({'full' if system.is_sparse else 'reduced'}, n = {n_dof})"
     with Progress(label, total=n_steps, unit="step") as bar:  # drawn every ~1 % of the steps
@@ -313,7 +329,9 @@ def integrate(
             a = solve(b @ loads[n] - stacked @ w) / scale
             q += dq + c_a * a
             v += dv + c_v * a
-            out[n + 1] = c @ q
+            out[n + 1, :r] = c @ q
+            if observed is not None:
+                out[n + 1, r:] = observed @ q
             bar.update()
     return out, factorization_s
 
@@ -401,6 +419,8 @@ def simulate(
     duration_s: float = DEFAULT_DURATION_S,
     step_s: float = DEFAULT_STEP_S,
     rho_inf: float = DEFAULT_RHO_INF,
+    stress_rows: sp.spmatrix | np.ndarray | None = None,
+    hot_spots: Sequence[str] = (),
 ) -> TimeResponse:
     """Response from rest of a (clamped) model to load cases on its inputs.
 
@@ -420,6 +440,15 @@ def simulate(
         End time and fixed step, s (defaults: 0.2 s and 5e-5 s).
     rho_inf : float
         Spectral radius of the generalized-alpha method at infinite frequency (default 0.8).
+    stress_rows : sparse matrix or ndarray, shape (6 n_points, order), optional
+        The stress at hot spots from the coordinates of ``system``: ``C_sigma T`` (sparse) for
+        the full model (:func:`full_stress_rows`), ``C_sigma V`` (dense, small) for a reduced
+        one; rows point-major, components xx, yy, zz, xy, xz, yz
+        (:class:`pymorembs.stress.StressOperator`). The response then has
+        :attr:`TimeResponse.stresses`.
+    hot_spots : sequence of str
+        The hot spots' labels (``n_points``), e.g.
+        :func:`~pymorembs.analysis.stress_history.hot_spot_labels` of the operator.
 
     Returns
     -------
@@ -434,18 +463,30 @@ def simulate(
         raise UserError(f"duration must be a positive number of seconds, got {duration_s!r}")
     if not (np.isfinite(step_s) and 0 < step_s <= duration_s):
         raise UserError(f"time step must be a number of seconds in (0, duration], got {step_s!r}")
+    n_points = len(hot_spots)
+    if stress_rows is not None and stress_rows.shape[0] != 6 * n_points:
+        raise UserError(
+            f"{stress_rows.shape[0]} stress rows for {n_points} hot spots (six components each)"
+        )
     n_steps = round(duration_s / step_s)
     tick = time.perf_counter()
-    out, factorization_s = integrate(system, load_cases, step_s, n_steps, rho_inf)
+    out, factorization_s = integrate(system, load_cases, step_s, n_steps, rho_inf, stress_rows)
     wall = time.perf_counter() - tick
+    times = step_s * np.arange(n_steps + 1)
+    r = system.n_outputs
+    stresses = {}
+    if stress_rows is not None:
+        stresses = {name: StressHistory(times, out[:, r:, j], tuple(hot_spots))
+                    for j, name in enumerate(names)}  # fmt: skip
     return TimeResponse(
-        times=step_s * np.arange(n_steps + 1),
-        outputs={name: out[:, :, j] for j, name in enumerate(names)},
+        times=times,
+        outputs={name: out[:, :r, j] for j, name in enumerate(names)},
         wall_time_s=wall,
         factorization_s=factorization_s,
         order=system.order,
         rho_inf=rho_inf,
         output_labels=system.output_labels,
+        stresses=stresses,
     )
 
 
@@ -481,7 +522,60 @@ def compare(full: TimeResponse, reduced: TimeResponse) -> dict[str, object]:
     }
 
 
+def compare_stresses(full: TimeResponse, reduced: TimeResponse) -> dict[str, StressComparison]:
+    """The stress history of a reduced model against the full model's, per load case.
+
+    Both responses must carry :attr:`TimeResponse.stresses` at the same hot spots (see
+    :func:`~pymorembs.analysis.stress_history.compare_histories` for the figures).
+    """
+    if not full.stresses or not reduced.stresses:
+        raise UserError("the responses to compare carry no stress history (no stress rows)")
+    missing = sorted(set(full.stresses) - set(reduced.stresses))
+    if missing:
+        raise UserError(f"the reduced response lacks the stresses of load case(s) {missing}")
+    return {name: compare_histories(reduced.stresses[name], history)
+            for name, history in full.stresses.items()}  # fmt: skip
+
+
 # ------------------------------------------------------------------------------------- models
+def clamped_full_model(body: ElasticBody, clamp_node: int, load_node: int) -> PreparedModel:
+    """The prepared model behind :func:`clamped_full_system` (its ``system`` is that system).
+
+    Its :attr:`~pymorembs.preparation.PreparedModel.elimination` maps the system's coordinates
+    to all dofs of the body, e.g. for the stress rows (:func:`full_stress_rows`).
+    """
+    if body.damping.kind == "modal":
+        raise UserError(
+            "modal damping has no viscous damping matrix of the full model (it is a loss factor "
+            "in the frequency domain); use Rayleigh damping for time-domain checks"
+        )
+    port = Port.parse(load_node, TRANSLATIONS)
+    return prepare(body, Frame("tangent", node=clamp_node), inputs=[port], outputs=[port])
+
+
+def full_stress_rows(prepared: PreparedModel, stress: sp.spmatrix) -> sp.csr_matrix:
+    """Stress rows on the independent dofs of ``prepared``, ``C_sigma T``, sparse.
+
+    Parameters
+    ----------
+    prepared : PreparedModel
+        E.g. :func:`clamped_full_model`; ``q = T q_i + t`` (the constant offset ``t`` is no
+        response to the load cases and is left out, as by :func:`simulate`).
+    stress : sparse matrix, shape (6 n_points, n_dof)
+        ``StressOperator.matrix`` on the dofs of the body ``prepared`` was made from.
+
+    Returns
+    -------
+    scipy.sparse.csr_matrix, shape (6 n_points, n_independent)
+    """
+    transform = prepared.elimination.transform
+    if stress.shape[1] != transform.shape[0]:
+        raise UserError(
+            f"the stress operator acts on {stress.shape[1]} dofs, the body has {transform.shape[0]}"
+        )
+    return sp.csr_matrix(stress @ transform)
+
+
 def clamped_full_system(body: ElasticBody, clamp_node: int, load_node: int) -> SecondOrderSystem:
     """The full FE model clamped at ``clamp_node``, loaded and observed at ``load_node``.
 
@@ -498,14 +592,7 @@ def clamped_full_system(body: ElasticBody, clamp_node: int, load_node: int) -> S
     clamp_node, load_node : int
         Node ids.
     """
-    if body.damping.kind == "modal":
-        raise UserError(
-            "modal damping has no viscous damping matrix of the full model (it is a loss factor "
-            "in the frequency domain); use Rayleigh damping for time-domain checks"
-        )
-    port = Port.parse(load_node, TRANSLATIONS)
-    prepared = prepare(body, Frame("tangent", node=clamp_node), inputs=[port], outputs=[port])
-    return prepared.system
+    return clamped_full_model(body, clamp_node, load_node).system
 
 
 #: ``|K R| / (|K| |R|)`` above which the rigid-body fields are not free (springs to ground).
@@ -651,9 +738,12 @@ __all__ = [
     "GeneralizedAlpha",
     "LoadCase",
     "TimeResponse",
+    "clamped_full_model",
     "clamped_full_system",
     "clamped_reduced_system",
     "compare",
+    "compare_stresses",
+    "full_stress_rows",
     "integrate",
     "paper_load_cases",
     "simulate",

@@ -84,10 +84,12 @@ from pymorembs.reduction import Projection, explicit_step_s, first_stage, method
 from pymorembs.report import (
     plot_decay,
     plot_large_motion,
+    plot_large_motion_stresses,
     plot_relative_errors,
     reductions_scene,
     write_report,
 )
+from pymorembs.stress import StressOperator
 from pymorembs.units import band_unit_warnings, detect_units, frequency_warnings
 
 Progress = Callable[[str], None]
@@ -640,11 +642,14 @@ def _run_in(
         overview.append("decay.png")
         figures.append((staging / "decay.png", "Decay of singular values (paper Fig. 11)"))
     checks = {}
-    done = _checks_in_time(job, body, prepared, models, nodes, staging, stage, say, timings)
-    for key, (result, figure) in done.items():
+    hot_spots = None if prepared.hot_spots is None else prepared.hot_spots.operator
+    done = _checks_in_time(
+        job, body, prepared, models, nodes, staging, stage, say, timings, hot_spots
+    )
+    for key, (result, drawn) in done.items():
         checks[key] = result
-        overview.append(figure[0].name)
-        figures.append(figure)
+        overview += [figure[0].name for figure in drawn]
+        figures += drawn
         entries = _attach_rows(entries, key, result)
     if "report" in job.export.outputs:
         overview.append("report.html")
@@ -873,33 +878,47 @@ def _checks_in_time(
     stage: Callable[..., None],
     say: Progress,
     timings: dict[str, float],
-) -> dict[str, tuple[dict[str, Any], tuple[Path, str]]]:
+    stress: StressOperator | None = None,
+) -> dict[str, tuple[dict[str, Any], list[tuple[Path, str]]]]:
     """The stages of ``[time_domain]`` (full and reduced models in time) and ``[large_motion]``
-    (the bodies in Exudyn) the job asks for: by summary key, the check's entry and its figure
-    (file, caption)."""
+    (the bodies in Exudyn) the job asks for: by summary key, the check's entry and its figures
+    (file, caption). With ``stress`` (the hot spots on the dofs of the job's body) both give
+    the stress histories there, each with a figure of them."""
     done = {}
     if job.time_domain is not None:
         stage("time domain", "time domain", line=False)  # time_domain_checks says more
         tick = time.perf_counter()
-        figure = staging / "time.png"
+        figure, stress_figure = staging / "time.png", staging / "time_stress.png"
         result = time_domain_checks(
-            job.time_domain, body, job.frame, prepared, models, nodes, figure, say
-        )
+            job.time_domain, body, job.frame, prepared, models, nodes, figure, say,
+            stress, stress_figure,
+        )  # fmt: skip
         timings["time_domain_s"] = time.perf_counter() - tick
-        done["time_domain"] = result, (figure, "Time responses (paper Fig. 12)")
+        drawn = [(figure, "Time responses (paper Fig. 12)")]
+        if stress is not None:
+            drawn.append((stress_figure, "von Mises stress at the worst hot spot: full FE "
+                                         "model against the reduced models"))  # fmt: skip
+        done["time_domain"] = result, drawn
     if job.large_motion is not None:
         stage("large motion in Exudyn", "large motion", line=False)
         tick = time.perf_counter()
         figure = staging / "large_motion.png"
         checks = large_motion_checks(
-            job.large_motion, job.frame, prepared, one_sided(models), nodes, say
+            job.large_motion, job.frame, prepared, one_sided(models), nodes, say, stress
         )
         plot_large_motion(checks.runs, checks.off_axis_node, figure)
         result = checks.summary
         timings["large_motion_s"] = time.perf_counter() - tick
-        caption = ("Large motions in Exudyn: each body against the modal reference of order "
-                   f"{result['reference']['order']}")  # fmt: skip
-        done["large_motion"] = result, (figure, caption)
+        order = result["reference"]["order"]
+        caption = f"Large motions in Exudyn: each body against the modal reference of order {order}"
+        drawn = [(figure, caption)]
+        if stress is not None:
+            stress_figure = staging / "large_motion_stress.png"
+            plot_large_motion_stresses(checks.runs, stress_figure, order)
+            drawn.append((stress_figure, "von Mises stress at the worst hot spot in the large "
+                          "motions: each body against the modal reference of order "
+                          f"{order}"))  # fmt: skip
+        done["large_motion"] = result, drawn
     return done
 
 

@@ -13,6 +13,13 @@ clamp node):
    FFRF equations agree with the linear result only for small motion, so each case is run twice:
    at the job's load, and at 1/10,000 of it (scaled back up for the comparison). The second number
    proves the exported body; the first shows how far the linear result carries at the job's load.
+
+With hot spots (a :class:`~pymorembs.stress.StressOperator` ``C_sigma``), step 1 records the full
+model's stress history ``C_sigma q(t)`` (sparse rows on its coordinates) and step 2 each reduced
+body's ``C_sigma V q_r(t)`` (the small dense ``C_sigma V``): per hot spot the peak and range of
+the von Mises and of the absolute maximum principal stress, and the deviation of each reduced
+history from the full one (:mod:`pymorembs.analysis.stress_history`), plotted at the worst hot
+spot.
 """
 
 from __future__ import annotations
@@ -26,15 +33,21 @@ import numpy as np
 from pymorembs import ElasticBody, Frame, LoadCase, PreparedModel, ReducedModel, TimeResponse
 from pymorembs.analysis import (
     build_exudyn_model,
-    clamped_full_system,
+    clamped_full_model,
     clamped_reduced_system,
     compare,
+    compare_stresses,
+    full_stress_rows,
+    hot_spot_entries,
+    hot_spot_labels,
     simulate,
     simulate_exudyn,
+    stress_settings,
 )
 from pymorembs.export import body_invariants, exudyn_arrays
 from pymorembs.job.schema import TimeDomainSpec
-from pymorembs.report import plot_time_responses
+from pymorembs.report import plot_stress_histories, plot_time_responses
+from pymorembs.stress import StressOperator
 
 #: Load factor of the small-motion Exudyn run.
 SMALL_LOAD = 1e-4
@@ -61,6 +74,8 @@ def time_domain_checks(
     nodes: list[int],
     figure: Path,
     say: Callable[[str], None],
+    stress: StressOperator | None = None,
+    stress_figure: Path | None = None,
 ) -> dict[str, Any]:
     """Run the checks, plot Fig. 12 into ``figure`` and return the summary entry.
 
@@ -79,16 +94,26 @@ def time_domain_checks(
         Frame nodes of the exported bodies (must contain the clamp and load nodes).
     figure : Path
         PNG file of the time responses.
+    say : callable
+        Progress lines.
+    stress : StressOperator, optional
+        The hot spots on the dofs of ``body``: the stress histories are recorded and compared.
+    stress_figure : Path, optional
+        PNG file of the von Mises stress at the worst hot spot (with ``stress``).
     """
     rho_inf = DEFAULT_RHO_INF if spec.rho_inf is None else spec.rho_inf
     cases = load_cases(spec)
     n_steps = round(spec.duration_s / spec.step_s)
-    full_system = clamped_full_system(body, spec.clamp_node, spec.load_node)
+    full_model = clamped_full_model(body, spec.clamp_node, spec.load_node)
+    full_system = full_model.system
     say(
         f"time domain: full model ({full_system.order} dofs), {len(cases)} load case(s), "
         f"{n_steps} steps of {spec.step_s:g} s"
+        + (f", stresses at {stress.n_points} hot spot(s)" if stress is not None else "")
     )
-    full = simulate(full_system, cases, spec.duration_s, spec.step_s, rho_inf)
+    points = () if stress is None else hot_spot_labels(stress)
+    rows_full = None if stress is None else full_stress_rows(full_model, stress.matrix)
+    full = simulate(full_system, cases, spec.duration_s, spec.step_s, rho_inf, rows_full, points)
     responses: dict[str, TimeResponse] = {f"full FE model ({full.order} dofs)": full}
     rows: dict[str, dict[str, dict[str, Any]]] = {case.name: {} for case in cases}
     skipped = []
@@ -107,9 +132,12 @@ def time_domain_checks(
             spec.clamp_node,
             spec.load_node,
         )
-        reduced = simulate(system, cases, spec.duration_s, spec.step_s, rho_inf)
+        # C_sigma V: the rigid motion of a floating frame held by a joint has no strain
+        modes = None if stress is None else np.asarray(stress.matrix @ basis)
+        reduced = simulate(system, cases, spec.duration_s, spec.step_s, rho_inf, modes, points)
         responses[f"{name} (n = {model.projection.order})"] = reduced
         result = compare(full, reduced)
+        stresses = {} if stress is None else compare_stresses(full, reduced)
         for case in cases:
             rows[case.name][name] = {
                 "name": name,
@@ -117,6 +145,8 @@ def time_domain_checks(
                 "speedup": result["speedup"],
                 "time_s": reduced.wall_time_s,
             }
+            if stress is not None:
+                rows[case.name][name]["stress"] = stresses[case.name].to_json()
         if spec.exudyn:
             say(f"time domain: reduction '{name}' in Exudyn")
             exudyn = _exudyn_runs(spec, frame, prepared, model, name, nodes, cases, rho_inf)
@@ -139,7 +169,14 @@ def time_domain_checks(
         figure,
         title=f"Displacement of node {spec.load_node}, body clamped at node {spec.clamp_node}",
     )
-    return {
+    if stress is not None and stress_figure is not None:
+        plot_stress_histories(
+            {label: r.stresses for label, r in responses.items() if r.stresses},
+            stress_figure,
+            title=f"von Mises stress at the worst hot spot, body clamped at node "
+            f"{spec.clamp_node}, loaded at node {spec.load_node}",
+        )
+    entry = {
         "settings": {
             "clamp_node": spec.clamp_node,
             "load_node": spec.load_node,
@@ -160,12 +197,18 @@ def time_domain_checks(
                 "name": case.name,
                 "kind": case.kind,
                 "peak_displacement_m": float(np.abs(full.outputs[case.name]).max()),
+                **hot_spot_entries(full.stresses.get(case.name)),
                 "reductions": list(rows[case.name].values()),
             }
             for case in cases
         ],
         "skipped": skipped,
     }
+    if stress is not None:
+        entry["stress"] = stress_settings(
+            stress, f"the full FE model ({full.order} dofs), C_sigma q(t)"
+        )
+    return entry
 
 
 def _deviation(candidate: np.ndarray, reference: np.ndarray) -> float:

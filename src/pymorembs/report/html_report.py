@@ -358,10 +358,32 @@ def _methods_table(reductions: list[dict[str, Any]]) -> str:
     return "<table>" + header + "".join(rows) + "</table>"
 
 
+#: The columns of a check's table with hot spots.
+STRESS_HEADER = ["stress: max rel. deviation", "worst hot spot"]
+
+
+def _stress_cells(check: dict[str, Any], entry: dict[str, Any]) -> list[str]:
+    """The stress cells of a check's row: its deviation at the hot spots and the worst one
+    (none when the check has no hot spots)."""
+    if "stress" not in check:
+        return []
+    stress = entry.get("stress") or {}
+    return [_number(stress.get("max_rel_deviation")), str(stress.get("worst_point", "–"))]
+
+
+def _stress_note(check: dict[str, Any]) -> str:
+    """What the stress columns of a check compare, or nothing."""
+    stress = check.get("stress")
+    if not stress:
+        return ""
+    return (f" Stresses at the hot spots {', '.join(stress.get('points', []))} against "
+            f"{stress.get('reference', '')}: {stress.get('covers', '')}.")  # fmt: skip
+
+
 def _large_motion_table(large_motion: dict[str, Any]) -> str:
     header = _row(
         ["motion", "body", "frame ω: max rel. deviation", "deflection: max rel. deviation",
-         "Exudyn time [s]"],
+         "Exudyn time [s]", *(STRESS_HEADER if "stress" in large_motion else [])],
         header=True,
         text_columns=2,
     )  # fmt: skip
@@ -376,6 +398,7 @@ def _large_motion_table(large_motion: dict[str, Any]) -> str:
                         _number(entry.get("frame_max_rel_deviation")),
                         _number(entry.get("deflection_max_rel_deviation")),
                         _number(entry.get("wall_time_s")),
+                        *_stress_cells(large_motion, entry),
                     ],
                     text_columns=2,
                 )
@@ -393,7 +416,7 @@ def _large_motion_table(large_motion: dict[str, Any]) -> str:
         f"Hinged at node {large_motion.get('joint_node')}; reference: modal body of order "
         f"{reference.get('order')}; compared: {large_motion.get('covers', '')}; nodes "
         f"{large_motion.get('nodes')} (node {large_motion.get('off_axis_node')} lies off every "
-        "symmetry axis). " + "; ".join(notes) + "."
+        "symmetry axis). " + "; ".join(notes) + "." + _stress_note(large_motion)
     )
     return "<table>" + header + "".join(rows) + "</table>" + f"<p>{html.escape(explain)}</p>"
 
@@ -408,6 +431,7 @@ def _time_table(time_domain: dict[str, Any]) -> str:
             "time [s]",
             "Exudyn: deviation",
             "Exudyn: at small load",
+            *(STRESS_HEADER if "stress" in time_domain else []),
         ],
         header=True,
         text_columns=2,
@@ -425,6 +449,7 @@ def _time_table(time_domain: dict[str, Any]) -> str:
                         _number(entry.get("time_s")),
                         _number(entry.get("exudyn_max_rel_deviation")),
                         _number(entry.get("exudyn_small_load_max_rel_deviation")),
+                        *_stress_cells(time_domain, entry),
                     ],
                     text_columns=2,
                 )
@@ -440,7 +465,9 @@ def _time_table(time_domain: dict[str, Any]) -> str:
     explain = (
         "<p>Deviation: max over time and components of |u_red − u_full| ÷ max |u_full| at the "
         "load node. Exudyn: the exported body as a nonlinear flexible multibody model, against "
-        "the linear reduced model, at the job's load and at 1/10,000 of it (scaled back).</p>"
+        "the linear reduced model, at the job's load and at 1/10,000 of it (scaled back)."
+        + html.escape(_stress_note(time_domain))
+        + "</p>"
     )
     return note + "<table>" + header + "".join(rows) + "</table>" + explain
 
