@@ -2,7 +2,8 @@
 
 :class:`RunResults` reads ``summary.json`` (a :class:`~pymorembs.job.summary.JobSummary`),
 ``*/error.csv``, ``*/error_estimate.csv`` and ``*/reduced.npz`` of the run's folder: the table
-and curves of every reduction, a shape function on the opened model's scene, the mass-weighted
+and curves of every reduction, a shape function on the opened model's scene (with its von Mises
+stress at the scene's nodes for a body with solid elements), the mass-weighted
 MAC between two bases and the files written. The bases and the run body's mass matrix are read
 and built once per run.
 """
@@ -18,6 +19,7 @@ import numpy as np
 from pymorembs.analysis import mac as modal_assurance
 from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
+from pymorembs.export import nodal_von_mises
 from pymorembs.job.app.opened_model import OpenedModel
 from pymorembs.job.app.runner import Run
 from pymorembs.job.app.runs import RunController
@@ -40,7 +42,7 @@ class RunResults:
         self.model = model
         self.runs = runs
         self._bases: dict[tuple[str, str], dict[str, np.ndarray]] = {}
-        self._mass: tuple[str, Any] | None = None  # (run folder, mass matrix of its body)
+        self._body: tuple[str, ElasticBody] | None = None  # (run folder, its body)
 
     def _summary(self) -> tuple[Run, JobSummary]:
         run = self.runs.finished()
@@ -97,7 +99,9 @@ class RunResults:
 
     def shape(self, name: str, k: int) -> dict[str, Any]:
         """Column ``k`` of a reduction's basis as translations of the scene's nodes (largest
-        translation 1), with the reduced model's eigenfrequency of that direction."""
+        translation 1), with the reduced model's eigenfrequency of that direction and, for a
+        body with solid elements, its von Mises stress at the scene's nodes (``von_mises``,
+        model stress unit per unit modal coordinate; None without solids)."""
         self.model.opened()
         basis = self._basis(name)
         V = basis["V"]
@@ -111,8 +115,11 @@ class RunResults:
         largest = np.abs(values).max()
         if largest > 0:
             values /= largest
+        body = self._run_body(nodes, directions)
+        stress = nodal_von_mises(body, V[:, k : k + 1], ids)
         return {
             "values": values.ravel().round(6).tolist(),
+            "von_mises": None if stress is None else [float(f"{v:.4g}") for v in stress[:, 0]],
             "frequency_hz": float(basis["eigenfrequencies_hz"][k]),
             "count": int(V.shape[1]),
         }
@@ -127,7 +134,7 @@ class RunResults:
             and np.array_equal(A["dof_directions"], B["dof_directions"])
         ):
             raise UserError("the two bases are not on the same dofs")
-        mass = self._run_mass(A["dof_nodes"], A["dof_directions"])
+        mass = self._run_body(A["dof_nodes"], A["dof_directions"]).mass
         return {
             "matrix": modal_assurance(A["V"], B["V"], mass).round(4).tolist(),
             "weighting": "mass",
@@ -135,20 +142,20 @@ class RunResults:
             "b_hz": B["eigenfrequencies_hz"].tolist(),
         }
 
-    def _run_mass(self, nodes: np.ndarray, directions: np.ndarray) -> Any:
-        """The sparse mass matrix of the last run's body (the model with the job's interface
-        nodes, on the dofs of its ``reduced.npz``), built once per run."""
+    def _run_body(self, nodes: np.ndarray, directions: np.ndarray) -> ElasticBody:
+        """The last run's body (the model with the job's interface nodes, on the dofs of its
+        ``reduced.npz``: its sparse mass matrix, its mesh), built once per run."""
         run, _ = self._summary()
-        if self._mass is not None and self._mass[0] == str(run.out):
-            return self._mass[1]
+        if self._body is not None and self._body[0] == str(run.out):
+            return self._body[1]
         job = self.runs.job_of(run)
         body = add_interfaces(self.model.opened(), job)
         if not _same_dofs(body, nodes, directions):  # another model opened since the run
             body = load_job_model(job)
         if not _same_dofs(body, nodes, directions):
             raise UserError("the run's bases are not on the dofs of its model")
-        self._mass = (str(run.out), body.mass)
-        return body.mass
+        self._body = (str(run.out), body)
+        return body
 
     def file(self, name: str) -> Path:
         """A file of the last finished run's output folder (never outside it)."""
