@@ -174,6 +174,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("linalg", "elements", "parallel"),
     ("surface", "system"),
     ("body",),
+    ("stress",),
     ("io", "units"),
     ("preparation", "examples"),
     ("reduction",),
@@ -262,7 +263,7 @@ def test_the_layer_check_finds_what_it_is_for():
     assert layer_of("pymorembs.nothing") is None
     lazy = "def f():\n    from pymorembs.report.time_plots import plot_large_motion\n"
     assert climbs("pymorembs.analysis.large_motion", lazy) == [
-        "pymorembs.analysis.large_motion (layer 9) -> pymorembs.report.time_plots (layer 10)"
+        "pymorembs.analysis.large_motion (layer 10) -> pymorembs.report.time_plots (layer 11)"
     ]
     assert climbs("pymorembs.reduction.soaga", "import pymorembs.analysis.error as e") != []
     assert climbs("pymorembs.export.sid", "from pymorembs import __version__") == []

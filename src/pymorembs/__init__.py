@@ -21,6 +21,7 @@ from pymorembs.methods import METHODS, method_options
 from pymorembs.preparation import Frame, Port, PreparedModel
 from pymorembs.preparation.interface import InterfaceSpec, select_nodes
 from pymorembs.reduction.projection import ReducedModel
+from pymorembs.stress import StressOperator, stress_operator, von_mises
 from pymorembs.system import SecondOrderSystem
 
 __all__ = [
@@ -42,6 +43,7 @@ __all__ = [
     "ReducedBody",
     "ReducedModel",
     "SecondOrderSystem",
+    "StressOperator",
     "TimeResponse",
     "UserError",
     "__version__",
@@ -53,4 +55,6 @@ __all__ = [
     "read",
     "reduce",
     "select_nodes",
+    "stress_operator",
+    "von_mises",
 ]

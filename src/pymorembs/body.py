@@ -406,6 +406,10 @@ class ElementMesh:
         The cross-section of ``"beam2"`` elements (required for them).
     up : (3,) float, optional
         The beams' orientation vector (default that of :mod:`pymorembs.elements.beam`).
+    element_ids : ndarray of int, shape (n_el,), optional
+        The element numbers of the FE program (distinct), in the order of ``connectivity``;
+        default ``1 .. n_el`` (readers fill them where the file numbers its elements). Stress
+        outputs name their points by them (:mod:`pymorembs.stress`).
     """
 
     element: str
@@ -414,6 +418,7 @@ class ElementMesh:
     poisson: float | np.ndarray
     section: BeamSection | None = None
     up: tuple[float, float, float] | None = None
+    element_ids: np.ndarray | None = None
 
     def __repr__(self) -> str:
         materials = "one material" if np.ndim(self.young) == 0 else "a material per element"
@@ -459,6 +464,17 @@ class ElementMesh:
         if self.element == "beam2" and self.section is None:
             raise UserError("element mesh: beam2 elements need their cross-section")
         object.__setattr__(self, "connectivity", connectivity)
+        n_el = connectivity.shape[0]
+        if self.element_ids is None:
+            ids = np.arange(1, n_el + 1, dtype=np.int64)
+        else:
+            ids = np.array(self.element_ids, dtype=np.int64).ravel()
+            if ids.shape != (n_el,) or np.unique(ids).size != n_el:
+                raise UserError(
+                    f"element mesh: element_ids must be {n_el} distinct numbers, one per "
+                    f"element, got {ids.size} ({np.unique(ids).size} distinct)"
+                )
+        object.__setattr__(self, "element_ids", ids)
 
 
 @dataclass(frozen=True, eq=False)

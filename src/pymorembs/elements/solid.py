@@ -25,6 +25,10 @@ Element kinds (:data:`SOLID_KINDS`)
 ``"hex20r"``
     The same element with the reduced 2 x 2 x 2 rule (C3D20R, SOLID186 by default).
 
+Integration points are numbered as CalculiX and Abaqus number them: the 4-point tetrahedron rule
+from the point nearest node 1 on (volume coordinates ``(a, b, b, b)``, ``(b, a, b, b)`` ...), the
+cube rules with ``xi`` running fastest, then ``eta``, then ``zeta``.
+
 Natural coordinates: tetrahedra ``(r, s, t)`` in the unit tetrahedron with node 1 at the
 origin and nodes 2, 3, 4 at the unit points; hexahedra ``(xi, eta, zeta)`` in ``[-1, 1]³``.
 """
@@ -42,13 +46,16 @@ from pymorembs.errors import UserError
 
 __all__ = [
     "SOLID_KINDS",
+    "TENSOR_COMPONENTS",
     "SolidKind",
     "assemble_solid_geometric",
     "assemble_solid_stiffness",
+    "lame_parameters",
     "part",
     "solid_geometric_matrices",
     "solid_geometry",
     "solid_kind",
+    "solid_point_matrices",
     "solid_stiffness",
     "solid_stresses",
     "solid_volumes",
@@ -111,9 +118,11 @@ def hex8_shape_functions(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _gauss_cube(order: int) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss-Legendre points of the cube, xi running fastest, then eta, then zeta (the point
+    numbers of CalculiX and Abaqus)."""
     x, w = np.polynomial.legendre.leggauss(order)
-    points = np.stack(np.meshgrid(x, x, x, indexing="ij"), -1).reshape(-1, 3)
-    return points, np.einsum("i,j,k->ijk", w, w, w).ravel()
+    points = np.stack(np.meshgrid(x, x, x, indexing="ij"), -1).reshape(-1, 3)[:, ::-1]
+    return np.ascontiguousarray(points), np.einsum("i,j,k->ijk", w, w, w).ravel()
 
 
 def _tet_rule(points: int) -> tuple[np.ndarray, np.ndarray]:
@@ -214,8 +223,11 @@ def _jacobians(kind: str, nodes: np.ndarray) -> tuple[SolidKind, np.ndarray, np.
     return spec, jacobians, determinants
 
 
-def _lame(young, poisson, ndim: int) -> tuple[np.ndarray, np.ndarray]:
-    """Lame's lambda and mu, one per element shaped (n_el or 1, 1 x ndim) for broadcasting."""
+def lame_parameters(
+    young: float | np.ndarray, poisson: float | np.ndarray, ndim: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Lame's lambda and mu (stress unit), one per element shaped ``(n_el or 1, 1 x ndim)`` for
+    broadcasting against arrays of ``1 + ndim`` axes whose first is the element."""
     e = np.asarray(young, dtype=float).reshape(-1, *(1,) * ndim)
     nu = np.asarray(poisson, dtype=float).reshape(-1, *(1,) * ndim)
     return e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)), e / (2.0 * (1.0 + nu))
@@ -242,7 +254,7 @@ def solid_stiffness(
         Element dof order ``(node a, direction i) -> 3 a + i`` (force / length).
     """
     weights, gradients = solid_geometry(kind, nodes)
-    lam, mu = _lame(young, poisson, 4)
+    lam, mu = lame_parameters(young, poisson, 4)
     n_el, _, n, _ = gradients.shape
     x = np.einsum("eq,eqai,eqbj->eaibj", weights, gradients, gradients)
     trace = np.einsum("eakbk->eab", x)
@@ -280,9 +292,53 @@ def solid_stresses(
     _, gradients = solid_geometry(kind, nodes)
     grad = np.einsum("eai,eqak->eqik", displacements, gradients)  # du_i / dx_k
     strain = 0.5 * (grad + grad.transpose(0, 1, 3, 2))
-    lam, mu = _lame(young, poisson, 3)
+    lam, mu = lame_parameters(young, poisson, 3)
     trace = np.trace(strain, axis1=2, axis2=3)
     return lam * trace[..., None, None] * np.eye(3) + 2.0 * mu * strain
+
+
+#: The six components of a symmetric tensor, in the order of the point matrices and of
+#: CalculiX/Abaqus (S11 S22 S33 S12 S13 S23): ``(i, j)`` index pairs.
+TENSOR_COMPONENTS = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
+
+
+def solid_point_matrices(
+    kind: str,
+    nodes: np.ndarray,
+    young: float | np.ndarray | None = None,
+    poisson: float | np.ndarray | None = None,
+) -> np.ndarray:
+    """Strain (or stress) of the nodal displacements at the Gauss points of each element.
+
+    ``eps_ij = (du_i/dx_j + du_j/dx_i) / 2`` (tensor shear components), and with the material
+    ``sigma = lambda tr(eps) I + 2 mu eps``; components in the order of
+    :data:`TENSOR_COMPONENTS`.
+
+    Parameters
+    ----------
+    kind : str
+    nodes : ndarray, shape (n_el, n, 3)
+        Node coordinates (length unit).
+    young, poisson : float or ndarray, shape (n_el,), optional
+        The material; without it the strains.
+
+    Returns
+    -------
+    ndarray, shape (n_el, q, 6, n, 3)
+        ``[e, p, c, a, i]``: component ``c`` at point ``p`` per unit displacement of node ``a``
+        in direction ``i`` (1 / length for strains, stress / length for stresses).
+    """
+    _, gradients = solid_geometry(kind, nodes)  # (n_el, q, n, 3)
+    out = np.zeros((*gradients.shape[:2], 6, *gradients.shape[2:]))
+    for c, (i, j) in enumerate(TENSOR_COMPONENTS):
+        out[:, :, c, :, i] += 0.5 * gradients[..., j]
+        out[:, :, c, :, j] += 0.5 * gradients[..., i]
+    if young is None or poisson is None:
+        return out
+    lam, mu = lame_parameters(young, poisson, 4)
+    out *= 2.0 * mu
+    out[:, :, :3] += lam * gradients[:, :, None]
+    return out
 
 
 def solid_geometric_matrices(kind: str, nodes: np.ndarray, stresses: np.ndarray) -> np.ndarray:

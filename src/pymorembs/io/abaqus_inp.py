@@ -1347,6 +1347,7 @@ def solid_blocks(model: InpModel) -> list[SolidBlock] | str:
                     young,
                     poisson,
                     f"{block.path.name}:{block.line} *ELEMENT, TYPE={block.type}",
+                    labels[material == k],
                 )
             )
     return blocks

@@ -526,6 +526,7 @@ def cdb_solid_blocks(archive: AnsysArchive, path: PathLike) -> list[SolidBlock] 
                     young[0],
                     poisson[0] if poisson else 0.0,
                     f"{name}: SOLID{number}, material {mat}",
+                    archive.element_ids[chosen],
                 )
             )
     return blocks

@@ -1498,6 +1498,7 @@ def bulk_solid_blocks(bulk: BulkData) -> list[SolidBlock] | str:
         mid = parse_int(card.field(0), card.path, card.line, "MAT1 MID")
         materials[mid] = _mat1(card)
     groups: dict[tuple[str, int], list[np.ndarray]] = {}
+    numbers: dict[tuple[str, int], list[int]] = {}
     for card_name, kinds in _SOLID_CARDS.items():
         for card in bulk.cards.get(card_name, []):
             grids = [f for f in card.fields[2:22] if f.strip()]
@@ -1514,6 +1515,9 @@ def bulk_solid_blocks(bulk: BulkData) -> list[SolidBlock] | str:
             if kind == "hex20":
                 ids = ids[CHEXA20_TO_HEX20]
             groups.setdefault((kind, properties[pid]), []).append(ids)
+            numbers.setdefault((kind, properties[pid]), []).append(
+                parse_int(card.field(0), card.path, card.line, f"{card_name} EID")
+            )
     if not groups:
         return f"{name} has no CTETRA or CHEXA elements"
     blocks = []
@@ -1530,7 +1534,15 @@ def bulk_solid_blocks(bulk: BulkData) -> list[SolidBlock] | str:
             raise located_error(
                 bulk.path, None, f"a solid element names grid {int(missing[0])}, which has no GRID"
             )
-        blocks.append(SolidBlock(kind, connectivity, *material, f"{name}: MAT1 {mid}"))
+        blocks.append(
+            SolidBlock(
+                kind,
+                connectivity,
+                *material,
+                f"{name}: MAT1 {mid}",
+                np.array(numbers[(kind, mid)], dtype=np.int64),
+            )
+        )
     return blocks
 
 

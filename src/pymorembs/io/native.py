@@ -25,6 +25,7 @@ Layout (format version 2)::
                            attributes element, young, poisson (what geometric stiffening
                            needs); young and poisson are datasets (n_el,) instead when the
                            elements have several materials
+    /mesh/element_ids      int64 (n_el,) the elements' numbers (absent in older files: 1 .. n_el)
     /surface/triangles     int64 (n_t, 3), /surface/lines int64 (n_l, 2): node ids of what a
                            viewer draws (outer faces, line elements), only if the body has a
                            surface; attribute source
@@ -163,6 +164,7 @@ def write_body_group(f: h5py.Group, body: ElasticBody) -> None:
                 f["mesh"].attrs[f"section_{key}"] = float(value)
         if body.mesh.up is not None:
             f["mesh"].attrs["up"] = np.asarray(body.mesh.up, dtype=float)
+        put_array(f, "mesh/element_ids", body.mesh.element_ids, np.int64)
     if body.surface is not None:
         put_array(f, "surface/triangles", body.surface.triangles, np.int64)
         put_array(f, "surface/lines", body.surface.lines, np.int64)
@@ -312,6 +314,7 @@ def read_body_group(f: h5py.Group) -> ElasticBody:
             material["poisson"],
             section,
             None if up is None else tuple(float(x) for x in np.ravel(up)),
+            get_array(f, "mesh/element_ids", INTEGER_KINDS) if "element_ids" in f["mesh"] else None,
         )
     surface = None
     if "surface" in f:

@@ -54,6 +54,8 @@ class SolidBlock:
         Young's modulus (model stress unit) and Poisson's ratio.
     where : str
         The source, for messages (``"abq_beam.inp: *ELEMENT, TYPE=C3D10 (line 526)"``).
+    element_ids : ndarray of int, shape (n_el,), optional
+        The element numbers of the file, where it numbers them.
     """
 
     kind: str
@@ -61,11 +63,13 @@ class SolidBlock:
     young: float
     poisson: float
     where: str
+    element_ids: np.ndarray | None = None
 
 
 def element_mesh(blocks: list[SolidBlock]) -> ElementMesh:
     """One :class:`~pymorembs.body.ElementMesh` of the blocks (one material per element when
-    the blocks have several).
+    the blocks have several; the file's element numbers when every block has them and no number
+    repeats, as in an assembly of parts, else ``1 .. n_el``).
 
     Raises
     ------
@@ -82,12 +86,19 @@ def element_mesh(blocks: list[SolidBlock]) -> ElementMesh:
             "body from its elements takes one kind"
         )
     connectivity = np.concatenate([b.connectivity for b in blocks])
+    ids = None  # the file's numbers where every block has them and they are distinct
+    if all(b.element_ids is not None for b in blocks):
+        ids = np.concatenate([b.element_ids for b in blocks])  # type: ignore[misc]
+        if np.unique(ids).size != ids.size:
+            ids = None
     if len({(b.young, b.poisson) for b in blocks}) == 1:
-        return ElementMesh(kinds[0], connectivity, blocks[0].young, blocks[0].poisson)
+        return ElementMesh(
+            kinds[0], connectivity, blocks[0].young, blocks[0].poisson, element_ids=ids
+        )
     counts = [b.connectivity.shape[0] for b in blocks]
     young = np.repeat([b.young for b in blocks], counts)
     poisson = np.repeat([b.poisson for b in blocks], counts)
-    return ElementMesh(kinds[0], connectivity, young, poisson)
+    return ElementMesh(kinds[0], connectivity, young, poisson, element_ids=ids)
 
 
 def describe_material(mesh: ElementMesh) -> str:
