@@ -14,7 +14,6 @@ import meshio
 import numpy as np
 import pytest
 import scipy.sparse.linalg as spla
-from pymorembs.stress import stress_operator
 
 import pymorembs as pm
 from pymorembs.examples import build_example
@@ -22,6 +21,7 @@ from pymorembs.export import write_outputs
 from pymorembs.export.exudyn_body import load_exudyn_body
 from pymorembs.export.recovery import write_stress_recovery
 from pymorembs.export.stress_modes import StressModes, stress_modes
+from pymorembs.stress import stress_operator
 
 #: The blade's steel (pymorembs.examples.blade).
 E, NU = 2.1e11, 0.3
@@ -250,3 +250,24 @@ def test_a_beam_body_writes_every_file_without_stress_and_says_why(tmp_path):
         assert f["nodes/stress"].shape == (5, 0, 6)  # 4 shapes and the static response
         assert [label.decode() for label in f["columns/labels"][()]] == ["1", "2", "3", "4",
                                                                           "1:ux"]  # fmt: skip
+
+
+# ----------------------------------------------------------------------------------- report
+def test_the_report_lists_the_largest_von_mises_of_the_first_shapes(blade):
+    from pymorembs.report.stress_table import stress_mode_maxima, stress_modes_table
+
+    prepared = blade.prepared
+    maxima = stress_mode_maxima(prepared, {"k": blade.model}, count=3)
+    op = stress_operator(prepared.body, location="nodes")
+    assert maxima["note"] is None and len(maxima["rows"]) == 3
+    for row in maxima["rows"]:
+        j = row["shape"] - 1
+        values = mises((op.matrix @ blade.basis[:, j]).reshape(-1, 6))
+        assert row["max_von_mises"] == pytest.approx(values.max(), rel=1e-12)
+        assert row["node"] == op.node_ids[np.argmax(values)]
+        assert row["frequency_hz"] == blade.eigenfrequencies_hz[j]
+    table = stress_modes_table(maxima)
+    assert table.count("<tr>") == 4 and f"{maxima['rows'][0]['max_von_mises']:.4g}" in table
+    beams = pm.prepare(build_example("rack-beams"), "tangent", node=2, inputs=[(1, "ux")])
+    note = stress_mode_maxima(beams, {})
+    assert note["rows"] == [] and "beam2" in stress_modes_table(note)
