@@ -39,7 +39,12 @@ from pymorembs.export.registry import (
 )
 from pymorembs.export.sid import check_sid, read_sid, write_sid
 from pymorembs.export.source import ExportSource, body_invariants, check_before_writing
-from pymorembs.export.stress_modes import StressModes, nodal_von_mises, stress_modes
+from pymorembs.export.stress_modes import (
+    StressModes,
+    nodal_von_mises,
+    stress_modes,
+    stress_modes_note,
+)
 
 __all__ = [
     "BODY_OUTPUTS",
@@ -61,6 +66,7 @@ __all__ = [
     "nodal_von_mises",
     "read_sid",
     "stress_modes",
+    "stress_modes_note",
     "write_exudyn_body",
     "write_neweul",
     "write_outputs",
