@@ -380,6 +380,9 @@ class ModelPorts:
 #: Element types an :class:`ElementMesh` can hold, with their number of nodes (the solid kinds
 #: of :mod:`pymorembs.elements.solid` and the two-node beam).
 ELEMENT_NODES = {"hex20": 20, "hex20r": 20, "hex8": 8, "tet10": 10, "tet4": 4, "beam2": 2}
+#: The note of a body whose file's elements give no :class:`ElementMesh` starts with this
+#: (the readers write it, :func:`mesh_problem` finds it).
+NO_MESH = "no element mesh for geometric stiffening: "
 
 
 @dataclass(frozen=True, eq=False)
@@ -795,3 +798,12 @@ class ElasticBody:
         if not parts:
             return None
         return sp.csr_matrix(sum(parts[1:], parts[0]))
+
+
+def mesh_problem(body: ElasticBody) -> str | None:
+    """The reason a reader noted why the body has no :class:`ElementMesh` (after
+    :data:`NO_MESH`), or None."""
+    for note in body.notes:
+        if note.startswith(NO_MESH):
+            return note[len(NO_MESH) :]
+    return None

@@ -7,11 +7,13 @@ give Hooke's law of it to rounding. Reference: the closed form of isotropic elas
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from box_meshes import box_mesh, solid_body
 
-from pymorembs.body import ElasticBody, ElementMesh
+from pymorembs.body import NO_MESH, ElasticBody, ElementMesh
 from pymorembs.elements.beam import BeamSection
 from pymorembs.errors import UserError
 from pymorembs.stress import extrapolation_matrix, stress_operator, von_mises
@@ -150,11 +152,12 @@ def test_refusals(box):
         stress_operator(_with(box, beams))
     with pytest.raises(UserError, match="has no element mesh"):
         stress_operator(_with(box, None))
+    shells = replace(box, mesh=None, notes=(NO_MESH + "a.inp has elements of type S4R",))
+    with pytest.raises(UserError, match=r"has no element mesh .*: a\.inp has elements of type S4R"):
+        stress_operator(shells)
 
 
 def _with(body: ElasticBody, mesh: ElementMesh | None) -> ElasticBody:
-    from dataclasses import replace
-
     return replace(body, mesh=mesh)
 
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.sparse as sp
 
-from pymorembs.body import ElasticBody, ElementMesh
+from pymorembs.body import NO_MESH, ElasticBody, ElementMesh, mesh_problem
 from pymorembs.elements.solid import SOLID_KINDS, part, solid_stiffness
 from pymorembs.errors import UserError
 
@@ -32,8 +32,6 @@ __all__ = [
     "stiffness_mismatch",
 ]
 
-#: The note of a body whose elements give no mesh starts with this.
-NO_MESH = "no element mesh for geometric stiffening: "
 #: Largest relative difference between the elements' stiffness and the model's K accepted
 #: (files written with 7 significant digits stay far below it; another material, rule or node
 #: order lies far above).
@@ -194,11 +192,3 @@ def stiffness_mismatch(body: ElasticBody, chunk: int = 2048, seed: int = 0) -> f
     if not scale > 0:
         return float("inf")
     return float(np.linalg.norm((product - reference)[free]) / scale)
-
-
-def mesh_problem(body: ElasticBody) -> str | None:
-    """The reason noted by :func:`attach_mesh` why the body has no mesh, or None."""
-    for note in body.notes:
-        if note.startswith(NO_MESH):
-            return note[len(NO_MESH) :]
-    return None

@@ -22,13 +22,19 @@ elements involved.
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
 
-from pymorembs.body import ElasticBody, ElementMesh
-from pymorembs.elements.solid import SOLID_KINDS, solid_kind, solid_point_matrices
+from pymorembs.body import ElasticBody, ElementMesh, mesh_problem
+from pymorembs.elements.solid import (
+    SOLID_KINDS,
+    TENSOR_COMPONENTS,
+    solid_kind,
+    solid_point_matrices,
+)
 from pymorembs.errors import UserError
 from pymorembs.stress.extrapolation import extrapolation_matrix
 
@@ -51,6 +57,7 @@ LOCATIONS = ("integration", "nodes", "element_nodes")
 #: prints ``E``).
 QUANTITIES = ("stress", "strain")
 _ENTRIES_PER_CHUNK = 4_000_000  # floats of element point matrices per batch
+_NODAL_ENTRIES_PER_BLOCK = 16_000_000  # the same for the elements of a block of nodes
 
 
 @dataclass(frozen=True, eq=False)
@@ -165,9 +172,10 @@ def von_mises(components: np.ndarray, axis: int = -1) -> np.ndarray:
 def _solid_mesh(body: ElasticBody) -> ElementMesh:
     mesh = body.mesh
     if mesh is None:
+        why = mesh_problem(body)
         raise UserError(
-            f"stresses of {body.name or 'the body'}: the body has no element mesh (its elements "
-            "and material; `pymorembs info` notes why the reader attached none)"
+            f"stresses of {body.name}: the body has no element mesh (its solid elements and "
+            "material)" + (f": {why}" if why else "")
         )
     if mesh.element not in SOLID_KINDS:
         raise UserError(f"stresses are not supported for {mesh.element} elements")
@@ -194,21 +202,24 @@ def _material(value: float | np.ndarray, rows: np.ndarray) -> float | np.ndarray
     return value[rows] if isinstance(value, np.ndarray) else value
 
 
-def _point_blocks(body: ElasticBody, mesh: ElementMesh, rows: np.ndarray, quantity: str):
-    """For chunks of the element rows: the equation of each kept entry (e, m), the values
-    (e, q, m) and the component of each kept entry (m,) (kept: the entries of the (6, n, 3)
-    point matrix that are not zero by structure)."""
-    kind = mesh.element
-    spec = solid_kind(kind)
-    n, q = spec.nodes, spec.points.shape[0]
+def _kept_entries(n: int, quantity: str) -> np.ndarray:
+    """The entries of a (6, n, 3) point matrix that are not zero by structure (flat indices): a
+    normal strain sees one direction, a shear strain two, a normal stress all three."""
     used = np.zeros((6, n, 3), dtype=bool)
-    for c in range(6):  # structural zeros: a normal strain sees one direction, a shear two
-        i, j = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))[c]
+    for c, (i, j) in enumerate(TENSOR_COMPONENTS):
         used[c, :, [i, j]] = True
         if quantity == "stress" and c < 3:
             used[c] = True
-    kept = np.flatnonzero(used.ravel())
-    component = kept // (3 * n)
+    return np.flatnonzero(used.ravel())
+
+
+def _point_blocks(body: ElasticBody, mesh: ElementMesh, rows: np.ndarray, quantity: str):
+    """For chunks of the element rows: the equation of each kept entry (e, m) and the values
+    (e, q, m) (kept: :func:`_kept_entries`)."""
+    kind = mesh.element
+    spec = solid_kind(kind)
+    n, q = spec.nodes, spec.points.shape[0]
+    kept = _kept_entries(n, quantity)
     chunk = max(1, _ENTRIES_PER_CHUNK // (q * 18 * n))
     for start in range(0, rows.size, chunk):
         part = rows[start : start + chunk]
@@ -227,24 +238,39 @@ def _point_blocks(body: ElasticBody, mesh: ElementMesh, rows: np.ndarray, quanti
             else (None, None)
         )
         values = solid_point_matrices(kind, xyz, *material).reshape(part.size, q, -1)[..., kept]
-        yield equations.reshape(part.size, 3 * n)[:, kept % (3 * n)], values, component
+        yield equations.reshape(part.size, 3 * n)[:, kept % (3 * n)], values
 
 
-def _block_csr(blocks: list[tuple[np.ndarray, np.ndarray]], counts: np.ndarray, n_dof: int):
-    """CSR of point blocks: each (equations (e, m), values (e, p, m)) gives e*p points with six
-    rows, row ``c`` holding ``counts[c]`` of the m entries."""
-    data = np.concatenate([v.ravel() for _, v in blocks]) if blocks else np.zeros(0)
-    index_type = np.int32 if n_dof < 2**31 else np.int64
-    indices = (
-        np.concatenate(
-            [np.broadcast_to(eq[:, None, :], v.shape).ravel() for eq, v in blocks]
-        ).astype(index_type)
-        if blocks
-        else np.zeros(0, dtype=index_type)
-    )
-    n_points = sum(v.shape[0] * v.shape[1] for _, v in blocks)
-    indptr = np.concatenate([[0], np.cumsum(np.tile(counts, n_points))]).astype(np.int64)
-    return sp.csr_matrix((data, indices, indptr), shape=(6 * n_points, n_dof))
+def _index_type(entries: int, n_cols: int) -> type:
+    return np.int32 if max(entries, n_cols) < 2**31 - 1 else np.int64
+
+
+def _stacked(
+    blocks: Iterable[sp.csr_matrix], n_rows: int, n_cols: int, capacity: int
+) -> sp.csr_matrix:
+    """The blocks one below the other (``n_rows`` rows in all), copied as they come into arrays
+    of ``capacity`` entries that grow by half when full and are cut to size at the end (in
+    place): the result plus one block in memory."""
+    index_type = _index_type(2 * capacity, n_cols)
+    data = np.empty(capacity)
+    indices = np.empty(capacity, dtype=index_type)
+    indptr = np.zeros(n_rows + 1, dtype=np.int64)
+    at = row = 0
+    for block in blocks:
+        end = at + block.nnz
+        if end > data.size:
+            size = max(end, data.size + data.size // 2)
+            if size >= 2**31 - 1 and index_type is np.int32:
+                indices, index_type = indices.astype(np.int64), np.int64
+            data.resize(size, refcheck=False)
+            indices.resize(size, refcheck=False)
+        data[at:end] = block.data
+        indices[at:end] = block.indices
+        indptr[row + 1 : row + 1 + block.shape[0]] = block.indptr[1:] + at
+        at, row = end, row + block.shape[0]
+    data.resize(at, refcheck=False)
+    indices.resize(at, refcheck=False)
+    return sp.csr_matrix((data, indices, indptr.astype(index_type)), shape=(n_rows, n_cols))
 
 
 def stress_operator(
@@ -349,33 +375,49 @@ def _nodal_operator(
     wanted_nodes: np.ndarray | None,
 ) -> StressOperator:
     """Averaged nodal values: ``A X S`` with ``S`` the integration-point operator of the elements
-    at the nodes, ``X`` their extrapolation and ``A`` the unweighted mean over the elements."""
-    conn_all = mesh.connectivity[rows]
-    node_ids = np.unique(conn_all) if wanted_nodes is None else wanted_nodes
-    # every element at one of these nodes takes part in its mean
-    at_nodes = np.isin(mesh.connectivity, node_ids)
-    involved = np.flatnonzero(np.any(at_nodes, axis=1))
-    conn = mesh.connectivity[involved]
+    at the nodes, ``X`` their extrapolation and ``A`` the unweighted mean over the elements;
+    formed for blocks of nodes (each block with the elements at its nodes only)."""
+    node_ids = np.unique(mesh.connectivity[rows]) if wanted_nodes is None else wanted_nodes
     spec = solid_kind(mesh.element)
-    q = spec.points.shape[0]
-    integration = _point_matrix(body, mesh, involved, quantity)
-    slot = np.searchsorted(node_ids, conn)
-    hit = (slot < node_ids.size) & (node_ids[np.minimum(slot, node_ids.size - 1)] == conn)
-    count = np.bincount(slot[hit], minlength=node_ids.size).astype(float)
+    q, n = spec.points.shape[0], spec.nodes
+    # elements at each node: the element slots sorted by node id
+    flat = mesh.connectivity.ravel()
+    order = np.argsort(flat, kind="stable")
+    by_node = flat[order]
+    mesh_nodes = max(1, np.unique(by_node).size)
+    per_node = flat.size / mesh_nodes  # elements at a node, on average
+    block = max(1, int(_NODAL_ENTRIES_PER_BLOCK / (per_node * q * 18 * n)))
     extrapolate = extrapolation_matrix(mesh.element)  # (n, q)
-    e, a = np.nonzero(hit)
-    r = np.repeat(slot[e, a], q)
-    c = (e[:, None] * q + np.arange(q)).ravel()
-    v = (extrapolate[a] / count[slot[e, a], None]).ravel()
     comp = np.arange(6)
-    mean = sp.csr_matrix(
-        (
-            np.repeat(v, 6),
-            ((6 * r[:, None] + comp).ravel(), (6 * c[:, None] + comp).ravel()),
-        ),
-        shape=(6 * node_ids.size, integration.shape[0]),
-    )
-    matrix = sp.csr_matrix(mean @ integration)
+
+    def node_blocks() -> Iterator[sp.csr_matrix]:
+        for start in range(0, node_ids.size, block):
+            nodes = node_ids[start : start + block]
+            lo = np.searchsorted(by_node, nodes[0], side="left")
+            hi = np.searchsorted(by_node, nodes[-1], side="right")
+            slots = order[lo:hi][np.isin(by_node[lo:hi], nodes)]
+            involved = np.unique(slots // n)
+            conn = mesh.connectivity[involved]
+            slot = np.minimum(np.searchsorted(nodes, conn), nodes.size - 1)
+            hit = nodes[slot] == conn  # (e, n): which element nodes are nodes of the block
+            count = np.bincount(slot[hit], minlength=nodes.size).astype(float)
+            e, a = np.nonzero(hit)
+            r = np.repeat(slot[e, a], q)
+            c = (e[:, None] * q + np.arange(q)).ravel()
+            v = (extrapolate[a] / count[slot[e, a], None]).ravel()
+            mean = sp.csr_matrix(
+                (
+                    np.repeat(v, 6),
+                    ((6 * r[:, None] + comp).ravel(), (6 * c[:, None] + comp).ravel()),
+                ),
+                shape=(6 * nodes.size, 6 * q * involved.size),
+            )
+            yield sp.csr_matrix(mean @ _point_matrix(body, mesh, involved, quantity))
+
+    # the integration points' entries of the elements: about the size of the result
+    entries = q * _kept_entries(n, quantity).size * mesh.connectivity.shape[0]
+    capacity = max(1024, int(entries * node_ids.size / mesh_nodes))
+    matrix = _stacked(node_blocks(), 6 * node_ids.size, body.n_dof, capacity)
     return StressOperator(
         matrix,
         quantity,
@@ -395,11 +437,27 @@ def _point_matrix(
     extrapolate: np.ndarray | None = None,
 ) -> sp.csr_matrix:
     """The matrix (6 q len(rows), n_dof) of the integration points of the mesh's element rows;
-    with ``extrapolate`` (n, q) that of the element nodes (6 n len(rows), n_dof)."""
-    blocks, counts = [], np.zeros(6, dtype=np.int64)
-    for equations, values, component in _point_blocks(body, mesh, rows, quantity):
-        counts = np.bincount(component, minlength=6)
+    with ``extrapolate`` (n, q) that of the element nodes (6 n len(rows), n_dof).
+
+    Written chunk by chunk into arrays of the final size (the result plus one chunk in memory).
+    """
+    spec = solid_kind(mesh.element)
+    per_element = spec.points.shape[0] if extrapolate is None else spec.nodes
+    kept = _kept_entries(spec.nodes, quantity)
+    counts = np.bincount(kept // (3 * spec.nodes), minlength=6)
+    n_rows = 6 * per_element * rows.size
+    nnz = per_element * kept.size * rows.size
+    index_type = _index_type(nnz, body.n_dof)
+    data = np.empty(nnz)
+    indices = np.empty(nnz, dtype=index_type)
+    indptr = np.zeros(n_rows + 1, dtype=index_type)
+    np.cumsum(np.tile(counts, per_element * rows.size), out=indptr[1:])
+    at = 0
+    for equations, values in _point_blocks(body, mesh, rows, quantity):
         if extrapolate is not None:
             values = np.einsum("kp,epm->ekm", extrapolate, values)
-        blocks.append((equations, values))
-    return _block_csr(blocks, counts, body.n_dof)
+        size = values.size
+        data[at : at + size] = values.reshape(-1)
+        indices[at : at + size].reshape(values.shape)[...] = equations[:, None, :]
+        at += size
+    return sp.csr_matrix((data, indices, indptr), shape=(n_rows, body.n_dof))
