@@ -98,10 +98,14 @@ def test_the_recovery_file_read_with_h5py_holds_the_operator_times_the_basis(bla
         for quantity in ("stress", "strain"):
             op = stress_operator(body, location=location, quantity=quantity)
             assert np.array_equal(op.coordinates, data["coordinates"])
+            # the file's strains are its stresses through the compliance (one material), the
+            # operator's assembled ones: both sum large element terms of a smooth field to a
+            # small strain, rounded apart by up to 5e-11 of the largest strain (measured)
+            tolerance = 1e-12 if quantity == "stress" else 1e-10
             for j in (0, 5):
                 expected = (op.matrix @ basis[:, j]).reshape(-1, 6)
                 assert np.allclose(data[quantity][j], expected, rtol=0,
-                                   atol=1e-12 * np.abs(expected).max())  # fmt: skip
+                                   atol=tolerance * np.abs(expected).max())  # fmt: skip
     # a static column is the stress of the static response to its unit input
     column = spla.spsolve(blade.prepared.system.stiffness.tocsc(),
                           blade.prepared.system.input_matrix[:, 0])  # fmt: skip

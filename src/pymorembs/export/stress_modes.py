@@ -30,9 +30,11 @@ the stress out and say so, they never fail for it.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 
 import numpy as np
+import scipy.sparse as sp
 
 from pymorembs.arrays import sorted_unique
 from pymorembs.body import ElasticBody
@@ -45,6 +47,7 @@ __all__ = [
     "StressModes",
     "exudyn_stress_basis",
     "nodal_von_mises",
+    "strain_operator",
     "stress_modes",
     "stress_modes_note",
 ]
@@ -115,16 +118,40 @@ class StressModes:
 
     def operator(self, location: str, quantity: str = "stress") -> StressOperator:
         """The sparse operator of the whole mesh at ``location`` (``"integration"`` or
-        ``"nodes"``) for ``quantity`` (``"stress"`` or ``"strain"``), built once."""
+        ``"nodes"``) for ``quantity`` (``"stress"`` or ``"strain"``), built once.
+
+        The strains of a body of one material are its stresses through the compliance,
+        point by point (:func:`strain_operator`), which costs a sparse product instead of a
+        second assembly; with a material per element they are assembled.
+        """
         key = (location, quantity)
         if key not in self._operators:
-            self._operators[key] = stress_operator(self.body, location=location, quantity=quantity)
+            mesh = self.body.mesh
+            if quantity == "strain" and np.ndim(mesh.young) == 0 and np.ndim(mesh.poisson) == 0:
+                stress = self.operator(location, "stress")
+                operator = strain_operator(stress, float(mesh.young), float(mesh.poisson))
+            else:
+                operator = stress_operator(self.body, location=location, quantity=quantity)
+            self._operators[key] = operator
         return self._operators[key]
 
     def node_operator(self, nodes: np.ndarray, quantity: str = "stress") -> StressOperator:
-        """The nodal operator on the mesh nodes among ``nodes`` (cost in proportion to them)."""
+        """The nodal operator on the mesh nodes among ``nodes``: the rows of the whole mesh's
+        when that is built already, else built for them alone (cost in proportion to them)."""
         ids = np.intersect1d(np.asarray(nodes, dtype=np.int64), self.mesh_nodes)
-        return stress_operator(self.body, location="nodes", quantity=quantity, nodes=ids)
+        whole = self._operators.get(("nodes", quantity))
+        if whole is None:
+            return stress_operator(self.body, location="nodes", quantity=quantity, nodes=ids)
+        points = np.flatnonzero(np.isin(whole.node_ids, ids))
+        rows = (6 * points[:, None] + np.arange(6)).ravel()
+        return dataclasses.replace(
+            whole,
+            matrix=whole.matrix[rows],
+            coordinates=whole.coordinates[points],
+            element_ids=whole.element_ids[points],
+            node_ids=whole.node_ids[points],
+            point_numbers=whole.point_numbers[points],
+        )
 
     @property
     def mesh_nodes(self) -> np.ndarray:
@@ -152,6 +179,35 @@ class StressModes:
         """The von Mises stress of ``columns`` at the mesh nodes (averaged nodal stresses):
         shape (len(columns), n_nodes), in the order of ``operator("nodes").node_ids``."""
         return von_mises(self.values(self.operator("nodes"), columns))
+
+
+def strain_operator(stress: StressOperator, young: float, poisson: float) -> StressOperator:
+    """The strain operator of a body of one isotropic material from its stress operator.
+
+    Point by point ``eps = C^-1 sigma``: ``eps_xx = (s_xx - nu (s_yy + s_zz)) / E`` (likewise
+    yy, zz) and the tensor shear ``eps_xy = s_xy (1 + nu) / E`` (the operator's convention,
+    :mod:`pymorembs.stress`), as a block-diagonal sparse product: exact for the integration
+    points and for the nodes' averages alike (both are linear in the stresses).
+
+    Parameters
+    ----------
+    stress : StressOperator
+        Of ``quantity`` ``"stress"``.
+    young, poisson : float
+        The material (model stress unit, -).
+
+    Returns
+    -------
+    StressOperator
+        The same points, ``quantity`` ``"strain"``.
+    """
+    compliance = np.zeros((6, 6))
+    compliance[:3, :3] = -poisson / young
+    compliance[np.arange(3), np.arange(3)] = 1.0 / young
+    compliance[np.arange(3, 6), np.arange(3, 6)] = (1.0 + poisson) / young
+    blocks = sp.kron(sp.identity(stress.n_points, format="csr"), sp.csr_matrix(compliance))
+    return dataclasses.replace(stress, matrix=sp.csr_matrix(blocks @ stress.matrix),
+                               quantity="strain")  # fmt: skip
 
 
 def stress_modes(
