@@ -275,3 +275,34 @@ def test_the_report_lists_the_largest_von_mises_of_the_first_shapes(blade):
     beams = pm.prepare(build_example("rack-beams"), "tangent", node=2, inputs=[(1, "ux")])
     note = stress_mode_maxima(beams, {})
     assert note["rows"] == [] and "beam2" in stress_modes_table(note)
+
+
+def test_an_exudyn_body_alone_builds_the_same_stress_rows(blade, written, tmp_path):
+    """Written with the VTU the Exudyn rows are sliced from the whole mesh's nodal operator;
+    alone they are assembled for the mesh nodes only: the same numbers."""
+    folder, _ = written
+    together = load_exudyn_body(folder / "k_exudyn.npz")["outputVariableModeBasis"]
+    alone = load_exudyn_body(blade.to_exudyn(tmp_path / "alone.npz", nodes=[1]))
+    assert np.allclose(alone["outputVariableModeBasis"], together, rtol=0,
+                       atol=1e-12 * np.abs(together).max())  # fmt: skip
+
+
+@pytest.mark.slow
+def test_a_reference_node_has_no_stress_nan_in_the_vtu_and_zero_rows_in_exudyn(tmp_path):
+    """rack-solid with a rigid coupling at its reference node 2 (all six dofs, no solid element
+    at it): NaN in the VTU, rows of 0 for it and its six satellites in the Exudyn body."""
+    body = build_example("rack-solid", dofs=7365, interface="rigid")
+    prepared = pm.prepare(body, pm.Frame("tangent", 2), inputs=[(1, "ux uy uz")])
+    reduced = pm.reduce(prepared, "krylov", expansion_points_hz=[0, 300], order=8)
+    write_outputs(reduced.model, reduced.prepared, "r", ["vtu", "exudyn"], [1, 2], tmp_path)
+    mesh = meshio.read(tmp_path / "r.vtu")
+    at = int(np.flatnonzero(mesh.point_data["node_id"] == 2)[0])
+    assert np.all(np.isnan(mesh.point_data["shape_001_stress"][at]))
+    assert np.isnan(mesh.point_data["shape_001_von_mises"][at])
+    assert np.isfinite(np.delete(mesh.point_data["shape_001_von_mises"], at)).all()
+    arrays = load_exudyn_body(tmp_path / "r_exudyn.npz")
+    basis = arrays["outputVariableModeBasis"]
+    node = int(arrays["nodeMeshIndices"][list(arrays["nodeIds"]).index(2)])
+    satellites = arrays["satelliteMeshIndices"][list(arrays["nodeIds"]).index(2)]
+    assert satellites.min() >= 0 and not basis[[node, *satellites]].any()
+    assert np.abs(basis).max(axis=1)[arrays["meshNodeIds"] != 2].min() > 0
