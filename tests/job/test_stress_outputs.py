@@ -20,7 +20,7 @@ def test_a_body_without_solids_gets_a_note_and_a_recovery_file_without_points(
     code, _, err = run(["reduce", job, "--out", tmp_path / "out"], capsys)
     assert code == 0, err
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
-    note = [n for n in summary["notes"] if "no solid element mesh" in n]
+    note = [n for n in summary["notes"] if "has no element mesh" in n]
     assert len(note) == 1 and f"pymorembs: note: {note[0]}" in err.splitlines()
     with h5py.File(tmp_path / "out" / "kry" / "kry.stress.h5", "r") as f:
         assert f.attrs["note"] == note[0]

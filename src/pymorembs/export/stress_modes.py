@@ -24,20 +24,21 @@ of :func:`~pymorembs.export.vtu.static_fields`). Components come in the operator
 (``eps_xy = gamma_xy / 2``), as the operator gives them.
 
 A body without solid elements (beams, plain matrices) has no stress modes:
-:func:`stress_modes` returns None and :func:`stress_modes_note` says why; the writers then leave
-the stress out and say so, they never fail for it.
+:func:`stress_modes` returns None and :func:`stress_modes_note` says why (with the reader's reason
+where it gave one). The VTU and the Exudyn body are then written without stresses, the recovery
+file without points and with the note; nothing fails for it.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 
 import numpy as np
 import scipy.sparse as sp
 
 from pymorembs.arrays import sorted_unique
-from pymorembs.body import ElasticBody
+from pymorembs.body import ElasticBody, mesh_problem
 from pymorembs.elements.solid import SOLID_KINDS
 from pymorembs.stress import StressOperator, stress_operator, von_mises
 
@@ -63,10 +64,11 @@ BLOCK = 8
 def stress_modes_note(body: ElasticBody) -> str | None:
     """Why ``body`` has no stress modes, or None if it has (solid elements with a material)."""
     if body.mesh is None:
+        why = mesh_problem(body)
         return (
-            f"body {body.name!r} has no solid element mesh (plain matrices): no stress or strain "
-            "modes are written"
-        )
+            f"body {body.name!r} has no element mesh" + (f" ({why})" if why else "")
+            + ": no stress or strain modes are written"
+        )  # fmt: skip
     if body.mesh.element not in SOLID_KINDS:
         return (
             f"body {body.name!r}: stresses are not supported for {body.mesh.element} elements: "
@@ -160,25 +162,19 @@ class StressModes:
 
     def blocks(
         self, operator: StressOperator, columns: Sequence[int] | None = None
-    ) -> list[tuple[np.ndarray, np.ndarray]]:
-        """``(indices, values)`` per block of at most :data:`BLOCK` columns: ``values`` of shape
-        (len(indices), n_points, 6), the operator applied to those columns."""
+    ) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+        """``(indices, values)`` per block of at most :data:`BLOCK` columns, one block formed at
+        a time: ``values`` of shape (len(indices), n_points, 6), the operator applied to those
+        columns."""
         chosen = np.arange(self.count) if columns is None else np.asarray(columns, dtype=np.int64)
-        return [
-            (part, self.values(operator, part))
-            for part in np.array_split(chosen, max(1, -(-chosen.size // BLOCK)))
-            if part.size
-        ]
+        for part in np.array_split(chosen, max(1, -(-chosen.size // BLOCK))):
+            if part.size:
+                yield part, self.values(operator, part)
 
     def values(self, operator: StressOperator, columns: Sequence[int]) -> np.ndarray:
         """The operator applied to ``columns``: shape (len(columns), n_points, 6)."""
         part = self.columns[:, np.asarray(columns, dtype=np.int64)]
         return np.moveaxis(operator(part), 2, 0)
-
-    def von_mises_at_nodes(self, columns: Sequence[int]) -> np.ndarray:
-        """The von Mises stress of ``columns`` at the mesh nodes (averaged nodal stresses):
-        shape (len(columns), n_nodes), in the order of ``operator("nodes").node_ids``."""
-        return von_mises(self.values(self.operator("nodes"), columns))
 
 
 def strain_operator(stress: StressOperator, young: float, poisson: float) -> StressOperator:
