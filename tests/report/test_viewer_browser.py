@@ -48,6 +48,17 @@ function eachPixel(v, visit) {  // draws, reads the canvas back and visits every
   for (let i = 0; i < data.length; i += 4) visit(data[i], data[i + 1], data[i + 2]);
   return w * h;
 }
+function pixelAt(v, p) {  // the colour drawn where the world point p projects
+  const m = v._matrices().pv, [x, y, z] = p;
+  const w = m[3] * x + m[7] * y + m[11] * z + m[15];
+  const nx = (m[0] * x + m[4] * y + m[8] * z + m[12]) / w;
+  const ny = (m[1] * x + m[5] * y + m[9] * z + m[13]) / w;
+  const px = Math.round((nx + 1) / 2 * canvas.width), py = Math.round((ny + 1) / 2 * canvas.height);
+  const data = new Uint8Array(4);
+  v.render();
+  v.gl.readPixels(px, py, 1, 1, v.gl.RGBA, v.gl.UNSIGNED_BYTE, data);
+  return Array.from(data.slice(0, 3));
+}
 """
 
 PROBE = (
@@ -150,17 +161,6 @@ function count(v) {
     if (r > 200 && g > 90 && g < 140 && b < 40) orange++;
   });
   return { red, green, orange };
-}
-function pixelAt(v, p) {  // the colour drawn where the world point p projects
-  const m = v._matrices().pv, [x, y, z] = p;
-  const w = m[3] * x + m[7] * y + m[11] * z + m[15];
-  const nx = (m[0] * x + m[4] * y + m[8] * z + m[12]) / w;
-  const ny = (m[1] * x + m[5] * y + m[9] * z + m[13]) / w;
-  const px = Math.round((nx + 1) / 2 * canvas.width), py = Math.round((ny + 1) / 2 * canvas.height);
-  const data = new Uint8Array(4);
-  v.render();
-  v.gl.readPixels(px, py, 1, 1, v.gl.RGBA, v.gl.UNSIGNED_BYTE, data);
-  return Array.from(data.slice(0, 3));
 }
 try {
   const scene = JSON.parse(document.getElementById("scene").textContent);
@@ -283,17 +283,6 @@ def test_decorations_replace_frame_and_interfaces_and_keep_the_view(tmp_path):
 SCALARS = (
     READBACK
     + """
-function pixelAt(v, p) {  // the colour drawn where the world point p projects
-  const m = v._matrices().pv, [x, y, z] = p;
-  const w = m[3] * x + m[7] * y + m[11] * z + m[15];
-  const nx = (m[0] * x + m[4] * y + m[8] * z + m[12]) / w;
-  const ny = (m[1] * x + m[5] * y + m[9] * z + m[13]) / w;
-  const px = Math.round((nx + 1) / 2 * canvas.width), py = Math.round((ny + 1) / 2 * canvas.height);
-  const data = new Uint8Array(4);
-  v.render();
-  v.gl.readPixels(px, py, 1, 1, v.gl.RGBA, v.gl.UNSIGNED_BYTE, data);
-  return Array.from(data.slice(0, 3));
-}
 try {
   const scene = JSON.parse(document.getElementById("scene").textContent);
   const probe = JSON.parse(document.getElementById("points").textContent);
