@@ -216,15 +216,20 @@ def run_probe(tmp_path, scene: dict, points: dict, probe: str = PROBE) -> dict:
     return json.loads(found.group(1).replace("&quot;", '"').replace("&amp;", "&"))
 
 
-@pytest.mark.slow
-def test_viewer_draws_picks_and_animates_in_chromium(tmp_path):
+def bent_blade() -> tuple:
+    """The blade and its scene with one shape: a flapwise bending field by hand, u_z = x^2 on
+    every node (the blade lies along x: the tip moves most)."""
     body = build_example("blade", elements=8)
-    # A flapwise bending field by hand: u_z = x^2 on every node (the blade lies along x).
     basis = np.zeros((body.n_dof, 1))
     rows = body.node_rows(body.dofs.nodes)
     uz = body.dofs.directions == 2
     basis[uz, 0] = body.coordinates[rows[uz], 0] ** 2
-    scene = body_scene(body, basis=basis)
+    return body, body_scene(body, basis=basis)
+
+
+@pytest.mark.slow
+def test_viewer_draws_picks_and_animates_in_chromium(tmp_path):
+    body, scene = bent_blade()
     points = body_scene(replace(body, surface=None))
     out = run_probe(tmp_path, scene, points)
     assert "error" not in out, out
@@ -305,12 +310,7 @@ try {
 @pytest.mark.slow
 def test_a_shape_with_scalars_is_coloured_by_them(tmp_path):
     """Issue #29: the app colours a shape by its von Mises stress (``scalars`` per node)."""
-    body = build_example("blade", elements=8)
-    basis = np.zeros((body.n_dof, 1))
-    rows = body.node_rows(body.dofs.nodes)
-    uz = body.dofs.directions == 2
-    basis[uz, 0] = body.coordinates[rows[uz], 0] ** 2  # the tip moves most
-    scene = body_scene(body, basis=basis)
+    _, scene = bent_blade()
     xyz = np.asarray(scene["positions"]).reshape(-1, 3)
     top = np.flatnonzero((np.abs(xyz[:, 1]) < 1e-9) & np.isclose(xyz[:, 2], xyz[:, 2].max()))
     root, tip = (int(top[np.argmin(np.abs(xyz[top, 0] - x))]) for x in (0.25, 0.95))
