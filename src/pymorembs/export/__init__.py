@@ -41,9 +41,10 @@ from pymorembs.export.sid import check_sid, read_sid, write_sid
 from pymorembs.export.source import ExportSource, body_invariants, check_before_writing
 from pymorembs.export.stress_modes import (
     StressModes,
-    nodal_von_mises,
+    nodes_operator,
     stress_modes,
     stress_modes_note,
+    von_mises_at,
 )
 
 __all__ = [
@@ -63,10 +64,11 @@ __all__ = [
     "check_sid",
     "exports_table",
     "exudyn_arrays",
-    "nodal_von_mises",
+    "nodes_operator",
     "read_sid",
     "stress_modes",
     "stress_modes_note",
+    "von_mises_at",
     "write_exudyn_body",
     "write_neweul",
     "write_outputs",

@@ -47,10 +47,12 @@ __all__ = [
     "VTK_ORDER",
     "StressModes",
     "exudyn_stress_basis",
-    "nodal_von_mises",
+    "node_points",
+    "nodes_operator",
     "strain_operator",
     "stress_modes",
     "stress_modes_note",
+    "von_mises_at",
 ]
 
 #: Columns of the operator's order (xx yy zz xy xz yz) in Exudyn's (xx yy zz yz xz xy).
@@ -255,18 +257,14 @@ def exudyn_stress_basis(modes: StressModes, mesh_node_ids: np.ndarray) -> np.nda
         (a point of a rigid cross, not of the body) gets 0 too.
     """
     ids = np.asarray(mesh_node_ids, dtype=np.int64)
-    wanted = sorted_unique(ids)
-    operator = modes.node_operator(wanted)
+    operator = modes.node_operator(sorted_unique(ids))
     basis = np.zeros((ids.size, 6 * modes.n_shapes))
     if operator.n_points == 0 or modes.n_shapes == 0:
         return basis
     # the first occurrence of each node id: the node itself (satellites follow their node)
-    first = np.full(ids.size, False)
-    _, index = np.unique(ids, return_index=True)
-    first[index] = True
-    rows = np.flatnonzero(first & np.isin(ids, operator.node_ids))
-    order = np.argsort(operator.node_ids)
-    point = order[np.searchsorted(operator.node_ids, ids[rows], sorter=order)]
+    _, first = np.unique(ids, return_index=True)
+    have, point = node_points(operator, ids[first])
+    rows = first[have]
     for part, values in modes.blocks(operator, range(modes.n_shapes)):
         # values (c, n_points, 6) -> rows, columns 6 j + comp
         block = values[:, point][:, :, EXUDYN_ORDER]  # (c, rows, 6)
@@ -275,36 +273,46 @@ def exudyn_stress_basis(modes: StressModes, mesh_node_ids: np.ndarray) -> np.nda
     return basis
 
 
-def nodal_von_mises(body: ElasticBody, vectors: np.ndarray, nodes: np.ndarray) -> np.ndarray | None:
-    """The von Mises stress of displacement fields at some nodes (averaged nodal stresses).
-
-    Parameters
-    ----------
-    body : ElasticBody
-        With its solid mesh; ``vectors`` are over its dofs.
-    vectors : ndarray, shape (n_dof, k)
-        Displacement fields (a basis column: per unit modal coordinate).
-    nodes : ndarray of int, shape (n,)
-        Node ids, e.g. those a view draws; the operator is built for the mesh nodes among them
-        only (cost in proportion to them).
-
-    Returns
-    -------
-    ndarray, shape (n, k), or None
-        In the model's stress unit; 0 at a node of no solid element. None for a body without
-        solid elements (:func:`stress_modes_note`).
+def nodes_operator(body: ElasticBody, nodes: np.ndarray) -> StressOperator | None:
+    """The nodal stress operator on the mesh nodes among ``nodes`` (cost in proportion to them),
+    e.g. those a view draws; None for a body without solid elements (:func:`stress_modes_note`).
     """
     if stress_modes_note(body) is not None:
         return None
+    wanted = np.intersect1d(np.asarray(nodes, dtype=np.int64), body.mesh.connectivity)
+    return stress_operator(body, location="nodes", nodes=wanted)
+
+
+def node_points(operator: StressOperator, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where ``nodes`` are among the points of a nodal ``operator``: a mask over ``nodes`` (the
+    node is a point) and, for those, the point indices."""
     ids = np.asarray(nodes, dtype=np.int64)
-    vectors = np.asarray(vectors, dtype=float)
-    out = np.zeros((ids.size, vectors.shape[1]))
-    wanted = np.intersect1d(ids, body.mesh.connectivity)
-    if wanted.size == 0:
-        return out
-    operator = stress_operator(body, location="nodes", nodes=wanted)
-    order = np.argsort(operator.node_ids)
     have = np.isin(ids, operator.node_ids)
-    point = order[np.searchsorted(operator.node_ids, ids[have], sorter=order)]
-    out[have] = von_mises(operator(vectors), axis=1)[point]
+    order = np.argsort(operator.node_ids)
+    return have, order[np.searchsorted(operator.node_ids, ids[have], sorter=order)]
+
+
+def von_mises_at(operator: StressOperator, vectors: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+    """The von Mises stress of displacement fields at ``nodes`` (averaged nodal stresses).
+
+    Parameters
+    ----------
+    operator : StressOperator
+        A nodal stress operator (:func:`nodes_operator`).
+    vectors : ndarray, shape (n_dof, k)
+        Displacement fields over the body's dofs (a basis column: per unit modal coordinate).
+    nodes : ndarray of int, shape (n,)
+        Node ids.
+
+    Returns
+    -------
+    ndarray, shape (n, k)
+        In the model's stress unit; 0 at a node that is not a point of ``operator`` (a node of
+        no solid element).
+    """
+    vectors = np.asarray(vectors, dtype=float)
+    have, points = node_points(operator, nodes)
+    out = np.zeros((have.size, vectors.shape[1]))
+    if points.size:
+        out[have] = von_mises(operator(vectors), axis=1)[points]
     return out

@@ -19,12 +19,13 @@ import numpy as np
 from pymorembs.analysis import mac as modal_assurance
 from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
-from pymorembs.export import nodal_von_mises
+from pymorembs.export import nodes_operator, von_mises_at
 from pymorembs.job.app.opened_model import OpenedModel
 from pymorembs.job.app.runner import Run
 from pymorembs.job.app.runs import RunController
 from pymorembs.job.run import add_interfaces, load_job_model
 from pymorembs.job.summary import JobSummary
+from pymorembs.stress import StressOperator
 
 #: What the results give of each reduction's summary entry.
 RESULT_KEYS = (
@@ -43,6 +44,8 @@ class RunResults:
         self.runs = runs
         self._bases: dict[tuple[str, str], dict[str, np.ndarray]] = {}
         self._body: tuple[str, ElasticBody] | None = None  # (run folder, its body)
+        # (run folder, the nodal stress operator on the scene's nodes; None without solids)
+        self._stress: tuple[str, StressOperator | None] | None = None
 
     def _summary(self) -> tuple[Run, JobSummary]:
         run = self.runs.finished()
@@ -115,8 +118,8 @@ class RunResults:
         largest = np.abs(values).max()
         if largest > 0:
             values /= largest
-        body = self._run_body(nodes, directions)
-        stress = nodal_von_mises(body, V[:, k : k + 1], ids)
+        operator = self._scene_stress(nodes, directions)
+        stress = None if operator is None else von_mises_at(operator, V[:, k : k + 1], ids)
         return {
             "values": values.ravel().round(6).tolist(),
             "von_mises": None if stress is None else [float(f"{v:.4g}") for v in stress[:, 0]],
@@ -141,6 +144,15 @@ class RunResults:
             "a_hz": A["eigenfrequencies_hz"].tolist(),
             "b_hz": B["eigenfrequencies_hz"].tolist(),
         }
+
+    def _scene_stress(self, nodes: np.ndarray, directions: np.ndarray) -> StressOperator | None:
+        """The nodal stress operator of the last run's body on the scene's nodes (None for a
+        body without solid elements), built once per run."""
+        run, _ = self._summary()
+        if self._stress is None or self._stress[0] != str(run.out):
+            body = self._run_body(nodes, directions)
+            self._stress = (str(run.out), nodes_operator(body, self.model.scene_ids))
+        return self._stress[1]
 
     def _run_body(self, nodes: np.ndarray, directions: np.ndarray) -> ElasticBody:
         """The last run's body (the model with the job's interface nodes, on the dofs of its
