@@ -568,6 +568,12 @@ class ReducedBody:
         as a VTU file for ParaView (:mod:`pymorembs.export.vtu`: array names and units)."""
         return self._write("vtu", path)
 
+    def to_stress_recovery(self, path: PathLike) -> Path:
+        """Write the stress and strain modes of every shape function and static response at the
+        integration points and nodes (HDF5, conventionally ``<name>.stress.h5``;
+        :mod:`pymorembs.export.recovery`, layout in ``docs/recovery.md``)."""
+        return self._write("stress_recovery", path)
+
     def to_matrices(self, folder: PathLike, formats: Sequence[str] = DEFAULT_EXPORTS) -> list[Path]:
         """Write the reduced matrices (``reduced.npz``, ``M K D B C.mtx``, ``reduced.mat``):
         ``formats`` of :data:`~pymorembs.export.registry.MATRIX_OUTPUTS` (default

@@ -47,7 +47,8 @@ def test_write_outputs_writes_the_files_each_kind_names(reduced, written):
     # the bodies for multibody codes after the other files (the order of summary.json)
     assert names == [
         "reduced.npz", "M.mtx", "K.mtx", "D.mtx", "B.mtx", "C.mtx", "reduced.mat",
-        "krylov.vtu", "krylov.SID_FEM", "krylov_neweul.mat", "krylov_exudyn.npz",
+        "krylov.vtu", "krylov.stress.h5", "krylov.SID_FEM", "krylov_neweul.mat",
+        "krylov_exudyn.npz",
     ]  # fmt: skip
 
 

@@ -48,6 +48,17 @@ function eachPixel(v, visit) {  // draws, reads the canvas back and visits every
   for (let i = 0; i < data.length; i += 4) visit(data[i], data[i + 1], data[i + 2]);
   return w * h;
 }
+function pixelAt(v, p) {  // the colour drawn where the world point p projects
+  const m = v._matrices().pv, [x, y, z] = p;
+  const w = m[3] * x + m[7] * y + m[11] * z + m[15];
+  const nx = (m[0] * x + m[4] * y + m[8] * z + m[12]) / w;
+  const ny = (m[1] * x + m[5] * y + m[9] * z + m[13]) / w;
+  const px = Math.round((nx + 1) / 2 * canvas.width), py = Math.round((ny + 1) / 2 * canvas.height);
+  const data = new Uint8Array(4);
+  v.render();
+  v.gl.readPixels(px, py, 1, 1, v.gl.RGBA, v.gl.UNSIGNED_BYTE, data);
+  return Array.from(data.slice(0, 3));
+}
 """
 
 PROBE = (
@@ -151,17 +162,6 @@ function count(v) {
   });
   return { red, green, orange };
 }
-function pixelAt(v, p) {  // the colour drawn where the world point p projects
-  const m = v._matrices().pv, [x, y, z] = p;
-  const w = m[3] * x + m[7] * y + m[11] * z + m[15];
-  const nx = (m[0] * x + m[4] * y + m[8] * z + m[12]) / w;
-  const ny = (m[1] * x + m[5] * y + m[9] * z + m[13]) / w;
-  const px = Math.round((nx + 1) / 2 * canvas.width), py = Math.round((ny + 1) / 2 * canvas.height);
-  const data = new Uint8Array(4);
-  v.render();
-  v.gl.readPixels(px, py, 1, 1, v.gl.RGBA, v.gl.UNSIGNED_BYTE, data);
-  return Array.from(data.slice(0, 3));
-}
 try {
   const scene = JSON.parse(document.getElementById("scene").textContent);
   const d = JSON.parse(document.getElementById("points").textContent);
@@ -216,15 +216,20 @@ def run_probe(tmp_path, scene: dict, points: dict, probe: str = PROBE) -> dict:
     return json.loads(found.group(1).replace("&quot;", '"').replace("&amp;", "&"))
 
 
-@pytest.mark.slow
-def test_viewer_draws_picks_and_animates_in_chromium(tmp_path):
+def bent_blade() -> tuple:
+    """The blade and its scene with one shape: a flapwise bending field by hand, u_z = x^2 on
+    every node (the blade lies along x: the tip moves most)."""
     body = build_example("blade", elements=8)
-    # A flapwise bending field by hand: u_z = x^2 on every node (the blade lies along x).
     basis = np.zeros((body.n_dof, 1))
     rows = body.node_rows(body.dofs.nodes)
     uz = body.dofs.directions == 2
     basis[uz, 0] = body.coordinates[rows[uz], 0] ** 2
-    scene = body_scene(body, basis=basis)
+    return body, body_scene(body, basis=basis)
+
+
+@pytest.mark.slow
+def test_viewer_draws_picks_and_animates_in_chromium(tmp_path):
+    body, scene = bent_blade()
     points = body_scene(replace(body, surface=None))
     out = run_probe(tmp_path, scene, points)
     assert "error" not in out, out
@@ -276,3 +281,43 @@ def test_decorations_replace_frame_and_interfaces_and_keep_the_view(tmp_path):
     r, g, b = out["marker"]  # the marker is drawn at its position
     assert r > 200 and 90 < g < 140 and b < 40, out
     assert out["removed"] == {"red": 0, "green": 0, "orange": 0}, out
+
+
+# Runs in the page: the colour drawn at two nodes (their indices in the title's input) with a
+# shape shown undeformed, coloured by its translation and then by its per-node scalars.
+SCALARS = (
+    READBACK
+    + """
+try {
+  const scene = JSON.parse(document.getElementById("scene").textContent);
+  const probe = JSON.parse(document.getElementById("points").textContent);
+  const v = new PymorembsViewer(canvas, scene);
+  const at = (i) => pixelAt(v, Array.from(v._P.slice(3 * i, 3 * i + 3)));
+  v.render();  // sizes the canvas
+  v.setShape(0); v.setAmplitude(0);
+  out.translation = probe.nodes.map(at);
+  scene.shapes[0].scalars = probe.scalars;
+  v.setShape(0); v.setAmplitude(0);
+  out.scalars = probe.nodes.map(at);
+  document.title = "probe " + JSON.stringify(out);
+} catch (error) {
+  document.title = "probe " + JSON.stringify({ error: String(error) });
+}
+"""
+)
+
+
+@pytest.mark.slow
+def test_a_shape_with_scalars_is_coloured_by_them(tmp_path):
+    """Issue #29: the app colours a shape by its von Mises stress (``scalars`` per node)."""
+    _, scene = bent_blade()
+    xyz = np.asarray(scene["positions"]).reshape(-1, 3)
+    top = np.flatnonzero((np.abs(xyz[:, 1]) < 1e-9) & np.isclose(xyz[:, 2], xyz[:, 2].max()))
+    root, tip = (int(top[np.argmin(np.abs(xyz[top, 0] - x))]) for x in (0.25, 0.95))
+    scalars = np.where(xyz[:, 0] < 0.5, 3e8, 0.0).tolist()  # the root half stressed
+    out = run_probe(tmp_path, scene, {"nodes": [root, tip], "scalars": scalars}, SCALARS)
+    assert "error" not in out, out
+    red = lambda rgb: rgb[0] > rgb[2] + 40  # noqa: E731
+    blue = lambda rgb: rgb[2] > rgb[0] + 40  # noqa: E731
+    assert blue(out["translation"][0]) and red(out["translation"][1]), out
+    assert red(out["scalars"][0]) and blue(out["scalars"][1]), out

@@ -15,7 +15,9 @@ draws as its ``triangleMesh``. Exudyn 1.12.258 renamed ``physicsMass``, ``physic
 documented ``physics*`` names and :func:`build_exudyn_model` passes them under the new ones.
 Exudyn's ``ObjectFFRFreducedOrder`` has no input for the geometric stiffening of the archive's
 ``stiffening*`` entries; :func:`stiffening_force` applies them through the object's
-``forceUserFunction``. Exudyn itself is imported when a model is built, not with this module.
+``forceUserFunction``. A body with stress modes (``outputVariableModeBasis``) passes them on, so
+that Exudyn's ``StressLocal`` output of the object gives the nodal stresses of its mesh nodes.
+Exudyn itself is imported when a model is built, not with this module.
 """
 
 from __future__ import annotations
@@ -291,6 +293,11 @@ def build_exudyn_model(
             )
         )
         extra = {}
+        if "outputVariableModeBasis" in arrays:  # stress modes: Exudyn's StressLocal output
+            extra["outputVariableModeBasis"] = arrays["outputVariableModeBasis"]
+            extra["outputVariableTypeModeBasis"] = getattr(
+                exudyn.OutputVariableType, str(arrays["outputVariableTypeModeBasis"])
+            )
         if any(key.startswith("stiffening") for key in arrays):
             extra["forceUserFunction"] = stiffening_force(arrays, rigid, g, forces)
         obj = mbs.AddObject(

@@ -82,6 +82,20 @@ so :func:`~pymorembs.analysis.exudyn_model.stiffening_force` applies them throug
 ``forceUserFunction``. A body with a surface holds ``surfaceTriangles`` (n_t × 3, mesh node
 indices); ``meshNodeIds`` then names each surface node's own id.
 
+Stress modes
+------------
+A body with solid elements (:func:`~pymorembs.export.stress_modes.stress_modes`) also holds
+``outputVariableModeBasis`` (n_mesh × 6 nq) and ``outputVariableTypeModeBasis`` (the text
+``"StressLocal"``): Exudyn's own ``ObjectFFRFreducedOrder`` parameters, with which
+``GetObjectOutputSuperElement(..., StressLocal, meshNode)``, its sensors and its renderer's
+contour plot give the stress ``sum_j q_j X[i, 6 j : 6 j + 6]`` of mesh node ``i``
+(:func:`~pymorembs.export.stress_modes.exudyn_stress_basis`). The row of a mesh node is the
+averaged nodal stress of its node per unit modal coordinate, components in Exudyn's order
+``xx yy zz yz xz xy`` (``exudyn.physics.VonMisesStress`` reads that order), in the model's stress
+unit; a satellite point and a node of no solid element (a reference node of a rigid coupling)
+have rows of 0. Exudyn holds one output variable per body: the archive holds the stresses, the
+strains are in the recovery file (:mod:`pymorembs.export.recovery`).
+
 This module writes and reads the archive and runs nothing; the body in a ready Exudyn system,
 integrated in time, is :mod:`pymorembs.analysis.exudyn_model`.
 """
@@ -104,6 +118,7 @@ from pymorembs.errors import UserError
 from pymorembs.export.deterministic import write_npz
 from pymorembs.export.invariants import StiffeningTerms, levi_civita
 from pymorembs.export.nodal import node_fields
+from pymorembs.export.stress_modes import StressModes, exudyn_stress_basis
 
 if TYPE_CHECKING:
     from pymorembs.body import ElasticBody
@@ -116,6 +131,7 @@ __all__ = [
     "FORMAT",
     "FORMAT_VERSION",
     "SATELLITE_DIRECTIONS",
+    "STRESS_OUTPUT",
     "SurfaceMesh",
     "check_exudyn_arrays",
     "exudyn_arrays",
@@ -161,7 +177,7 @@ _KEYS_NDIM: dict[str, int] = {
     "satelliteLength": 0,
     "satelliteDirections": 2,
 }
-_TEXT_KEYS = ("format", "bodyName")
+_TEXT_KEYS = ("format", "bodyName", "outputVariableTypeModeBasis")
 #: Optional keys: the geometric stiffening ``K0`` of the centrifugal load cases (6, nq, nq), of
 #: the translational and of the angular acceleration cases (3, nq, nq each) and of unit forces at
 #: the frame nodes (p, 3, nq, nq; node order of ``nodeIds``, body directions x, y, z); the
@@ -172,7 +188,11 @@ _OPTIONAL_KEYS_NDIM: dict[str, int] = {
     "stiffeningAngularAcceleration": 3,
     "stiffeningNodeForces": 4,
     "surfaceTriangles": 2,
+    "outputVariableModeBasis": 2,
+    "outputVariableTypeModeBasis": 0,
 }
+#: The output variable of ``outputVariableModeBasis`` (an ``exudyn.OutputVariableType`` name).
+STRESS_OUTPUT = "StressLocal"
 #: The centrifugal load cases of ``stiffeningOmega``, in the order of the six products of Ω.
 CENTRIFUGAL_CASES = ("wxx", "wyy", "wzz", "wxy", "wyz", "wxz")
 #: The load cases of ``stiffeningAcceleration`` and ``stiffeningAngularAcceleration``.
@@ -288,6 +308,7 @@ def exudyn_arrays(
     inv: BodyInvariants,
     satellite_length: float | None = None,
     surface: SurfaceMesh | None = None,
+    stress: StressModes | None = None,
 ) -> dict[str, np.ndarray]:
     """Everything ``ObjectFFRFreducedOrder`` needs, from the reduced invariants.
 
@@ -396,6 +417,13 @@ def exudyn_arrays(
         arrays.update(_stiffening_arrays(inv.stiffening, arrays["nodeIds"], nq))
     if triangles is not None:
         arrays["surfaceTriangles"] = triangles
+    if stress is not None:
+        if stress.n_shapes != nq:
+            raise UserError(
+                f"exudyn export: stress modes of {stress.n_shapes} shape functions for {nq} modes"
+            )
+        arrays["outputVariableModeBasis"] = exudyn_stress_basis(stress, arrays["meshNodeIds"])
+        arrays["outputVariableTypeModeBasis"] = np.array(STRESS_OUTPUT)
     check_exudyn_arrays(arrays, "exudyn export")
     return arrays
 
@@ -479,6 +507,7 @@ def check_exudyn_arrays(arrays: Mapping[str, np.ndarray], where: str) -> None:
         "stiffeningAngularAcceleration": (3, nq, nq),
         "stiffeningNodeForces": (p, 3, nq, nq),
         "surfaceTriangles": (arrays.get("surfaceTriangles", np.zeros((0, 3))).shape[0], 3),
+        "outputVariableModeBasis": (n_mesh, 6 * nq),
     }
     shapes.update({key: shape for key, shape in optional_shapes.items() if key in arrays})
     for key, shape in shapes.items():
@@ -502,6 +531,13 @@ def check_exudyn_arrays(arrays: Mapping[str, np.ndarray], where: str) -> None:
         and (triangles.min() < 0 or triangles.max() >= n_mesh)
     ):
         raise UserError(f"{where}: surfaceTriangles point outside the mesh")
+    if ("outputVariableModeBasis" in arrays) != ("outputVariableTypeModeBasis" in arrays) or str(
+        arrays.get("outputVariableTypeModeBasis", STRESS_OUTPUT)
+    ) != STRESS_OUTPUT:
+        raise UserError(
+            f"{where}: outputVariableModeBasis needs outputVariableTypeModeBasis = "
+            f"{STRESS_OUTPUT!r} beside it"
+        )
     if float(arrays["physicsMass"]) <= 0 or float(arrays["satelliteLength"]) <= 0:
         raise UserError(f"{where}: physicsMass and satelliteLength must be positive")
 
@@ -512,6 +548,7 @@ def write_exudyn_body(
     inv: BodyInvariants | Mapping[str, np.ndarray],
     satellite_length: float | None = None,
     surface: SurfaceMesh | None = None,
+    stress: StressModes | None = None,
 ) -> Path:
     """Write the Exudyn body as an ``.npz`` archive, atomically.
 
@@ -525,6 +562,8 @@ def write_exudyn_body(
         Passed to :func:`exudyn_arrays` when ``inv`` is a :class:`BodyInvariants`.
     surface : SurfaceMesh, optional
         Likewise: the surface triangles Exudyn draws (:func:`surface_mesh`).
+    stress : StressModes, optional
+        Likewise: the stress modes of ``StressLocal``.
 
     Returns
     -------
@@ -535,7 +574,7 @@ def write_exudyn_body(
         arrays = {key: np.asarray(value) for key, value in inv.items()}
         check_exudyn_arrays(arrays, f"exudyn body {path}")
     else:
-        arrays = exudyn_arrays(inv, satellite_length, surface)
+        arrays = exudyn_arrays(inv, satellite_length, surface, stress)
     target = Path(path)
     return write_npz(target, arrays)
 

@@ -30,9 +30,10 @@ from pymorembs.export.deterministic import write_npz
 from pymorembs.export.exudyn_body import surface_mesh, write_exudyn_body
 from pymorembs.export.matrices import write_reduced_mat
 from pymorembs.export.neweul import write_neweul
+from pymorembs.export.recovery import write_stress_recovery
 from pymorembs.export.sid import write_sid
 from pymorembs.export.source import ExportSource
-from pymorembs.export.vtu import write_reduced_vtu
+from pymorembs.export.vtu import require_coordinates, write_vtu
 from pymorembs.io.atomic import atomic_path
 
 #: ``write(source, options, paths)``: the files of one kind at ``paths`` (one per file name).
@@ -112,7 +113,28 @@ def _write_mat(source: ExportSource, options: None, paths: tuple[Path, ...]) -> 
 
 
 def _write_vtu(source: ExportSource, options: None, paths: tuple[Path, ...]) -> None:
-    write_reduced_vtu(paths[0], source.model, source.prepared)
+    require_coordinates(source.prepared.body, paths[0])  # before the static solve
+    body = source.prepared.body
+    write_vtu(paths[0], body, source.basis, static=source.static, stress=source.stress_modes)
+
+
+def _write_stress_recovery(source: ExportSource, options: None, paths: tuple[Path, ...]) -> None:
+    modes = source.stress_modes
+    labels = modes.labels if modes is not None else (
+        *(str(k) for k in range(1, source.model.projection.order + 1)),
+        *source.prepared.reduction_system.input_labels,
+    )  # fmt: skip
+    write_stress_recovery(
+        paths[0],
+        modes,
+        name=source.name,
+        body_name=source.prepared.body.name,
+        method=source.model.projection.method,
+        labels=tuple(labels),
+        n_shapes=source.model.projection.order,
+        eigenfrequencies_hz=source.model.eigenfrequencies_hz,
+        note=source.stress_note,
+    )
 
 
 def _write_sid(source: ExportSource, options: BodyOptions, paths: tuple[Path, ...]) -> None:
@@ -126,7 +148,9 @@ def _write_neweul(source: ExportSource, options: BodyOptions, paths: tuple[Path,
 
 def _write_exudyn(source: ExportSource, options: BodyOptions, paths: tuple[Path, ...]) -> None:
     surface = surface_mesh(source.prepared.body, source.basis)
-    write_exudyn_body(paths[0], source.invariants(options.nodes), surface=surface)
+    write_exudyn_body(
+        paths[0], source.invariants(options.nodes), surface=surface, stress=source.stress_modes
+    )
 
 
 #: Kind name -> its entry, in the order the job reference and the app list them.
@@ -178,7 +202,7 @@ EXPORTS: dict[str, ExportKind] = {
             "body",
             ("{name}_exudyn.npz",),
             "the data of an Exudyn `ObjectFFRFreducedOrder`, with the surface triangles its "
-            "renderer draws",
+            "renderer draws and the stress modes of its `StressLocal` output (solid bodies)",
             _write_exudyn,
             BodyOptions,
         ),
@@ -186,9 +210,17 @@ EXPORTS: dict[str, ExportKind] = {
             "vtu",
             "shapes",
             ("{name}.vtu",),
-            "the surface with every shape function and the static response to every input, for "
-            "ParaView",
+            "the surface with every shape function and the static response to every input, "
+            "with their nodal stress, strain and von Mises stress (solid bodies), for ParaView",
             _write_vtu,
+        ),
+        ExportKind(
+            "stress_recovery",
+            "shapes",
+            ("{name}.stress.h5",),
+            "the stress and strain modes of every shape function and static response at the "
+            "integration points and nodes (HDF5, `docs/recovery.md`), for fatigue tools",
+            _write_stress_recovery,
         ),
         ExportKind(
             "report",

@@ -2,8 +2,9 @@
 
 :class:`ExportSource` holds one reduced model with its prepared model and name, and makes what
 several writers share once: the arrays of ``reduced.npz`` and ``reduced.mat``, the basis on all
-dofs (eq. 18) and the mass invariants of the body for a set of frame nodes (SID, Neweul-M² and
-Exudyn read the same invariants). :func:`check_before_writing` refuses a model that is not fit to
+dofs (eq. 18), the static responses, the stress modes (VTU, Exudyn, recovery file) and the mass
+invariants of the body for a set of frame nodes (SID, Neweul-M² and Exudyn read the same
+invariants). :func:`check_before_writing` refuses a model that is not fit to
 be written; :func:`body_invariants` refuses a body of a two-sided projection.
 """
 
@@ -17,6 +18,8 @@ import numpy as np
 from pymorembs.errors import NumericalError, UserError
 from pymorembs.export.invariants import BodyInvariants, StiffeningTerms, compute_invariants
 from pymorembs.export.matrices import reduced_arrays
+from pymorembs.export.stress_modes import StressModes, stress_modes, stress_modes_note
+from pymorembs.export.vtu import static_fields
 from pymorembs.preparation import PreparedModel
 from pymorembs.reduction.projection import ReducedModel
 from pymorembs.system import check_damping
@@ -114,6 +117,25 @@ class ExportSource:
     def basis(self) -> np.ndarray:
         """The basis ``V`` on all dofs of the prepared body (eq. 18), shape (n_dof, order)."""
         return self.prepared.expand(self.model.projection.V)
+
+    @cached_property
+    def static(self) -> dict[str, np.ndarray]:
+        """The static response to every input on all dofs (:func:`static_fields`)."""
+        return static_fields(self.prepared)
+
+    @cached_property
+    def stress_modes(self) -> StressModes | None:
+        """The stress and strain modes of the basis and the static responses
+        (:func:`~pymorembs.export.stress_modes.stress_modes`); None for a body without solid
+        elements (:attr:`stress_note` says so)."""
+        if self.stress_note is not None:
+            return None
+        return stress_modes(self.prepared.body, self.basis, self.static)
+
+    @property
+    def stress_note(self) -> str | None:
+        """Why the body has no stress modes (:func:`stress_modes_note`), or None."""
+        return stress_modes_note(self.prepared.body)
 
     def invariants(self, nodes: Sequence[int]) -> BodyInvariants:
         """The mass invariants of the body with these frame nodes (:func:`body_invariants`),

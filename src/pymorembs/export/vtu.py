@@ -20,11 +20,23 @@ Written with meshio (binary, zlib-compressed, VTK XML format 0.1). The file hold
                                               rotational dofs)
   ``static_<input>``             (n, 3)       static deformation ``K^+ b`` under a unit input
   ``static_<input>_rotation``    (n, 3)       its rotations (as above)
+  ``<field>_stress``             (n, 6)       for a body with solid elements: the stress of
+                                              the field (a shape or a static response),
+                                              averaged at the nodes, as a VTK symmetric tensor
+                                              ``xx yy zz xy yz xz``
+  ``<field>_strain``             (n, 6)       its strain, likewise
+  ``<field>_von_mises``          (n,)         the von Mises stress of ``<field>_stress``
   =============================  ===========  ==============================================
 
   A direction a node does not have is 0 (:func:`~pymorembs.export.nodal.node_fields`); fixed
   dofs (the tangent frame's node) are 0, dependent dofs carry the motion the constraint
-  equations give them.
+  equations give them. The stress arrays
+  (:mod:`~pymorembs.export.stress_modes`: the mesh's nodal stresses, extrapolated from the
+  integration points and averaged over the elements at a node, :mod:`pymorembs.stress`) are NaN
+  at a node of no solid element (a reference node of a rigid coupling); a body without solid
+  elements (beams, plain matrices) has no stress arrays. The VTU has no cell data: its cells are
+  the surface's triangles, not the elements, so the integration-point values are in the
+  recovery file (``stress_recovery``, :mod:`pymorembs.export.recovery`).
 
 Shape ``k`` goes with entry ``k`` of the reduction's ``eigenfrequencies_hz`` (``summary.json``,
 :attr:`~pymorembs.api.ReducedBody.eigenfrequencies_hz`): the columns of ``V`` are the
@@ -38,11 +50,13 @@ for a moment, ``static_inertia_ax`` for the inertia load of the frame's accelera
 
 Units are those of the FE model. The basis is mass-normalised (``V^T M V = I``; ``W^T M V = I``
 for a two-sided projection), so a shape is a length per unit modal coordinate (m kg^-1/2 in SI)
-and a rotation a radian per unit modal coordinate. A static response is the deformation under a
-unit force (m/N) or moment (m/(N m)); for an inertia load, under a unit frame acceleration: m
-per m/s² (``ax ay az``), per rad/s² (``alx aly alz``), per (rad/s)² (``wxx`` ...). The static
-solve is the one the reduction used: the frame's fixed dofs held, and for a free body in the
-Buckens frame the deformation mass-orthogonal to the rigid-body modes (inertia relief).
+and a rotation a radian per unit modal coordinate. A stress array is a stress per unit of what
+its field is per unit of (modal coordinate, force, moment, acceleration). A static response is
+the deformation under a unit force (m/N) or moment (m/(N m)); for an inertia load, under a unit
+frame acceleration: m per m/s² (``ax ay az``), per rad/s² (``alx aly alz``), per (rad/s)²
+(``wxx`` ...). The static solve is the one the reduction used: the frame's fixed dofs held,
+and for a free body in the Buckens frame the deformation mass-orthogonal to the rigid-body
+modes (inertia relief).
 """
 
 from __future__ import annotations
@@ -57,17 +71,21 @@ import numpy as np
 from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
 from pymorembs.export.nodal import node_fields
+from pymorembs.export.stress_modes import VTK_ORDER, StressModes, stress_modes
 from pymorembs.io.atomic import atomic_path
 from pymorembs.preparation import PreparedModel
 from pymorembs.reduction.projection import ReducedModel
+from pymorembs.stress import von_mises
 
 __all__ = [
     "ROTATION_SUFFIX",
     "SHAPE_PREFIX",
     "STATIC_PREFIX",
     "array_name",
+    "require_coordinates",
     "shape_names",
     "static_fields",
+    "stress_point_data",
     "write_reduced_vtu",
     "write_vtu",
 ]
@@ -123,6 +141,7 @@ def write_vtu(
     shapes: np.ndarray,
     *,
     static: Mapping[str, np.ndarray] | None = None,
+    stress: StressModes | None = None,
 ) -> Path:
     """Write the body's surface with shape functions and static responses as a VTU file.
 
@@ -139,6 +158,10 @@ def write_vtu(
         Shape functions over all equations of ``body`` (length per unit modal coordinate).
     static : dict of str to ndarray (n_dof,), optional
         Input label -> static deformation over all equations (:func:`static_fields`).
+    stress : StressModes, optional
+        The stress modes of the same columns (``shapes`` then ``static``,
+        :func:`~pymorembs.export.stress_modes.stress_modes`): their nodal stress, strain and von
+        Mises stress join each field.
 
     Returns
     -------
@@ -153,7 +176,7 @@ def write_vtu(
     """
     import meshio
 
-    _require_coordinates(body, path)
+    require_coordinates(body, path)
     shapes = np.asarray(shapes, dtype=float)
     if shapes.ndim != 2 or shapes.shape[0] != body.n_dof:
         raise UserError(f"vtu {path}: shapes have shape {shapes.shape}, expected ({body.n_dof}, k)")
@@ -177,6 +200,12 @@ def write_vtu(
         point_data[name] = np.ascontiguousarray(fields.translations[:, :, j])
         if fields.rotations is not None:
             point_data[name + ROTATION_SUFFIX] = np.ascontiguousarray(fields.rotations[:, :, j])
+    if stress is not None:
+        if stress.count != len(names):
+            raise UserError(
+                f"vtu {path}: stress modes of {stress.count} columns for {len(names)} fields"
+            )
+        point_data.update(stress_point_data(body, stress, names))
     mesh = meshio.Mesh(np.asarray(body.coordinates, dtype=float), _cells(body), point_data)
     target = Path(path)
     with atomic_path(target) as tmp:
@@ -189,16 +218,36 @@ def write_reduced_vtu(
 ) -> Path:
     """:func:`write_vtu` of a reduction: its basis ``V`` on all dofs (eq. 18) and the static
     response to every input of the prepared model (:func:`static_fields`)."""
-    _require_coordinates(prepared.body, path)  # before the static solve
-    return write_vtu(
-        path,
-        prepared.body,
-        prepared.expand(model.projection.V),
-        static=static_fields(prepared),
-    )
+    require_coordinates(prepared.body, path)  # before the static solve
+    basis = prepared.expand(model.projection.V)
+    static = static_fields(prepared)
+    modes = stress_modes(prepared.body, basis, static)
+    return write_vtu(path, prepared.body, basis, static=static, stress=modes)
 
 
-def _require_coordinates(body: ElasticBody, path: str | os.PathLike[str]) -> None:
+def stress_point_data(
+    body: ElasticBody, stress: StressModes, names: list[str]
+) -> dict[str, np.ndarray]:
+    """The arrays ``<name>_stress``, ``<name>_strain`` (VTK tensor order) and
+    ``<name>_von_mises`` of every column of ``stress`` on the points of the VTU (every node of
+    ``body``; NaN at a node of no solid element)."""
+    out: dict[str, np.ndarray] = {}
+    for quantity in ("stress", "strain"):
+        operator = stress.operator("nodes", quantity)
+        rows = body.node_rows(operator.node_ids)
+        for part, values in stress.blocks(operator):
+            for j, column in enumerate(part):
+                tensor = np.full((body.n_nodes, 6), np.nan)
+                tensor[rows] = values[j][:, VTK_ORDER]
+                out[f"{names[column]}_{quantity}"] = tensor
+                if quantity == "stress":
+                    mises = np.full(body.n_nodes, np.nan)
+                    mises[rows] = von_mises(values[j])
+                    out[f"{names[column]}_von_mises"] = mises
+    return out
+
+
+def require_coordinates(body: ElasticBody, path: str | os.PathLike[str]) -> None:
     if not body.has_coordinates:
         raise UserError(
             f"vtu {path}: the model has no node coordinates, which a VTU file needs; give the "

@@ -53,7 +53,7 @@ from pymorembs.analysis import (
     relative_error,
     transfer_function,
 )
-from pymorembs.export import BODY_OUTPUTS, MATRIX_OUTPUTS, write_outputs
+from pymorembs.export import BODY_OUTPUTS, MATRIX_OUTPUTS, stress_modes_note, write_outputs
 from pymorembs.io import atomic_path, check_output_folder, model_files, read_body, write_text
 from pymorembs.job.schema import Job, ModelSpec, ReductionSpec
 from pymorembs.job.summary import (
@@ -623,7 +623,10 @@ def _run_in(
     warnings += band_unit_warnings(job.band_hz)
     for warning in warnings:
         say(f"warning: {warning}")
-    for note in prepared.notes:  # facts of the setup, no mistake: not warnings
+    notes = list(prepared.notes)
+    if "stress_recovery" in job.export.outputs and stress_modes_note(prepared.body):
+        notes.append(stress_modes_note(prepared.body))  # written without points, saying why
+    for note in notes:  # facts of the setup, no mistake: not warnings
         say(f"note: {note}")
     reference = _reference(job, prepared, say, stage, workers, scheduler)
     nodes = export_nodes(job)
@@ -665,7 +668,7 @@ def _run_in(
         reference=reference.as_dict(),
         reductions=tuple(entries),
         warnings=warnings,
-        notes=list(prepared.notes),
+        notes=notes,
         timings_s=timings,
         files=overview,
         provenance=provenance(job, validation),

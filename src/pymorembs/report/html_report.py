@@ -18,6 +18,7 @@ from typing import Any
 
 from pymorembs.io.atomic import write_text
 from pymorembs.report.scene import viewer_script
+from pymorembs.report.stress_table import stress_modes_table
 
 _STYLE = """
 body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 68em; color: #222; }
@@ -118,6 +119,8 @@ def write_report(
     parts += ["<h2>Reductions</h2>", _methods_table(summary["reductions"]), _covers(summary)]
     if scene is not None:
         parts += ["<h2>Body and shapes</h2>", *_view(scene)]
+        if scene.get("stress_modes"):
+            parts += ["<h3>Stress modes</h3>", stress_modes_table(scene["stress_modes"])]
     time_domain = summary.get("time_domain")
     if time_domain:
         parts += ["<h2>Time domain (paper section 5.1)</h2>", _time_table(time_domain)]

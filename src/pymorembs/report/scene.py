@@ -28,6 +28,7 @@ from pymorembs.export.nodal import node_fields
 from pymorembs.preparation import Frame, PreparedModel, centre_of_gravity
 from pymorembs.preparation.interface import InterfaceSpec
 from pymorembs.reduction.projection import ReducedModel
+from pymorembs.report.stress_table import stress_mode_maxima
 
 __all__ = [
     "POSITION_DIGITS",
@@ -203,7 +204,9 @@ def reductions_scene(
     Returns
     -------
     dict
-        The scene of :func:`body_scene`.
+        The scene of :func:`body_scene`, with ``stress_modes``: the largest von Mises stress
+        of each reduction's first shapes (:func:`~pymorembs.report.stress_table.
+        stress_mode_maxima`), which the report shows as a table.
     """
     body = prepared.body
     frame = prepared.frame
@@ -212,6 +215,7 @@ def reductions_scene(
         named = {_interface(body, item)[1] for item in interfaces}
         interfaces += [item for item in attached_nodes(body) if item[1] not in named]
     plain = body_scene(body, frame=frame, interfaces=interfaces)
+    plain["stress_modes"] = stress_mode_maxima(prepared, reductions)
     n_nodes = max(1, len(plain["node_ids"]))
     count = max(1, len(reductions))
     fits = max(1, int(max_values) // (3 * n_nodes * count))
@@ -238,6 +242,7 @@ def reductions_scene(
         interfaces=interfaces,
     )
     scene["shapes_total"] = total
+    scene["stress_modes"] = plain["stress_modes"]
     if len(names) < total:
         scene["notes"].append(
             f"{len(names)} of the {total} shape functions shown (at most "

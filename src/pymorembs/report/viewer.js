@@ -27,14 +27,16 @@ vec3 ramp(float t) {  // blue (no translation) - grey - red (the largest)
   vec3 a = vec3(0.23, 0.30, 0.75), b = vec3(0.87, 0.87, 0.87), c = vec3(0.71, 0.02, 0.15);
   return t < 0.5 ? mix(a, b, 2.0 * t) : mix(b, c, 2.0 * t - 1.0);
 }`;
+  // The surface's colour: the shape's translation, or a value per node of the shape (aValue.x,
+  // 0..1, e.g. its von Mises stress) where the shape gives one (uValues).
   const SURFACE_VS = `
-attribute vec3 aBase; attribute vec3 aShape;
-uniform mat4 uView; uniform mat4 uProj; uniform float uS;
+attribute vec3 aBase; attribute vec3 aShape; attribute vec3 aValue;
+uniform mat4 uView; uniform mat4 uProj; uniform float uS; uniform float uValues;
 varying vec3 vPos; varying float vMag;
 void main() {
   vec4 p = uView * vec4(aBase + uS * aShape, 1.0);
   vPos = p.xyz;
-  vMag = length(aShape);
+  vMag = uValues > 0.5 ? aValue.x : length(aShape);
   gl_Position = uProj * p;
 }`;
   const SURFACE_FS = `
@@ -254,6 +256,8 @@ void main() {
       this._lin = Uint32Array.from(scene.lines || []);
       this._size = scene.size > 0 ? scene.size : 1;
       this._U = new Float32Array(3 * this._n);  // the shown shape, largest translation 1
+      this._values = new Float32Array(3 * this._n);  // its values per node (x), largest 1
+      this._valued = false;
       this._shape = null;
       this._highlights = [];
       this._bounds();
@@ -282,13 +286,24 @@ void main() {
       this._requestRender();
     }
 
-    /** Show shape k (index into scene.shapes), or the undeformed body for null. */
+    /** Show shape k (index into scene.shapes), or the undeformed body for null. A shape with
+     * `scalars` (one number per node, e.g. its von Mises stress) colours the surface by them
+     * (largest 1) instead of by its translation. */
     setShape(k) {
       const shapes = this.scene.shapes || [];
+      this._valued = false;
+      this._values.fill(0);
       if (!Number.isInteger(k) || k < 0 || k >= shapes.length) {
         this._shape = null;
         this._U.fill(0);
       } else {
+        const scalars = shapes[k].scalars;
+        if (scalars && scalars.length === this._n) {
+          let top = 0;
+          for (let i = 0; i < this._n; i++) top = Math.max(top, Math.abs(scalars[i]) || 0);
+          for (let i = 0; i < this._n; i++) this._values[3 * i] = top > 0 ? (scalars[i] || 0) / top : 0;
+          this._valued = true;
+        }
         this._shape = k;
         const v = shapes[k].values;
         let peak = 0;
@@ -415,6 +430,7 @@ void main() {
         const p = this._use("surface", m, s);
         gl.uniform3fv(p.uniforms.uColor, COLORS.body);
         gl.uniform1f(p.uniforms.uContour, this._contour && this._shape !== null ? 1 : 0);
+        gl.uniform1f(p.uniforms.uValues, this._valued ? 1 : 0);
         gl.enable(gl.POLYGON_OFFSET_FILL);
         gl.polygonOffset(1, 1);
         this._draw(p, b.surface, gl.TRIANGLES);
@@ -543,6 +559,7 @@ void main() {
       this._buffers.node = {
         aBase: this._upload(old.aBase, this._P),
         aShape: this._upload(old.aShape, this._U),
+        aValue: this._upload(old.aValue, this._values),
       };
       this._buffers.surface = this._indexBuffer(this._buffers.surface, this._tri);
     }
@@ -711,7 +728,10 @@ void main() {
 
     _shapeBuffers() {
       // The shown shape into the node buffer, and into the few coloured points' buffers.
-      if (this._buffers.node) this._upload(this._buffers.node.aShape, this._U);
+      if (this._buffers.node) {
+        this._upload(this._buffers.node.aShape, this._U);
+        this._upload(this._buffers.node.aValue, this._values);
+      }
       for (const kind of ["coupled", "interfaces", "highlight"]) {
         const b = this._buffers[kind];
         if (b && b.nodes) this._upload(b.aShape, this._gather(b.nodes));

@@ -2,7 +2,8 @@
 
 :class:`RunResults` reads ``summary.json`` (a :class:`~pymorembs.job.summary.JobSummary`),
 ``*/error.csv``, ``*/error_estimate.csv`` and ``*/reduced.npz`` of the run's folder: the table
-and curves of every reduction, a shape function on the opened model's scene, the mass-weighted
+and curves of every reduction, a shape function on the opened model's scene (with its von Mises
+stress at the scene's nodes for a body with solid elements), the mass-weighted
 MAC between two bases and the files written. The bases and the run body's mass matrix are read
 and built once per run.
 """
@@ -18,11 +19,13 @@ import numpy as np
 from pymorembs.analysis import mac as modal_assurance
 from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
+from pymorembs.export import nodes_operator, von_mises_at
 from pymorembs.job.app.opened_model import OpenedModel
 from pymorembs.job.app.runner import Run
 from pymorembs.job.app.runs import RunController
 from pymorembs.job.run import add_interfaces, load_job_model
 from pymorembs.job.summary import JobSummary
+from pymorembs.stress import StressOperator
 
 #: What the results give of each reduction's summary entry.
 RESULT_KEYS = (
@@ -40,7 +43,9 @@ class RunResults:
         self.model = model
         self.runs = runs
         self._bases: dict[tuple[str, str], dict[str, np.ndarray]] = {}
-        self._mass: tuple[str, Any] | None = None  # (run folder, mass matrix of its body)
+        self._body: tuple[str, ElasticBody] | None = None  # (run folder, its body)
+        # (run folder, the nodal stress operator on the scene's nodes; None without solids)
+        self._stress: tuple[str, StressOperator | None] | None = None
 
     def _summary(self) -> tuple[Run, JobSummary]:
         run = self.runs.finished()
@@ -102,7 +107,9 @@ class RunResults:
 
     def shape(self, name: str, k: int) -> dict[str, Any]:
         """Column ``k`` of a reduction's basis as translations of the scene's nodes (largest
-        translation 1), with the reduced model's eigenfrequency of that direction."""
+        translation 1), with the reduced model's eigenfrequency of that direction and, for a
+        body with solid elements, its von Mises stress at the scene's nodes (``von_mises``,
+        model stress unit per unit modal coordinate; None without solids)."""
         self.model.opened()
         basis = self._basis(name)
         V = basis["V"]
@@ -116,8 +123,11 @@ class RunResults:
         largest = np.abs(values).max()
         if largest > 0:
             values /= largest
+        operator = self._scene_stress(nodes, directions)
+        stress = None if operator is None else von_mises_at(operator, V[:, k : k + 1], ids)
         return {
             "values": values.ravel().round(6).tolist(),
+            "von_mises": None if stress is None else [float(f"{v:.4g}") for v in stress[:, 0]],
             "frequency_hz": float(basis["eigenfrequencies_hz"][k]),
             "count": int(V.shape[1]),
         }
@@ -132,7 +142,7 @@ class RunResults:
             and np.array_equal(A["dof_directions"], B["dof_directions"])
         ):
             raise UserError("the two bases are not on the same dofs")
-        mass = self._run_mass(A["dof_nodes"], A["dof_directions"])
+        mass = self._run_body(A["dof_nodes"], A["dof_directions"]).mass
         return {
             "matrix": modal_assurance(A["V"], B["V"], mass).round(4).tolist(),
             "weighting": "mass",
@@ -140,20 +150,29 @@ class RunResults:
             "b_hz": B["eigenfrequencies_hz"].tolist(),
         }
 
-    def _run_mass(self, nodes: np.ndarray, directions: np.ndarray) -> Any:
-        """The sparse mass matrix of the last run's body (the model with the job's interface
-        nodes, on the dofs of its ``reduced.npz``), built once per run."""
+    def _scene_stress(self, nodes: np.ndarray, directions: np.ndarray) -> StressOperator | None:
+        """The nodal stress operator of the last run's body on the scene's nodes (None for a
+        body without solid elements), built once per run."""
         run, _ = self._summary()
-        if self._mass is not None and self._mass[0] == str(run.out):
-            return self._mass[1]
+        if self._stress is None or self._stress[0] != str(run.out):
+            body = self._run_body(nodes, directions)
+            self._stress = (str(run.out), nodes_operator(body, self.model.scene_ids))
+        return self._stress[1]
+
+    def _run_body(self, nodes: np.ndarray, directions: np.ndarray) -> ElasticBody:
+        """The last run's body (the model with the job's interface nodes, on the dofs of its
+        ``reduced.npz``: its sparse mass matrix, its mesh), built once per run."""
+        run, _ = self._summary()
+        if self._body is not None and self._body[0] == str(run.out):
+            return self._body[1]
         job = self.runs.job_of(run)
         body = add_interfaces(self.model.opened(), job)
         if not _same_dofs(body, nodes, directions):  # another model opened since the run
             body = load_job_model(job)
         if not _same_dofs(body, nodes, directions):
             raise UserError("the run's bases are not on the dofs of its model")
-        self._mass = (str(run.out), body.mass)
-        return body.mass
+        self._body = (str(run.out), body)
+        return body
 
     def file(self, name: str) -> Path:
         """A file of the last finished run's output folder (never outside it)."""

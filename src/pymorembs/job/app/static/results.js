@@ -94,7 +94,10 @@ async function shapeChanged() {
   if (k === "") { app.viewer.setShape(null); app.viewer.render(); return; }
   const shape = await api(`/api/shape?reduction=${encodeURIComponent(name)}&k=${k}`);
   $("shape-hz").textContent = `${shape.frequency_hz.toFixed(2)} Hz`;
-  app.viewer.scene.shapes = [{ name: `${name} ${Number(k) + 1}`, values: shape.values }];
+  // a body with solid elements: the surface coloured by the shape's von Mises stress
+  app.viewer.scene.shapes = [{ name: `${name} ${Number(k) + 1}`, values: shape.values, scalars: shape.von_mises }];
+  $("shape-hz").dataset.vonMises = shape.von_mises ? "1" : "0";
+  if (shape.von_mises) $("shape-hz").textContent += `, coloured by von Mises (max ${fmt(shape.von_mises.reduce((a, b) => Math.max(a, b), 0))} per unit q)`;
   app.viewer.setShape(0);
   app.viewer.setAmplitude(Number($("shape-amplitude").value));
   app.viewer.animate($("shape-animate").checked);
