@@ -480,6 +480,34 @@ class ElementMesh:
         object.__setattr__(self, "element_ids", ids)
 
 
+def set_names(sets: dict[str, np.ndarray], first: int = 5) -> str:
+    """``"3 (CLAMP, TIP, ALL)"``: how many sets and the names of the first few."""
+    names = list(sets)
+    listed = ", ".join(names[:first]) + (", ..." if len(names) > first else "")
+    return f"{len(names)} ({listed})"
+
+
+def _checked_node_sets(sets: dict[str, np.ndarray], node_ids: np.ndarray) -> dict[str, np.ndarray]:
+    """The node sets keyed by upper-case name, each sorted and without repeats.
+
+    Raises
+    ------
+    UserError
+        A name given twice (in any case), or a set that holds an id which is not a node.
+    """
+    out: dict[str, np.ndarray] = {}
+    for name, members in dict(sets).items():
+        key = str(name).strip().upper()
+        if not key or key in out:
+            raise UserError(f"node sets: the name {name!r} is empty or given twice")
+        ids = sorted_unique(np.asarray(members, dtype=np.int64).ravel())
+        missing = missing_from(ids, node_ids)
+        if missing.size:
+            raise UserError(f"node set {key}: node {missing[0]} is not in the node list")
+        out[key] = ids
+    return out
+
+
 @dataclass(frozen=True, eq=False)
 class ElasticBody:
     """FE model of one elastic body.
@@ -533,6 +561,11 @@ class ElasticBody:
         fields, so the consistency check refuses a map they refute there
         (:func:`pymorembs.preparation.consistency.check_map`). ``None``: the supports' reach is
         judged by distance and rows that only the rotations fail are a warning.
+    node_sets : dict of str -> ndarray of int, optional
+        Named sets of node ids that came with the model file (Abaqus/CalculiX ``*NSET``, Ansys
+        node components), keyed by upper-case name (the FE programs treat set names without
+        case); each set sorted, every id a node of the body. Hot spots may name them
+        (:class:`pymorembs.preparation.StressSpec`). Empty: the file gave none.
     """
 
     node_ids: np.ndarray
@@ -552,6 +585,7 @@ class ElasticBody:
     mesh: ElementMesh | None = None
     surface: Surface | None = None
     nodes_near_supports: np.ndarray | None = None
+    node_sets: dict[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         node_ids = np.asarray(self.node_ids, dtype=np.int64).ravel()
@@ -629,6 +663,7 @@ class ElasticBody:
             near = sorted_unique(np.asarray(self.nodes_near_supports, dtype=np.int64).ravel())
             object.__setattr__(self, "nodes_near_supports", near)
         object.__setattr__(self, "notes", tuple(str(note) for note in self.notes))
+        object.__setattr__(self, "node_sets", _checked_node_sets(self.node_sets, node_ids))
 
     # ----------------------------------------------------------------- facts
     def summary(self) -> list[tuple[str, str]]:
@@ -648,6 +683,8 @@ class ElasticBody:
         if self.surface is not None:
             rows.append(("surface", f"{self.surface.triangles.shape[0]} triangles, "
                                     f"{self.surface.lines.shape[0]} lines"))  # fmt: skip
+        if self.node_sets:
+            rows.append(("node sets", set_names(self.node_sets)))
         if self.ports is not None:
             rows.append(("ports of the file", port_labels(self.ports.input_labels) + " inputs"))
         if self.notes:
@@ -755,6 +792,12 @@ class ElasticBody:
         modes = self.rigid_body_modes()[:, :3]
         masses = np.einsum("ij,ij->j", modes, self.mass @ modes)
         return float(np.mean(masses))
+
+    def with_node_sets(self, sets: dict[str, np.ndarray]) -> ElasticBody:
+        """The body with the named node sets of its file (:attr:`node_sets`), each keeping the
+        ids that are nodes of the body (a deck's set may name nodes the matrices left out)."""
+        kept = {name: ids[np.isin(ids, self.node_ids)] for name, ids in sets.items()}
+        return replace(self, node_sets={**self.node_sets, **kept})
 
     # -------------------------------------------------------- transformations
     def translated(self, origin: np.ndarray) -> ElasticBody:

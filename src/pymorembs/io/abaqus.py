@@ -96,6 +96,7 @@ from pymorembs.io.abaqus_inp import (
     ascii_data,
     derive_dof_table,
     integer_field,
+    named_node_sets,
     read_inp,
     solid_blocks,
     surface_elements,
@@ -364,6 +365,7 @@ def _read(
         )
     if nodes is not None and nodes.model is not None:  # every element for the surface, the
         body = attach_surface(body, surface_elements(nodes.model))  # solids for stiffening
+        body = body.with_node_sets(named_node_sets(nodes.model))
         body = attach_mesh(body, solid_blocks(nodes.model))
     return body
 

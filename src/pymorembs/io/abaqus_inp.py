@@ -86,6 +86,7 @@ __all__ = [
     "element_dofs",
     "integer_field",
     "keyword_blocks",
+    "named_node_sets",
     "node_sets",
     "parse_keyword",
     "read_inp",
@@ -254,7 +255,8 @@ class ElementBlock:
 class ElementSet:
     """One ``*ELSET`` data block (or the ``ELSET=`` of an ``*ELEMENT`` block) of a scope; also
     one ``*NSET`` data block (:attr:`InpModel.node_sets`), whose ``labels`` are set for the
-    ``NSET=`` of a ``*NODE`` block (then ``text`` is empty)."""
+    ``NSET=`` of a ``*NODE`` block (then ``text`` is empty); ``instance`` is the ``INSTANCE=``
+    of a ``*NSET`` in the assembly (its labels are that instance's nodes)."""
 
     name: str
     scope: int
@@ -264,6 +266,7 @@ class ElementSet:
     first_line: int
     generate: bool = False
     labels: np.ndarray | None = None
+    instance: str | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -649,7 +652,10 @@ class _Reader:
         if not name:
             raise located_error(path, line, "*NSET without NSET=")
         generate = "GENERATE" in params
-        self.context.nsets.append(ElementSet(name, -1, path, line, data, data_line, generate))
+        instance = params.get("INSTANCE") or None  # a set of an instance's nodes, in the assembly
+        self.context.nsets.append(
+            ElementSet(name, -1, path, line, data, data_line, generate, instance=instance)
+        )
 
     def _section(self, path: Path, line: int, params: dict[str, str]) -> None:
         elset, material = params.get("ELSET"), params.get("MATERIAL")
@@ -732,19 +738,21 @@ class _Reader:
                 for kind, where, line, text, first, elset in container.elements:
                     elements.append(ElementBlock(kind, index, where, line, text, first, elset))
                 for name, where, line, text, first, generate, instance in container.elsets:
-                    owner_scope = index
-                    if instance is not None:  # a set of an instance's elements in the assembly
-                        found = [
-                            k
-                            for k, s in enumerate(scopes)
-                            if s.kind == "instance" and s.name.upper() == instance.upper()
-                        ]
-                        owner_scope = found[0] if found else -1
+                    owner_scope = _instance_scope(scopes, instance, index)
                     elsets.append(ElementSet(name, owner_scope, where, line, text, first, generate))
                 for elset, material, where, line in container.sections:
                     sections.append(SolidSection(elset, material, index, where, line))
-                nsets += [replace(node_set, scope=index) for node_set in container.nsets]
+                nsets += [
+                    replace(node_set, scope=_instance_scope(scopes, node_set.instance, index))
+                    for node_set in container.nsets
+                ]
                 boundaries += [replace(block, scope=index) for block in container.boundaries]
+        if not (self.assembly.nodes or self.assembly.elements):  # its sets of instances' nodes
+            nsets += [
+                replace(node_set, scope=_instance_scope(scopes, node_set.instance, -1))
+                for node_set in self.assembly.nsets
+                if node_set.instance is not None
+            ]
         label = np.concatenate(labels) if labels else np.zeros(0, dtype=np.int64)
         node_scope = np.concatenate(owner) if owner else np.zeros(0, dtype=np.int64)
         coordinates = np.concatenate(xyz) if xyz else np.zeros((0, 3))
@@ -767,6 +775,19 @@ class _Reader:
             boundaries=tuple(sorted(boundaries, key=_step_of)),
             matrix_storage_step=self.matrix_storage_step,
         )
+
+
+def _instance_scope(scopes: list[Scope], instance: str | None, own: int) -> int:
+    """The scope of a set: that of the instance its ``INSTANCE=`` names (-1: no such instance),
+    else its own."""
+    if instance is None:
+        return own
+    found = [
+        k
+        for k, s in enumerate(scopes)
+        if s.kind == "instance" and s.name.upper() == instance.upper()
+    ]
+    return found[0] if found else -1
 
 
 def _step_of(block: Boundary) -> int:
@@ -1462,6 +1483,29 @@ def node_sets(model: InpModel) -> dict[tuple[int, str], np.ndarray]:
         ``file:line: ...`` for a label that is not an integer or a malformed ``GENERATE`` line.
     """
     return _set_members({}, model.node_sets, "node label")
+
+
+def named_node_sets(model: InpModel) -> dict[str, np.ndarray]:
+    """The node ids of every node set (:func:`node_sets`), by upper-case name.
+
+    A set of the model, of the assembly or of one instance keeps its name; a name that several
+    scopes define (a part's set in each of its instances) becomes ``INSTANCE.NAME`` there, as
+    Abaqus names a part's set from the assembly. Labels of no defined node are left out.
+    """
+    sets = node_sets(model)
+    scopes_of: dict[str, int] = {}
+    for _, name in sets:
+        scopes_of[name] = scopes_of.get(name, 0) + 1
+    out: dict[str, np.ndarray] = {}
+    for (scope, name), labels in sets.items():
+        index = model.index_of(np.full(labels.size, scope), labels)
+        ids = model.node_ids[index[index >= 0]]
+        key = name
+        if scopes_of[name] > 1 and 0 <= scope < len(model.scopes):
+            if model.scopes[scope].kind == "instance":
+                key = f"{model.scopes[scope].name.upper()}.{name}"
+        out[key] = sorted_unique(np.concatenate([out[key], ids])) if key in out else ids
+    return out
 
 
 def _set_members(

@@ -1125,11 +1125,12 @@ def _supports(
 
 
 def _with_mesh(body: ElasticBody, geometry: _Geometry) -> ElasticBody:
-    """The body with the surface of every element of its archive and its solid elements (or a
-    note why it has none)."""
+    """The body with the surface of every element of its archive, its node components (as node
+    sets) and its solid elements (or a note why it has none)."""
     if geometry.archive is None or geometry.source is None:
         return body
     body = attach_surface(body, cdb_surface_elements(geometry.archive))
+    body = body.with_node_sets(geometry.archive.node_components)
     return attach_mesh(body, cdb_solid_blocks(geometry.archive, geometry.source))
 
 

@@ -23,8 +23,13 @@ Write the archive of the model in ``/PREP7`` (or from Mechanical: *Tools > Write
 ``ET``, ``KEYOPT`` and ``MPDATA`` commands
     The element types and the material properties (:func:`cdb_solid_blocks`: the solid
     elements and isotropic material for geometric stiffening).
+``CMBLOCK``
+    ``CMBLOCK,Cname,NODE,NUMITEMS``, a format line such as ``(8i10)``, then ``NUMITEMS``
+    integers: node numbers, where a negative ``-k`` after ``j`` means the range ``j .. k``.
+    Node components become :attr:`AnsysArchive.node_components` (names upper case, as Ansys
+    keeps them); components of elements and other entities are skipped.
 
-Everything else in the file (commands, components, loads) is ignored. The parse is
+Everything else in the file (commands, loads) is ignored. The parse is
 vectorised (fixed-width fields read by NumPy); a slow pass over the lines runs only to name the
 first bad line in an error message.
 
@@ -98,6 +103,8 @@ class AnsysArchive:
     materials : dict of int -> dict of str -> tuple of float
         ``MPDATA`` values by material number and property label (``EX``, ``PRXY``, ...), one
         value per temperature.
+    node_components : dict of str -> ndarray of int
+        The node numbers of each ``CMBLOCK`` node component, by upper-case name, sorted.
     """
 
     node_ids: np.ndarray
@@ -111,6 +118,7 @@ class AnsysArchive:
     element_type_names: dict[int, int] = field(default_factory=dict)
     keyopts: dict[tuple[int, int], int] = field(default_factory=dict)
     materials: dict[int, dict[str, tuple[float, ...]]] = field(default_factory=dict)
+    node_components: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def has_elements(self) -> bool:
@@ -205,7 +213,44 @@ def read_cdb(path: PathLike) -> AnsysArchive:
         names,
         keyopts,
         properties,
+        _node_components(path, lines),
     )
+
+
+_CMBLOCK = re.compile(r"^\s*CMBLOCK\s*,", re.I)
+
+
+def _node_components(path: Path, lines: list[str]) -> dict[str, np.ndarray]:
+    """The ``CMBLOCK`` node components (module docstring), by upper-case name."""
+    components: dict[str, np.ndarray] = {}
+    for index, text in enumerate(lines):
+        if not _CMBLOCK.match(text):
+            continue
+        fields = _header_fields(path, lines, index)
+        if len(fields) < 4 or fields[2].upper() != "NODE":
+            continue
+        count = _header_int(path, index + 1, fields[3], "CMBLOCK item count") or 0
+        match = _format_line(path, lines, index, "CMBLOCK", _EBLOCK_FORMAT, "(8i10)")
+        per_line, width = int(match.group(1)), int(match.group(2))
+        rows = lines[index + 2 : index + 2 + -(-count // per_line)]
+        table = _fixed_width(path, rows, index + 3, [width] * per_line, int, "CMBLOCK")
+        items = table.ravel()[:count]
+        if items.size < count:
+            raise located_error(
+                path, index + 1, f"CMBLOCK {fields[1]}: {items.size} of {count} items present"
+            )
+        components[fields[1].upper()] = _expand_ranges(path, index + 1, fields[1], items)
+    return components
+
+
+def _expand_ranges(path: Path, line: int, name: str, items: np.ndarray) -> np.ndarray:
+    """The numbers of a component's items, ``j, -k`` meaning ``j .. k``; sorted, each once."""
+    ranged = np.flatnonzero(items < 0)
+    if ranged.size and (ranged[0] == 0 or np.any(items[ranged - 1] <= 0)):
+        raise located_error(path, line, f"CMBLOCK {name}: a range -k follows no number")
+    parts = [items[items > 0]]
+    parts += [np.arange(items[k - 1], -items[k] + 1, dtype=np.int64) for k in ranged]
+    return np.unique(np.concatenate(parts).astype(np.int64))
 
 
 def _element_types_and_materials(

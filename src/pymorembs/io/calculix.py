@@ -79,6 +79,7 @@ from pymorembs.io.abaqus_inp import (
     MAX_LABEL,
     InpModel,
     boundary_dofs,
+    named_node_sets,
     read_inp,
     solid_blocks,
     surface_elements,
@@ -217,8 +218,8 @@ def read_calculix(
     -------
     ElasticBody
         Dof table: the equations of the ``.dof`` file in their order, then the dofs fixed by
-        ``*BOUNDARY`` (fixed dofs, empty rows and columns); coordinates, surface and solid mesh
-        from the deck; notes: the files read and the supports.
+        ``*BOUNDARY`` (fixed dofs, empty rows and columns); coordinates, surface, solid mesh
+        and node sets (``*NSET``) from the deck; notes: the files read and the supports.
 
     Raises
     ------
@@ -247,7 +248,7 @@ def read_calculix(
         notes=tuple(layout.notes(k_path, paths)),
         nodes_near_supports=layout.near_supports,
     )
-    body = attach_surface(body, surface_elements(model))
+    body = attach_surface(body, surface_elements(model)).with_node_sets(named_node_sets(model))
     return attach_mesh(body, solid_blocks(model))
 
 

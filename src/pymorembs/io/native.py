@@ -29,6 +29,9 @@ Layout (format version 2)::
     /surface/triangles     int64 (n_t, 3), /surface/lines int64 (n_l, 2): node ids of what a
                            viewer draws (outer faces, line elements), only if the body has a
                            surface; attribute source
+    /node_sets/members     int64: the node ids of every named node set, one set after the
+    /node_sets/offsets     other; int64 (n_sets + 1,) where each set starts; attribute names
+                           (list of str, upper case); only if the body has node sets
 
 Version 1 files (no coordinates flag, notes or ports) are read as well.
 
@@ -169,6 +172,12 @@ def write_body_group(f: h5py.Group, body: ElasticBody) -> None:
         put_array(f, "surface/triangles", body.surface.triangles, np.int64)
         put_array(f, "surface/lines", body.surface.lines, np.int64)
         f["surface"].attrs["source"] = body.surface.source
+    if body.node_sets:
+        sets = list(body.node_sets.values())
+        offsets = np.cumsum([0] + [members.size for members in sets])
+        put_array(f, "node_sets/members", np.concatenate(sets), np.int64)
+        put_array(f, "node_sets/offsets", offsets, np.int64)
+        f["node_sets"].attrs["names"] = list(body.node_sets)
     if body.ports is not None:
         for key, labels in (
             ("inputs", body.ports.input_labels),
@@ -323,6 +332,21 @@ def read_body_group(f: h5py.Group) -> ElasticBody:
             get_array(f, "surface/lines", INTEGER_KINDS, ndim=2),
             attribute_text(f["surface"].attrs.get("source", "")),
         )
+    node_sets = {}
+    if "node_sets" in f:
+        members = get_array(f, "node_sets/members", INTEGER_KINDS)
+        offsets = get_array(f, "node_sets/offsets", INTEGER_KINDS)
+        names = [attribute_text(name) for name in f["node_sets"].attrs.get("names", [])]
+        if (
+            offsets.size != len(names) + 1
+            or np.any(np.diff(offsets) < 0)
+            or (offsets[0] != 0 or offsets[-1] != members.size)
+        ):
+            raise UserError("node_sets: offsets do not fit the names and members")
+        node_sets = {
+            name: members[start:end]
+            for name, start, end in zip(names, offsets[:-1], offsets[1:], strict=True)
+        }
     return ElasticBody(
         node_ids=get_array(f, "nodes/ids", INTEGER_KINDS),
         coordinates=get_array(f, "nodes/coordinates", FLOAT_KINDS, ndim=2),
@@ -349,6 +373,7 @@ def read_body_group(f: h5py.Group) -> ElasticBody:
         precision=None if np.isnan(precision) else precision,
         mesh=mesh,
         surface=surface,
+        node_sets=node_sets,
     )
 
 
