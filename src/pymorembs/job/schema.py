@@ -744,6 +744,9 @@ def _stress(data: Any, path: Path) -> StressSpec | None:
         ):
             raise table.error(key, f"must be a list of {key[:-1]} ids, got {value!r}")
         ids[key] = tuple(value)
+    sets = table.get("sets", [])
+    if not isinstance(sets, list) or not all(isinstance(v, str) and v.strip() for v in sets):
+        raise table.error("sets", f"must be a list of node set names, got {sets!r}")
     box = table.get("box")
     if box is not None:
         if not isinstance(box, list) or len(box) != 2:
@@ -757,7 +760,7 @@ def _stress(data: Any, path: Path) -> StressSpec | None:
         raise table.error("target", f"must be true or false, got {target!r}")
     table.done()
     try:
-        return StressSpec(ids["nodes"], ids["elements"], box, count, location, target)
+        return StressSpec(ids["nodes"], ids["elements"], box, count, location, target, tuple(sets))
     except UserError as exc:
         raise UserError(f"{path}: {exc}") from None
 

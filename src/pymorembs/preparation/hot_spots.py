@@ -7,11 +7,11 @@ sparse, on the independent dofs: ``C_s = S T`` with the elimination map ``T``). 
 function, the error of eq. 27 (``eps_s``), SOAGA's estimator and, when the stresses are targeted,
 the reduction methods then see them like the ports.
 
-Hot spots are given (node ids, element ids, a box) or found: the ``count`` points of highest von
-Mises stress in the static responses to every input (ports and inertia loads), from one
-factorization of the stiffness. Each input's von Mises field is taken relative to its own
-largest value over the body, so a moment input (N mm) and a force (N) count alike; a point's
-score is its largest relative value over the inputs.
+Hot spots are given (node ids, element ids, a box, node sets of the model file) or found: the
+``count`` points of highest von Mises stress in the static responses to every input (ports and
+inertia loads), from one factorization of the stiffness. Each input's von Mises field is taken
+relative to its own largest value over the body, so a moment input (N mm) and a force (N) count
+alike; a point's score is its largest relative value over the inputs.
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
+from pymorembs.arrays import missing_from
 from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
 from pymorembs.stress import StressOperator, stress_operator, von_mises
@@ -51,6 +52,9 @@ class StressSpec:
     box : ((x, y, z), (x, y, z)) or None
         Lower and upper corner (model length unit): the elements whose centroid lies inside,
         or the nodes inside.
+    sets : tuple of str
+        Names of node sets of the body (:attr:`~pymorembs.body.ElasticBody.node_sets`, the deck's
+        ``*NSET`` or Ansys node components; any case): their nodes, taken like ``nodes``.
     count : int
         With none of the above: this many points of highest von Mises stress in the static
         responses to every input (module docstring).
@@ -68,6 +72,7 @@ class StressSpec:
     count: int = DEFAULT_COUNT
     location: str = "integration"
     target: bool = False
+    sets: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if self.location not in LOCATIONS:
@@ -76,11 +81,15 @@ class StressSpec:
             )
         if isinstance(self.count, bool) or not isinstance(self.count, int) or self.count < 1:
             raise UserError(f"{WHERE}.count: must be a whole number >= 1, got {self.count!r}")
+        sets = (self.sets,) if isinstance(self.sets, str) else tuple(self.sets)
+        if not all(isinstance(name, str) and name.strip() for name in sets):
+            raise UserError(f"{WHERE}.sets: must be a list of node set names, got {self.sets!r}")
+        object.__setattr__(self, "sets", tuple(name.strip().upper() for name in sets))
 
     @property
     def automatic(self) -> bool:
         """No hot spots given: they are found (:data:`DEFAULT_COUNT` or ``count``)."""
-        return not self.nodes and not self.elements and self.box is None
+        return not self.nodes and not self.elements and self.box is None and not self.sets
 
 
 @dataclass(frozen=True, eq=False)
@@ -138,6 +147,7 @@ def check_stress_spec(body: ElasticBody, spec: StressSpec) -> None:
     unknown = np.setdiff1d(np.asarray(spec.nodes, dtype=np.int64), body.node_ids)
     if unknown.size:
         raise UserError(f"{WHERE}.nodes: node {unknown[0]} is not in the model")
+    _check_sets(body, spec.sets)
     ids = body.mesh.element_ids
     unknown = np.setdiff1d(np.asarray(spec.elements, dtype=np.int64), ids)
     if unknown.size:
@@ -147,6 +157,24 @@ def check_stress_spec(body: ElasticBody, spec: StressSpec) -> None:
         if not np.all(low <= high):
             raise UserError(f"{WHERE}.box: the lower corner {low.tolist()} is not below "
                             f"the upper corner {high.tolist()}")  # fmt: skip
+
+
+def _check_sets(body: ElasticBody, names: tuple[str, ...]) -> None:
+    """Every named set is a node set of the body, and its nodes are nodes of the elements."""
+    for name in names:
+        members = body.node_sets.get(name)
+        if members is None:
+            names = list(body.node_sets)
+            listed = ", ".join(names[:5]) + (", ..." if len(names) > 5 else "")
+            known = f"known: {listed}" if names else "it has none"
+            raise UserError(f"{WHERE}.sets: {name} is not a node set of the model ({known})")
+        if not members.size:
+            raise UserError(f"{WHERE}.sets: set {name} holds no node of the model")
+        alone = missing_from(members, body.mesh.connectivity)
+        if alone.size:
+            raise UserError(
+                f"{WHERE}.sets: node {alone[0]} of set {name} is not a node of the mesh's elements"
+            )
 
 
 def hot_spot_operator(
@@ -177,6 +205,8 @@ def _given(body: ElasticBody, spec: StressSpec) -> tuple[np.ndarray | None, np.n
     mesh = body.mesh
     ids = body.mesh.element_ids
     nodes = np.asarray(spec.nodes, dtype=np.int64)
+    for name in spec.sets:
+        nodes = np.union1d(nodes, body.node_sets[name])
     elements = np.asarray(spec.elements, dtype=np.int64)
     if spec.box is not None:
         low, high = (np.asarray(corner, dtype=float) for corner in spec.box)
