@@ -422,6 +422,7 @@ def model_facts(body: ElasticBody, prepared: PreparedModel, modes: int) -> dict[
         },
         "dof_table": body.dofs.describe(),
         "has_coordinates": bool(body.has_coordinates),
+        "node_sets": {name: int(ids.size) for name, ids in body.node_sets.items()},
         "notes": [*body.notes, *prepared.notes],  # the reader's, then the preparation's
         "total_mass": body.total_mass(),
         "rigid_body_modes": rigid.count,

@@ -379,6 +379,10 @@ def _print_facts(facts: dict[str, Any], units: str) -> None:
         print("massless          none")
     coordinates = "" if facts["has_coordinates"] else " (no coordinates in the model files)"
     print(f"nodes             {facts['n_nodes']}{coordinates}")
+    sets = list(facts["node_sets"].items())
+    if sets:
+        listed = ", ".join(f"{name} ({count})" for name, count in sets[:8])
+        print(f"node sets         {len(sets)}: {listed}{', ...' if len(sets) > 8 else ''}")
     print(f"total mass        {facts['total_mass']:.6g} (model mass unit)")
     print(f"unit system       {units}")
     rigid = facts["rigid_body_modes"]
