@@ -51,7 +51,7 @@ function plot(history, components) {
   if (!(hi > lo)) hi = lo + 1;
   const x = (s) => L + (s - t0) / (t1 - t0) * (W - L - R), y = (v) => T + (hi - v) / (hi - lo) * (H - T - B);
   let svg = `<svg xmlns="http://www.w3.org/2000/svg" width="${W}" height="${H + 14 * lines.length}" font-size="10">`;
-  svg += `<text x="${L}" y="11">${history.check}: ${history.case}</text>`;
+  svg += `<text x="${L}" y="11">${history.check}: ${history.case}, ${components ? "σ components" : "σ_vM"} (model stress unit)</text>`;
   svg += `<rect x="${L}" y="${T}" width="${W - L - R}" height="${H - T - B}" fill="none" stroke="#999"/>`;
   for (const v of [lo, (lo + hi) / 2, hi]) svg += `<text x="${L - 4}" y="${y(v) + 3}" text-anchor="end">${fmt(v)}</text>`;
   for (const s of [t0, (t0 + t1) / 2, t1]) svg += `<text x="${x(s)}" y="${H - B + 12}" text-anchor="middle">${+s.toPrecision(3)}</text>`;
