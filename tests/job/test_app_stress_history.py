@@ -6,13 +6,12 @@ histories (a note, not an error)."""
 from __future__ import annotations
 
 import json
-import time
 from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from test_app import call, server  # noqa: F401 (the fixture)
+from test_app import call, run_to_the_end, server  # noqa: F401 (the fixture)
 
 from pymorembs import example
 from pymorembs.analysis import HISTORY_FILE, StressHistory, histories_from_arrays, history_arrays
@@ -97,13 +96,7 @@ def test_the_served_history_is_the_run_folders_and_the_summarys(server):  # noqa
     _, base = server
     status, reply = call(base, "/api/open", {"example": "blade", "options": {"elements": 4}})
     assert status == 200, reply
-    assert call(base, "/api/job", {"job": reply["job"] | JOB})[1]["error"] == ""
-    assert call(base, "/api/run", {})[0] == 200
-    deadline = time.time() + 300
-    while call(base, "/api/status")[1]["state"] == "running" and time.time() < deadline:
-        time.sleep(0.2)
-    status, done = call(base, "/api/status")
-    assert done["state"] == "done", done
+    done = run_to_the_end(base, reply["job"] | JOB, seconds=300)
     out = Path(done["out"])
     summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
     assert HISTORY_FILE in summary["files"]
