@@ -66,6 +66,18 @@ def call(
         return exc.code, json.loads(exc.read())
 
 
+def run_to_the_end(base: str, job: dict, seconds: float = 120.0) -> dict:
+    """Send ``job``, run it and wait for its end: the last status (asserted ``"done"``)."""
+    assert call(base, "/api/job", {"job": job})[1]["error"] == ""
+    assert call(base, "/api/run", {})[0] == 200
+    deadline = time.time() + seconds
+    while call(base, "/api/status")[1]["state"] == "running" and time.time() < deadline:
+        time.sleep(0.2)
+    done = call(base, "/api/status")[1]
+    assert done["state"] == "done", done
+    return done
+
+
 def wall_triangle(body: ElasticBody) -> int:
     """A surface triangle of the upper hole's wall (Ø 30 mm, 204 <= z <= 221 mm)."""
     corners = body.coordinates[np.searchsorted(body.node_ids, body.surface.triangles)]

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_app_stress_history import JOB
 
 from pymorembs import example, select_nodes
 from pymorembs.job.app import App, make_server
@@ -277,4 +278,58 @@ def test_the_export_boxes_are_the_job_parsers_and_keep_the_jobs_outputs(browser,
     page.check("[data-export='mtx']")
     page.wait_for_function("document.getElementById('toml').textContent.includes('\"mtx\"')")
     assert app.editor.draft["export"]["outputs"] == ["npz", "mtx", "sid", "vtu"]
+    assert errors == []
+
+
+#: In the page: a hot spot's marker that a click hits (the pick under its pixel is its own scene
+#: node), other than the hot spot shown first: its client coordinates and scene row, or null.
+FIND_MARKER = """() => {
+  const v = window.app.viewer, spots = window.app.hotSpots, r = v.canvas.getBoundingClientRect();
+  const m = v._matrices().pv, X = window.app.scene.positions, shown = spots.rows[0];
+  for (const row of spots.rows) {
+    if (row === shown) continue;
+    const [x, y, z] = X.slice(3 * row, 3 * row + 3), q = m[3] * x + m[7] * y + m[11] * z + m[15];
+    const cx = r.left + ((m[0] * x + m[4] * y + m[8] * z + m[12]) / q + 1) / 2 * r.width;
+    const cy = r.top + (1 - (m[1] * x + m[5] * y + m[9] * z + m[13]) / q) / 2 * r.height;
+    if (v.pickNode(cx, cy) === row) return { x: cx, y: cy, row };
+  }
+  return null;
+}"""
+
+
+@pytest.mark.slow
+def test_a_click_on_a_hot_spot_plots_its_stress_over_time(browser, served, tmp_path):
+    """Issue #29 item 2: after a run with ``[stress]`` and ``[time_domain]`` the hot spots are
+    marked; a click on one plots sigma_vM(t) of the full model and the reduced body."""
+    app, url = served
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    assert app.open({"example": "blade", "options": {"elements": 4}})["model"] is not None
+    app.edit(app.editor.draft | JOB)
+    page = browser.new_page(viewport={"width": 1500, "height": 1150})
+    errors: list[str] = []
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    page.goto(url)
+    page.wait_for_selector("body[data-ready='1']")
+    page.wait_for_function("window.app.viewer && window.app.viewer.frames > 0")
+    page.click("#run")
+    page.wait_for_selector("#stage[data-state='done']", timeout=600_000)
+    page.wait_for_selector("#stress-note[data-available='1']")
+    page.wait_for_selector("#stress-plot[data-point]")
+    first = page.get_attribute("#stress-plot", "data-point")
+    marker = page.evaluate(FIND_MARKER)
+    assert marker is not None, "no hot spot's marker is visible in the default view"
+    page.mouse.click(marker["x"], marker["y"])
+    page.wait_for_function(
+        "(p) => document.getElementById('stress-plot').dataset.point !== p", arg=first
+    )
+    shown = page.get_attribute("#stress-plot", "data-point")
+    spots = page.evaluate("window.app.hotSpots")
+    assert spots["rows"][spots["points"].index(shown)] == marker["row"]  # the clicked one's
+    bodies = page.eval_on_selector_all(
+        "#stress-plot polyline", "(els) => els.map((e) => e.dataset.body)"
+    )
+    assert bodies == ["full", "krylov", "full", "krylov"]  # step and harmonic
+    assert page.locator("#stress-table tr[data-body='krylov'] td.peak").count() == 2
+    page.screenshot(path=str(ARTIFACTS / "hot-spot-marked.png"))
+    page.locator("#stress-plot").screenshot(path=str(ARTIFACTS / "hot-spot-stress.png"))
     assert errors == []

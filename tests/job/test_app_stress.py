@@ -3,12 +3,11 @@
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
-from test_app import call, server  # noqa: F401 (the fixture)
+from test_app import call, run_to_the_end, server  # noqa: F401 (the fixture)
 
 from pymorembs import example
 from pymorembs.export import nodes_operator, von_mises_at
@@ -40,13 +39,7 @@ def test_the_shape_view_of_a_solid_body_gives_its_von_mises_stress(server):  # n
         "reduction": [{"name": "krylov", "method": "krylov", "expansion_points_hz": [0, 60],
                        "order": 8}],
     }  # fmt: skip
-    assert call(base, "/api/job", {"job": job})[1]["error"] == ""
-    assert call(base, "/api/run", {})[0] == 200
-    deadline = time.time() + 120
-    while call(base, "/api/status")[1]["state"] == "running" and time.time() < deadline:
-        time.sleep(0.2)
-    status, done = call(base, "/api/status")
-    assert done["state"] == "done", done
+    done = run_to_the_end(base, job)
     status, shape = call(base, "/api/shape?reduction=krylov&k=1")
     assert status == 200, shape
     with np.load(Path(done["out"]) / "krylov" / "reduced.npz") as data:

@@ -18,6 +18,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from conftest import blade_job
+from pymorembs.analysis import HISTORY_FILE, histories_from_arrays
 from pymorembs.analysis.time_domain import LoadCase, clamped_full_model
 from pymorembs.job.cli import main
 from pymorembs.job.run import prepare_and_validate, run_job
@@ -92,6 +93,12 @@ def test_time_domain_stress_histories_of_a_job(tmp_path):
     e = sp.block_diag([sp.identity(n), m], format="csc")
     a = sp.bmat([[None, sp.identity(n)], [-k, -d]], format="csc")
     left, right = spla.splu(sp.csc_matrix(e - h / 2 * a)), sp.csr_matrix(e + h / 2 * a)
+    assert HISTORY_FILE in data["files"]
+    with np.load(out / HISTORY_FILE) as arrays:  # the histories themselves, in the run folder
+        written = histories_from_arrays(arrays)
+        assert list(arrays["points"]) == entry["stress"]["points"]
+        assert np.allclose(arrays["coordinates"], operator.coordinates, rtol=0, atol=1e-12)
+    assert list(written) == ["time_domain"]
     for case in entry["cases"]:
         load = LoadCase(case["name"], case["kind"], np.array([-100.0] * 3), frequency_hz=10.0)
         z = np.zeros(2 * n)
@@ -101,6 +108,10 @@ def test_time_domain_stress_histories_of_a_job(tmp_path):
             z = left.solve(right @ z + h * np.concatenate([np.zeros(n), force]))
             vm.append(von_mises(operator(clamped.expand(z[:n, None])[:, 0])))
         vm = np.array(vm)  # (n_t, points)
+        bodies = written["time_domain"][case["name"]]
+        assert list(bodies) == ["full", "krylov"]
+        assert np.allclose(bodies["full"].times, h * np.arange(n_steps + 1), rtol=0, atol=1e-12)
+        assert np.allclose(bodies["full"].von_mises, vm, rtol=0, atol=1e-6 * vm.max())
         spots = case["stress_hot_spots"]
         assert len(spots) == operator.n_points
         near = 1e-6 * vm.max()  # round-off of two solvers on a stiff clamped-clamped model
@@ -112,6 +123,8 @@ def test_time_domain_stress_histories_of_a_job(tmp_path):
         assert stress["reference_peak_von_mises"] == pytest.approx(vm.max(), abs=near)
         assert 0 < stress["max_rel_deviation"] < 0.2  # measured 0.06 (step): 12 columns
         assert stress["worst_point"] in entry["stress"]["points"]
+        peaks = bodies["krylov"].von_mises.max(axis=0)
+        assert [spot["peak_von_mises"] for spot in stress["hot_spots"]] == list(peaks)
         # each reduction's own entry holds the same row
         reduction = data["reductions"][0]
         assert reduction["time_domain"][case["name"]]["stress"] == stress
@@ -159,5 +172,10 @@ def test_large_motion_stress_histories_of_a_job(tmp_path):
     assert 0 < row["stress"]["max_rel_deviation"] < 0.01
     assert data["reductions"][0]["large_motion"]["spin-up"]["stress"] == row["stress"]
     assert "large_motion_stress.png" in data["files"]
+    with np.load(out / HISTORY_FILE) as arrays:  # the histories behind the figures
+        (bodies,) = histories_from_arrays(arrays)["large_motion"].values()
+    assert list(bodies) == ["reference", "krylov"]
+    peaks = bodies["reference"].von_mises.max(axis=0)
+    assert [spot["peak_von_mises"] for spot in case["stress_hot_spots"]] == list(peaks)
     assert (out / "large_motion_stress.png").stat().st_size > 10_000
     assert "stress: max rel. deviation" in (out / "report.html").read_text()

@@ -11,7 +11,8 @@ the modules behind them are not.
 * the (mass-weighted) modal assurance criterion between two bases: :func:`mac`;
 * time responses (paper section 5.1): :class:`LoadCase`, :func:`simulate`, the clamped full
   and reduced systems, :func:`compare`; stress histories at hot spots (:class:`StressHistory`,
-  :func:`compare_stresses`, :func:`compare_histories`);
+  :func:`compare_stresses`, :func:`compare_histories`; the run folder's file of them,
+  :data:`HISTORY_FILE`: :func:`history_arrays`, :func:`histories_from_arrays`);
 * an exported body in Exudyn (:mod:`~pymorembs.analysis.exudyn_model`):
   :func:`build_exudyn_model`, :func:`simulate_exudyn`;
 * large motions in Exudyn: :class:`LargeMotionSettings`, :func:`large_motion_checks` and its
@@ -36,11 +37,14 @@ from pymorembs.analysis.reference import (
 )
 from pymorembs.analysis.spectrum import model_facts
 from pymorembs.analysis.stress_history import (
+    HISTORY_FILE,
     STRESS_COVERS,
     HotSpotStress,
     StressComparison,
     StressHistory,
     compare_histories,
+    histories_from_arrays,
+    history_arrays,
     hot_spot_entries,
     hot_spot_labels,
     stress_history,
@@ -62,6 +66,7 @@ from pymorembs.frequencies import frequency_grid
 
 __all__ = [
     "DEFAULT_CHECKS",
+    "HISTORY_FILE",
     "LARGE_MOTION_CASES",
     "REFERENCE_KINDS",
     "STRESS_COVERS",
@@ -84,6 +89,8 @@ __all__ = [
     "error_blocks",
     "frequency_grid",
     "full_stress_rows",
+    "histories_from_arrays",
+    "history_arrays",
     "hot_spot_entries",
     "hot_spot_labels",
     "large_motion_checks",

@@ -17,11 +17,14 @@ A candidate history is compared with a reference (:func:`compare_histories`) by 
 deviation over time and the six components, ``max |sigma_cand - sigma_ref|``, relative to the
 reference's peak von Mises stress: over all hot spots relative to the peak over all hot spots,
 and per hot spot relative to that point's own peak.
+
+The histories themselves go into a run's folder as :data:`HISTORY_FILE` (a ``.npz`` archive of
+plain arrays, :func:`history_arrays`; read back by :func:`histories_from_arrays`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Any
@@ -32,11 +35,14 @@ from pymorembs.errors import UserError
 from pymorembs.stress import COMPONENTS, StressOperator, von_mises
 
 __all__ = [
+    "HISTORY_FILE",
     "STRESS_COVERS",
     "HotSpotStress",
     "StressComparison",
     "StressHistory",
     "compare_histories",
+    "histories_from_arrays",
+    "history_arrays",
     "hot_spot_entries",
     "hot_spot_labels",
     "stress_history",
@@ -51,6 +57,10 @@ STRESS_COVERS = (
     "range: max - min over time of the von Mises stress and of the absolute maximum principal "
     "stress (the principal stress of largest magnitude, signed)"
 )
+#: The file of a run's stress histories at the hot spots (:func:`history_arrays`).
+HISTORY_FILE = "stress_history.npz"
+#: Stress histories by check (``time_domain``, ``large_motion``), load case or motion and body.
+CheckHistories = Mapping[str, Mapping[str, Mapping[str, "StressHistory"]]]
 #: Index pairs (i, j) of the symmetric tensor of each component of :data:`COMPONENTS`.
 TENSOR_INDEX = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
 
@@ -281,3 +291,59 @@ def stress_history(
     points : sequence of str
     """
     return StressHistory(np.asarray(times), np.asarray(coordinates) @ stress_modes.T, tuple(points))
+
+
+def history_arrays(checks: CheckHistories, coordinates: np.ndarray) -> dict[str, np.ndarray]:
+    """The members of :data:`HISTORY_FILE`: plain arrays (no pickles), keys below.
+
+    ``points`` (n_p,) the hot spots' labels; ``coordinates`` (n_p, 3) their positions (model
+    length unit); ``components`` (6,) ``xx yy zz xy xz yz``; then per check and per load case
+    or motion ``<check>/<case>/``: ``times`` (n_t,) s, ``bodies`` (n_b,) the bodies' names, and
+    per body ``k`` (its index in ``bodies``) ``<k>/stress`` (n_t, n_p, 6) and
+    ``<k>/von_mises`` (n_t, n_p), model stress unit.
+
+    Parameters
+    ----------
+    checks : dict of check -> (dict of case -> (dict of body name -> StressHistory))
+        Every history at the same hot spots; within a case on the same times.
+    coordinates : ndarray, shape (n_p, 3)
+    """
+    points: tuple[str, ...] | None = None
+    arrays: dict[str, np.ndarray] = {}
+    for check, cases in checks.items():
+        for case, bodies in cases.items():
+            prefix = f"{check}/{case}"
+            arrays[f"{prefix}/bodies"] = np.array(list(bodies), dtype=str)
+            for k, history in enumerate(bodies.values()):
+                points = history.points if points is None else points
+                if history.points != points:
+                    raise UserError("the stress histories to write are at different hot spots")
+                arrays.setdefault(f"{prefix}/times", history.times)
+                arrays[f"{prefix}/{k}/stress"] = history.components
+                arrays[f"{prefix}/{k}/von_mises"] = history.von_mises
+    return {
+        "points": np.array(points or (), dtype=str),
+        "coordinates": np.asarray(coordinates, dtype=float).reshape(-1, 3),
+        "components": np.array(COMPONENTS, dtype=str),
+        **arrays,
+    }
+
+
+def histories_from_arrays(arrays: Mapping[str, np.ndarray]) -> dict[str, dict[str, dict]]:
+    """The histories of :func:`history_arrays`' members (e.g. an opened :data:`HISTORY_FILE`):
+    by check, case and body name a :class:`StressHistory`."""
+    points = tuple(str(p) for p in arrays["points"])
+    checks: dict[str, dict[str, dict]] = {}
+    for key in arrays:
+        if not key.endswith("/bodies"):
+            continue
+        prefix = key.removesuffix("/bodies")
+        check, case = prefix.split("/", 1)
+        times = np.asarray(arrays[f"{prefix}/times"])
+        checks.setdefault(check, {})[case] = {
+            str(name): StressHistory(
+                times, np.asarray(arrays[f"{prefix}/{k}/stress"]).reshape(times.size, -1), points
+            )
+            for k, name in enumerate(arrays[key])
+        }
+    return checks

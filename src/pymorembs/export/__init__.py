@@ -21,6 +21,7 @@ The package writes files and runs nothing: an exported Exudyn body in an Exudyn 
 A public subpackage (``docs/api.md``, "The public surface"): the names below are its interface.
 """
 
+from pymorembs.export.deterministic import write_npz
 from pymorembs.export.exudyn_body import exudyn_arrays, write_exudyn_body
 from pymorembs.export.invariants import BodyInvariants
 from pymorembs.export.neweul import write_neweul
@@ -71,6 +72,7 @@ __all__ = [
     "von_mises_at",
     "write_exudyn_body",
     "write_neweul",
+    "write_npz",
     "write_outputs",
     "write_sid",
     "write_stress_recovery",

@@ -43,17 +43,25 @@ from pymorembs import (
     select_nodes,
 )
 from pymorembs.analysis import (
+    HISTORY_FILE,
     ReferenceResponse,
     choose_kind,
     clamped_full_system,
     error_blocks,
     frequency_grid,
+    history_arrays,
     large_motion_checks,
     reference_response,
     relative_error,
     transfer_function,
 )
-from pymorembs.export import BODY_OUTPUTS, MATRIX_OUTPUTS, stress_modes_note, write_outputs
+from pymorembs.export import (
+    BODY_OUTPUTS,
+    MATRIX_OUTPUTS,
+    stress_modes_note,
+    write_npz,
+    write_outputs,
+)
 from pymorembs.io import atomic_path, check_output_folder, model_files, read_body, write_text
 from pymorembs.job.schema import Job, ModelSpec, ReductionSpec
 from pymorembs.job.summary import (
@@ -654,6 +662,8 @@ def _run_in(
         overview += [figure[0].name for figure in drawn]
         figures += drawn
         entries = _attach_rows(entries, key, result)
+    if (staging / HISTORY_FILE).exists():
+        overview.append(HISTORY_FILE)
     if "report" in job.export.outputs:
         overview.append("report.html")
     timings["total_s"] = time.perf_counter() - clock
@@ -886,15 +896,18 @@ def _checks_in_time(
     """The stages of ``[time_domain]`` (full and reduced models in time) and ``[large_motion]``
     (the bodies in Exudyn) the job asks for: by summary key, the check's entry and its figures
     (file, caption). With ``stress`` (the hot spots on the dofs of the job's body) both give
-    the stress histories there, each with a figure of them."""
-    done = {}
+    the stress histories there, each with a figure of them, and the histories themselves go
+    into ``staging`` as :data:`~pymorembs.analysis.HISTORY_FILE`."""
+    done: dict[str, Any] = {}
+    histories: dict[str, dict[str, dict[str, Any]]] = {}
     if job.time_domain is not None:
         stage("time domain", "time domain", line=False)  # time_domain_checks says more
         tick = time.perf_counter()
         figure, stress_figure = staging / "time.png", staging / "time_stress.png"
+        histories["time_domain"] = {}
         result = time_domain_checks(
             job.time_domain, body, job.frame, prepared, models, nodes, figure, say,
-            stress, stress_figure,
+            stress, stress_figure, histories["time_domain"],
         )  # fmt: skip
         timings["time_domain_s"] = time.perf_counter() - tick
         drawn = [(figure, "Time responses (paper Fig. 12)")]
@@ -918,10 +931,17 @@ def _checks_in_time(
         if stress is not None:
             stress_figure = staging / "large_motion_stress.png"
             plot_large_motion_stresses(checks.runs, stress_figure, order)
+            histories["large_motion"] = {
+                motion: {"reference": reference["stresses"]}
+                | {name: run["stresses"] for name, run in runs.items()}
+                for motion, (reference, runs) in checks.runs.items()
+            }
             drawn.append((stress_figure, "von Mises stress at the worst hot spot in the large "
                           "motions: each body against the modal reference of order "
                           f"{order}"))  # fmt: skip
         done["large_motion"] = result, drawn
+    if stress is not None and any(histories.values()):
+        write_npz(staging / HISTORY_FILE, history_arrays(histories, stress.coordinates))
     return done
 
 

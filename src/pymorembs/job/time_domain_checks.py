@@ -32,6 +32,7 @@ import numpy as np
 
 from pymorembs import ElasticBody, Frame, LoadCase, PreparedModel, ReducedModel, TimeResponse
 from pymorembs.analysis import (
+    StressHistory,
     build_exudyn_model,
     clamped_full_model,
     clamped_reduced_system,
@@ -76,6 +77,7 @@ def time_domain_checks(
     say: Callable[[str], None],
     stress: StressOperator | None = None,
     stress_figure: Path | None = None,
+    histories: dict[str, dict[str, StressHistory]] | None = None,
 ) -> dict[str, Any]:
     """Run the checks, plot Fig. 12 into ``figure`` and return the summary entry.
 
@@ -100,6 +102,9 @@ def time_domain_checks(
         The hot spots on the dofs of ``body``: the stress histories are recorded and compared.
     stress_figure : Path, optional
         PNG file of the von Mises stress at the worst hot spot (with ``stress``).
+    histories : dict, optional
+        Filled (with ``stress``) with the stress histories by load case and body: the full
+        model's under ``"full"``, each reduced body's under its reduction's name.
     """
     rho_inf = DEFAULT_RHO_INF if spec.rho_inf is None else spec.rho_inf
     cases = load_cases(spec)
@@ -115,6 +120,11 @@ def time_domain_checks(
     rows_full = None if stress is None else full_stress_rows(full_model, stress.matrix)
     full = simulate(full_system, cases, spec.duration_s, spec.step_s, rho_inf, rows_full, points)
     responses: dict[str, TimeResponse] = {f"full FE model ({full.order} dofs)": full}
+    recorded = (
+        {case.name: {"full": full.stresses[case.name]} for case in cases}
+        if stress is not None
+        else {}
+    )
     rows: dict[str, dict[str, dict[str, Any]]] = {case.name: {} for case in cases}
     skipped = []
     for name, model in models.items():
@@ -147,6 +157,7 @@ def time_domain_checks(
             }
             if stress is not None:
                 rows[case.name][name]["stress"] = stresses[case.name].to_json()
+                recorded[case.name][name] = reduced.stresses[case.name]
         if spec.exudyn:
             say(f"time domain: reduction '{name}' in Exudyn")
             exudyn = _exudyn_runs(spec, frame, prepared, model, name, nodes, cases, rho_inf)
@@ -169,6 +180,8 @@ def time_domain_checks(
         figure,
         title=f"Displacement of node {spec.load_node}, body clamped at node {spec.clamp_node}",
     )
+    if histories is not None and stress is not None:
+        histories.update(recorded)
     if stress is not None and stress_figure is not None:
         plot_stress_histories(
             {label: r.stresses for label, r in responses.items() if r.stresses},

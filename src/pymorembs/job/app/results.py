@@ -5,7 +5,9 @@
 and curves of every reduction, a shape function on the opened model's scene (with its von Mises
 stress at the scene's nodes for a body with solid elements), the mass-weighted
 MAC between two bases and the files written. The bases and the run body's mass matrix are read
-and built once per run.
+and built once per run. With hot spots and time checks, ``stress_history.npz``
+(:data:`~pymorembs.analysis.HISTORY_FILE`): the hot spots on the scene and the stress history at
+one of them, every body of every time check.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from pymorembs.analysis import HISTORY_FILE, StressHistory, histories_from_arrays
 from pymorembs.analysis import mac as modal_assurance
 from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
@@ -34,6 +37,11 @@ RESULT_KEYS = (
 )  # fmt: skip
 #: The arrays of ``reduced.npz`` the shape view and the MAC read.
 BASIS_KEYS = ("V", "dof_nodes", "dof_directions", "eigenfrequencies_hz")
+#: What the page says of a run without stress histories (not an error).
+NO_HISTORY = (
+    "no stress history in this run: it needs hot spots ([stress]) and a time check "
+    "([time_domain] or [large_motion])"
+)
 
 
 class RunResults:
@@ -46,6 +54,8 @@ class RunResults:
         self._body: tuple[str, ElasticBody] | None = None  # (run folder, its body)
         # (run folder, the nodal stress operator on the scene's nodes; None without solids)
         self._stress: tuple[str, StressOperator | None] | None = None
+        # (run folder, its stress histories by check, case and body, the hot spots' positions)
+        self._histories: tuple[str, dict[str, dict[str, dict]], np.ndarray] | None = None
 
     def _summary(self) -> tuple[Run, JobSummary]:
         run = self.runs.finished()
@@ -174,6 +184,90 @@ class RunResults:
         self._body = (str(run.out), body)
         return body
 
+    def _stress_histories(self) -> tuple[dict[str, dict[str, dict]], np.ndarray] | None:
+        """The last run's stress histories (by check, case and body) and the hot spots'
+        positions (n_p, 3), read once per run; None when the run wrote none."""
+        run, _ = self._summary()
+        if self._histories is None or self._histories[0] != str(run.out):
+            path = run.out / HISTORY_FILE
+            if not path.is_file():
+                return None
+            with np.load(path) as data:
+                arrays = {key: data[key] for key in data.files}
+            self._histories = (str(run.out), histories_from_arrays(arrays), arrays["coordinates"])
+        return self._histories[1], self._histories[2]
+
+    def hot_spots(self) -> dict[str, Any]:
+        """The hot spots of the last run's stress histories: ``points`` (labels),
+        ``positions`` (model length unit), ``rows`` (the nearest scene node of each, for a
+        marker) and ``checks`` (check -> its cases); ``available`` False and a ``note`` when
+        the run wrote no histories."""
+        found = self._stress_histories()
+        if found is None:
+            return {"available": False, "note": NO_HISTORY, "points": [], "rows": []}
+        checks, positions = found
+        return {
+            "available": True,
+            "note": "",
+            "points": list(_points(checks)),
+            "positions": positions.tolist(),
+            "rows": self._nearest_scene_rows(positions).tolist(),
+            "checks": {check: list(cases) for check, cases in checks.items()},
+        }
+
+    def stress_history(
+        self, point: str | None = None, node: int | None = None, components: bool = False
+    ) -> dict[str, Any]:
+        """The stress history at one hot spot: ``point`` (its label) or the hot spot nearest
+        to the scene's node ``node`` (its row). Per check and case the times (s) and per body
+        its von Mises stress over time with peak and range (model stress unit), and with
+        ``components`` the six components (times x 6, ``xx yy zz xy xz yz``); without
+        histories ``available`` False and a ``note``."""
+        found = self._stress_histories()
+        if found is None:
+            return {"available": False, "note": NO_HISTORY}
+        checks, positions = found
+        points = _points(checks)
+        if point is not None:
+            if point not in points:
+                raise UserError(f"no hot spot {point!r} in the last run ({len(points)} points)")
+            k = points.index(point)
+        elif node is not None:
+            ids = self.model.scene_ids
+            if not 0 <= node < ids.size:
+                raise UserError(f"no node {node} in the view (it has {ids.size})")
+            at = self._scene_positions()[node]
+            k = int(np.argmin(np.linalg.norm(positions - at, axis=1)))
+        else:
+            raise UserError("stress history: give a hot spot (point=label) or a node (node=row)")
+        return {
+            "available": True,
+            "point": points[k],
+            "position": positions[k].tolist(),
+            "histories": [
+                {
+                    "check": check,
+                    "case": case,
+                    "times": next(iter(bodies.values())).times.tolist(),
+                    "bodies": [_body_history(name, h, k, components) for name, h in bodies.items()],
+                }
+                for check, cases in checks.items()
+                for case, bodies in cases.items()
+            ],
+        }
+
+    def _scene_positions(self) -> np.ndarray:
+        """The positions of the scene's nodes (n, 3), model length unit."""
+        body = self.model.opened()
+        return body.coordinates[body.node_rows(self.model.scene_ids)]
+
+    def _nearest_scene_rows(self, positions: np.ndarray) -> np.ndarray:
+        """The scene node nearest to each of ``positions`` (n_p, 3): its row."""
+        scene = self._scene_positions()
+        if scene.shape[0] == 0:
+            return np.zeros(0, dtype=np.int64)
+        return np.array([int(np.argmin(np.linalg.norm(scene - p, axis=1))) for p in positions])
+
     def file(self, name: str) -> Path:
         """A file of the last finished run's output folder (never outside it)."""
         run = self.runs.finished()
@@ -187,3 +281,28 @@ def _same_dofs(body: ElasticBody, nodes: np.ndarray, directions: np.ndarray) -> 
     return np.array_equal(body.dofs.nodes, nodes) and np.array_equal(
         body.dofs.directions, directions
     )
+
+
+def _points(checks: dict[str, dict[str, dict]]) -> tuple[str, ...]:
+    """The hot spots' labels of the histories (every history has the same)."""
+    for cases in checks.values():
+        for bodies in cases.values():
+            for history in bodies.values():
+                return history.points
+    return ()
+
+
+def _body_history(name: str, history: StressHistory, k: int, components: bool) -> dict[str, Any]:
+    """One body's history at hot spot ``k``: von Mises over time, its peak and range (as the
+    summary's entries, :meth:`StressHistory.hot_spots`) and the components if asked for."""
+    spot = history.hot_spots()[k]
+    entry = {
+        "name": name,
+        "von_mises": history.von_mises[:, k].tolist(),
+        "peak_von_mises": spot.peak_von_mises,
+        "range_von_mises": spot.range_von_mises,
+        "range_abs_max_principal": spot.range_abs_max_principal,
+    }
+    if components:
+        entry["stress"] = history.components[:, k, :].tolist()
+    return entry

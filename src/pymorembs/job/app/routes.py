@@ -99,6 +99,17 @@ def _run_file(app: App, request: Request) -> FileReply:
         raise NotFound(str(exc)) from None
 
 
+def stress_history(app: App, request: Request) -> dict[str, Any]:
+    """The history at the hot spot of ``point`` or nearest to the scene node ``node``
+    (:meth:`~pymorembs.job.app.results.RunResults.stress_history`)."""
+    node = request.query.get("node")
+    return app.results.stress_history(
+        request.query.get("point"),
+        None if node is None else int(node),
+        request.query.get("components") == "1",
+    )
+
+
 def methods() -> dict[str, Any]:
     """Every method's options as the page's forms show them (:func:`option_fields`)."""
     return {name: option_fields(name) for name in METHODS}
@@ -154,6 +165,11 @@ ROUTES = (
     Route("GET", "/api/shape",
           lambda app, r: app.results.shape(r.query["reduction"], int(r.query.get("k", 0))),
           "``?reduction=name&k=3``: shape function k on the scene's nodes"),
+    Route("GET", "/api/hot_spots", lambda app, r: app.results.hot_spots(),
+          "the hot spots of the last run's stress histories and their nearest scene nodes"),
+    Route("GET", "/api/stress_history", lambda app, r: stress_history(app, r),
+          "``?point=label`` or ``?node=row`` (the nearest hot spot), ``&components=1``: the "
+          "stress at a hot spot over time, every body of every time check"),
     Route("GET", "/api/mac", lambda app, r: app.results.mac(r.query["a"], r.query["b"]),
           "``?a=name&b=name``: mass-weighted MAC between the two bases"),
     Route("POST", "/api/save", lambda app, r: app.editor.save(r.body),

@@ -3,7 +3,8 @@
 // parsing and formatting, and the busy/failure lines.
 export const $ = (id) => document.getElementById(id);
 export const app = { job: null, schema: null, methods: {}, exports: { kinds: [], default: [] }, scene: null,
-  viewer: null, picking: false, selection: null, results: null, shapeCache: {} };
+  viewer: null, picking: false, selection: null, results: null, shapeCache: {}, hotSpots: null,
+  selectionRows: [] };
 window.app = app;
 
 export async function api(path, body) {
@@ -25,6 +26,8 @@ export function el(tag, attrs, ...children) {
   return node;
 }
 export const numbers = (text) => String(text).split(/[\s,;]+/).filter((s) => s !== "").map(Number);
+// The curves' colours of the plots (one per reduction or body).
+export const COLORS = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#17becf"];
 export const fmt = (x) => (x === null || x === undefined) ? "–" : Number(x).toPrecision(4);
 export function busy(text) { $("busy").textContent = text || ""; }
 export function fail(error) { $("job-error").textContent = String(error.message || error); busy(""); }

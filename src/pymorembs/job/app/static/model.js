@@ -12,7 +12,7 @@ async function openModel(request) {
     const state = await api("/api/open", request);
     $("model-name").textContent = `${state.model.name}: ${state.model.n_dof.toLocaleString()} dofs, ${state.model.n_nodes.toLocaleString()} nodes`;
     show(state, false);
-    app.selection = null; $("selection").textContent = "Nothing selected."; $("add-interface").disabled = true;
+    app.selection = null; app.hotSpots = null; $("selection").textContent = "Nothing selected."; $("add-interface").disabled = true;
     app.scene = await api("/api/scene");
     startViewer();
     busy("");

@@ -1,6 +1,7 @@
 // The results of the last run: the table, the ε(f) plot, the eigenfrequencies, the MAC and
 // the shape functions in the 3D view.
-import { $, api, app, el, fmt } from "./api.js";
+import { $, api, app, COLORS, el, fmt } from "./api.js";
+import { loadHotSpots } from "./stress.js";
 
 // ---- results ----------------------------------------------------------------------------------
 export async function loadResults() {
@@ -27,8 +28,8 @@ export async function loadResults() {
   shapeReductionChanged(); drawMac();
   $("files").replaceChildren(...res.reductions.flatMap((r) => r.files).concat(["summary.json", "error.png"])
     .map((f) => el("li", {}, el("a", { href: `/files/${f}`, text: f }))));
+  loadHotSpots();
 }
-const COLORS = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#17becf"];
 function plotErrors(res) {
   const W = 400, H = 260, L = 50, B = 30, T = 10, R = 22;
   const curves = [];

@@ -25,8 +25,14 @@ export function decorate() {
 }
 export function highlight(rows) {
   if (!app.viewer) return;
+  app.selectionRows = rows || [];
   app.viewer.clearHighlight();
-  if (rows && rows.length) app.viewer.highlight(rows, [1.0, 0.45, 0.0]);
+  if (app.selectionRows.length) app.viewer.highlight(app.selectionRows, [1.0, 0.45, 0.0]);
+  // the last run's hot spots (stress.js), magenta
+  const spots = app.hotSpots && app.hotSpots.rows ? app.hotSpots.rows : [];
+  if (spots.length) app.viewer.highlight(spots, [0.85, 0.1, 0.75]);
   app.viewer.render();
 }
+// Redraw the marks (after the hot spots changed), keeping the selection.
+export function remark() { highlight(app.selectionRows); }
 $("reset-view").onclick = () => { if (app.viewer) { app.viewer.resetView(); app.viewer.render(); } };
