@@ -30,10 +30,12 @@ METHOD_FUNCTIONS: dict[str, Callable[..., Projection]] = {
 }
 
 #: The methods given the stress outputs as a block of their own, not appended to ``C``:
-#: SOAGA holds its estimator to them; Krylov takes its spaces from ``B`` and the ports' ``C``
-#: alone (an output Krylov space of six rows per hot spot is not worth its columns, and an
-#: oblique ``W`` from it is unstable: docs/jobs.md, "Stresses at hot spots").
-STRESS_BLOCK_AS_IS = frozenset({"soaga", "krylov"})
+#: SOAGA holds its estimator to them; the Gramians take the union of the dominant eigenspaces
+#: of the ports' and the stresses' Gramian sums, each held to the tolerance by itself
+#: (:func:`~pymorembs.reduction.gramian.block_union`); Krylov takes its spaces from ``B`` and
+#: the ports' ``C`` alone (an output Krylov space of six rows per hot spot is not worth its
+#: columns, and an oblique ``W`` from it is unstable: docs/jobs.md, "Stresses at hot spots").
+STRESS_BLOCK_AS_IS = frozenset({"soaga", "gramian", "krylov"})
 
 
 def method_projection(
@@ -46,7 +48,7 @@ def method_projection(
     system : SecondOrderSystem
         The prepared system (``PreparedModel.reduction_system``). When its stress outputs are
         targeted, the methods of :data:`STRESS_BLOCK_AS_IS` take them as they are; the others
-        see them joined to the outputs they aim at
+        (and the rational Krylov Gramians) see them joined to the outputs they aim at
         (:meth:`~pymorembs.system.SecondOrderSystem.targeted`).
     options : ReductionOptions
         A checked options object (:func:`~pymorembs.methods.method_options`), passed on as it
@@ -58,9 +60,9 @@ def method_projection(
     -------
     Projection
     """
-    if options.method not in STRESS_BLOCK_AS_IS:
-        system = system.targeted()
     if options.method == "gramian":
         if first_stage(options.first_stage, system.order) == "rational-krylov":
-            return rational_gramian_from_options(system, options, band_hz)
+            return rational_gramian_from_options(system.targeted(), options, band_hz)
+    if options.method not in STRESS_BLOCK_AS_IS:
+        system = system.targeted()
     return METHOD_FUNCTIONS[options.method](system, options, band_hz)
