@@ -48,7 +48,7 @@ def method_projection(
     system : SecondOrderSystem
         The prepared system (``PreparedModel.reduction_system``). When its stress outputs are
         targeted, the methods of :data:`STRESS_BLOCK_AS_IS` take them as they are; the others
-        (and the rational Krylov Gramians) see them joined to the outputs they aim at
+        see them joined to the outputs they aim at
         (:meth:`~pymorembs.system.SecondOrderSystem.targeted`).
     options : ReductionOptions
         A checked options object (:func:`~pymorembs.methods.method_options`), passed on as it
@@ -60,9 +60,9 @@ def method_projection(
     -------
     Projection
     """
-    if options.method == "gramian":
-        if first_stage(options.first_stage, system.order) == "rational-krylov":
-            return rational_gramian_from_options(system.targeted(), options, band_hz)
     if options.method not in STRESS_BLOCK_AS_IS:
         system = system.targeted()
+    if options.method == "gramian":
+        if first_stage(options.first_stage, system.order) == "rational-krylov":
+            return rational_gramian_from_options(system, options, band_hz)
     return METHOD_FUNCTIONS[options.method](system, options, band_hz)
