@@ -60,7 +60,7 @@ class SecondOrderSystem:
         stresses and displacements differ in unit and size.
     stress_targeted : bool
         Whether the reduction methods take the stress outputs as outputs (stress-targeted
-        reduction: two-sided Krylov, the Gramians' output weighting, SOAGA's estimator).
+        reduction: SOAGA's estimator, the Gramians' stress block, the POD's snapshots).
     """
 
     mass: sp.csr_matrix | np.ndarray
