@@ -60,7 +60,7 @@ class SecondOrderSystem:
         stresses and displacements differ in unit and size.
     stress_targeted : bool
         Whether the reduction methods take the stress outputs as outputs (stress-targeted
-        reduction: two-sided Krylov, the Gramians' output weighting, SOAGA's estimator).
+        reduction: SOAGA's estimator, the Gramians' stress block, the POD's snapshots).
     """
 
     mass: sp.csr_matrix | np.ndarray
@@ -174,10 +174,11 @@ class SecondOrderSystem:
         """The system a reduction method sees.
 
         Itself, unless ``stress_targeted`` is set: then the stress outputs, scaled by
-        ``stress_weight``, are appended to ``C`` as ordinary outputs, so that every method that
-        uses ``C`` (two-sided Krylov's output space, the Gramians' output weighting) aims at
-        them. ``C_s`` becomes dense here, ``8 r_s n`` bytes: the size of the ``r_s`` solves a
-        method does with ``C^T`` anyway.
+        ``stress_weight``, are appended to ``C`` as ordinary outputs, so that a method that
+        uses ``C`` (the POD's snapshots, the rational Krylov Gramians' space) aims at them;
+        SOAGA, the Gramians and Krylov take the stress block as it is
+        (:data:`~pymorembs.reduction.dispatch.STRESS_BLOCK_AS_IS`). ``C_s`` becomes dense here,
+        ``8 r_s n`` bytes: the size of the ``r_s`` solves a method does with ``C^T`` anyway.
         """
         if not self.stress_targeted or self.stress_matrix is None:
             return self

@@ -12,9 +12,9 @@ from box_meshes import box_mesh, solid_body
 
 import pymorembs as pm
 from pymorembs.analysis import frequency_grid, reference_response, transfer_function
-from pymorembs.body import ElementMesh
+from pymorembs.body import Damping, ElementMesh
 from pymorembs.elements.beam import BeamSection
-from pymorembs.errors import UserError
+from pymorembs.errors import NumericalError, UserError
 from pymorembs.methods import method_options
 from pymorembs.preparation import Frame, Port, StressSpec, prepare, with_stress_outputs
 from pymorembs.reduction import method_projection, reduced_model
@@ -25,8 +25,7 @@ YOUNG, POISSON, DENSITY = 210000.0, 0.3, 7.85e-9  # N/mm², t/mm³
 BAND = (0.0, 2000.0)  # Hz: the first bending pair at 434 Hz, the next at 2594 Hz
 
 
-@pytest.fixture(scope="module")
-def cantilever():
+def clamped_bar(damping: Damping | None = None):
     """A steel bar of 20 x 2 x 2 hex8 elements (567 dofs) clamped at x = 0, a force input at
     the middle of its free end (outputs: the same dofs). Lumped mass, equal per node."""
     points, connectivity = box_mesh("hex8", (20, 2, 2), (LENGTH, WIDTH, WIDTH))
@@ -35,9 +34,16 @@ def cantilever():
     clamped = body.node_ids[points[:, 0] == 0.0]
     fixed = np.flatnonzero(np.isin(body.dofs.nodes, clamped))
     body = replace(body, mass=body.mass * mass, fixed=fixed)
+    if damping is not None:
+        body = body.with_damping(damping)
     tip = int(body.node_ids[np.argmin(np.linalg.norm(points - [LENGTH, 10, 10], axis=1))])
     ports = [Port.parse(tip, "ux uy uz")]
     return prepare(body, Frame("none"), ports, ports)
+
+
+@pytest.fixture(scope="module")
+def cantilever():
+    return clamped_bar()
 
 
 @pytest.fixture(scope="module")
@@ -203,3 +209,97 @@ def test_saved_body_keeps_its_stress_outputs(found, tmp_path):
     assert sp.issparse(again.prepared.system.stress_matrix)
     first = reduced.error(band_hz=BAND, points=20).stress
     np.testing.assert_array_equal(again.error(band_hz=BAND, points=20).stress, first)
+
+
+def test_targeted_two_sided_krylov_keeps_the_ports_output_space(found):
+    """Two-sided Krylov (0 and 1000 Hz, order 12) with targeted stresses: ``W`` from the ports'
+    outputs alone, as untargeted. With ``W`` from the 60 stress rows too, ``W^T K V`` had
+    complex eigenvalues: a pole in the right half-plane (refused, NumericalError)."""
+    system = found.reduction_system
+    options = method_options(
+        "krylov", {"expansion_points_hz": [0.0, 1000.0], "order": 12, "two_sided": True}
+    )
+    plain = reduced_model(system, method_projection(system, options, BAND))
+    aimed = replace(system, stress_targeted=True)
+    targeted = reduced_model(system, method_projection(aimed, options, BAND))
+    np.testing.assert_allclose(targeted.eigenfrequencies_hz, plain.eigenfrequencies_hz, rtol=1e-9)
+    with pytest.raises(NumericalError, match="right half-plane"):
+        reduced_model(system, method_projection(aimed.targeted(), options, BAND))
+
+
+def krylov_union_errors(found, frequencies):
+    """eps_s (eq. 27, dense direct solves of the clamped bar) of two one-sided bases of the
+    same size: the union of the input and the stress-output Krylov spaces at 0 Hz
+    ``[K^-1 B, K^-1 C_s^T]`` (the second-order recurrence is ``K^-1 M`` at 0 Hz, undamped),
+    and the input Krylov space ``K^-1 B, (K^-1 M) K^-1 B, ...`` of as many columns (block
+    Arnoldi written here, Gram-Schmidt twice)."""
+    body, system = found.body, found.system
+    free = np.setdiff1d(np.arange(body.n_dof), body.fixed)
+    k = body.stiffness.toarray()[np.ix_(free, free)]
+    m = body.mass.toarray()[np.ix_(free, free)]
+    c = found.hot_spots.operator.matrix.toarray()[:, free]
+    b = system.input_matrix
+    u, s, _ = np.linalg.svd(np.linalg.solve(k, np.hstack([b, c.T])), full_matrices=False)
+    union = u[:, s > 1e-10 * s[0]]
+    block = np.linalg.qr(np.linalg.solve(k, b))[0]
+    columns = [block]
+    while sum(part.shape[1] for part in columns) < union.shape[1]:
+        block = np.linalg.solve(k, m @ block)
+        for _ in range(2):
+            for part in columns:
+                block = block - part @ (part.T @ block)
+        block = np.linalg.qr(block)[0]
+        columns.append(block)
+    inputs = np.hstack(columns)[:, : union.shape[1]]
+    errors = {}
+    for name, v in (("union", union), ("inputs", inputs)):
+        worst = 0.0
+        for f in frequencies:
+            a = k - (2 * np.pi * f) ** 2 * m
+            full = c @ np.linalg.solve(a, b)
+            reduced = c @ v @ np.linalg.solve(v.T @ a @ v, v.T @ b)
+            worst = max(worst, np.linalg.norm(full - reduced) / np.linalg.norm(full))
+        errors[name] = worst
+    return union.shape[1], errors
+
+
+def test_a_stress_output_krylov_space_is_not_worth_its_columns(found):
+    """Why Krylov keeps its spaces from ``B``: 60 stress rows against 3 inputs. The union of
+    the input and the stress-output spaces at 0 Hz (58 columns) matches two moments of every
+    output; the input space of 58 columns holds 19 blocks (K^-1 M)^j K^-1 B, and over 0-2000 Hz
+    (the first bending pair at 434 Hz) its eps_s is ~4e-11 where the union's is ~0.5."""
+    order, errors = krylov_union_errors(found, [0.0, 430.0, 1000.0, 1900.0])
+    print(f"order {order}: eps_s union {errors['union']:.1e}, inputs {errors['inputs']:.1e}")
+    assert order == 58 and errors["union"] > 0.1 and errors["inputs"] < 1e-8
+
+
+@pytest.fixture(scope="module")
+def damped():
+    """The bar with 2 % modal damping (the Gramians need damping) and its 10 hot spots."""
+    return with_stress_outputs(clamped_bar(Damping("modal", ratio=0.02)), StressSpec(count=10))
+
+
+@pytest.mark.parametrize("first_stage", ["none", "rational-krylov"])
+def test_targeted_gramian_keeps_the_ports_error_and_cuts_the_stress_error(damped, first_stage):
+    """Gramians at tolerance 1e-8 over 0-2000 Hz on the bar with 2 % modal damping, 10 hot
+    spots, dense or from the rational Krylov solver; errors against the full model (40
+    frequencies). Targeted, the basis is the union of the ports' and the stresses' dominant
+    eigenvectors: it holds the untargeted one, so the ports' error does not grow, and eps_s
+    falls from ~1e-2 to ~1e-6. (Untargeted, the rational solver failed on a system with stress
+    outputs before.)"""
+    system = damped.reduction_system
+    frequencies = frequency_grid(*BAND, 40)
+    reference = reference_response(system, frequencies, "full")
+    options = method_options("gramian", {"tolerance": 1e-8, "first_stage": first_stage})
+    figures = {}
+    for target in (False, True):
+        projection = method_projection(replace(system, stress_targeted=target), options, BAND)
+        response = transfer_function(reduced_model(system, projection).system, frequencies)
+        figures[target] = (projection.order, reference.errors(response).max(),
+                           reference.stress_errors(response).max())  # fmt: skip
+        print(f"target {target}: order {projection.order}, ports {figures[target][1]:.1e},"
+              f" stresses {figures[target][2]:.1e}")  # fmt: skip
+    (order, ports, stress), (aimed_order, aimed_ports, aimed_stress) = figures.values()
+    assert order == 7 and stress > 1e-3  # the port-only basis misses the hot spots
+    assert projection.parameters["orders"] == {"outputs": 7, "stresses": aimed_order - 7}
+    assert aimed_ports <= ports and aimed_stress <= 1e-5

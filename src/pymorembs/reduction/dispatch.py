@@ -29,6 +29,14 @@ METHOD_FUNCTIONS: dict[str, Callable[..., Projection]] = {
     "pod": pod_from_options,
 }
 
+#: The methods given the stress outputs as a block of their own, not appended to ``C``:
+#: SOAGA holds its estimator to them; the Gramians take the union of the dominant eigenspaces
+#: of the ports' and the stresses' Gramian sums, each held to the tolerance by itself
+#: (:func:`~pymorembs.reduction.gramian.block_union`); Krylov takes its spaces from ``B`` and
+#: the ports' ``C`` alone (an output Krylov space of six rows per hot spot is not worth its
+#: columns, and an oblique ``W`` from it is unstable: docs/jobs.md, "Stresses at hot spots").
+STRESS_BLOCK_AS_IS = frozenset({"soaga", "gramian", "krylov"})
+
 
 def method_projection(
     system: SecondOrderSystem, options: ReductionOptions, band_hz: tuple[float, float]
@@ -38,10 +46,10 @@ def method_projection(
     Parameters
     ----------
     system : SecondOrderSystem
-        The prepared system (``PreparedModel.reduction_system``). Its stress outputs join the
-        outputs the method aims at when they are targeted
-        (:meth:`~pymorembs.system.SecondOrderSystem.targeted`); SOAGA takes them as they are
-        and holds its estimator to them.
+        The prepared system (``PreparedModel.reduction_system``). When its stress outputs are
+        targeted, the methods of :data:`STRESS_BLOCK_AS_IS` take them as they are; the others
+        see them joined to the outputs they aim at
+        (:meth:`~pymorembs.system.SecondOrderSystem.targeted`).
     options : ReductionOptions
         A checked options object (:func:`~pymorembs.methods.method_options`), passed on as it
         is.
@@ -52,7 +60,7 @@ def method_projection(
     -------
     Projection
     """
-    if options.method != "soaga":
+    if options.method not in STRESS_BLOCK_AS_IS:
         system = system.targeted()
     if options.method == "gramian":
         if first_stage(options.first_stage, system.order) == "rational-krylov":

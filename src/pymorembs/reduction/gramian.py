@@ -120,6 +120,7 @@ from pymorembs.errors import NumericalError, UserError
 from pymorembs.linalg.factorization import Factorization
 from pymorembs.linalg.inertia_relief import InertiaRelief
 from pymorembs.linalg.mass_split import condensed_dense_eigh, mass_split
+from pymorembs.linalg.orthogonalization import OrthonormalBasis
 from pymorembs.linalg.products import extended_product
 from pymorembs.methods import GramianOptions, PodOptions
 from pymorembs.reduction.krylov import moment_matching
@@ -408,6 +409,17 @@ def band_gramians(
     return 0.5 * (p_p + p_p.T), 0.5 * (q_pv + q_pv.T), modal
 
 
+def stress_gramian(system: SecondOrderSystem, modal: ModalForm, w1: float, w2: float) -> np.ndarray:
+    """``Q_s^w``: the ``Q_pv^w`` of the stress outputs ``C_s`` of ``system`` (the dual system
+    with input ``C_s^T``) over ``w1 <= |w| <= w2`` (rad/s), in the modal form ``modal`` of
+    :func:`band_gramians`; shape (n, n), units ``(stress / u)^2 rad/s`` per unit ``q``."""
+    phi = modal.modes
+    stress_t = np.asarray(system.stress_matrix @ phi).T
+    (q_eta,) = _modal_gramians(modal, w1, w2, [stress_t])
+    q_s = phi @ q_eta @ phi.T
+    return 0.5 * (q_s + q_s.T)
+
+
 # --------------------------------------------------------------------------------------------
 # reduction
 
@@ -451,6 +463,57 @@ def select_order(
     if n > available:
         raise UserError(f"order {n} exceeds the {available} directions available")
     return n
+
+
+def block_union(
+    spectra: Sequence[tuple[np.ndarray, np.ndarray]],
+    order: int | None = None,
+    tolerance: float | None = None,
+) -> tuple[np.ndarray, list[int]]:
+    """An orthonormal basis of the dominant eigenvectors of several Gramian sums, each block
+    held to the tolerance by itself.
+
+    Every block (e.g. the ports' ``P_p + Q_pv`` and the stresses' ``P_p + Q_s``) keeps the
+    directions :func:`select_order` would keep for it alone with ``tolerance``; their union is
+    the basis. The eigenvectors enter in the order of their relative eigenvalue
+    ``sigma_i / sigma_1`` in their block (the dominant one of each block first), the ones
+    already in the span dropped (a residual below 1e-10), until the basis has ``order``
+    columns. So the basis contains the one each block would get alone with ``tolerance``, and
+    a block's weight has no say: each is judged by its own largest eigenvalue.
+
+    Parameters
+    ----------
+    spectra : sequence of (sigma, vectors)
+        Per block the eigenvalues (k,), descending, and eigenvectors (k, k) of its Gramian sum,
+        as :func:`_dominant` gives them.
+    order : int, optional
+        The largest size of the basis.
+    tolerance : float, optional
+        The error indicator of each block (:func:`error_indicator`); without it every direction
+        is a candidate and ``order`` decides.
+
+    Returns
+    -------
+    basis : ndarray, shape (k, n)
+        Orthonormal.
+    counts : list of int
+        The directions each block brought that were not in the span yet.
+    """
+    candidates = []
+    for block, (sigma, _) in enumerate(spectra):
+        kept = select_order(sigma, None, tolerance) if tolerance is not None else sigma.size
+        ratios = sigma[:kept] / sigma[0] if sigma.size and sigma[0] > 0 else np.zeros(kept)
+        candidates += [(-float(ratio), block, i) for i, ratio in enumerate(ratios)]
+    size = spectra[0][1].shape[0]
+    basis = OrthonormalBasis(size, 1e-10)
+    counts = [0] * len(spectra)
+    for _, block, i in sorted(candidates):
+        if order is not None and basis.size >= order:
+            break
+        counts[block] += basis.add(spectra[block][1][:, i]).shape[1]
+    if order is not None and tolerance is None and basis.size < order:
+        raise UserError(f"order {order} exceeds the {basis.size} directions available")
+    return basis.matrix, counts
 
 
 def _dominant(matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -571,6 +634,9 @@ def _dominant_projection(
     else:
         outer, working = None, system
     p_p, q_pv, modal = band_gramians(working, w1, w2, damping_ratio)
+    stress = None
+    if system.stress_targeted and working.stress_matrix is not None:
+        stress = stress_gramian(working, modal, w1, w2)
     return projection_from_gramians(
         working,
         outer,
@@ -584,6 +650,7 @@ def _dominant_projection(
             "two_step": outer is not None,
             "medium_order": None if outer is None else int(outer.shape[1]),
         },
+        stress=stress,
     )
 
 
@@ -679,11 +746,20 @@ def projection_from_gramians(
     kappa_points: int,
     method: str,
     parameters: dict,
+    stress: np.ndarray | None = None,
 ) -> Projection:
     """The projection on the dominant eigenvectors of ``P_p^w + Q_pv^w`` of ``working``.
 
     Shared by :func:`gramian_reduction` and the large-scale solver of
     :mod:`pymorembs.reduction.rational_gramian`.
+
+    With targeted stresses (``stress``, their Gramian ``Q_s^w``) the basis is the union of the
+    dominant eigenvectors of ``P_p^w + Q_pv^w`` and of ``P_p^w + Q_s^w``, each block held to
+    ``tolerance`` by its own indicator (:func:`block_union`; ``parameters``: ``orders`` the
+    directions each block brought, ``stress_sigma``). The basis contains the untargeted one,
+    so the neglected sum of the ports' block still bounds the ports' error (eq. 24): with a
+    single sum ``P_p + Q_pv + w^2 Q_s`` its eigenvectors would mix the blocks, the ports'
+    dominant directions would no longer be in the basis, and the ports' error would grow.
 
     Parameters
     ----------
@@ -705,10 +781,23 @@ def projection_from_gramians(
     w1, w2 = band_rad
     p_p, q_pv, modal = gramians
     sigma, vectors = _dominant(p_p + q_pv)
-    n = select_order(sigma, order, tolerance)
-    v_small = vectors[:, :n]
+    if stress is None:
+        n = select_order(sigma, order, tolerance)
+        v_small = vectors[:, :n]
+        kept = n
+    else:
+        stress_sigma, stress_vectors = _dominant(p_p + stress)
+        v_small, counts = block_union(
+            [(sigma, vectors), (stress_sigma, stress_vectors)], order, tolerance
+        )
+        n, kept = v_small.shape[1], counts[0]
+        parameters = {
+            **parameters,
+            "orders": {"outputs": counts[0], "stresses": counts[1]},
+            "stress_sigma": [float(s) for s in stress_sigma],
+        }
     v = v_small if outer is None else outer @ v_small
-    neglected = float(np.sum(sigma[n:]))
+    neglected = float(np.sum(sigma[kept:]))
     c = working.output_matrix
     h2 = float(np.sqrt(max(float(np.trace(c @ p_p @ c.T)), 0.0)))
     kappa = kappa_t = bound = None

@@ -112,6 +112,7 @@ from pymorembs.reduction.gramian import (
     band_in_rad_s,
     projection_from_gramians,
     resolvent,
+    stress_gramian,
 )
 from pymorembs.reduction.projection import Projection
 from pymorembs.reduction.soaga import BlockProducts
@@ -336,6 +337,8 @@ def _projected(
         output_matrix=system.output_matrix @ v,
         static_load=None,
         rigid_modes=None,  # V is elastic
+        stress_matrix=None,  # the Gramians of the outputs: targeted stresses are among them
+        stress_labels=(),
     )
 
 
@@ -745,7 +748,7 @@ def _rational_projection(
     if order is not None and order > min(max_dim, system.order):
         raise UserError(f"order {order} exceeds max_dim = {min(max_dim, system.order)}")
     result = galerkin_gramians(
-        system,
+        system.targeted(),  # the space holds the targeted stresses' Gramian too
         band_hz,
         tol=tol,
         max_dim=max_dim,
@@ -758,10 +761,23 @@ def _rational_projection(
     if order is not None and order > result.dimension:  # the Krylov space is exhausted
         extra["order_capped_by_krylov_dimension"] = result.dimension
         order = result.dimension
+    projected, gramians, stress = result.projected, (result.x_p, result.x_q, result.modal), None
+    if system.targeted() is not system:
+        # the blocks apart again: the ports' Gramians and the stresses' (unweighted) Q_s
+        rows = system.n_outputs
+        projected = replace(
+            projected,
+            output_matrix=projected.output_matrix[:rows],
+            output_labels=system.output_labels,
+            stress_matrix=projected.output_matrix[rows:] / system.stress_weight,
+            stress_labels=system.stress_labels,
+        )
+        gramians = band_gramians(projected, w1, w2, damping_ratio)
+        stress = stress_gramian(projected, gramians[2], w1, w2)
     return projection_from_gramians(
-        result.projected,
+        projected,
         result.basis,
-        (result.x_p, result.x_q, result.modal),
+        gramians,
         (w1, w2),
         order,
         tolerance,
@@ -783,4 +799,5 @@ def _rational_projection(
             "history": result.history,
             **extra,
         },
+        stress=stress,
     )
