@@ -303,3 +303,24 @@ def test_targeted_gramian_keeps_the_ports_error_and_cuts_the_stress_error(damped
     assert order == 7 and stress > 1e-3  # the port-only basis misses the hot spots
     assert projection.parameters["orders"] == {"outputs": 7, "stresses": aimed_order - 7}
     assert aimed_ports <= ports and aimed_stress <= 1e-5
+
+
+@pytest.mark.parametrize(
+    ("method", "options", "aims"),
+    [
+        ("soaga", {"tolerance": 1e-6}, True),
+        ("gramian", {"tolerance": 1e-6}, True),
+        ("pod", {"order": 6}, True),
+        ("modal", {"order": 6, "select": "best"}, True),
+        ("modal", {"order": 6}, False),
+        ("krylov", {"order": 6, "expansion_points_hz": [0.0]}, False),
+        ("craig-bampton", {"fixed_modes": 6}, False),
+    ],
+)
+def test_the_methods_that_use_targeted_stresses_are_named(method, options, aims):
+    """The summary's ``stress.targeted`` and the gate's remedy follow this: a Krylov body of a
+    targeted job is not called targeted (its spaces come from B and the ports' C)."""
+    from pymorembs.methods import method_options
+    from pymorembs.reduction import aims_at_stresses
+
+    assert aims_at_stresses(method_options(method, options)) is aims

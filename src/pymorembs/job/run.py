@@ -88,7 +88,13 @@ from pymorembs.preparation import (
     with_stress_outputs,
 )
 from pymorembs.progress import Progress as ProgressBar
-from pymorembs.reduction import Projection, explicit_step_s, first_stage, method_projection
+from pymorembs.reduction import (
+    Projection,
+    aims_at_stresses,
+    explicit_step_s,
+    first_stage,
+    method_projection,
+)
 from pymorembs.report import (
     plot_decay,
     plot_large_motion,
@@ -600,7 +606,7 @@ def _accuracy_message(job: Job, failed: list[ReductionSummary]) -> str:
             f"{accuracy.limit:.2g} ({where})"
         )
     its = "its" if len(failed) == 1 else "their"
-    aim = "aim at the stresses ([stress] target = true), " if _stresses_missed(job, failed) else ""
+    aim = _stress_remedy(job, failed)
     return (
         f"{job.path}: accuracy not met: {'; '.join(parts)}; {its} body files were not written "
         f"(summary.json and the error plots were): raise the order, choose another method, {aim}"
@@ -608,10 +614,19 @@ def _accuracy_message(job: Job, failed: list[ReductionSummary]) -> str:
     )
 
 
-def _stresses_missed(job: Job, failed: list[ReductionSummary]) -> bool:
-    """Whether a reduction missed its limit on the stresses, and they were not targeted."""
-    untargeted = job.stress is not None and not job.stress.target
-    return untargeted and any((e.accuracy.stress or 0.0) > e.accuracy.limit for e in failed)
+def _stress_remedy(job: Job, failed: list[ReductionSummary]) -> str:
+    """The remedy for reductions that missed their limit on untargeted stresses ('' if none):
+    target them, or, where the job targets them already, a method that uses them."""
+    missed = [
+        e
+        for e in failed
+        if (e.accuracy.stress or 0.0) > e.accuracy.limit and not (e.stress and e.stress.targeted)
+    ]
+    if not missed or job.stress is None:
+        return ""
+    if not job.stress.target:
+        return "aim at the stresses ([stress] target = true), "
+    return "aim at the stresses with SOAGA or the Gramians (which use [stress] target), "
 
 
 def _run_in(
@@ -1368,7 +1383,7 @@ def _write_one(
         files=[f"{spec.name}/{name}" for name in files],
         accuracy=accuracy,
         inertia_loads=inertia,
-        stress=_stress_errors(eps_stress, frequencies, projection, prepared),
+        stress=_stress_errors(eps_stress, frequencies, projection, prepared, spec),
     )
 
 
@@ -1377,15 +1392,18 @@ def _stress_errors(
     frequencies: np.ndarray,
     projection: Projection,
     prepared: PreparedModel,
+    spec: ReductionSpec,
 ) -> StressErrors | None:
-    """A reduction's ``stress`` entry: ε over the stress outputs, SOAGA's estimate of it."""
+    """A reduction's ``stress`` entry: ε over the stress outputs, SOAGA's estimate of it;
+    ``targeted`` only where the job aims at the stresses and the method uses them
+    (:func:`~pymorembs.reduction.aims_at_stresses`)."""
     if eps_stress is None:
         return None
     return StressErrors(
         max_rel_error=float(np.max(eps_stress)),
         static_rel_error=float(eps_stress[0]) if frequencies[0] == 0.0 else None,
         estimate=projection.parameters.get("stress_estimate"),
-        targeted=bool(prepared.system.stress_targeted),
+        targeted=bool(prepared.system.stress_targeted) and aims_at_stresses(spec.options),
     )
 
 

@@ -62,8 +62,10 @@ class StressSpec:
         Integration points of the elements, or nodes (extrapolated and averaged).
     target : bool
         Aim the reductions at the stress outputs too
-        (:attr:`~pymorembs.system.SecondOrderSystem.stress_targeted`): two-sided Krylov's output
-        space, the Gramians' output weighting, SOAGA's stopping estimate.
+        (:attr:`~pymorembs.system.SecondOrderSystem.stress_targeted`): SOAGA's stopping estimate,
+        the Gramians' own stress block, the POD's outputs, the best modes' eq. 26; Krylov, the
+        lowest modes and Craig-Bampton leave their basis as it is
+        (:func:`~pymorembs.reduction.aims_at_stresses`).
     """
 
     nodes: tuple[int, ...] = ()

@@ -11,7 +11,7 @@ and checks it (:class:`ReducedModel`); :func:`without_stiff_directions` and
 :func:`explicit_step_s` concern the highest frequencies of the reduced model.
 """
 
-from pymorembs.reduction.dispatch import method_projection
+from pymorembs.reduction.dispatch import aims_at_stresses, method_projection
 from pymorembs.reduction.gramian import first_stage, gramian_reduction, pod_reduction
 from pymorembs.reduction.krylov import krylov_reduction
 from pymorembs.reduction.modal import modal_reduction
@@ -29,6 +29,7 @@ from pymorembs.reduction.soaga import soaga_reduction
 __all__ = [
     "Projection",
     "ReducedModel",
+    "aims_at_stresses",
     "best_modes",
     "craig_bampton",
     "explicit_step_s",

@@ -38,6 +38,20 @@ METHOD_FUNCTIONS: dict[str, Callable[..., Projection]] = {
 STRESS_BLOCK_AS_IS = frozenset({"soaga", "gramian", "krylov"})
 
 
+def aims_at_stresses(options: ReductionOptions) -> bool:
+    """Whether the method of ``options`` shapes its basis by targeted stress outputs.
+
+    SOAGA (its stopping estimate), the Gramians (the stresses' own block), the POD (its
+    snapshots' outputs) and the modal method that selects by approximate Hankel singular values
+    (eq. 26, which weigh ``C``) do; Krylov (its spaces from ``B`` and the ports' ``C``), the
+    lowest modes and Craig-Bampton do not: a job's ``[stress] target`` leaves their basis as it
+    is, and the summary says so.
+    """
+    if options.method in ("soaga", "gramian", "pod"):
+        return True
+    return options.method == "modal" and getattr(options, "select", "lowest") == "best"
+
+
 def method_projection(
     system: SecondOrderSystem, options: ReductionOptions, band_hz: tuple[float, float]
 ) -> Projection:
