@@ -277,6 +277,24 @@ def test_the_report_lists_the_largest_von_mises_of_the_first_shapes(blade):
     assert note["rows"] == [] and "beam2" in stress_modes_table(note)
 
 
+def test_the_report_view_colours_each_shape_by_its_von_mises(blade):
+    """Issue #29: in the report's 3D view a mode shows its von Mises field (``scalars`` per
+    scene node, by which viewer.js colours the surface), the operator's nodal values."""
+    from pymorembs.report.scene import reductions_scene
+
+    prepared = blade.prepared
+    scene = reductions_scene(prepared, {"k": blade.model}, max_shapes_each=3)
+    op = stress_operator(prepared.body, location="nodes")
+    rows = np.searchsorted(op.node_ids, scene["node_ids"])
+    assert len(scene["shapes"]) == 3
+    for j, shape in enumerate(scene["shapes"]):
+        values = mises((op.matrix @ blade.basis[:, j]).reshape(-1, 6))[rows]
+        np.testing.assert_allclose(shape["scalars"], values, rtol=1e-3)
+    beams = pm.prepare(build_example("rack-beams"), "tangent", node=2, inputs=[(1, "ux")])
+    bare = reductions_scene(beams, {"m": pm.reduce(beams, "modal", order=2).model})
+    assert bare["shapes"] and all("scalars" not in shape for shape in bare["shapes"])
+
+
 def test_an_exudyn_body_alone_builds_the_same_stress_rows(blade, written, tmp_path):
     """Written with the VTU the Exudyn rows are sliced from the whole mesh's nodal operator;
     alone they are assembled for the mesh nodes only: the same numbers."""

@@ -25,6 +25,7 @@ import scipy.sparse as sp
 from pymorembs.body import SCALAR, ElasticBody
 from pymorembs.errors import UserError
 from pymorembs.export.nodal import node_fields
+from pymorembs.export.stress_modes import nodes_operator, von_mises_at
 from pymorembs.preparation import Frame, PreparedModel, centre_of_gravity
 from pymorembs.preparation.interface import InterfaceSpec
 from pymorembs.reduction.projection import ReducedModel
@@ -206,7 +207,9 @@ def reductions_scene(
     dict
         The scene of :func:`body_scene`, with ``stress_modes``: the largest von Mises stress
         of each reduction's first shapes (:func:`~pymorembs.report.stress_table.
-        stress_mode_maxima`), which the report shows as a table.
+        stress_mode_maxima`), which the report shows as a table; for a body with solid
+        elements each shape also has ``scalars``, its nodal von Mises stress at the scene's
+        nodes (per unit modal coordinate), by which the viewer colours it.
     """
     body = prepared.body
     frame = prepared.frame
@@ -243,6 +246,12 @@ def reductions_scene(
     )
     scene["shapes_total"] = total
     scene["stress_modes"] = plain["stress_modes"]
+    operator = nodes_operator(body, np.asarray(scene["node_ids"]))
+    if operator is not None:  # a solid body: each shape coloured by its von Mises stress
+        basis = np.hstack(columns)[:, : len(scene["shapes"])]
+        mises = von_mises_at(operator, basis, np.asarray(scene["node_ids"]))
+        for k, shape in enumerate(scene["shapes"]):
+            shape["scalars"] = [float(f"{v:.4g}") for v in mises[:, k]]
     if len(names) < total:
         scene["notes"].append(
             f"{len(names)} of the {total} shape functions shown (at most "
