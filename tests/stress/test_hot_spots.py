@@ -71,6 +71,25 @@ def test_box_and_nodes_select_the_points_inside(cantilever):
     assert spots.node_ids.tolist() == [1, 2] and spots.location == "nodes"
 
 
+def test_a_box_finds_the_element_centroids_inside_whatever_the_node_order():
+    """rack-solid lists its node ids unsorted: the centroids are taken by id, not by position
+    (a search in the unsorted ids picked wrong nodes, or failed)."""
+    from pymorembs.examples import build_example
+    from pymorembs.preparation import hot_spot_operator
+
+    body = build_example("rack-solid", dofs=8000)
+    assert np.any(np.diff(body.node_ids) < 0)
+    where = dict(zip(body.node_ids.tolist(), body.coordinates, strict=True))
+    centroids = np.array([np.mean([where[n] for n in row], axis=0)
+                          for row in body.mesh.connectivity.tolist()])  # fmt: skip
+    low, high = centroids.min(axis=0), centroids.max(axis=0)
+    high[0] = low[0] + 0.2 * (high[0] - low[0])  # the first fifth along x
+    inside = np.all((centroids >= low) & (centroids <= high), axis=1)
+    assert 0 < inside.sum() < inside.size
+    spots = hot_spot_operator(body, StressSpec(box=(tuple(low), tuple(high))))
+    assert np.array_equal(np.unique(spots.element_ids), np.sort(body.mesh.element_ids[inside]))
+
+
 def test_found_hot_spots_are_the_highest_von_mises_points(found):
     """Independent: dense static solves, every integration point, von Mises written here."""
     body, system = found.body, found.system

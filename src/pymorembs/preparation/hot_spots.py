@@ -212,7 +212,7 @@ def _given(body: ElasticBody, spec: StressSpec) -> tuple[np.ndarray | None, np.n
     elements = np.asarray(spec.elements, dtype=np.int64)
     if spec.box is not None:
         low, high = (np.asarray(corner, dtype=float) for corner in spec.box)
-        index = np.searchsorted(body.node_ids, mesh.connectivity)
+        index = body.node_rows(mesh.connectivity)  # node ids need not be sorted
         if spec.location == "nodes":
             inside = np.all((body.coordinates >= low) & (body.coordinates <= high), axis=1)
             nodes = np.union1d(nodes, body.node_ids[inside])
