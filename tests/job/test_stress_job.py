@@ -50,6 +50,9 @@ def run(folder, stress: str, capsys) -> tuple[int, str, str]:
         ("target = 1", "[stress].target: must be true or false, got 1"),
         ("box = [[0, 0, 0]]", "[stress].box: must be [[x, y, z], [x, y, z]] (lower, upper)"),
         ("nodes = [1]\nhot = 3", "[stress]: unknown key 'hot'"),
+        ("nodes = []", "[stress].nodes: an empty list: give at least one, or leave the key out"),
+        ("box = [[0, 0, 0], [1, 1, 1]]\nsets = []", "[stress].sets: an empty list"),
+        ("box = [[5, 5, 5], [6, 6, 6]]", "[stress]: box: no element centroid lies inside"),
     ],
 )
 def test_bad_hot_spots_exit_2_with_one_line(tmp_path, capsys, stress, message):

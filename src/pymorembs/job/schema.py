@@ -747,6 +747,9 @@ def _stress(data: Any, path: Path) -> StressSpec | None:
     sets = table.get("sets", [])
     if not isinstance(sets, list) or not all(isinstance(v, str) and v.strip() for v in sets):
         raise table.error("sets", f"must be a list of node set names, got {sets!r}")
+    for key, value in (*ids.items(), ("sets", sets)):
+        if key in data and not value:  # an empty list would silently mean "find them"
+            raise table.error(key, "an empty list: give at least one, or leave the key out")
     box = table.get("box")
     if box is not None:
         if not isinstance(box, list) or len(box) != 2:
