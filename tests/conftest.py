@@ -137,6 +137,23 @@ def _one_blas_thread():
         yield
 
 
+@pytest.fixture(params=["superlu", "pardiso"])
+def each_solver(request, monkeypatch) -> str:
+    """Runs a test once with each sparse solver backend (``PYMOREMBS_SOLVER``).
+
+    Small matrices go to SuperLU under ``auto`` and large ones to PARDISO where it is installed,
+    so a test on a small model would never reach PARDISO, and one on a large model never
+    SuperLU, the fallback where MKL has no wheels. PARDISO's run is skipped where it is not
+    available.
+    """
+    from pymorembs.linalg.backends import available_backends
+
+    if request.param not in available_backends():
+        pytest.skip(f"{request.param} is not available here")
+    monkeypatch.setenv("PYMOREMBS_SOLVER", request.param)
+    return request.param
+
+
 def blade_job(**tables) -> dict:
     """A small job on the built-in blade (frame "none", one modal reduction) plus ``tables``."""
     return {

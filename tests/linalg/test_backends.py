@@ -219,3 +219,67 @@ def test_pardiso_family_shares_the_analysis_and_frees_its_slots(monkeypatch) -> 
     del factors, factor, again, family
     gc.collect()
     assert not handle.any()  # phase -1 with the last factor of the dropped family
+
+
+# --- without PARDISO: SuperLU and one note for large models -------------------------------------
+
+
+@pytest.fixture
+def without_pardiso(monkeypatch: pytest.MonkeyPatch) -> None:
+    """As where MKL is missing: PARDISO does not work, ``auto`` is chosen, no note written yet."""
+    monkeypatch.setattr(backends, "_pardiso_works", lambda: False)
+    monkeypatch.delenv("PYMOREMBS_SOLVER", raising=False)
+    backends._write_fast_solver_note.cache_clear()
+    yield
+    backends._write_fast_solver_note.cache_clear()
+
+
+@pytest.mark.usefixtures("without_pardiso")
+def test_large_model_on_superlu_gets_one_note(monkeypatch, capsys) -> None:
+    matrix = _random_symmetric("indefinite")
+    monkeypatch.setattr(backends, "AUTO_MIN_NNZ", 0)  # as a large model
+    monkeypatch.setattr(backends, "NOTE_MIN_NNZ", matrix.nnz)
+    monkeypatch.setattr(backends.platform, "system", lambda: "Linux")
+    monkeypatch.setattr(backends.platform, "machine", lambda: "x86_64")
+    assert available_backends() == ["superlu"] and default_backend() == "superlu"
+    for _ in range(3):  # three factorizations, one line
+        assert factorize(matrix, symmetric=True).backend == "superlu"
+    Factorization(matrix).solve(np.ones(N))
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("pymorembs: note: ")
+    assert "(MKL PARDISO) is not available" in err and "pip install 'pymorembs[fast]'" in err
+
+
+@pytest.mark.usefixtures("without_pardiso")
+def test_note_names_a_platform_without_mkl_wheels(monkeypatch, capsys) -> None:
+    monkeypatch.setattr(backends, "NOTE_MIN_NNZ", 0)
+    monkeypatch.setattr(backends.platform, "system", lambda: "Darwin")
+    monkeypatch.setattr(backends.platform, "machine", lambda: "arm64")
+    factorize(_random_symmetric("spd"), symmetric=True)
+    err = capsys.readouterr().err
+    assert "MKL publishes no wheels for Darwin arm64" in err and "pip install" not in err
+    monkeypatch.setenv("PYMOREMBS_SOLVER", "pardiso")
+    with pytest.raises(UserError, match=r"not available.*no wheels for Darwin arm64"):
+        default_backend()
+
+
+@pytest.mark.usefixtures("without_pardiso")
+def test_no_note_for_small_models_or_a_chosen_superlu(monkeypatch, capsys) -> None:
+    matrix = _random_symmetric("spd")
+    monkeypatch.setattr(backends, "NOTE_MIN_NNZ", matrix.nnz + 1)
+    factorize(matrix, symmetric=True)  # small
+    monkeypatch.setattr(backends, "NOTE_MIN_NNZ", 0)
+    monkeypatch.setenv("PYMOREMBS_SOLVER", "superlu")  # asked for
+    factorize(matrix, symmetric=True)
+    monkeypatch.delenv("PYMOREMBS_SOLVER")
+    factorize(matrix, symmetric=True, backend="superlu")  # asked for by the caller
+    assert capsys.readouterr().err == ""
+
+
+def test_no_note_with_pardiso(monkeypatch, capsys) -> None:
+    monkeypatch.setattr(backends, "_pardiso_works", lambda: True)
+    monkeypatch.setattr(backends, "NOTE_MIN_NNZ", 0)
+    monkeypatch.delenv("PYMOREMBS_SOLVER", raising=False)
+    backends._write_fast_solver_note.cache_clear()
+    factorize(_random_symmetric("spd"), symmetric=True)  # small: SuperLU, but PARDISO is there
+    assert capsys.readouterr().err == ""

@@ -67,6 +67,7 @@ def moments_of(system, s0, count):
         (Damping("rayleigh", alpha=2.0, beta=1e-5), [0.0, 15.0, 40.0], [2, 2, 3]),  # complex
     ],
 )
+@pytest.mark.usefixtures("each_solver")
 def test_krylov_matches_moments(damping, points, moments):
     system = system_of(damping)
     projection = krylov_reduction(system, points, moments=moments)
@@ -95,6 +96,7 @@ def test_krylov_matches_twice_the_moments_for_collocated_ports():
             assert np.linalg.norm(red[j] - full[j]) <= 1e-8 * np.linalg.norm(full[j])
 
 
+@pytest.mark.usefixtures("each_solver")
 def test_krylov_static_response_is_exact():
     system = system_of(Damping("rayleigh", alpha=1.0, beta=1e-6))
     model = reduced_model(system, krylov_reduction(system, [0.0, 20.0], order=12))

@@ -1,4 +1,4 @@
-"""Sparse direct solvers behind one small interface: SuperLU (always) and MKL PARDISO (optional).
+"""Sparse direct solvers behind one small interface: MKL PARDISO where installed, SuperLU always.
 
 ``factorize(matrix, symmetric)`` returns a :class:`SparseFactor` whose ``solve`` takes one
 right-hand side (n,) or a block (n, k) in one call. Two backends:
@@ -8,21 +8,24 @@ right-hand side (n,) or a block (n, k) in one call. Two backends:
     minimum degree ordering of ``A^T + A`` with diagonal pivoting (:data:`SUPERLU_OPTIONS`);
     complex matrices are factorized in complex arithmetic.
 ``"pardiso"``
-    Intel MKL PARDISO, installed with ``pip install pymorembs[fast]`` (``pypardiso``, which
-    brings ``mkl``). pypardiso's solver class handles real matrices only, so pymorembs uses it
-    just to locate and load ``mkl_rt`` and calls MKL's ``pardiso`` itself, with one handle
-    (``pt``, ``iparm``) per factor -- no shared global solver -- released by ``phase = -1`` when
-    the factor is garbage collected. Matrix types: real symmetric indefinite (``mtype = -2``,
-    Bunch-Kaufman LDL^T of the upper triangle) for real shifts, complex symmetric (``mtype = 6``)
-    for complex ones, real or complex nonsymmetric (11, 13) otherwise; METIS nested-dissection
-    ordering; zero-based CSR indices, so the arrays are passed without copies.
+    Intel MKL PARDISO, a dependency of pymorembs where MKL publishes wheels (x86-64 Linux and
+    Windows: ``pypardiso`` and ``mkl``; elsewhere SuperLU is used). pypardiso's solver class
+    handles real matrices only, so pymorembs uses it just to locate and load ``mkl_rt`` and
+    calls MKL's ``pardiso`` itself, with one handle (``pt``, ``iparm``) per factor -- no shared
+    global solver -- released by ``phase = -1`` when the factor is garbage collected. Matrix
+    types: real symmetric indefinite (``mtype = -2``, Bunch-Kaufman LDL^T of the upper triangle)
+    for real shifts, complex symmetric (``mtype = 6``) for complex ones, real or complex
+    nonsymmetric (11, 13) otherwise; METIS nested-dissection ordering; zero-based CSR indices,
+    so the arrays are passed without copies.
 
 Choice of the backend
 ---------------------
 ``PYMOREMBS_SOLVER`` = ``superlu`` | ``pardiso`` | ``auto`` (default ``auto``: PARDISO when it
 is installed and works and the matrix has at least :data:`AUTO_MIN_NNZ` nonzeros, else
-SuperLU). A PARDISO factorization that had to perturb pivots (the matrix is singular or nearly
-so) is replaced by SuperLU's, which either factorizes exactly or reports the singularity.
+SuperLU; without PARDISO, the first factorization of a matrix with at least
+:data:`NOTE_MIN_NNZ` nonzeros writes one line on stderr, :func:`fast_solver_note`). A PARDISO
+factorization that had to perturb pivots (the matrix is singular or nearly so) is replaced by
+SuperLU's, which either factorizes exactly or reports the singularity.
 
 All shifts ``K - omega^2 M + i omega D`` of a model share one sparsity pattern, so its analysis
 (METIS ordering and symbolic factorization) is done once: the symmetric factors of one pattern
@@ -52,6 +55,8 @@ from __future__ import annotations
 import ctypes
 import hashlib
 import os
+import platform
+import sys
 import threading
 import time
 import weakref
@@ -77,6 +82,13 @@ BACKENDS = ("superlu", "pardiso")
 #: factor 10-20 ms vs 2-3 ms, solve 0.8 vs 0.5 ms); the two are even at rack-solid n = 6,705
 #: (0.93 M nonzeros) and PARDISO wins from there on.
 AUTO_MIN_NNZ = 1_000_000
+#: Without PARDISO (``auto``), a matrix with this many stored nonzeros or more makes
+#: :func:`factorize` write :func:`fast_solver_note` on stderr, once per process: from there on
+#: SuperLU costs seconds per factorization where PARDISO needs a fraction of it
+#: (``bench/solvers.py``).
+NOTE_MIN_NNZ = 1_000_000
+#: (system, machine) pairs of :mod:`platform` for which MKL publishes wheels (PyPI, ``mkl``).
+MKL_PLATFORMS = (("Linux", "x86_64"), ("Windows", "AMD64"))
 
 #: SuperLU settings for symmetric matrices (all of pymorembs' are): minimum degree ordering of
 #: ``A^T + A`` and diagonal pivots unless one is below 1 % of its column. On the 35,000-dof
@@ -578,6 +590,30 @@ def _pardiso_works() -> bool:
     return bool(np.allclose(x, 1.0, rtol=1e-12, atol=0.0))
 
 
+def fast_solver_hint() -> str:
+    """How to get PARDISO here: the install command, or why there is none for this platform."""
+    system, machine = platform.system(), platform.machine()
+    if (system, machine) in MKL_PLATFORMS:
+        return "install it with: pip install 'pymorembs[fast]'"
+    return f"MKL publishes no wheels for {system} {machine} (only x86-64 Linux and Windows)"
+
+
+def fast_solver_note() -> str:
+    """The one line written when a large matrix is factorized by SuperLU for want of PARDISO."""
+    return (
+        "pymorembs: note: the fast sparse solver (MKL PARDISO) is not available, so SciPy's "
+        f"SuperLU factorizes this large model, several times slower; {fast_solver_hint()} "
+        "(docs/performance.md, Sparse solvers)"
+    )
+
+
+@cache
+def _write_fast_solver_note() -> None:
+    """:func:`fast_solver_note` on stderr, once per process."""
+    sys.stderr.write(fast_solver_note() + "\n")
+    sys.stderr.flush()
+
+
 def available_backends() -> list[str]:
     """Backends that work here: ``["superlu"]``, plus ``"pardiso"`` if MKL PARDISO does."""
     return ["superlu", "pardiso"] if _pardiso_works() else ["superlu"]
@@ -598,8 +634,7 @@ def default_backend() -> str:
         raise UserError(f"{SOLVER_ENV} must be superlu, pardiso or auto, got {value!r}")
     if value == "pardiso" and not _pardiso_works():
         raise UserError(
-            f"{SOLVER_ENV}=pardiso, but MKL PARDISO is not available "
-            "(install it with: pip install 'pymorembs[fast]')"
+            f"{SOLVER_ENV}=pardiso, but MKL PARDISO is not available ({fast_solver_hint()})"
         )
     return value
 
@@ -638,14 +673,17 @@ def factorize(matrix: sp.spmatrix, symmetric: bool, backend: str | None = None) 
     NumericalError
         The matrix is singular (an exactly zero pivot in SuperLU, a PARDISO failure).
     """
-    if backend is None and _requested() == "auto" and matrix.nnz < AUTO_MIN_NNZ:
-        name = "superlu"  # without loading MKL (about 1.8 s on first use)
+    automatic = backend is None and _requested() == "auto"
+    if automatic and matrix.nnz < AUTO_MIN_NNZ:
+        name = "superlu"  # without loading MKL (seconds on first use)
     else:
         name = default_backend() if backend is None else backend
+    if automatic and matrix.nnz >= NOTE_MIN_NNZ and not _pardiso_works():
+        _write_fast_solver_note()
     if name not in _FACTORIES:
         raise UserError(f"unknown solver backend {name!r}; choose from {', '.join(BACKENDS)}")
     if name == "pardiso" and not _pardiso_works():
-        raise UserError("the PARDISO backend is not available (pip install 'pymorembs[fast]')")
+        raise UserError(f"the PARDISO backend is not available ({fast_solver_hint()})")
     if matrix.shape[0] != matrix.shape[1]:
         raise ValueError(f"cannot factorize a matrix of shape {matrix.shape}")
     if not np.iscomplexobj(matrix.data):
