@@ -39,8 +39,10 @@ GRAMIAN_DOFS ?= 10000 35000
 REFERENCE_DOFS ?= 10000 35000
 SCALING_DOFS ?= 35000 70000 150000 300000
 READ_DOFS    ?= 35000 300000
+SOLVER_DOFS  ?= 35000 150000
 
 bench: $(STAMP)
+	$(BIN)/python bench/solvers.py --dofs $(SOLVER_DOFS)
 	$(BIN)/python bench/floor_ratio.py --method krylov --dofs $(FLOOR_DOFS)
 	$(BIN)/python bench/floor_ratio.py --method soaga --dofs $(FLOOR_DOFS)
 	$(BIN)/python bench/peers.py --dofs $(PEERS_DOFS)
