@@ -32,9 +32,15 @@ Two smaller tables decide the ``auto`` rule and the note of the backends: the ti
 models (rack-beams, rack-solid, the tet10 box; real shift), in one process after MKL is loaded,
 best of 3.
 
+``--superlu-matrices`` measures only SuperLU on three matrices of the 35,000-dof rack-solid (the
+free body, the same without its interface node and dependent dofs, the prepared system), in a
+section of its own: the free body's fill is twice the prepared system's. ``--small-complex``
+measures only the small models with the complex shift, also in a section of its own.
+
 Usage::
 
     .venv/bin/python bench/solvers.py --dofs 35000 150000
+    .venv/bin/python bench/solvers.py --superlu-matrices
     .venv/bin/python bench/solvers.py --quick --no-results
 """
 
@@ -45,20 +51,9 @@ import sys
 import time
 from pathlib import Path
 
+import _common as common
 import numpy as np
 import scipy.sparse as sp
-from _common import (
-    CACHE,
-    build_prepared,
-    emit,
-    fmt_s,
-    machine_facts,
-    markdown_table,
-    peak_memory_mb,
-    reset_peak_memory,
-    run_child,
-    update_results,
-)
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "stress"))
 
@@ -85,14 +80,14 @@ SMALL = (
 
 
 def cache_path(model: str, dofs: int) -> Path:
-    return CACHE / f"solvers-{model}-{dofs}.npz"
+    return common.CACHE / f"solvers-{model}-{dofs}.npz"
 
 
 def build(model: str, dofs: int) -> dict:
     """Build one model and cache its ``K`` and ``M`` (one child)."""
     tick = time.perf_counter()
     if model == "hex20":
-        prepared, _ = build_prepared("rack-solid", dofs)
+        prepared, _ = common.build_prepared("rack-solid", dofs)
         stiffness, mass = prepared.system.stiffness, prepared.system.mass
     else:
         from box_meshes import box_mesh, solid_body
@@ -104,7 +99,7 @@ def build(model: str, dofs: int) -> dict:
         n = stiffness.shape[0]
         mass = sp.identity(n, format="csr") * (STEEL_DENSITY * float(np.prod(SIZE)) / (n / 3))
     stiffness, mass = sp.csr_matrix(stiffness), sp.csr_matrix(mass)
-    CACHE.mkdir(exist_ok=True)
+    common.CACHE.mkdir(exist_ok=True)
     np.savez(
         cache_path(model, dofs),
         **{f"k_{k}": v for k, v in _arrays(stiffness).items()},
@@ -151,14 +146,14 @@ def measure(model: str, dofs: int, backend: str, shift: str) -> dict:
     matrix = shifted(*load(model, dofs), shift)
     rng = np.random.default_rng(0)
     rhs = rng.standard_normal((matrix.shape[0], RIGHT_HAND_SIDES))
-    base_mb = peak_memory_mb() if reset_peak_memory() else 0.0
+    base_mb = common.peak_memory_mb() if common.reset_peak_memory() else 0.0
     tick = time.perf_counter()
     factor = factorize(matrix, symmetric=True, backend=backend)
     factor_s = time.perf_counter() - tick
     tick = time.perf_counter()
     solution = factor.solve(rhs)
     solve_s = time.perf_counter() - tick
-    peak_mb = peak_memory_mb() - base_mb
+    peak_mb = common.peak_memory_mb() - base_mb
     residual = np.abs(matrix @ solution - rhs).max(axis=0)
     norm = np.abs(matrix).sum(axis=1).max()
     backward = residual / (norm * np.abs(solution).max(axis=0) + np.abs(rhs).max(axis=0))
@@ -185,31 +180,75 @@ def mkl_load() -> dict:
     return {"load_s": time.perf_counter() - tick, "works": works}
 
 
-def small(name: str) -> dict:
-    """Both backends on a small model (real shift), after MKL is loaded; best of 3.
+def small(name: str, shift: str = "real") -> dict:
+    """Both backends on a small model, after MKL is loaded; best of 3 (of fewer when one takes
+    more than 10 s).
 
-    ``name``: ``rack-beams`` (prepared as the others) or ``MODEL:DOFS`` of :data:`MODELS`.
+    ``name``: ``rack-beams`` (prepared as the others) or ``MODEL:DOFS`` of :data:`MODELS`;
+    ``shift``: ``real`` or ``complex``.
     """
     from pymorembs.linalg.backends import available_backends, factorize
 
     if name == "rack-beams":
-        prepared, _ = build_prepared("rack-beams", None)
+        prepared, _ = common.build_prepared("rack-beams", None)
         stiffness, mass = prepared.system.stiffness, prepared.system.mass
     else:
         model, dofs = name.split(":")
         build(model, int(dofs))
         stiffness, mass = load(model, int(dofs))
         cache_path(model, int(dofs)).unlink()
-    matrix = shifted(sp.csr_matrix(stiffness), sp.csr_matrix(mass), "real")
+    matrix = shifted(sp.csr_matrix(stiffness), sp.csr_matrix(mass), shift)
     rhs = np.random.default_rng(0).standard_normal((matrix.shape[0], RIGHT_HAND_SIDES))
     result: dict = {"model": name.split(":")[0], "n": matrix.shape[0], "nnz": int(matrix.nnz)}
     for backend in available_backends():
-        best = np.inf
+        best, spent = np.inf, 0.0
         for _ in range(3):
             tick = time.perf_counter()
             factorize(matrix, symmetric=True, backend=backend).solve(rhs)
-            best = min(best, time.perf_counter() - tick)
+            elapsed = time.perf_counter() - tick
+            best, spent = min(best, elapsed), spent + elapsed
+            if spent > 10.0:
+                break
         result[backend] = best
+    return result
+
+
+def superlu_matrices() -> dict:
+    """SuperLU (project settings) on three matrices of the 35,000-dof rack-solid at 500 Hz.
+
+    The free body's ``K - sigma M`` (36,765 dofs), the same without the six dofs of node 2 (the
+    interface node, joined to its hole by light stiff beams) and without the 1,080 dependent
+    dofs of its constraint equations, and the prepared system of the benchmarks (tangent frame
+    at node 2, constraints eliminated): wall and CPU seconds of the factorization, L + U.
+    """
+    import scipy.sparse.linalg as spla
+
+    from pymorembs.examples import build_example
+    from pymorembs.linalg.backends import SUPERLU_OPTIONS
+
+    sigma = (2.0 * np.pi * 500.0) ** 2
+    body = build_example("rack-solid", dofs=35000)
+    free = sp.csc_matrix(body.stiffness - sigma * body.mass)
+    hub = [body.dofs.index(2, d) for d in ("ux", "uy", "uz", "rx", "ry", "rz")]
+    keep = np.setdiff1d(np.arange(free.shape[0]), [*body.constraints.dependent, *hub])
+    prepared, _ = common.build_prepared("rack-solid", 35000)
+    system = prepared.system
+    matrices = {
+        "free body": free,
+        "free body without node 2 and the dependent dofs": sp.csc_matrix(free[keep][:, keep]),
+        "prepared (the benchmarks' matrix)": sp.csc_matrix(system.stiffness - sigma * system.mass),
+    }
+    result = {}
+    for name, matrix in matrices.items():
+        wall, cpu = time.perf_counter(), time.process_time()
+        lu = spla.splu(matrix, **SUPERLU_OPTIONS)
+        result[name] = {
+            "n": matrix.shape[0],
+            "wall_s": time.perf_counter() - wall,
+            "cpu_s": time.process_time() - cpu,
+            "lu_nnz": int(lu.nnz),
+        }
+        del lu
     return result
 
 
@@ -245,8 +284,8 @@ def table_rows(model: str, shift: str, results: dict[str, dict], limit: float) -
                 f"{result['n']:,}",
                 shift,
                 backend if result["backend"] == backend else f"{backend} → {result['backend']}",
-                fmt_s(result["factor_s"]),
-                fmt_s(result["solve_s"]),
+                common.fmt_s(result["factor_s"]),
+                common.fmt_s(result["solve_s"]),
                 f"{result['peak_mb']:.0f}",
                 f"{result['nnz_factor'] / 1e6:.1f} M{negative}",
                 f"{result['backward_error']:.1e}",
@@ -264,29 +303,56 @@ def main() -> None:
     parser.add_argument("--small", nargs="*", default=list(SMALL), help="rack-beams, MODEL:DOFS")
     parser.add_argument("--quick", action="store_true", help="tet10 at 5,000 dofs")
     parser.add_argument("--no-results", action="store_true")
+    parser.add_argument(
+        "--small-complex",
+        action="store_true",
+        help="only the small models with the complex shift (its own section)",
+    )
+    parser.add_argument(
+        "--superlu-matrices",
+        action="store_true",
+        help="only SuperLU on the free and the prepared 35k rack-solid (its own section)",
+    )
     parser.add_argument("--child", nargs="+", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
         kind, *rest = args.child
         if kind == "build":
-            emit(build(rest[0], int(rest[1])))
+            common.emit(build(rest[0], int(rest[1])))
         elif kind == "measure":
-            emit(measure(rest[0], int(rest[1]), rest[2], rest[3]))
+            common.emit(measure(rest[0], int(rest[1]), rest[2], rest[3]))
+        elif kind == "superlu-matrices":
+            common.emit(superlu_matrices())
         elif kind == "load":
-            emit(mkl_load())
+            common.emit(mkl_load())
         else:
-            emit(small(rest[0]))
+            common.emit(small(*rest))
+        return
+    script = str(Path(__file__).resolve())
+    if args.superlu_matrices:
+        body = superlu_matrices_report(common.run_child([script, "--child", "superlu-matrices"]))
+        print(body)
+        if not args.no_results:
+            update = common.update_results
+            update("Sparse solvers: SuperLU on the 35k rack-solid", body, common.machine_facts())
+        return
+    if args.small_complex:
+        runs = [common.run_child([script, "--child", "small", n, "complex"]) for n in args.small]
+        body = small_table(runs, "complex")
+        print(body)
+        if not args.no_results:
+            update = common.update_results
+            update("Sparse solvers: small models, complex shift", body, common.machine_facts())
         return
     if args.quick:
         args.dofs, args.models, args.small = [5000], ["tet10"], ["rack-beams", "tet10:2000"]
-    script = str(Path(__file__).resolve())
     from pymorembs.linalg.backends import available_backends
 
     backends = [b for b in BACKENDS if b in available_backends()]
     rows, notes = [], []
     for dofs in args.dofs:
         for model in args.models:
-            built = run_child([script, "--child", "build", model, str(dofs)])
+            built = common.run_child([script, "--child", "build", model, str(dofs)])
             if "failed" in built:
                 notes.append(f"{model} {dofs}: build {built['failed']}")
                 continue
@@ -301,7 +367,7 @@ def main() -> None:
                         continue
                     limit = args.superlu_limit if backend == "superlu" else None
                     child = [script, "--child", "measure", model, str(dofs), backend, shift]
-                    result = run_child(child, timeout=limit)
+                    result = common.run_child(child, timeout=limit)
                     if result.get("failed", "").startswith("timeout"):
                         result["failed"] = f"not finished in {args.superlu_limit:.0f} s"
                     result.setdefault("n", built["n"])
@@ -311,14 +377,47 @@ def main() -> None:
                     real = results
                 rows += table_rows(model, shift, results, args.superlu_limit)
             cache_path(model, dofs).unlink(missing_ok=True)
-    loads = [run_child([script, "--child", "load"]) for _ in range(3)]
-    smalls = [run_child([script, "--child", "small", name]) for name in args.small]
+    loads = [common.run_child([script, "--child", "load"]) for _ in range(3)]
+    smalls = [common.run_child([script, "--child", "small", name]) for name in args.small]
     body = report(rows, loads, smalls, backends, args.superlu_limit) + "".join(
         f"\n- {note}" for note in notes
     )
     print(body)
     if not args.no_results:
-        update_results("Sparse solvers", body, machine_facts())
+        common.update_results("Sparse solvers", body, common.machine_facts())
+
+
+def superlu_matrices_report(result: dict) -> str:
+    """The paragraph of :func:`superlu_matrices`."""
+    if "failed" in result:
+        return f"SuperLU on the three 35k matrices: {result['failed']}"
+    parts = [
+        f"{name} (n = {r['n']:,}): {r['wall_s']:.2f} s wall, {r['cpu_s']:.2f} s CPU,"
+        f" L + U {r['lu_nnz'] / 1e6:.1f} M"
+        for name, r in result.items()
+        if isinstance(r, dict)
+    ]
+    return (
+        "SuperLU (project settings, one process) on three matrices of"
+        " `build_example('rack-solid', dofs=35000)`, `K − σM` at 500 Hz: " + "; ".join(parts) + "."
+    )
+
+
+def small_table(smalls: list, shift: str) -> str:
+    """The table of :func:`small` results (one shift)."""
+    rows = []
+    for r in smalls:
+        if "failed" in r:
+            rows.append([r["failed"], "", "", "", "", ""])
+            continue
+        times = [common.fmt_s(r.get(b, float("nan"))) for b in ("superlu", "pardiso")]
+        share = r["superlu"] / r["pardiso"] if "pardiso" in r else float("nan")
+        rows.append([r["model"], f"{r['n']:,}", f"{r['nnz'] / 1e6:.2f} M", *times, f"{share:.2f}"])
+    headers = ["model", "n", "nnz(A)", "SuperLU", "PARDISO", "SuperLU / PARDISO"]
+    return (
+        f"Small models ({shift} shift, factor + solve ×{RIGHT_HAND_SIDES}, MKL loaded,"
+        " best of 3, fewer past 10 s; s):\n\n" + common.markdown_table(headers, rows)
+    )
 
 
 def report(rows: list, loads: list, smalls: list, backends: list, limit: float) -> str:
@@ -334,7 +433,7 @@ def report(rows: list, loads: list, smalls: list, backends: list, limit: float) 
         "backward error",
         "SuperLU / PARDISO (factor / solve)",
     ]
-    text = markdown_table(headers, rows)
+    text = common.markdown_table(headers, rows)
     text += (
         f"\n\nShifts at {FREQUENCY_HZ:.0f} Hz: real `K − σM`,"
         f" complex `(1 + {LOSS_FACTOR} i) K − σM`."
@@ -350,22 +449,7 @@ def report(rows: list, loads: list, smalls: list, backends: list, limit: float) 
             + ", ".join(f"{r['load_s']:.2f}" for r in ok)
             + " s."
         )
-    small_rows = []
-    for r in smalls:
-        if "failed" in r:
-            small_rows.append([r["failed"], "", "", "", "", ""])
-            continue
-        times = [fmt_s(r.get(b, float("nan"))) for b in ("superlu", "pardiso")]
-        share = r["superlu"] / r["pardiso"] if "pardiso" in r else float("nan")
-        small_rows.append(
-            [r["model"], f"{r['n']:,}", f"{r['nnz'] / 1e6:.2f} M", *times, f"{share:.2f}"]
-        )
-    text += (
-        f"\n\nSmall models (real shift, factor + solve ×{RIGHT_HAND_SIDES}, MKL loaded,"
-        " best of 3, s):\n\n"
-        + markdown_table(["n", "nnz(A)", "SuperLU", "PARDISO", "SuperLU / PARDISO"], small_rows)
-    )
-    return text
+    return text + "\n\n" + small_table(smalls, "real")
 
 
 if __name__ == "__main__":
