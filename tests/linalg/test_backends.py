@@ -221,6 +221,21 @@ def test_pardiso_family_shares_the_analysis_and_frees_its_slots(monkeypatch) -> 
     assert not handle.any()  # phase -1 with the last factor of the dropped family
 
 
+@pytest.mark.usefixtures("pardiso")
+def test_auto_sends_complex_matrices_to_pardiso_from_a_smaller_size(monkeypatch) -> None:
+    """SciPy's complex SuperLU is many times slower than its real one: ``auto`` leaves complex
+    matrices on SuperLU only below :data:`AUTO_MIN_NNZ_COMPLEX`."""
+    monkeypatch.delenv("PYMOREMBS_SOLVER", raising=False)
+    real, complex_ = _random_symmetric("indefinite"), _random_symmetric("complex")
+    assert backends.AUTO_MIN_NNZ_COMPLEX < backends.AUTO_MIN_NNZ
+    monkeypatch.setattr(backends, "AUTO_MIN_NNZ_COMPLEX", complex_.nnz)
+    assert real.nnz >= complex_.nnz and real.nnz < backends.AUTO_MIN_NNZ
+    assert factorize(real, symmetric=True).backend == "superlu"
+    assert factorize(complex_, symmetric=True).backend == "pardiso"
+    monkeypatch.setattr(backends, "AUTO_MIN_NNZ_COMPLEX", complex_.nnz + 1)
+    assert factorize(complex_, symmetric=True).backend == "superlu"
+
+
 # --- without PARDISO: SuperLU and one note for large models -------------------------------------
 
 
@@ -245,6 +260,7 @@ def test_large_model_on_superlu_gets_one_note(monkeypatch, capsys) -> None:
     for _ in range(3):  # three factorizations, one line
         assert factorize(matrix, symmetric=True).backend == "superlu"
     Factorization(matrix).solve(np.ones(N))
+    factorize(_random_symmetric("complex"), symmetric=True)
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("pymorembs: note: ")
     assert "(MKL PARDISO) is not available" in err and "pip install 'pymorembs[fast]'" in err
@@ -261,6 +277,17 @@ def test_note_names_a_platform_without_mkl_wheels(monkeypatch, capsys) -> None:
     monkeypatch.setenv("PYMOREMBS_SOLVER", "pardiso")
     with pytest.raises(UserError, match=r"not available.*no wheels for Darwin arm64"):
         default_backend()
+
+
+@pytest.mark.usefixtures("without_pardiso")
+def test_complex_matrices_get_the_note_from_a_smaller_size(monkeypatch, capsys) -> None:
+    complex_ = _random_symmetric("complex")
+    monkeypatch.setattr(backends, "AUTO_MIN_NNZ_COMPLEX", complex_.nnz)
+    monkeypatch.setattr(backends, "NOTE_MIN_NNZ", complex_.nnz + 1)
+    factorize(complex_.real.tocsr(), symmetric=True)  # real: below NOTE_MIN_NNZ
+    assert capsys.readouterr().err == ""
+    assert factorize(complex_, symmetric=True).backend == "superlu"
+    assert capsys.readouterr().err.startswith("pymorembs: note: the fast sparse solver")
 
 
 @pytest.mark.usefixtures("without_pardiso")

@@ -21,9 +21,9 @@ right-hand side (n,) or a block (n, k) in one call. Two backends:
 Choice of the backend
 ---------------------
 ``PYMOREMBS_SOLVER`` = ``superlu`` | ``pardiso`` | ``auto`` (default ``auto``: PARDISO when it
-is installed and works and the matrix has at least :data:`AUTO_MIN_NNZ` nonzeros, else
-SuperLU; without PARDISO, the first factorization of a matrix with at least
-:data:`NOTE_MIN_NNZ` nonzeros writes one line on stderr, :func:`fast_solver_note`). A PARDISO
+is installed and works and the matrix has at least :data:`AUTO_MIN_NNZ` nonzeros, complex ones
+:data:`AUTO_MIN_NNZ_COMPLEX`, else SuperLU; without PARDISO, the first factorization of a large
+matrix, :data:`NOTE_MIN_NNZ`, writes one line on stderr, :func:`fast_solver_note`). A PARDISO
 factorization that had to perturb pivots (the matrix is singular or nearly so) is replaced by
 SuperLU's, which either factorizes exactly or reports the singularity.
 
@@ -78,14 +78,16 @@ THREADS_ENV = "PYMOREMBS_SOLVER_THREADS"
 FAMILIES_ENV = "PYMOREMBS_PARDISO_FAMILIES"
 BACKENDS = ("superlu", "pardiso")
 #: With ``auto``, matrices with fewer stored nonzeros go to SuperLU even when PARDISO is there:
-#: PARDISO's fixed costs (METIS, threads) make it slower on small models (rack-beams, n = 3,942:
-#: factor 10-20 ms vs 2-3 ms, solve 0.8 vs 0.5 ms); the two are even at rack-solid n = 6,705
-#: (0.93 M nonzeros) and PARDISO wins from there on.
-AUTO_MIN_NNZ = 1_000_000
-#: Without PARDISO (``auto``), a matrix with this many stored nonzeros or more makes
-#: :func:`factorize` write :func:`fast_solver_note` on stderr, once per process: from there on
-#: SuperLU costs seconds per factorization where PARDISO needs a fraction of it
-#: (``bench/solvers.py``).
+#: loading MKL costs a fraction of a second once per process, which PARDISO's faster
+#: factorizations pay back only from about this size (``bench/solvers.py``, small models).
+AUTO_MIN_NNZ = 250_000
+#: :data:`AUTO_MIN_NNZ` of complex matrices: SciPy's complex SuperLU takes many times its real
+#: factorization of the same pattern, so PARDISO pays back its loading much earlier.
+AUTO_MIN_NNZ_COMPLEX = 100_000
+#: Without PARDISO (``auto``), a real matrix with this many stored nonzeros or more, or a complex
+#: one with :data:`AUTO_MIN_NNZ_COMPLEX`, makes :func:`factorize` write
+#: :func:`fast_solver_note` on stderr, once per process: from there on SuperLU costs seconds per
+#: factorization where PARDISO needs a fraction of it (``bench/solvers.py``).
 NOTE_MIN_NNZ = 1_000_000
 #: (system, machine) pairs of :mod:`platform` for which MKL publishes wheels (PyPI, ``mkl``).
 MKL_PLATFORMS = (("Linux", "x86_64"), ("Windows", "AMD64"))
@@ -624,7 +626,7 @@ def default_backend() -> str:
 
     ``auto`` (the default) is PARDISO when it works -- it factorizes the 35,000-dof rack-solid
     2-3 times faster than SuperLU (module docstring) -- else SuperLU; :func:`factorize` then
-    still uses SuperLU for matrices with fewer than :data:`AUTO_MIN_NNZ` nonzeros. Asking for
+    still uses SuperLU for small matrices (:data:`AUTO_MIN_NNZ`). Asking for
     ``pardiso`` when it is not installed is a :class:`~pymorembs.errors.UserError`.
     """
     value = _requested()
@@ -674,11 +676,13 @@ def factorize(matrix: sp.spmatrix, symmetric: bool, backend: str | None = None) 
         The matrix is singular (an exactly zero pivot in SuperLU, a PARDISO failure).
     """
     automatic = backend is None and _requested() == "auto"
-    if automatic and matrix.nnz < AUTO_MIN_NNZ:
-        name = "superlu"  # without loading MKL (seconds on first use)
+    complex_ = np.iscomplexobj(matrix.data)
+    if automatic and matrix.nnz < (AUTO_MIN_NNZ_COMPLEX if complex_ else AUTO_MIN_NNZ):
+        name = "superlu"  # without loading MKL (a fraction of a second on first use)
     else:
         name = default_backend() if backend is None else backend
-    if automatic and matrix.nnz >= NOTE_MIN_NNZ and not _pardiso_works():
+    large = matrix.nnz >= (AUTO_MIN_NNZ_COMPLEX if complex_ else NOTE_MIN_NNZ)
+    if automatic and large and not _pardiso_works():
         _write_fast_solver_note()
     if name not in _FACTORIES:
         raise UserError(f"unknown solver backend {name!r}; choose from {', '.join(BACKENDS)}")
@@ -686,7 +690,7 @@ def factorize(matrix: sp.spmatrix, symmetric: bool, backend: str | None = None) 
         raise UserError(f"the PARDISO backend is not available ({fast_solver_hint()})")
     if matrix.shape[0] != matrix.shape[1]:
         raise ValueError(f"cannot factorize a matrix of shape {matrix.shape}")
-    if not np.iscomplexobj(matrix.data):
+    if not complex_:
         matrix = matrix.astype(np.float64, copy=False)
     factor = _FACTORIES[name](matrix, symmetric)
     if getattr(factor, "perturbed_pivots", 0):
