@@ -83,10 +83,15 @@ def cache_path(model: str, dofs: int) -> Path:
     return common.CACHE / f"solvers-{model}-{dofs}.npz"
 
 
-def build(model: str, dofs: int) -> dict:
-    """Build one model and cache its ``K`` and ``M`` (one child)."""
+def build(model: str, dofs: int, source: str | None = None) -> dict:
+    """Build (or, ``bracket``, read from ``source``) one model and cache its ``K`` and ``M``."""
     tick = time.perf_counter()
-    if model == "hex20":
+    if model == "bracket":
+        import pymorembs
+
+        body = pymorembs.read(source)
+        stiffness, mass = body.stiffness, body.mass
+    elif model == "hex20":
         prepared, _ = common.build_prepared("rack-solid", dofs)
         stiffness, mass = prepared.system.stiffness, prepared.system.mass
     else:
@@ -304,6 +309,11 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="tet10 at 5,000 dofs")
     parser.add_argument("--no-results", action="store_true")
     parser.add_argument(
+        "--bracket",
+        metavar="FILE",
+        help="only a CalculiX export (its .sti; the matrices as pymorembs reads them), own section",
+    )
+    parser.add_argument(
         "--small-complex",
         action="store_true",
         help="only the small models with the complex shift (its own section)",
@@ -318,7 +328,7 @@ def main() -> None:
     if args.child:
         kind, *rest = args.child
         if kind == "build":
-            common.emit(build(rest[0], int(rest[1])))
+            common.emit(build(rest[0], int(rest[1]), *rest[2:]))
         elif kind == "measure":
             common.emit(measure(rest[0], int(rest[1]), rest[2], rest[3]))
         elif kind == "superlu-matrices":
@@ -344,6 +354,18 @@ def main() -> None:
             update = common.update_results
             update("Sparse solvers: small models, complex shift", body, common.machine_facts())
         return
+    if args.bracket:
+        from pymorembs.linalg.backends import available_backends
+
+        backends = [b for b in BACKENDS if b in available_backends()]
+        notes: list[str] = []
+        rows = model_rows(script, "bracket", 0, backends, args.superlu_limit, notes, args.bracket)
+        body = solver_table(rows, args.superlu_limit) + "".join(f"\n- {n}" for n in notes)
+        print(body)
+        if not args.no_results:
+            update = common.update_results
+            update("Sparse solvers: CalculiX bracket (tet10)", body, common.machine_facts())
+        return
     if args.quick:
         args.dofs, args.models, args.small = [5000], ["tet10"], ["rack-beams", "tet10:2000"]
     from pymorembs.linalg.backends import available_backends
@@ -352,39 +374,48 @@ def main() -> None:
     rows, notes = [], []
     for dofs in args.dofs:
         for model in args.models:
-            built = common.run_child([script, "--child", "build", model, str(dofs)])
-            if "failed" in built:
-                notes.append(f"{model} {dofs}: build {built['failed']}")
-                continue
-            print(f"{model} {dofs}: n {built['n']}, built in {built['s']:.1f} s", flush=True)
-            real: dict[str, dict] = {}
-            for shift in SHIFTS:
-                results: dict[str, dict] = {}
-                for backend in backends:
-                    if backend == "superlu" and "failed" in real.get(backend, {}):
-                        skipped = "not run (the real shift did not finish)"
-                        results[backend] = {"failed": skipped, "n": built["n"]}
-                        continue
-                    limit = args.superlu_limit if backend == "superlu" else None
-                    child = [script, "--child", "measure", model, str(dofs), backend, shift]
-                    result = common.run_child(child, timeout=limit)
-                    if result.get("failed", "").startswith("timeout"):
-                        result["failed"] = f"not finished in {args.superlu_limit:.0f} s"
-                    result.setdefault("n", built["n"])
-                    results[backend] = result
-                    print(f"  {shift} {backend}: {result}", flush=True)
-                if shift == "real":
-                    real = results
-                rows += table_rows(model, shift, results, args.superlu_limit)
-            cache_path(model, dofs).unlink(missing_ok=True)
+            rows += model_rows(script, model, dofs, backends, args.superlu_limit, notes)
     loads = [common.run_child([script, "--child", "load"]) for _ in range(3)]
     smalls = [common.run_child([script, "--child", "small", name]) for name in args.small]
-    body = report(rows, loads, smalls, backends, args.superlu_limit) + "".join(
+    body = report(rows, loads, smalls, args.superlu_limit) + "".join(
         f"\n- {note}" for note in notes
     )
     print(body)
     if not args.no_results:
         common.update_results("Sparse solvers", body, common.machine_facts())
+
+
+def model_rows(
+    script: str, model: str, dofs: int, backends: list, limit: float, notes: list, *source: str
+) -> list[list]:
+    """Build one model (``source``: the bracket's file) and measure every backend and shift in
+    fresh processes; its table rows (failures of the build go to ``notes``)."""
+    built = common.run_child([script, "--child", "build", model, str(dofs), *source])
+    if "failed" in built:
+        notes.append(f"{model} {dofs}: build {built['failed']}")
+        return []
+    print(f"{model} {dofs}: n {built['n']}, built in {built['s']:.1f} s", flush=True)
+    rows: list[list] = []
+    real: dict[str, dict] = {}
+    for shift in SHIFTS:
+        results: dict[str, dict] = {}
+        for backend in backends:
+            if backend == "superlu" and "failed" in real.get(backend, {}):
+                skipped = "not run (the real shift did not finish)"
+                results[backend] = {"failed": skipped, "n": built["n"]}
+                continue
+            child = [script, "--child", "measure", model, str(dofs), backend, shift]
+            result = common.run_child(child, timeout=limit if backend == "superlu" else None)
+            if result.get("failed", "").startswith("timeout"):
+                result["failed"] = f"not finished in {limit:.0f} s"
+            result.setdefault("n", built["n"])
+            results[backend] = result
+            print(f"  {shift} {backend}: {result}", flush=True)
+        if shift == "real":
+            real = results
+        rows += table_rows(model, shift, results, limit)
+    cache_path(model, dofs).unlink(missing_ok=True)
+    return rows
 
 
 def superlu_matrices_report(result: dict) -> str:
@@ -420,7 +451,22 @@ def small_table(smalls: list, shift: str) -> str:
     )
 
 
-def report(rows: list, loads: list, smalls: list, backends: list, limit: float) -> str:
+def report(rows: list, loads: list, smalls: list, limit: float) -> str:
+    """The section of the default run: the models, the loading of MKL, the small models."""
+    text = solver_table(rows, limit)
+    ok = [r for r in loads if "failed" not in r]
+    if ok:
+        text += (
+            "\n\nLoading MKL: the first PARDISO use of a fresh process (pypardiso finds and"
+            " loads `mkl_rt`, a 3×3 test factorization), 3 processes: "
+            + ", ".join(f"{r['load_s']:.2f}" for r in ok)
+            + " s."
+        )
+    return text + "\n\n" + small_table(smalls, "real")
+
+
+def solver_table(rows: list, limit: float) -> str:
+    """The table of :func:`table_rows` with its explanation."""
     headers = [
         "model",
         "n",
@@ -441,15 +487,7 @@ def report(rows: list, loads: list, smalls: list, backends: list, limit: float) 
         " model (factorization and solve). `→ superlu`: PARDISO perturbed pivots and the backend"
         " fell back to SuperLU."
     )
-    ok = [r for r in loads if "failed" not in r]
-    if ok:
-        text += (
-            "\n\nLoading MKL: the first PARDISO use of a fresh process (pypardiso finds and"
-            " loads `mkl_rt`, a 3×3 test factorization), 3 processes: "
-            + ", ".join(f"{r['load_s']:.2f}" for r in ok)
-            + " s."
-        )
-    return text + "\n\n" + small_table(smalls, "real")
+    return text
 
 
 if __name__ == "__main__":
