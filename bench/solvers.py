@@ -341,18 +341,12 @@ def main() -> None:
     script = str(Path(__file__).resolve())
     if args.superlu_matrices:
         body = superlu_matrices_report(common.run_child([script, "--child", "superlu-matrices"]))
-        print(body)
-        if not args.no_results:
-            update = common.update_results
-            update("Sparse solvers: SuperLU on the 35k rack-solid", body, common.machine_facts())
+        publish("Sparse solvers: SuperLU on the 35k rack-solid", body, args.no_results)
         return
     if args.small_complex:
         runs = [common.run_child([script, "--child", "small", n, "complex"]) for n in args.small]
         body = small_table(runs, "complex")
-        print(body)
-        if not args.no_results:
-            update = common.update_results
-            update("Sparse solvers: small models, complex shift", body, common.machine_facts())
+        publish("Sparse solvers: small models, complex shift", body, args.no_results)
         return
     if args.bracket:
         from pymorembs.linalg.backends import available_backends
@@ -361,10 +355,7 @@ def main() -> None:
         notes: list[str] = []
         rows = model_rows(script, "bracket", 0, backends, args.superlu_limit, notes, args.bracket)
         body = solver_table(rows, args.superlu_limit) + "".join(f"\n- {n}" for n in notes)
-        print(body)
-        if not args.no_results:
-            update = common.update_results
-            update("Sparse solvers: CalculiX bracket (tet10)", body, common.machine_facts())
+        publish("Sparse solvers: CalculiX bracket (tet10)", body, args.no_results)
         return
     if args.quick:
         args.dofs, args.models, args.small = [5000], ["tet10"], ["rack-beams", "tet10:2000"]
@@ -380,9 +371,14 @@ def main() -> None:
     body = report(rows, loads, smalls, args.superlu_limit) + "".join(
         f"\n- {note}" for note in notes
     )
+    publish("Sparse solvers", body, args.no_results)
+
+
+def publish(section: str, body: str, no_results: bool) -> None:
+    """Print a section and, unless ``no_results``, write it to ``bench/RESULTS.md``."""
     print(body)
-    if not args.no_results:
-        common.update_results("Sparse solvers", body, common.machine_facts())
+    if not no_results:
+        common.update_results(section, body, common.machine_facts())
 
 
 def model_rows(
