@@ -522,6 +522,7 @@ def serve_solver_ranks() -> bool:
         )
     comm = _mpi().COMM_WORLD
     if comm.rank == 0:
+        _host_comm()  # the others wait for commands: stop them at exit, also if none comes
         return False
     _serve(comm)
     return True
