@@ -1,4 +1,4 @@
-"""The distributed backend (issue #30 item 6): MUMPS over MPI, ``PYMOREMBS_SOLVER=mumps``.
+"""The distributed backend (issue #30 item 6): MUMPS over MPI, ``PYMOREMBS_SOLVER=mumps-mpi``.
 
 Without mpi4py or MUMPS (``make mpi`` installs them) the tests that run MUMPS skip; the others
 check what needs no MPI. MUMPS runs in child processes only: MPI initialized in the test
@@ -42,7 +42,7 @@ def run_python(script: str, ranks: int = 0, timeout: float = 120) -> dict:
     env["PYTHONPATH"] = os.pathsep.join(
         p for p in (str(ROOT / "src"), str(ROOT / "tests"), env.get("PYTHONPATH", "")) if p
     )
-    env.update(PYMOREMBS_SOLVER="mumps", OMP_NUM_THREADS="1")
+    env.update(PYMOREMBS_SOLVER="mumps-mpi", OMP_NUM_THREADS="1")
     env.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")  # CI runs as root
     command = [sys.executable, "-c", textwrap.dedent(script)]
     if ranks:
@@ -73,7 +73,7 @@ def test_several_ranks_need_the_distributed_solver(monkeypatch, capsys) -> None:
     monkeypatch.setenv("OMPI_COMM_WORLD_RANK", "1")
     assert serve_solver_ranks() is True  # rank 1 ends quietly ...
     monkeypatch.setenv("OMPI_COMM_WORLD_RANK", "0")
-    with pytest.raises(UserError, match="PYMOREMBS_SOLVER=mumps"):
+    with pytest.raises(UserError, match="PYMOREMBS_SOLVER=mumps-mpi"):
         serve_solver_ranks()
     assert main(["info", "no-model.h5"]) == 2  # ... rank 0 says why, in one line
     err = capsys.readouterr().err
@@ -81,7 +81,7 @@ def test_several_ranks_need_the_distributed_solver(monkeypatch, capsys) -> None:
 
 
 def test_asking_for_mumps_where_it_is_missing_is_a_user_error(monkeypatch) -> None:
-    monkeypatch.setenv("PYMOREMBS_SOLVER", "mumps")
+    monkeypatch.setenv("PYMOREMBS_SOLVER", "mumps-mpi")
     monkeypatch.setattr(backends, "_mumps_works", lambda: False)
     with pytest.raises(UserError, match="make mpi"):
         backends.default_backend()
@@ -112,7 +112,7 @@ SOLVES = """
     out = {}
     for name, (matrix, symmetric) in matrices.items():
         matrix = sp.csr_matrix(matrix)
-        mumps = factorize(matrix, symmetric, "mumps")
+        mumps = factorize(matrix, symmetric, "mumps-mpi")
         dense = np.linalg.solve(matrix.toarray(), rhs)  # a dense LU, no sparse code of ours
         for label, b, want in (("block", rhs, dense), ("vector", rhs[:, 0], dense[:, 0])):
             x = mumps.solve(b)
@@ -120,7 +120,7 @@ SOLVES = """
         out[f"{name} backend"] = mumps.backend
         out[f"{name} entries"] = mumps.nnz_factor
     try:
-        factorize(sp.csr_matrix(k - k), True, "mumps")
+        factorize(sp.csr_matrix(k - k), True, "mumps-mpi")
         out["singular"] = "factorized"
     except NumericalError as exc:
         out["singular"] = str(exc)
@@ -131,7 +131,7 @@ SOLVES = """
 
 def check_solves(result: dict, ranks: int) -> None:
     for name in ("indefinite", "complex", "nonsymmetric"):
-        assert result[f"{name} backend"] == "mumps"
+        assert result[f"{name} backend"] == "mumps-mpi"
         assert result[f"{name} entries"] > 0
         assert result[f"{name} block"] < 1e-10, name
         assert result[f"{name} vector"] < 1e-10, name
@@ -171,7 +171,7 @@ BODY = """
     options = {"expansion_points_hz": [0.0, 100.0], "moments": [4, 4]}
     spec = ReductionSpec("krylov", method_options("krylov", options))
     responses, backends = {}, {}
-    for solver in ("superlu", "mumps"):
+    for solver in ("superlu", "mumps-mpi"):
         os.environ["PYMOREMBS_SOLVER"] = solver
         body = reduced_model(system, run_reduction(system, spec, (0.0, 200.0)))
         responses[solver] = transfer_function(body.system, frequency_grid(0.0, 200.0, 50))
@@ -180,7 +180,7 @@ BODY = """
     scale = np.abs(full).max(axis=(1, 2))[:, None, None]
     print(json.dumps({
         solver: float(np.max(np.abs(h - full) / scale)) for solver, h in responses.items()
-    } | {"between": float(np.max(np.abs(responses["mumps"] - responses["superlu"]) / scale))}))
+    } | {"between": float(np.max(np.abs(responses["mumps-mpi"] - responses["superlu"]) / scale))}))
 """
 
 
@@ -192,7 +192,7 @@ def test_two_ranks_give_the_body_of_the_default_backend() -> None:
     # model's response (SuperLU)
     assert result["between"] < 1e-9
     assert result["between"] < 1e-3 * result["superlu"]
-    assert result["mumps"] < 1.01 * result["superlu"]
+    assert result["mumps-mpi"] < 1.01 * result["superlu"]
 
 
 @pytest.mark.slow
@@ -202,7 +202,7 @@ def test_the_command_line_runs_on_two_ranks(tmp_path) -> None:
     from pymorembs.io.native import write_body_h5
 
     write_body_h5(spring_lattice(40), tmp_path / "model.h5")
-    env = dict(os.environ, PYMOREMBS_SOLVER="mumps", OMP_NUM_THREADS="1")
+    env = dict(os.environ, PYMOREMBS_SOLVER="mumps-mpi", OMP_NUM_THREADS="1")
     env.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
     env["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT / "src"), env.get("PYTHONPATH")) if p)
     argv = [sys.executable, "-m", "pymorembs.job.cli", "info", str(tmp_path / "model.h5")]

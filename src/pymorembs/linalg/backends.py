@@ -19,9 +19,9 @@ right-hand side (n,) or a block (n, k) in one call. Two backends:
 
 Choice of the backend
 ---------------------
-``PYMOREMBS_SOLVER`` = ``superlu`` | ``pardiso`` | ``mumps`` | ``auto`` (default ``auto``:
+``PYMOREMBS_SOLVER`` = ``superlu`` | ``pardiso`` | ``mumps-mpi`` | ``auto`` (default ``auto``:
 PARDISO when it is installed and works and the matrix has at least :data:`AUTO_MIN_NNZ`
-nonzeros, else SuperLU; ``auto`` never chooses ``mumps``, the distributed MUMPS over MPI of
+nonzeros, else SuperLU; ``auto`` never chooses ``mumps-mpi``, the distributed MUMPS over MPI of
 :mod:`pymorembs.linalg.mumps_mpi`). A PARDISO factorization that had to perturb pivots (the
 matrix is singular or nearly so) is replaced by SuperLU's, which either factorizes exactly or
 reports the singularity.
@@ -73,7 +73,7 @@ SOLVER_ENV = "PYMOREMBS_SOLVER"
 THREADS_ENV = "PYMOREMBS_SOLVER_THREADS"
 #: Environment variable: ``0`` gives every PARDISO factor its own handle (no shared analysis).
 FAMILIES_ENV = "PYMOREMBS_PARDISO_FAMILIES"
-BACKENDS = ("superlu", "pardiso", "mumps")
+BACKENDS = ("superlu", "pardiso", "mumps-mpi")
 #: With ``auto``, matrices with fewer stored nonzeros go to SuperLU even when PARDISO is there:
 #: PARDISO's fixed costs (METIS, threads) make it slower on small models (rack-beams, n = 3,942:
 #: factor 10-20 ms vs 2-3 ms, solve 0.8 vs 0.5 ms); the two are even at rack-solid n = 6,705
@@ -597,14 +597,14 @@ def default_backend() -> str:
     if value == "auto":
         return "pardiso" if _pardiso_works() else "superlu"
     if value not in BACKENDS:
-        raise UserError(f"{SOLVER_ENV} must be superlu, pardiso, mumps or auto, got {value!r}")
+        raise UserError(f"{SOLVER_ENV} must be superlu, pardiso, mumps-mpi or auto, got {value!r}")
     if value == "pardiso" and not _pardiso_works():
         raise UserError(
             f"{SOLVER_ENV}=pardiso, but MKL PARDISO is not available "
             "(install it with: pip install 'pymorembs[fast]')"
         )
-    if value == "mumps" and not _mumps_works():
-        raise UserError(f"{SOLVER_ENV}=mumps, but MUMPS with MPI is not available (make mpi)")
+    if value == "mumps-mpi" and not _mumps_works():
+        raise UserError(f"{SOLVER_ENV}=mumps-mpi, but MUMPS with MPI is not available (make mpi)")
     return value
 
 
@@ -628,7 +628,7 @@ def _mumps_works() -> bool:
 _FACTORIES: dict[str, Callable[[sp.spmatrix, bool], SparseFactor]] = {
     "superlu": SuperLUFactor,
     "pardiso": PardisoFactor,
-    "mumps": _mumps_factor,
+    "mumps-mpi": _mumps_factor,
 }
 
 
@@ -664,7 +664,7 @@ def factorize(matrix: sp.spmatrix, symmetric: bool, backend: str | None = None) 
         raise UserError(f"unknown solver backend {name!r}; choose from {', '.join(BACKENDS)}")
     if name == "pardiso" and not _pardiso_works():
         raise UserError("the PARDISO backend is not available (pip install 'pymorembs[fast]')")
-    if name == "mumps" and not _mumps_works():
+    if name == "mumps-mpi" and not _mumps_works():
         raise UserError("the MUMPS backend is not available (make mpi)")
     if matrix.shape[0] != matrix.shape[1]:
         raise ValueError(f"cannot factorize a matrix of shape {matrix.shape}")

@@ -1,4 +1,4 @@
-"""A distributed sparse direct solver: MUMPS over MPI, as the optional backend ``"mumps"``.
+"""A distributed sparse direct solver: MUMPS over MPI, as the optional backend ``"mumps-mpi"``.
 
 One body whose factors do not fit one machine is factorized by several MPI processes (*ranks*),
 each holding a share of the factors. pymorembs itself runs on rank 0 (the *host*): it reads the
@@ -6,7 +6,7 @@ model, projects, checks and writes as always, and only its factorizations and so
 over the ranks. The other ranks run :func:`serve_solver_ranks`: they wait for the host's
 commands and take part in MUMPS's collective calls, and end when the host ends::
 
-    PYMOREMBS_SOLVER=mumps mpiexec -n 4 pymorembs reduce job.toml
+    PYMOREMBS_SOLVER=mumps-mpi mpiexec -n 4 pymorembs reduce job.toml
 
 Without ``mpiexec`` the backend runs MUMPS on one process (useful for tests and comparisons).
 
@@ -60,7 +60,7 @@ from pymorembs.errors import NumericalError, UserError
 from pymorembs.linalg.backends import SOLVER_ENV, SparseFactor, factorize
 
 #: The value of ``PYMOREMBS_SOLVER`` that selects this backend.
-BACKEND = "mumps"
+BACKEND = "mumps-mpi"
 #: MUMPS version whose C structure :class:`MumpsStruct` mirrors (major.minor).
 MUMPS_SERIES = "5.5"
 #: Factorizations that ran out of workspace are repeated this often with twice ``ICNTL(14)``.
@@ -501,14 +501,14 @@ def stop_solver_ranks() -> None:
 
 
 def serve_solver_ranks() -> bool:
-    """Under ``mpiexec`` with ``PYMOREMBS_SOLVER=mumps``: on every rank but 0, serve the
+    """Under ``mpiexec`` with ``PYMOREMBS_SOLVER=mumps-mpi``: on every rank but 0, serve the
     host's factorizations until it stops, then return True (the caller ends); on rank 0 and
     without a launcher return False at once, without initializing MPI.
 
     Raises
     ------
     UserError
-        Several ranks were launched but the solver is not ``mumps`` (each rank would run the
+        Several ranks were launched but the solver is not ``mumps-mpi`` (each rank would run the
         whole job); on rank 0 only, the others return True.
     """
     if launched_ranks() <= 1:
