@@ -99,6 +99,16 @@ def reduce_with(system, backend: str | None):
         os.environ[SOLVER_ENV] = BACKEND
 
 
+def blas_library() -> str:
+    """The file of ``libblas.so.3`` this process loaded (MUMPS's BLAS), links resolved."""
+    try:
+        with open("/proc/self/maps", encoding="utf-8") as maps:
+            paths = {line.split()[-1] for line in maps if "libblas.so" in line}
+    except OSError:
+        return "unknown"
+    return ", ".join(sorted(os.path.realpath(p) for p in paths)) or "none loaded"
+
+
 def full_frequencies_hz(system, count: int, backend: str) -> np.ndarray:
     """The ``count`` lowest eigenfrequencies of the full model (Hz): ARPACK in shift-invert
     mode about 0 with a refined factorization of ``K`` by ``backend``."""
@@ -281,6 +291,7 @@ def main() -> None:
     )
     facts = machine_facts()
     facts["MPI ranks"] = str(len(ranks))
+    facts["BLAS of MUMPS"] = blas_library()
     update_results("Distributed backend", text, facts)
 
 
