@@ -76,6 +76,7 @@ def solve_pair(matrix: sp.csr_matrix, rhs: np.ndarray, backend: str | None) -> d
     }
     if factor.backend == BACKEND:
         result["ranks"] = rank_statistics()
+        result["ordering"] = factor.ordering
     del factor
     return result
 
@@ -200,7 +201,7 @@ def main() -> None:
                     r["n"],
                     kind,
                     f"{d['backend']} {fmt_s(d['factor_s'])} s, {d['factor_gb']:.2f} GB",
-                    f"{fmt_s(m['factor_s'])} s, {m['factor_gb']:.2f} GB",
+                    f"{fmt_s(m['factor_s'])} s, {m['factor_gb']:.2f} GB ({m['ordering']})",
                     f"{m['factor_s'] / d['factor_s']:.2f}",
                     f"{fmt_s(d['solve_s'])} / {fmt_s(m['solve_s'])}",
                     f"{d['residual']:.1e} / {m['residual']:.1e}",
@@ -238,7 +239,7 @@ def main() -> None:
             "dofs",
             "matrix",
             "default backend: factorization",
-            "MUMPS on all ranks",
+            "MUMPS on all ranks (ordering)",
             "MUMPS / default",
             "solve of 6 columns [s] default / MUMPS",
             "residual default / MUMPS",

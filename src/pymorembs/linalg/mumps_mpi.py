@@ -77,6 +77,8 @@ POLL_S, IDLE_POLL_S = 1e-4, 0.02
 
 #: MUMPS error codes (``INFOG(1)``) that mean the matrix is singular or its factors overflow.
 SINGULAR_CODES = {-10: "numerically singular matrix", -6: "structurally singular matrix"}
+#: Orderings by MUMPS's code (``INFOG(7)``); Debian's ``libmumps`` has no METIS or SCOTCH.
+ORDERINGS = {0: "AMD", 1: "given", 2: "AMF", 3: "SCOTCH", 4: "PORD", 5: "METIS", 6: "QAMD"}
 #: ``INFOG(1)`` codes of a workspace too small (retried with a larger ``ICNTL(14)``).
 WORKSPACE_CODES = (-8, -9, -14, -15)
 
@@ -414,6 +416,8 @@ class MumpsFactor(SparseFactor):
         entries = infog[28]  # INFOG(29): entries of the factors, all ranks
         self._entries = int(entries if entries >= 0 else -entries * 1_000_000)
         self._memory_mb = int(infog[21])  # INFOG(22): MB used by the factorization, all ranks
+        #: The fill-reducing ordering MUMPS chose (``INFOG(7)``, :data:`ORDERINGS`).
+        self.ordering = ORDERINGS.get(int(infog[6]), str(int(infog[6])))
         self._finalizer = weakref.finalize(self, _PENDING.append, self.key)
         self.seconds = time.perf_counter() - start
 
