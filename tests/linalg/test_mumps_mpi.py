@@ -19,6 +19,7 @@ import textwrap
 from pathlib import Path
 
 import pytest
+import scipy.sparse as sp
 
 from pymorembs.errors import UserError
 from pymorembs.job.cli import main
@@ -82,9 +83,12 @@ def test_several_ranks_need_the_distributed_solver(monkeypatch, capsys) -> None:
 
 def test_asking_for_mumps_where_it_is_missing_is_a_user_error(monkeypatch) -> None:
     monkeypatch.setenv("PYMOREMBS_SOLVER", "mumps-mpi")
-    monkeypatch.setattr(backends, "_mumps_works", lambda: False)
+    factory, _works, install = backends.OPTIONAL_BACKENDS["mumps-mpi"]
+    monkeypatch.setitem(backends.OPTIONAL_BACKENDS, "mumps-mpi", (factory, lambda: False, install))
     with pytest.raises(UserError, match="make mpi"):
         backends.default_backend()
+    with pytest.raises(UserError, match="make mpi"):
+        backends.factorize(sp.eye(3, format="csr"), True, "mumps-mpi")
 
 
 SOLVES = """

@@ -73,7 +73,7 @@ SOLVER_ENV = "PYMOREMBS_SOLVER"
 THREADS_ENV = "PYMOREMBS_SOLVER_THREADS"
 #: Environment variable: ``0`` gives every PARDISO factor its own handle (no shared analysis).
 FAMILIES_ENV = "PYMOREMBS_PARDISO_FAMILIES"
-BACKENDS = ("superlu", "pardiso", "mumps-mpi")
+BACKENDS = ("superlu", "pardiso")
 #: With ``auto``, matrices with fewer stored nonzeros go to SuperLU even when PARDISO is there:
 #: PARDISO's fixed costs (METIS, threads) make it slower on small models (rack-beams, n = 3,942:
 #: factor 10-20 ms vs 2-3 ms, solve 0.8 vs 0.5 ms); the two are even at rack-solid n = 6,705
@@ -597,14 +597,15 @@ def default_backend() -> str:
     if value == "auto":
         return "pardiso" if _pardiso_works() else "superlu"
     if value not in BACKENDS:
-        raise UserError(f"{SOLVER_ENV} must be superlu, pardiso, mumps-mpi or auto, got {value!r}")
+        if value in OPTIONAL_BACKENDS:
+            return _optional_backend(value)[0]
+        names = ", ".join([*BACKENDS, *OPTIONAL_BACKENDS])
+        raise UserError(f"{SOLVER_ENV} must be {names} or auto, got {value!r}")
     if value == "pardiso" and not _pardiso_works():
         raise UserError(
             f"{SOLVER_ENV}=pardiso, but MKL PARDISO is not available "
             "(install it with: pip install 'pymorembs[fast]')"
         )
-    if value == "mumps-mpi" and not _mumps_works():
-        raise UserError(f"{SOLVER_ENV}=mumps-mpi, but MUMPS with MPI is not available (make mpi)")
     return value
 
 
@@ -612,23 +613,12 @@ def _requested() -> str:
     return os.environ.get(SOLVER_ENV, "auto").strip().lower() or "auto"
 
 
-def _mumps_factor(matrix: sp.spmatrix, symmetric: bool) -> SparseFactor:
-    """The distributed backend, :mod:`pymorembs.linalg.mumps_mpi` (imports mpi4py)."""
-    from pymorembs.linalg.mumps_mpi import mumps_factor
+#: A backend's factorization: ``factory(matrix, symmetric)`` -> :class:`SparseFactor`.
+Factory = Callable[[sp.spmatrix, bool], SparseFactor]
 
-    return mumps_factor(matrix, symmetric)
-
-
-def _mumps_works() -> bool:
-    from pymorembs.linalg.mumps_mpi import mumps_works
-
-    return mumps_works()
-
-
-_FACTORIES: dict[str, Callable[[sp.spmatrix, bool], SparseFactor]] = {
+_FACTORIES: dict[str, Factory] = {
     "superlu": SuperLUFactor,
     "pardiso": PardisoFactor,
-    "mumps-mpi": _mumps_factor,
 }
 
 
@@ -660,20 +650,54 @@ def factorize(matrix: sp.spmatrix, symmetric: bool, backend: str | None = None) 
         name = "superlu"  # without loading MKL (about 1.8 s on first use)
     else:
         name = default_backend() if backend is None else backend
-    if name not in _FACTORIES:
+    factory = _optional_backend(name)[1] if name in OPTIONAL_BACKENDS else _FACTORIES.get(name)
+    if factory is None:
         raise UserError(f"unknown solver backend {name!r}; choose from {', '.join(BACKENDS)}")
     if name == "pardiso" and not _pardiso_works():
         raise UserError("the PARDISO backend is not available (pip install 'pymorembs[fast]')")
-    if name == "mumps-mpi" and not _mumps_works():
-        raise UserError("the MUMPS backend is not available (make mpi)")
     if matrix.shape[0] != matrix.shape[1]:
         raise ValueError(f"cannot factorize a matrix of shape {matrix.shape}")
     if not np.iscomplexobj(matrix.data):
         matrix = matrix.astype(np.float64, copy=False)
-    factor = _FACTORIES[name](matrix, symmetric)
+    factor = factory(matrix, symmetric)
     if getattr(factor, "perturbed_pivots", 0):
         # PARDISO's static pivoting replaced pivots below 1e-13 |A|: the matrix is singular or
         # nearly so. SuperLU's threshold pivoting factorizes it exactly or reports it singular.
         del factor
         factor = SuperLUFactor(matrix, symmetric)
     return factor
+
+
+#: Backends defined in other modules, which register themselves (:func:`register_backend`): the
+#: distributed ``mumps-mpi`` of :mod:`pymorembs.linalg.mumps_mpi`. Name -> (factory, whether it
+#: works here, how to install it). ``auto`` never chooses one.
+OPTIONAL_BACKENDS: dict[str, tuple[Factory, Callable[[], bool], str]] = {}
+
+
+def register_backend(
+    name: str,
+    factory: Factory,
+    works: Callable[[], bool],
+    install: str,
+) -> None:
+    """Make ``name`` a value of ``PYMOREMBS_SOLVER`` and of :func:`factorize`'s ``backend``.
+
+    Parameters
+    ----------
+    name : str
+    factory : callable
+        ``factory(matrix, symmetric)`` -> :class:`SparseFactor`.
+    works : callable
+        ``works()`` -> whether the backend is installed and works (called when it is asked for).
+    install : str
+        How to install it, for the message when it is asked for but does not work.
+    """
+    OPTIONAL_BACKENDS[name] = (factory, works, install)
+
+
+def _optional_backend(name: str) -> tuple[str, Factory]:
+    """The name and factory of a registered backend; a UserError if it does not work here."""
+    factory, works, install = OPTIONAL_BACKENDS[name]
+    if not works():
+        raise UserError(f"{SOLVER_ENV}={name}: the backend is not available here ({install})")
+    return name, factory

@@ -57,7 +57,13 @@ import numpy as np
 import scipy.sparse as sp
 
 from pymorembs.errors import NumericalError, UserError
-from pymorembs.linalg.backends import SOLVER_ENV, SparseFactor, factorize
+from pymorembs.linalg.backends import (
+    SOLVER_ENV,
+    SparseFactor,
+    available_backends,
+    factorize,
+    register_backend,
+)
 
 #: The value of ``PYMOREMBS_SOLVER`` that selects this backend.
 BACKEND = "mumps-mpi"
@@ -459,8 +465,6 @@ def mumps_factor(matrix: sp.spmatrix, symmetric: bool) -> SparseFactor:
 
 
 def _local_backend() -> str:
-    from pymorembs.linalg.backends import available_backends
-
     return available_backends()[-1]
 
 
@@ -567,3 +571,6 @@ def _serve(comm: Any) -> None:
             _INSTANCES[arguments[0]].solve(None)
         elif operation == "statistics":
             comm.gather(_own_statistics(), root=0)
+
+
+register_backend(BACKEND, mumps_factor, mumps_works, "install MUMPS and mpi4py: make mpi")
