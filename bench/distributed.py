@@ -135,7 +135,7 @@ def measure(dofs: int) -> dict:
     stiffness, mass = sp.csr_matrix(system.stiffness), sp.csr_matrix(system.mass)
     forces = np.asarray(system.input_matrix, dtype=float)
     rhs = np.column_stack([forces, mass @ forces])
-    result: dict = {"n": n, "build_s": build_s, "nnz": int(stiffness.nnz)}
+    result: dict = {"n": n, "build_s": build_s, "nnz": int(stiffness.nnz), "nnz_mass": mass.nnz}
     os.environ.pop(SOLVER_ENV, None)
     baseline = default_backend()
     os.environ[SOLVER_ENV] = BACKEND
@@ -181,6 +181,52 @@ def measure(dofs: int) -> dict:
     return result
 
 
+#: The size of the cluster plan of docs/performance.md.
+PROJECTED_DOFS = 20_000_000
+
+
+def projection_table(small: dict, large: dict) -> str:
+    """Figures of ``large`` extrapolated to :data:`PROJECTED_DOFS` by the power law through
+    ``small`` and ``large`` (see the text of the section); a Markdown table."""
+    n1, n2, n = small["n"], large["n"], PROJECTED_DOFS
+    rows = []
+
+    def extrapolate(label: str, y1: float, y2: float, unit: str) -> None:
+        exponent = np.log(y2 / y1) / np.log(n2 / n1)
+        value = y2 * (n / n2) ** exponent
+        rows.append([label, f"{y1:.3g}", f"{y2:.3g}", f"{exponent:.2f}", f"{value:.3g} {unit}"])
+
+    for kind in ("real", "complex"):
+        a, b = small[kind]["mumps"], large[kind]["mumps"]
+        label = f"MUMPS factorization memory (INFOG(22)), all ranks, {kind} [GB]"
+        extrapolate(label, a["factor_gb"], b["factor_gb"], "GB")
+        extrapolate(f"MUMPS factorization, 2 ranks, {kind} [s]", a["factor_s"], b["factor_s"], "s")
+        extrapolate(f"MUMPS solve of 6 columns, {kind} [s]", a["solve_s"], b["solve_s"], "s")
+    per_row = large["nnz"] / n2, large["nnz_mass"] / n2
+    gigabytes = 12 * n / 1e9
+    rows.append(["rank 0: K and M as read", "", "", "", f"{gigabytes * sum(per_row):.3g} GB"])
+    rows.append(
+        ["rank 0: one shifted matrix K - w^2 M", "", "", "", f"{gigabytes * per_row[0]:.3g} GB"]
+    )
+    upper = (per_row[0] + 1) / 2
+    rows.append(
+        [
+            "rank 0: its upper triangle and the rows sent to the ranks",
+            "",
+            "",
+            "",
+            f"{(12 + 16) * upper * n / 1e9:.3g} GB",
+        ]
+    )
+    order = large["order"][0]
+    rows.append(
+        [f"rank 0: a basis of {order} columns", "", "", "", f"{8 * n * order / 1e9:.3g} GB"]
+    )
+    return markdown_table(
+        ["figure", f"at {n1:,}", f"at {n2:,}", "exponent a", f"at {n:,} dofs"], rows
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--dofs", type=int, nargs="+", default=[35000], help="rack-solid sizes")
@@ -192,8 +238,10 @@ def main() -> None:
     ranks = rank_statistics()
     warm_up()
     rows, memory_rows, body_rows = [], [], []
+    measured = []
     for dofs in args.dofs:
         r = measure(dofs)
+        measured.append(r)
         for kind in ("real", "complex"):
             d, m = r[kind]["default"], r[kind]["mumps"]
             rows.append(
@@ -272,7 +320,8 @@ def main() -> None:
         ],
         body_rows,
     )
-    print(factor_table, memory_table, body_table, sep="\n\n")
+    projection = projection_table(measured[0], measured[-1]) if len(measured) > 1 else ""
+    print(factor_table, memory_table, body_table, projection, sep="\n\n")
     if args.no_results:
         return
     text = (
@@ -290,6 +339,14 @@ def main() -> None:
         "in the band against the full model's (ARPACK in shift-invert mode, default backend).\n\n"
         f"{body_table}"
     )
+    if projection:
+        text += (
+            f"\n\nProjection to {PROJECTED_DOFS:,} dofs of the same kind of model: each figure "
+            "y measured at the two sizes n1 < n2 extrapolated as y2 (n / n2)^a with "
+            "a = ln(y2 / y1) / ln(n2 / n1) (a power law fitted on two points, not a "
+            "measurement); rank 0's arrays from the measured entries per row (8-byte values, "
+            "4-byte indices).\n\n" + projection
+        )
     facts = machine_facts()
     facts["MPI ranks"] = str(len(ranks))
     facts["BLAS of MUMPS"] = blas_library()
