@@ -37,6 +37,7 @@ import scipy.sparse as sp
 from _common import (
     BAND_HZ,
     build_prepared,
+    command_line,
     fmt_s,
     krylov_or_soaga_spec,
     machine_facts,
@@ -325,10 +326,9 @@ def main() -> None:
     if args.no_results:
         return
     text = (
-        f"Run as `mpiexec -n {len(ranks)} .venv/bin/python bench/distributed.py "
-        f"--dofs {' '.join(map(str, args.dofs))}` (rack-solid; rank 0 measures, the others "
-        "serve MUMPS). One factorization and one solve of each matrix by the default backend "
-        "and by MUMPS on all ranks (shift 500 Hz; complex: loss factor 0.02); residual "
+        "Rack-solid; rank 0 measures, the other ranks serve MUMPS. One factorization and one "
+        "solve of each matrix by the default backend and by MUMPS on all ranks (shift 500 Hz; "
+        "complex: loss factor 0.02); residual "
         "|A x - b| / |b| of the six right-hand sides [B, M B]; MUMPS's memory per rank as it "
         "counts it (INFO(22), INFO(26); MB = 1e6 bytes) and each rank's peak resident memory "
         "(rank 0 also holds the model and the default backend's run).\n\n"
@@ -350,7 +350,11 @@ def main() -> None:
     facts = machine_facts()
     facts["MPI ranks"] = str(len(ranks))
     facts["BLAS of MUMPS"] = blas_library()
-    update_results("Distributed backend", text, facts)
+    path = update_results("Distributed backend", text, facts)
+    # the command as it ran: under mpiexec
+    plain = f"Command: `{command_line()}`"
+    launched = f"Command: `mpiexec -n {len(ranks)} --bind-to none {command_line()}`"
+    path.write_text(path.read_text(encoding="utf-8").replace(plain, launched), encoding="utf-8")
 
 
 if __name__ == "__main__":
