@@ -46,7 +46,6 @@ import ctypes
 import ctypes.util
 import itertools
 import os
-import resource
 import threading
 import time
 import weakref
@@ -489,6 +488,8 @@ def rank_statistics() -> list[dict[str, float]]:
 
 
 def _own_statistics() -> dict[str, float]:
+    import resource  # Unix only, as MPI here
+
     totals = {"factor_space": 0.0, "factorization_mb": 0.0, "solve_mb": 0.0}
     for instance in _INSTANCES.values():
         for name, value in instance.statistics().items():
