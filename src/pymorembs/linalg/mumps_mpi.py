@@ -16,11 +16,12 @@ How a factorization goes (:class:`MumpsFactor`)
   row blocks of about equal numbers of nonzeros and sends block ``r`` to rank ``r``: MUMPS's
   distributed assembled input (``ICNTL(18) = 3``), so no worker holds more than its share of
   the matrix.
-- MUMPS analyses the pattern (ordering: MUMPS's automatic choice, ``ICNTL(7) = 7``, sequential
-  on the host as Debian's build has no ParMETIS), then factorizes ``A = L D L^T`` (``SYM = 2``:
-  real symmetric indefinite with ``dmumps``, complex symmetric -- not Hermitian -- with
-  ``zmumps``) or ``A = L U`` (``SYM = 0``), every rank holding its fronts. A factorization that
-  runs out of its estimated workspace (``INFOG(1)`` = -8, -9) is repeated with twice the
+- MUMPS analyses the pattern on the host (ordering: MUMPS's automatic choice, ``ICNTL(7) = 7``,
+  among AMD, AMF, QAMD and PORD: Debian's ``libmumps`` has no METIS or SCOTCH), then
+  factorizes ``A = L D L^T`` (``SYM = 2``: real symmetric indefinite with ``dmumps``, complex
+  symmetric -- not Hermitian -- with ``zmumps``) or ``A = L U`` (``SYM = 0``), every rank
+  holding its fronts. A factorization that
+  runs out of its estimated workspace (:data:`WORKSPACE_CODES`) is repeated with twice the
   relaxation ``ICNTL(14)``, up to :data:`MEMORY_RETRIES` times.
 - Solves take a block of ``k`` right-hand sides on the host (``ICNTL(20) = 0``), are done by
   all ranks together, and return the solution on the host (``ICNTL(21) = 0``): one collective
