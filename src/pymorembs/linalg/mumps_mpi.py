@@ -20,9 +20,9 @@ How a factorization goes (:class:`MumpsFactor`)
   among AMD, AMF, QAMD and PORD: Debian's ``libmumps`` has no METIS or SCOTCH), then
   factorizes ``A = L D L^T`` (``SYM = 2``: real symmetric indefinite with ``dmumps``, complex
   symmetric -- not Hermitian -- with ``zmumps``) or ``A = L U`` (``SYM = 0``), every rank
-  holding its fronts. A factorization that
-  runs out of its estimated workspace (:data:`WORKSPACE_CODES`) is repeated with twice the
-  relaxation ``ICNTL(14)``, up to :data:`MEMORY_RETRIES` times.
+  holding its fronts. A factorization that runs out of its estimated workspace
+  (:data:`WORKSPACE_CODES`) is repeated with twice the relaxation ``ICNTL(14)``, up to
+  :data:`MEMORY_RETRIES` times.
 - Solves take a block of ``k`` right-hand sides on the host (``ICNTL(20) = 0``), are done by
   all ranks together, and return the solution on the host (``ICNTL(21) = 0``): one collective
   solve per block, whatever ``k``.
