@@ -5,7 +5,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test test-slow lint clean bench
+.PHONY: demo test test-slow lint clean bench mpi
 
 $(STAMP): pyproject.toml requirements-nodeps.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -50,6 +50,15 @@ bench: $(STAMP)
 	$(BIN)/python bench/reference.py --dofs $(REFERENCE_DOFS)
 	$(BIN)/python bench/scaling.py --dofs $(SCALING_DOFS)
 	$(BIN)/python bench/read_speed.py --dofs $(READ_DOFS) --repeat 2
+
+# The optional distributed solver (docs/performance.md, "Distributed backend"): Debian 12's MUMPS
+# 5.5.1 and Open MPI 4.1, serial OpenBLAS for MUMPS's dense fronts (it becomes the system's BLAS in
+# place of the reference BLAS), and mpi4py in the venv. Needs root: `make mpi SUDO=sudo`.
+SUDO ?=
+mpi: $(STAMP)
+	$(SUDO) apt-get install -y --no-install-recommends libmumps-dev=5.5.1-1 openmpi-bin \
+		libopenmpi-dev libopenblas0-serial
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[mpi]'
 
 clean:
 	rm -rf $(VENV) out build src/*.egg-info

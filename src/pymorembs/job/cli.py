@@ -47,6 +47,7 @@ from pymorembs.io import read_body, write_body_h5, write_matrix_files
 from pymorembs.job.run import load_job_model, output_errors, run_job, validate_job_body
 from pymorembs.job.schema import MODEL_FORMATS, load_job
 from pymorembs.job.summary import Accuracy, JobSummary
+from pymorembs.linalg import serve_solver_ranks
 from pymorembs.parallel import dask_client, usable_cores
 from pymorembs.preparation import ValidationReport, mechanism_or_map, prepare, validate_body
 from pymorembs.units import detect_units, frequency_warnings
@@ -249,6 +250,8 @@ def _ended_by_signal(what: str, code: int) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     try:
+        if serve_solver_ranks():  # a rank > 0 of `mpiexec` serves rank 0's factorizations
+            return 0
         if args.command == "example":
             return _example(args)
         if args.command == "info":

@@ -2,10 +2,12 @@
 
 A public subpackage for the few names below (``docs/api.md``, "The public surface"): the
 massless split of a mass matrix (:func:`mass_split`) and the sparse solver backends
-(:func:`available_backends`, :func:`default_backend`, chosen by ``PYMOREMBS_SOLVER``).
+(:func:`available_backends`, :func:`default_backend`, chosen by ``PYMOREMBS_SOLVER``), and the
+service of the other MPI ranks of the distributed backend (:func:`serve_solver_ranks`).
 """
 
 from pymorembs.linalg.backends import available_backends, default_backend
 from pymorembs.linalg.mass_split import MassSplit, mass_split
+from pymorembs.linalg.mumps_mpi import serve_solver_ranks
 
-__all__ = ["MassSplit", "available_backends", "default_backend", "mass_split"]
+__all__ = ["MassSplit", "available_backends", "default_backend", "mass_split", "serve_solver_ranks"]

@@ -20,12 +20,14 @@ right-hand side (n,) or a block (n, k) in one call. Two backends:
 
 Choice of the backend
 ---------------------
-``PYMOREMBS_SOLVER`` = ``superlu`` | ``pardiso`` | ``auto`` (default ``auto``: PARDISO when it
-is installed and works and the matrix has at least :data:`AUTO_MIN_NNZ` nonzeros, complex ones
-:data:`AUTO_MIN_NNZ_COMPLEX`, else SuperLU; without PARDISO, the first factorization of a large
-matrix, :data:`NOTE_MIN_NNZ`, writes one line on stderr, :func:`fast_solver_note`). A PARDISO
-factorization that had to perturb pivots (the matrix is singular or nearly so) is replaced by
-SuperLU's, which either factorizes exactly or reports the singularity.
+``PYMOREMBS_SOLVER`` = ``superlu`` | ``pardiso`` | ``mumps-mpi`` | ``auto`` (default ``auto``:
+PARDISO when it is installed and works and the matrix has at least :data:`AUTO_MIN_NNZ`
+nonzeros, complex ones :data:`AUTO_MIN_NNZ_COMPLEX`, else SuperLU; without PARDISO, the first
+factorization of a large matrix, :data:`NOTE_MIN_NNZ`, writes one line on stderr,
+:func:`fast_solver_note`; ``auto`` never chooses ``mumps-mpi``, the distributed MUMPS over MPI
+of :mod:`pymorembs.linalg.mumps_mpi`). A PARDISO factorization that had to perturb pivots (the
+matrix is singular or nearly so) is replaced by SuperLU's, which either factorizes exactly or
+reports the singularity.
 
 All shifts ``K - omega^2 M + i omega D`` of a model share one sparsity pattern, so its analysis
 (METIS ordering and symbolic factorization) is done once: the symmetric factors of one pattern
@@ -633,7 +635,10 @@ def default_backend() -> str:
     if value == "auto":
         return "pardiso" if _pardiso_works() else "superlu"
     if value not in BACKENDS:
-        raise UserError(f"{SOLVER_ENV} must be superlu, pardiso or auto, got {value!r}")
+        if value in OPTIONAL_BACKENDS:
+            return _optional_backend(value)[0]
+        names = ", ".join([*BACKENDS, *OPTIONAL_BACKENDS])
+        raise UserError(f"{SOLVER_ENV} must be {names} or auto, got {value!r}")
     if value == "pardiso" and not _pardiso_works():
         raise UserError(
             f"{SOLVER_ENV}=pardiso, but MKL PARDISO is not available ({fast_solver_hint()})"
@@ -645,7 +650,10 @@ def _requested() -> str:
     return os.environ.get(SOLVER_ENV, "auto").strip().lower() or "auto"
 
 
-_FACTORIES: dict[str, Callable[[sp.spmatrix, bool], SparseFactor]] = {
+#: A backend's factorization: ``factory(matrix, symmetric)`` -> :class:`SparseFactor`.
+Factory = Callable[[sp.spmatrix, bool], SparseFactor]
+
+_FACTORIES: dict[str, Factory] = {
     "superlu": SuperLUFactor,
     "pardiso": PardisoFactor,
 }
@@ -684,7 +692,8 @@ def factorize(matrix: sp.spmatrix, symmetric: bool, backend: str | None = None) 
     large = matrix.nnz >= (AUTO_MIN_NNZ_COMPLEX if complex_ else NOTE_MIN_NNZ)
     if automatic and large and not _pardiso_works():
         _write_fast_solver_note()
-    if name not in _FACTORIES:
+    factory = _optional_backend(name)[1] if name in OPTIONAL_BACKENDS else _FACTORIES.get(name)
+    if factory is None:
         raise UserError(f"unknown solver backend {name!r}; choose from {', '.join(BACKENDS)}")
     if name == "pardiso" and not _pardiso_works():
         raise UserError(f"the PARDISO backend is not available ({fast_solver_hint()})")
@@ -692,10 +701,45 @@ def factorize(matrix: sp.spmatrix, symmetric: bool, backend: str | None = None) 
         raise ValueError(f"cannot factorize a matrix of shape {matrix.shape}")
     if not complex_:
         matrix = matrix.astype(np.float64, copy=False)
-    factor = _FACTORIES[name](matrix, symmetric)
+    factor = factory(matrix, symmetric)
     if getattr(factor, "perturbed_pivots", 0):
         # PARDISO's static pivoting replaced pivots below 1e-13 |A|: the matrix is singular or
         # nearly so. SuperLU's threshold pivoting factorizes it exactly or reports it singular.
         del factor
         factor = SuperLUFactor(matrix, symmetric)
     return factor
+
+
+#: Backends defined in other modules, which register themselves (:func:`register_backend`): the
+#: distributed ``mumps-mpi`` of :mod:`pymorembs.linalg.mumps_mpi`. Name -> (factory, whether it
+#: works here, how to install it). ``auto`` never chooses one.
+OPTIONAL_BACKENDS: dict[str, tuple[Factory, Callable[[], bool], str]] = {}
+
+
+def register_backend(
+    name: str,
+    factory: Factory,
+    works: Callable[[], bool],
+    install: str,
+) -> None:
+    """Make ``name`` a value of ``PYMOREMBS_SOLVER`` and of :func:`factorize`'s ``backend``.
+
+    Parameters
+    ----------
+    name : str
+    factory : callable
+        ``factory(matrix, symmetric)`` -> :class:`SparseFactor`.
+    works : callable
+        ``works()`` -> whether the backend is installed and works (called when it is asked for).
+    install : str
+        How to install it, for the message when it is asked for but does not work.
+    """
+    OPTIONAL_BACKENDS[name] = (factory, works, install)
+
+
+def _optional_backend(name: str) -> tuple[str, Factory]:
+    """The name and factory of a registered backend; a UserError if it does not work here."""
+    factory, works, install = OPTIONAL_BACKENDS[name]
+    if not works():
+        raise UserError(f"{SOLVER_ENV}={name}: the backend is not available here ({install})")
+    return name, factory
