@@ -228,7 +228,9 @@ def test_upper_triangle_keeps_the_entries_on_and_above_the_diagonal() -> None:
     upper, key = backends._upper_triangle(a)
     assert key is not None and upper.has_canonical_format
     assert abs(upper - sp.triu(a)).max() == 0 and upper.nnz == sp.triu(a).nnz
-    again, same = backends._upper_triangle(sp.csr_matrix((2 * a.data, a.indices, a.indptr), a.shape))
+    again, same = backends._upper_triangle(
+        sp.csr_matrix((2 * a.data, a.indices, a.indptr), a.shape)
+    )
     assert same == key and abs(again - 2 * sp.triu(a)).max() == 0
     hole = sp.csr_matrix(a - sp.diags(a.diagonal()))  # no stored diagonal: zeros added
     hole.eliminate_zeros()
