@@ -21,6 +21,7 @@ from dataclasses import replace
 
 import numpy as np
 import scipy.sparse as sp
+from _common import prepare_damped
 from stress_modes import SIZE, counts_for  # also puts tests/stress on the path
 
 YOUNG, POISSON, DENSITY = 2.1e11, 0.3, 7850.0
@@ -72,8 +73,6 @@ def tet10_box_body(dofs: int):
 
 def tet10_box_prepared(dofs: int, damping: str = "modal"):
     """The prepared box (frame and ports as in the module docstring) and its build time, s."""
-    from pymorembs.body import Damping
-    from pymorembs.preparation import Frame, Port, prepare
     from pymorembs.preparation.interface import InterfaceSpec, add_interface_node, select_nodes
 
     tick = time.perf_counter()
@@ -84,9 +83,4 @@ def tet10_box_prepared(dofs: int, damping: str = "modal"):
         centre = (x, SIZE[1] / 2, SIZE[2] / 2)
         body = add_interface_node(body, InterfaceSpec(node, centre, tuple(int(i) for i in face)))
     build_s = time.perf_counter() - tick
-    if damping == "modal":
-        body = body.with_damping(Damping("modal", ratio=0.01))
-    else:
-        body = body.with_damping(Damping("rayleigh", beta=2e-6))
-    ports = [Port.parse(port_node, "ux uy uz")]
-    return prepare(body, Frame("tangent", frame_node), ports, ports), build_s
+    return prepare_damped(body, frame_node, port_node, damping), build_s

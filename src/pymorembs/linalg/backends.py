@@ -64,7 +64,6 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from pymorembs.errors import NumericalError, UserError
-from pymorembs.linalg import double_double
 
 #: Environment variable that selects the backend: ``superlu``, ``pardiso`` or ``auto``.
 SOLVER_ENV = "PYMOREMBS_SOLVER"
@@ -442,14 +441,14 @@ class _UpperPattern:
     def __init__(self, matrix: sp.csr_matrix) -> None:
         n = matrix.shape[0]
         index_type = np.int32 if matrix.nnz < 2**31 else np.intp
-        if double_double.available():  # one compiled pass (Numba)
-            from pymorembs.linalg import compiled_kernels
-
+        try:  # one compiled pass (Numba)
+            from pymorembs.linalg.compiled_kernels import upper_positions
+        except ImportError:
+            upper_positions = None
+        if upper_positions is not None:
             keep = np.empty(matrix.nnz, dtype=index_type)
             self.indptr = np.empty(n + 1, dtype=np.int32)
-            count, self.complete = compiled_kernels.upper_positions(
-                matrix.indptr, matrix.indices, keep, self.indptr
-            )
+            count, self.complete = upper_positions(matrix.indptr, matrix.indices, keep, self.indptr)
             self.keep = keep[:count]
         else:
             rows = np.repeat(np.arange(n, dtype=np.int32), np.diff(matrix.indptr))
