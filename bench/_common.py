@@ -247,8 +247,10 @@ def warm_up() -> None:
         from pymorembs.linalg import double_double
     except ImportError:  # an older pymorembs
         return
-    if double_double.available():
+    if double_double.available():  # every compiled kernel of a reduction, so none compiles
         double_double.product(small, np.ones((50, 2)))
+        double_double.multiply(small, np.ones((50, 2)))
+        combine([(1.0, sp.csr_matrix(small)), (-1.0, sp.identity(50, format="csr"))])
 
 
 # --------------------------------------------------------------------------- memory, processes
