@@ -43,8 +43,7 @@ SOLVER_DOFS  ?= 35000 150000
 
 bench: $(STAMP)
 	$(BIN)/python bench/solvers.py --dofs $(SOLVER_DOFS)
-	$(BIN)/python bench/floor_ratio.py --method krylov --dofs $(FLOOR_DOFS)
-	$(BIN)/python bench/floor_ratio.py --method soaga --dofs $(FLOOR_DOFS)
+	$(BIN)/python bench/floor_ratio.py --method krylov soaga --model rack-solid tet10-box --dofs $(FLOOR_DOFS)
 	$(BIN)/python bench/peers.py --dofs $(PEERS_DOFS)
 	for n in $(GRAMIAN_DOFS); do $(BIN)/python bench/large_gramian.py --dofs $$n || exit 1; done
 	$(BIN)/python bench/reference.py --dofs $(REFERENCE_DOFS)

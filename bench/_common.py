@@ -62,20 +62,27 @@ def build_prepared(example: str, dofs: int | None, damping: str = "modal"):
     build_s : float
         Wall time of building the FE model.
     """
-    from pymorembs.body import Damping
     from pymorembs.examples import build_example
-    from pymorembs.preparation import Frame, Port, prepare
 
     tick = time.perf_counter()
     options = {"dofs": dofs} if example == "rack-solid" else {}
     body = build_example(example, **options)
     build_s = time.perf_counter() - tick
+    return prepare_damped(body, FRAME_NODE, PORT_NODE, damping), build_s
+
+
+def prepare_damped(body, frame_node: int, port_node: int, damping: str = "modal"):
+    """``body`` damped (``"modal"``: 1 % in every mode; ``"rayleigh"``: ``D = 2e-6 s * K``),
+    tangent frame at ``frame_node``, inputs and outputs ``port_node: ux uy uz``."""
+    from pymorembs.body import Damping
+    from pymorembs.preparation import Frame, Port, prepare
+
     if damping == "modal":
         body = body.with_damping(Damping("modal", ratio=0.01))
     else:
         body = body.with_damping(Damping("rayleigh", beta=2e-6))
-    ports = [Port.parse(PORT_NODE, "ux uy uz")]
-    return prepare(body, Frame("tangent", FRAME_NODE), ports, ports), build_s
+    ports = [Port.parse(port_node, "ux uy uz")]
+    return prepare(body, Frame("tangent", frame_node), ports, ports)
 
 
 def krylov_or_soaga_spec(method: str):
@@ -240,8 +247,10 @@ def warm_up() -> None:
         from pymorembs.linalg import double_double
     except ImportError:  # an older pymorembs
         return
-    if double_double.available():
+    if double_double.available():  # every compiled kernel of a reduction, so none compiles
         double_double.product(small, np.ones((50, 2)))
+        double_double.multiply(small, np.ones((50, 2)))
+        combine([(1.0, sp.csr_matrix(small)), (-1.0, sp.identity(50, format="csr"))])
 
 
 # --------------------------------------------------------------------------- memory, processes

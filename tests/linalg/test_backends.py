@@ -310,3 +310,20 @@ def test_no_note_with_pardiso(monkeypatch, capsys) -> None:
     backends._write_fast_solver_note.cache_clear()
     factorize(_random_symmetric("spd"), symmetric=True)  # small: SuperLU, but PARDISO is there
     assert capsys.readouterr().err == ""
+
+
+def test_upper_triangle_keeps_the_entries_on_and_above_the_diagonal() -> None:
+    rng = np.random.default_rng(5)
+    a = sp.random(40, 40, density=0.2, random_state=rng, format="csr")
+    a = sp.csr_matrix(a + a.T + sp.identity(40))
+    upper, key = backends._upper_triangle(a)
+    assert key is not None and upper.has_canonical_format
+    assert abs(upper - sp.triu(a)).max() == 0 and upper.nnz == sp.triu(a).nnz
+    again, same = backends._upper_triangle(
+        sp.csr_matrix((2 * a.data, a.indices, a.indptr), a.shape)
+    )
+    assert same == key and abs(again - 2 * sp.triu(a)).max() == 0
+    hole = sp.csr_matrix(a - sp.diags(a.diagonal()))  # no stored diagonal: zeros added
+    hole.eliminate_zeros()
+    upper, key = backends._upper_triangle(hole)
+    assert key is None and upper.nnz == sp.triu(hole).nnz + 40

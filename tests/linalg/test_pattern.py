@@ -54,3 +54,24 @@ def test_pattern_is_cached_per_set_of_matrices_and_norm_is_exact() -> None:
     for matrix in (k, m, d, sp.csr_matrix((5, 5))):
         expected = spla.norm(matrix, np.inf) if matrix.nnz else 0.0
         assert abs(infinity_norm(matrix) - expected) <= 1e-15 * expected
+
+
+def test_a_pattern_that_holds_the_others_is_the_merged_one_itself() -> None:
+    # stiffness and a mass on part of its pattern (a consistent mass has one entry per
+    # direction of the stiffness's 3 x 3 node blocks): the merged pattern is the stiffness's
+    # own arrays, so the stiffness alone (at 0 Hz) and its shifts share one pattern
+    k, m, d = _matrices()
+    subset = sp.csr_matrix(k.multiply(np.add.outer(np.arange(60), np.arange(60)) % 3 == 0))
+    subset.sum_duplicates()
+    pattern = SumPattern([k, subset, d])
+    assert pattern.indices is k.indices and pattern.indptr is k.indptr
+    coefficients = [1.0, -((2 * np.pi * 37.0) ** 2), 0.5]
+    ours = pattern.combine(coefficients)
+    reference = coefficients[0] * k + coefficients[1] * subset + coefficients[2] * d
+    assert abs(ours - reference).max() <= 1e-12 * abs(reference).max()
+    assert combine([(1.0, k)]).indices is k.indices  # K alone: its own pattern
+    # a mass outside the stiffness's pattern: a merged pattern of its own, the same sums
+    other = SumPattern([k, m])
+    assert other.indices is not k.indices and other.nnz > k.nnz
+    reference = k - 3.0 * m
+    assert abs(other.combine([1.0, -3.0]) - reference).max() <= 1e-12 * abs(reference).max()

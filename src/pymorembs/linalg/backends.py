@@ -456,12 +456,22 @@ class _UpperPattern:
 
     def __init__(self, matrix: sp.csr_matrix) -> None:
         n = matrix.shape[0]
-        rows = np.repeat(np.arange(n, dtype=np.int32), np.diff(matrix.indptr))
         index_type = np.int32 if matrix.nnz < 2**31 else np.intp
-        self.keep = np.flatnonzero(matrix.indices >= rows).astype(index_type)
-        self.complete = int(np.count_nonzero(matrix.indices == rows)) == n
-        kept = np.bincount(rows[self.keep], minlength=n)
-        self.indptr = np.concatenate([[0], np.cumsum(kept)]).astype(np.int32)
+        try:  # one compiled pass (Numba)
+            from pymorembs.linalg.compiled_kernels import upper_positions
+        except ImportError:
+            upper_positions = None
+        if upper_positions is not None:
+            keep = np.empty(matrix.nnz, dtype=index_type)
+            self.indptr = np.empty(n + 1, dtype=np.int32)
+            count, self.complete = upper_positions(matrix.indptr, matrix.indices, keep, self.indptr)
+            self.keep = keep[:count]
+        else:
+            rows = np.repeat(np.arange(n, dtype=np.int32), np.diff(matrix.indptr))
+            self.keep = np.flatnonzero(matrix.indices >= rows).astype(index_type)
+            self.complete = int(np.count_nonzero(matrix.indices == rows)) == n
+            kept = np.bincount(rows[self.keep], minlength=n)
+            self.indptr = np.concatenate([[0], np.cumsum(kept)]).astype(np.int32)
         self.indices = matrix.indices[self.keep].astype(np.int32)
         self.key = _pattern_key(self.indptr, self.indices)
 

@@ -80,3 +80,47 @@ def multiply_serial(indptr, indices, data, x, out):  # pragma: no cover - compil
     """``A X`` in double precision on the calling thread."""
     for i in range(out.shape[0]):
         _plain_row(i, indptr, indices, data, x, out)
+
+
+@numba.njit(cache=True, nogil=True)
+def subset_positions(indptr, indices, sub_indptr, sub_indices, out):  # pragma: no cover - compiled
+    """Where each stored entry of the canonical CSR pattern ``sub`` sits in the canonical CSR
+    pattern ``(indptr, indices)`` (into ``out``); False as soon as one is not there."""
+    for i in range(indptr.size - 1):
+        q, end = indptr[i], indptr[i + 1]
+        for p in range(sub_indptr[i], sub_indptr[i + 1]):
+            column = sub_indices[p]
+            while q < end and indices[q] < column:
+                q += 1
+            if q == end or indices[q] != column:
+                return False
+            out[p] = q
+            q += 1
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
+def scaled_add(out, coefficient, values):  # pragma: no cover - compiled
+    """``out += coefficient * values`` elementwise in one pass (NumPy's rounding: the product
+    is rounded, then added)."""
+    for i in range(out.size):
+        out[i] += coefficient * values[i]
+
+
+@numba.njit(cache=True, nogil=True)
+def upper_positions(indptr, indices, keep, upper_indptr):  # pragma: no cover - compiled
+    """The entries ``j >= i`` of a canonical CSR pattern: their positions into ``keep`` (length
+    at least their number), the row starts of the upper triangle into ``upper_indptr`` (n + 1);
+    returns (their number, whether every diagonal entry is stored)."""
+    count = 0
+    diagonals = 0
+    upper_indptr[0] = 0
+    for i in range(indptr.size - 1):
+        for q in range(indptr[i], indptr[i + 1]):
+            if indices[q] >= i:
+                if indices[q] == i:
+                    diagonals += 1
+                keep[count] = q
+                count += 1
+        upper_indptr[i + 1] = count
+    return count, diagonals == indptr.size - 1

@@ -134,7 +134,10 @@ def combine(terms: Terms, dtype: type | None = None) -> sp.csr_matrix:
     """
     terms = [(c, m) for c, m in terms if c != 0]
     if len(terms) == 1 and terms[0][0] == 1 and dtype is None and sp.issparse(terms[0][1]):
-        single = sp.csr_matrix(terms[0][1])
+        single = terms[0][1]
+        if isinstance(single, sp.csr_matrix) and single.has_canonical_format:
+            return single  # its own index arrays: the pattern of its shifts (sum_pattern)
+        single = sp.csr_matrix(single)
         if not single.has_canonical_format:
             single = single.copy()
             single.sum_duplicates()

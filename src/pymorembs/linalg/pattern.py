@@ -21,6 +21,8 @@ from collections.abc import Sequence
 import numpy as np
 import scipy.sparse as sp
 
+from pymorembs.linalg import double_double
+
 __all__ = ["SumPattern", "infinity_norm", "sum_pattern"]
 
 
@@ -48,6 +50,11 @@ class SumPattern:
             raise ValueError("matrices of different shapes cannot be combined")
         self.shape = shape
         self._data = [p.data for p in parts]
+        self._aligned: list[np.ndarray] | None = None
+        contained = _contained(parts)
+        if contained is not None:  # one pattern holds all others: it is the merged one
+            self.indptr, self.indices, self.positions = contained
+            return
         if len(parts) > 52:
             raise ValueError("at most 52 matrices can be combined")
         # the merged pattern, each entry flagged with bit i if matrix i stores it
@@ -61,7 +68,6 @@ class SumPattern:
         # both patterns are sorted the same way, so the k-th entry of matrix i is the k-th
         # merged entry that carries flag i
         self.positions = [np.flatnonzero((flags >> i) & 1) for i in range(len(parts))]
-        self._aligned: list[np.ndarray] | None = None
 
     @property
     def nnz(self) -> int:
@@ -96,8 +102,16 @@ class SumPattern:
             data = np.zeros(self.nnz, dtype=dtype)
         else:  # whole-array products, no gather or scatter
             data = np.multiply(active[0][1], active[0][0], dtype=dtype)
-            scratch = np.empty_like(data) if len(active) > 1 else None
+            compiled = double_double.available() and data.dtype == np.float64
+            scratch = np.empty_like(data) if len(active) > 1 and not compiled else None
             for coefficient, values in active[1:]:
+                if compiled and values.dtype == np.float64:  # one pass, no scratch array
+                    from pymorembs.linalg import compiled_kernels
+
+                    compiled_kernels.scaled_add(data, float(coefficient), values)
+                    continue
+                if scratch is None:
+                    scratch = np.empty_like(data)
                 np.multiply(values, coefficient, out=scratch, dtype=dtype)
                 data += scratch
         combined = sp.csr_matrix(self.shape, dtype=dtype)
@@ -125,8 +139,43 @@ class SumPattern:
         return self._aligned
 
 
+def _contained(
+    parts: list[sp.csr_matrix],
+) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]] | None:
+    """The pattern of the largest of ``parts`` (its own ``indptr`` and ``indices`` arrays) and
+    the positions of every part in it, when it holds all the others' entries (a stiffness
+    matrix and a consistent or lumped mass); None otherwise or without the compiled kernels.
+
+    Sharing the largest matrix's arrays lets a solver recognise that matrix alone (``K`` at
+    0 Hz) and its shifts ``K - sigma M`` as one pattern.
+    """
+    if not double_double.available():
+        return None
+    from pymorembs.linalg import compiled_kernels
+
+    largest = max(parts, key=lambda p: p.nnz)
+    if largest.indptr.dtype != np.int32 or largest.indices.dtype != np.int32:
+        return None
+    positions = []
+    for part in parts:
+        if part is largest:
+            positions.append(np.arange(largest.nnz))
+            continue
+        where = np.empty(part.nnz, dtype=np.int64)
+        inside = compiled_kernels.subset_positions(
+            largest.indptr, largest.indices, part.indptr, part.indices, where
+        )
+        if not inside:
+            return None
+        positions.append(where)
+    return largest.indptr, largest.indices, positions
+
+
 def _canonical(matrix: sp.spmatrix) -> sp.csr_matrix:
-    """A canonical CSR copy (or view) of ``matrix``."""
+    """``matrix`` itself if it is canonical CSR (its index arrays are the very same objects, by
+    which a solver recognises the pattern), else a canonical CSR copy (or view)."""
+    if isinstance(matrix, sp.csr_matrix) and matrix.has_canonical_format:
+        return matrix
     part = sp.csr_matrix(matrix)
     if not part.has_canonical_format:
         part = part.copy()

@@ -663,7 +663,7 @@ def _estimate(
         block = v.T @ product_v
         vv[key] = 0.5 * (block + block.T)
         zv[key] = z.T @ product_v
-        block = z.T @ (matrix @ z)  # enters S only, no residual: double precision suffices
+        block = z.T @ multiply(matrix, z)  # enters S only, no residual: double suffices
         zz[key] = 0.5 * (block + block.T)
     b, cm = system.input_matrix, system.observed_matrix  # C_s sparse: products with V, Z only
     b_v, c_v, b_z, c_z = v.T @ b, np.asarray(cm @ v), z.T @ b, np.asarray(cm @ z)
