@@ -255,6 +255,7 @@ def reference_response(
     checks: int = DEFAULT_CHECKS,
     workers: int | None = 1,
     scheduler: str | None = None,
+    candidates_hz: Sequence[float] | None = None,
 ) -> ReferenceResponse:
     """The reference response of a full sparse system on the error grid.
 
@@ -271,6 +272,12 @@ def reference_response(
     workers, scheduler
         Parallel processes or Dask scheduler of the full-model sweeps
         (:func:`~pymorembs.analysis.transfer.transfer_function`).
+    candidates_hz : sequence of float, optional
+        Surrogate: expansion points (Hz) the reference model should choose from, e.g. those of
+        the reductions it will judge, so that a job factorizes each shift once
+        (:func:`~pymorembs.linalg.shared_factorizations`); those in the band are taken, and
+        the default equidistant candidates are added while there are fewer than
+        :data:`SURROGATE_CANDIDATES`.
 
     Returns
     -------
@@ -294,7 +301,7 @@ def reference_response(
             frequencies_hz, response, "full", exact, system, workers, scheduler,
             seconds=time.perf_counter() - tick,
         )  # fmt: skip
-    model, parameters, estimate_curve = _reference_model(system, frequencies_hz)
+    model, parameters, estimate_curve = _reference_model(system, frequencies_hz, candidates_hz)
     response = transfer_function(model, frequencies_hz, label="frequency response (reference)")
     reference = ReferenceResponse(
         frequencies_hz,
@@ -319,17 +326,22 @@ def reference_response(
 
 
 def _reference_model(
-    system: SecondOrderSystem, frequencies_hz: np.ndarray
+    system: SecondOrderSystem,
+    frequencies_hz: np.ndarray,
+    candidates_hz: Sequence[float] | None = None,
 ) -> tuple[SecondOrderSystem, dict[str, Any], tuple[np.ndarray, np.ndarray] | None]:
     """The reference model by SOAGA; its reduced system, facts and estimator curve."""
     from pymorembs.reduction.projection import reduced_model
-    from pymorembs.reduction.soaga import soaga_reduction
+    from pymorembs.reduction.soaga import candidate_points, soaga_reduction
 
     band = (float(frequencies_hz.min()), float(frequencies_hz.max()))
+    given = [float(f) for f in candidates_hz or () if band[0] <= f <= band[1]]
+    if len(set(given)) < SURROGATE_CANDIDATES:
+        given += candidate_points(*band, None, SURROGATE_CANDIDATES)
     projection = soaga_reduction(
         replace(system, stress_targeted=system.n_stress > 0),  # stresses to the same tolerance
         band,
-        n_candidates=SURROGATE_CANDIDATES,
+        candidates_hz=sorted(set(given)),
         tolerance=SURROGATE_TOLERANCE,
         max_order=max(1, min(SURROGATE_MAX_ORDER, system.order // 2)),
         tol=SURROGATE_DEFLATION,
