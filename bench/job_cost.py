@@ -354,7 +354,7 @@ def main() -> None:
     if args.model == "bracket" and not (BRACKET / "READY").exists():
         sys.exit(f"{BRACKET} is not READY")
     runs = {}
-    for before in ([True, False] if args.before else [False]):
+    for before in [True, False] if args.before else [False]:
         argv = [__file__, "--child", "--model", args.model, "--dofs", str(dofs or 0)]
         argv += ["--as-before"] if before else []
         label = "before" if before else "now"
