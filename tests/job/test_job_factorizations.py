@@ -7,52 +7,32 @@ shared and every check a complex factorization (as the job ran before).
 
 from __future__ import annotations
 
+import tomllib
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 import pymorembs.analysis.reference as reference_module
 import pymorembs.job.run as run
-from pymorembs.job.schema import load_job
+from pymorembs.job.schema import parse_job
 from pymorembs.linalg import factorization, shared_factorizations
 
-JOB = """
-title = "rack-beams: shared factors"
+DEMO = Path(__file__).resolve().parents[2] / "examples" / "rack-beams-demo.toml"
 
-[model]
-example = "rack-beams"
 
-[damping]
-kind = "modal"
-ratio = 0.02
-
-[frame]
-type = "tangent"
-node = 2
-
-[[inputs]]
-node = 1
-directions = "ux uy uz"
-
-[band]
-f_min_hz = 0
-f_max_hz = 1000
-points = 200
-reference = "surrogate"
-
-[[reduction]]
-name = "krylov"
-method = "krylov"
-expansion_points_hz = [0, 500, 1000]
-moments = [2, 2, 2]
-
-[[reduction]]
-name = "soaga"
-method = "soaga"
-tolerance = 1e-6
-
-[export]
-outputs = ["sid"]
-"""
+def job_data() -> dict:
+    """The demo job (rack-beams) with 2 % damping, a surrogate reference, Krylov and SOAGA."""
+    data = tomllib.loads(DEMO.read_text())
+    data["damping"]["ratio"] = 0.02
+    data["band"].update(points=200, reference="surrogate")
+    data["reduction"] = [
+        {"name": "krylov", "method": "krylov", "expansion_points_hz": [0, 500, 1000],
+         "moments": [2, 2, 2]},
+        {"name": "soaga", "method": "soaga", "tolerance": 1e-6},
+    ]  # fmt: skip
+    data["export"] = {"outputs": ["sid"]}
+    return data
 
 
 def run_counted(tmp_path, monkeypatch, name):
@@ -64,11 +44,9 @@ def run_counted(tmp_path, monkeypatch, name):
         kinds.append(matrix.dtype.kind)
         return original(matrix, *args, **kwargs)
 
-    path = tmp_path / f"{name}.toml"
-    path.write_text(JOB)
     with monkeypatch.context() as patch:
         patch.setattr(factorization, "factorize", counting)
-        summary = run.run_job(load_job(path), tmp_path / name)
+        summary = run.run_job(parse_job(job_data(), DEMO), tmp_path / name)
     return summary, kinds
 
 
