@@ -48,6 +48,7 @@ from _common import (
     run_child,
     update_results,
 )
+from threadpoolctl import threadpool_limits
 
 TARGET = 2.0
 BRACKET = Path("/work/data/bracket300k")
@@ -349,7 +350,9 @@ def main() -> None:
     args = parser.parse_args()
     dofs = 7400 if args.quick else (args.dofs if args.model == "rack-solid" else None)
     if args.child:
-        emit(measure(args.model, dofs, args.as_before))
+        # BLAS on one thread, as the command line runs a job (PARDISO keeps its own threads)
+        with threadpool_limits(limits=1, user_api="blas"):
+            emit(measure(args.model, dofs, args.as_before))
         return
     if args.model == "bracket" and not (BRACKET / "READY").exists():
         sys.exit(f"{BRACKET} is not READY")
