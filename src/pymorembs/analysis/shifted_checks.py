@@ -14,10 +14,11 @@ it instead:
   modes of the band, the directions ``F`` is worst at) and ``F^{-1}`` on the rest,
   ``P^{-1} r = Q r + F^{-1} (r - Z Q r)`` with ``Q = V (V^T Z V)^{-1} V^T``.
 
-The answer is accepted only when the error left after the last correction is below
-:data:`REFINE_TOL` of the solution in every column (the refinement criterion of the direct
-solves: the last correction, or the first one times the residual reduction of its GMRES run
-when that is far below) and the normwise
+The answer is accepted only when the refinement ended as that of a refined direct solve
+ends -- the error left after the last correction below :data:`REFINE_TOL` of the solution in
+every column (the last correction, or one times the residual reduction its GMRES run reached
+when that is far below), or corrections no longer halving (the accuracy the conditioning
+allows) -- and the normwise
 backward error of the extended-precision residual is at the rounding level
 (:data:`BACKWARD_TOL`): then it is the response a refined direct solve gives, to that
 accuracy. Otherwise (slow convergence, no extended precision) :func:`shifted_response` returns
@@ -105,10 +106,12 @@ class TwoLevel:
         return real_times(self.basis, y) + self.factor.solve(r - self.z_basis @ y)
 
 
-def gmres_block(terms: Terms, precondition: TwoLevel, r: np.ndarray) -> tuple[np.ndarray, int]:
+def gmres_block(
+    terms: Terms, precondition: TwoLevel, r: np.ndarray
+) -> tuple[np.ndarray, int, float]:
     """An approximate solution of ``Z e = r`` (n, k) by right-preconditioned GMRES, the ``k``
-    columns run side by side (each step one preconditioner solve of the whole block), and the
-    number of steps."""
+    columns run side by side (each step one preconditioner solve of the whole block); the
+    number of steps and the largest relative residual ``|r - Z e| / |r|`` of a column."""
     k = r.shape[1]
     beta = np.linalg.norm(r, axis=0)
     beta = np.where(beta > 0, beta, 1.0)
@@ -128,9 +131,9 @@ def gmres_block(terms: Terms, precondition: TwoLevel, r: np.ndarray) -> tuple[np
         if np.all(residuals <= GMRES_REDUCTION) or np.any(norm == 0):
             break
         basis.append(w / np.where(norm > 0, norm, 1.0))
-    y = _least_squares(hessenberg[: steps + 1, :steps], beta)[0]
+    y, residuals = _least_squares(hessenberg[: steps + 1, :steps], beta)
     combined = sum(basis[i] * y[i] for i in range(steps))
-    return precondition(combined), steps
+    return precondition(combined), steps, float(np.max(residuals))
 
 
 def _least_squares(h: np.ndarray, beta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -178,28 +181,35 @@ def shifted_response(
     precondition = TwoLevel(terms, factor, basis)
     norm = sum(abs(c) * infinity_norm(m) for c, m in terms) or 1.0
     x = precondition.galerkin(rhs)
+    previous, stagnated = np.inf, False
     for step in range(MAX_REFINEMENTS):
         residual = double_double.residual(rhs, terms, x).astype(complex, copy=False)
-        correction, steps = gmres_block(terms, precondition, residual)
+        correction, steps, reduction = gmres_block(terms, precondition, residual)
         facts["gmres_steps"] += steps
         x = x + correction
         size = np.linalg.norm(correction, axis=0)
         scale = np.maximum(np.linalg.norm(x, axis=0), np.finfo(float).tiny)
         facts["refinements"] = step + 1
         facts["correction"] = float(np.max(size / scale))
-        # GMRES cut the error of this step by about GMRES_REDUCTION: what is left after a
-        # correction c is ~c * GMRES_REDUCTION, below REFINE_TOL without another run to
-        # confirm it (the backward error below certifies the result)
-        if facts["correction"] * GMRES_REDUCTION <= 0.01 * REFINE_TOL:
-            facts["correction"] *= GMRES_REDUCTION
+        # GMRES cut the residual of this step by ``reduction``: the error left after a
+        # correction c is ~c * reduction, below REFINE_TOL without another run to confirm it
+        # (the backward error below certifies the result)
+        if facts["correction"] * reduction <= 0.01 * REFINE_TOL:
+            facts["correction"] *= reduction
             break
         if facts["correction"] <= REFINE_TOL:
             break
+        if facts["correction"] > 0.5 * previous:  # stagnating, as refined direct solves stop
+            stagnated = True
+            break
+        previous = facts["correction"]
     residual = double_double.residual(rhs, terms, x)
     scale = norm * np.abs(x).max(axis=0) + np.abs(rhs).max(axis=0)
     facts["backward_error"] = float(
         np.max(np.abs(residual).max(axis=0) / np.maximum(scale, 1e-300))
     )
-    if facts["correction"] > REFINE_TOL or facts["backward_error"] > BACKWARD_TOL:
+    if (facts["correction"] > REFINE_TOL and not stagnated) or facts[
+        "backward_error"
+    ] > BACKWARD_TOL:
         return None, facts
     return x, facts
