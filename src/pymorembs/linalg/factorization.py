@@ -172,6 +172,10 @@ class Factorization:
     plain_enough : float
         Default :data:`PLAIN_ENOUGH`; :data:`BASIS_PLAIN_ENOUGH` for solves that only build a
         subspace.
+    share : bool
+        Take and keep the factor in an open
+        :func:`~pymorembs.linalg.shared_factors.shared_factorizations` cache (False: a factor
+        used once, e.g. one frequency of a sweep).
 
     Attributes
     ----------
@@ -199,6 +203,7 @@ class Factorization:
         backend: str | None = None,
         refine: str = "auto",
         plain_enough: float = PLAIN_ENOUGH,
+        share: bool = True,
     ):
         if refine not in ("auto", "always"):
             raise ValueError(f"refine must be 'auto' or 'always', got {refine!r}")
@@ -216,7 +221,7 @@ class Factorization:
         self.dtype = self.matrix.dtype
         self.symmetric = all(is_symmetric(matrix) for _, matrix in self.terms)
         # within a job's shared_factorizations block: the factor of the same terms made before
-        shared = active_shared_factors()
+        shared = active_shared_factors() if share else None
         key = shared.key(self.terms, self.symmetric, backend) if shared is not None else None
         found = shared.get(key) if shared is not None else None
         self.reused = found is not None
