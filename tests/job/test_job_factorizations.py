@@ -62,6 +62,9 @@ def test_a_job_makes_fewer_factorizations_and_the_same_errors(tmp_path, monkeypa
     assert "c" not in made and made_before.count("c") >= 4  # the checks at f > 0
     assert len(made) < len(made_before) - made_before.count("c")  # fewer real ones too
     assert now.reference["checks_from_real_factors"] >= 4
+    # the reference model chose its points from the reductions' (Krylov's, SOAGA's candidates)
+    offered = {0.0, 500.0, 1000.0, *np.linspace(1.0, 1000.0, 10)}
+    assert set(now.reference["expansion_points_hz"]) <= offered
     for a, b in zip(now.reductions, before.reductions, strict=True):
         # both maxima are measured against the full model (settled): equal to the solves'
         # accuracy
