@@ -32,8 +32,10 @@ from pymorembs.parallel import available_memory_bytes
 __all__ = ["SharedFactors", "active_shared_factors", "shared_factorizations"]
 
 #: Default budget of :func:`shared_factorizations`: this fraction of the memory available when
-#: it opens (a 300k-dof tet10 part's real factor of ``K - sigma M`` holds about 1 GB).
-DEFAULT_BUDGET_FRACTION = 0.25
+#: it opens. A 300k-dof tet10 part's real factor of ``K - sigma M`` holds 1-2 GB; the job
+#: around it needed about 8 GB with one complex factor at a time, which the checks from real
+#: factors no longer make.
+DEFAULT_BUDGET_FRACTION = 0.4
 
 Key = tuple[Any, ...]
 
