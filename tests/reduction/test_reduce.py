@@ -210,3 +210,18 @@ def test_the_parameters_of_a_projection_are_read_only():
         **projection.parameters,
         "order_capped_by_first_stage": 4,
     }
+
+
+def test_expansion_candidates_are_the_points_a_method_factorizes_at():
+    """Krylov's expansion points, SOAGA's candidates (default: equidistant from 1e-3 f_max),
+    nothing for the modal methods: what a job's error reference chooses its points from."""
+    from pymorembs.methods import method_options
+    from pymorembs.reduction import expansion_candidates
+
+    krylov = method_options("krylov", {"expansion_points_hz": [0, 500, 1000], "order": 12})
+    assert expansion_candidates(krylov, (0.0, 1000.0)) == [0.0, 500.0, 1000.0]
+    soaga = method_options("soaga", {"tolerance": 1e-6, "n_candidates": 4})
+    assert expansion_candidates(soaga, (0.0, 1000.0)) == pytest.approx([1.0, 334.0, 667.0, 1000.0])
+    given = method_options("soaga", {"order": 20, "candidates_hz": [100, 300]})
+    assert expansion_candidates(given, (0.0, 1000.0)) == [100.0, 300.0]
+    assert expansion_candidates(method_options("modal", {"order": 10}), (0.0, 1000.0)) == []

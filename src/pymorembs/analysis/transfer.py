@@ -119,7 +119,8 @@ def _response_chunk(
             factorization = InertiaRelief(system.stiffness, system.mass, system.rigid_modes, label)
             x = factorization.solve(b)
         else:
-            factorization = Factorization(terms, label=label)
+            # a job's other steps factorize K too (0 Hz), not the dynamic stiffness of a sweep
+            factorization = Factorization(terms, label=label, share=f == 0)
             x = factorization.solve(b)
             if system.rigid_modes is not None:
                 x = _in_complement(factorization, system.mass, system.rigid_modes, x)

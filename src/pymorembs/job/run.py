@@ -72,7 +72,7 @@ from pymorembs.job.summary import (
     StressErrors,
 )
 from pymorembs.job.time_domain_checks import time_domain_checks
-from pymorembs.linalg import default_backend, mass_split
+from pymorembs.linalg import SharedFactors, default_backend, mass_split, shared_factorizations
 from pymorembs.preparation import (
     ValidationReport,
     add_interface_node,
@@ -91,6 +91,7 @@ from pymorembs.progress import Progress as ProgressBar
 from pymorembs.reduction import (
     Projection,
     aims_at_stresses,
+    expansion_candidates,
     explicit_step_s,
     first_stage,
     method_projection,
@@ -584,7 +585,8 @@ def _run_job(
     """The steps of :func:`run_job`: prepare, reference, reductions, checks, summary."""
     check_output_folder(out_dir)  # a file in the way fails now, not after all the work
     with output_errors(out_dir), _staging(out_dir) as staging:  # an unwritable device: now
-        summary = _run_in(job, staging, say, stage, workers, scheduler)
+        with shared_factorizations() as shared:  # one factor per matrix for all the steps
+            summary = _run_in(job, staging, say, stage, workers, scheduler, shared)
     failed = [r for r in summary.reductions if not r.accuracy.exported]
     if failed:
         raise AccuracyNotMet(_accuracy_message(job, failed), summary)
@@ -636,8 +638,10 @@ def _run_in(
     stage: Callable[..., None],
     workers: int | None,
     scheduler: str | None,
+    shared: SharedFactors | None = None,
 ) -> JobSummary:
-    """Everything of :func:`_run_job` that writes into the ``staging`` folder."""
+    """Everything of :func:`_run_job` that writes into the ``staging`` folder (``shared``: the
+    job's factors, dropped once the reductions are judged)."""
     timings: dict[str, float] = {}
     clock = time.perf_counter()
     body, prepared, validation = _prepared_for_job(job, say, stage, timings)
@@ -656,6 +660,8 @@ def _run_in(
     reference, reduced_runs = _reduce_all(job, prepared, reference, stage)
     results = _judged(job, prepared, reference, reduced_runs, staging, nodes, warnings, say)
     entries, errors, estimates, decay, models = results
+    if shared is not None:
+        shared.clear()  # their memory to the checks and exports
     timings["reference_s"] = reference.seconds
     computed = [f for e in entries for f in e.eigenfrequencies_hz]
     for warning in frequency_warnings(units, job.band_hz, np.asarray(computed)):
@@ -761,8 +767,9 @@ def _reference(
         "against the full model",
         "reference response",
     )
+    points = [f for spec in job.reductions for f in expansion_candidates(spec.options, job.band_hz)]
     reference = reference_response(
-        system, frequencies, kind, job.check_points, workers=workers, scheduler=scheduler
+        system, frequencies, kind, job.check_points, workers, scheduler, points or None
     )
     if reference.kind == "surrogate":
         say(

@@ -56,6 +56,7 @@ from pymorembs.linalg import double_double
 from pymorembs.linalg.backends import SUPERLU_OPTIONS, SparseFactor, factorize
 from pymorembs.linalg.pattern import infinity_norm, sum_pattern
 from pymorembs.linalg.products import extended, multiply, wide_dtype
+from pymorembs.linalg.shared_factors import active_shared_factors
 
 #: Refinement stops when the correction is below this, relative to the solution.
 REFINE_TOL = 1e-12
@@ -174,6 +175,10 @@ class Factorization:
     plain_enough : float
         Default :data:`PLAIN_ENOUGH`; :data:`BASIS_PLAIN_ENOUGH` for solves that only build a
         subspace.
+    share : bool
+        Take and keep the factor in an open
+        :func:`~pymorembs.linalg.shared_factors.shared_factorizations` cache (False: a factor
+        used once, e.g. one frequency of a sweep).
 
     Attributes
     ----------
@@ -187,6 +192,10 @@ class Factorization:
         correction of the refined solves so far (largest); None before the first solve.
     extended_residuals : int
         Extended-precision residuals computed so far (for benchmarks).
+    reused : bool
+        The factor was taken from an open
+        :func:`~pymorembs.linalg.shared_factors.shared_factorizations` cache (the same terms
+        were factorized before), not made anew.
     """
 
     def __init__(
@@ -197,6 +206,7 @@ class Factorization:
         backend: str | None = None,
         refine: str = "auto",
         plain_enough: float = PLAIN_ENOUGH,
+        share: bool = True,
     ):
         if refine not in ("auto", "always"):
             raise ValueError(f"refine must be 'auto' or 'always', got {refine!r}")
@@ -213,12 +223,21 @@ class Factorization:
         self.shape = self.matrix.shape
         self.dtype = self.matrix.dtype
         self.symmetric = all(is_symmetric(matrix) for _, matrix in self.terms)
+        # within a job's shared_factorizations block: the factor of the same terms made before
+        shared = active_shared_factors() if share else None
+        key = shared.key(self.terms, self.symmetric, backend) if shared is not None else None
+        found = shared.get(key) if shared is not None else None
+        self.reused = found is not None
         try:
-            self.factor: SparseFactor = factorize(self.matrix, self.symmetric, backend)
+            self.factor: SparseFactor = (
+                found if found is not None else factorize(self.matrix, self.symmetric, backend)
+            )
         except NumericalError as exc:  # one line that names the matrix
             text = str(exc)
             named = text.replace("the matrix", label, 1)
             raise NumericalError(named if named != text else f"{label}: {text}") from None
+        if shared is not None and found is None:
+            shared.put(key, self.terms, self.factor)
         # an upper bound of ||A||_inf (for the backward error), from the cached norms of the terms
         self._norm = sum(abs(c) * _norm_of(m) for c, m in self.terms) or 1.0
 

@@ -11,7 +11,11 @@ and checks it (:class:`ReducedModel`); :func:`without_stiff_directions` and
 :func:`explicit_step_s` concern the highest frequencies of the reduced model.
 """
 
-from pymorembs.reduction.dispatch import aims_at_stresses, method_projection
+from pymorembs.reduction.dispatch import (
+    aims_at_stresses,
+    expansion_candidates,
+    method_projection,
+)
 from pymorembs.reduction.gramian import first_stage, gramian_reduction, pod_reduction
 from pymorembs.reduction.krylov import krylov_reduction
 from pymorembs.reduction.modal import modal_reduction
@@ -32,6 +36,7 @@ __all__ = [
     "aims_at_stresses",
     "best_modes",
     "craig_bampton",
+    "expansion_candidates",
     "explicit_step_s",
     "first_stage",
     "gramian_reduction",

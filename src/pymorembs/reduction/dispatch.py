@@ -16,7 +16,7 @@ from pymorembs.reduction.krylov import krylov_from_options
 from pymorembs.reduction.modal_family import craig_bampton_from_options, modal_from_options
 from pymorembs.reduction.projection import Projection
 from pymorembs.reduction.rational_gramian import rational_gramian_from_options
-from pymorembs.reduction.soaga import soaga_from_options
+from pymorembs.reduction.soaga import candidate_points, soaga_from_options
 from pymorembs.system import SecondOrderSystem
 
 #: Method name -> the function of its checked options: ``(system, options, band_hz)``.
@@ -50,6 +50,20 @@ def aims_at_stresses(options: ReductionOptions) -> bool:
     if options.method in ("soaga", "gramian", "pod"):
         return True
     return options.method == "modal" and getattr(options, "select", "lowest") == "best"
+
+
+def expansion_candidates(options: ReductionOptions, band_hz: tuple[float, float]) -> list[float]:
+    """The frequencies (Hz) at which the method of ``options`` may factorize ``K - omega^2 M``:
+    Krylov's expansion points, SOAGA's candidates; empty for the other methods.
+
+    A job's error reference takes them as its own candidates, so that its factorizations serve
+    the reductions too (:func:`~pymorembs.linalg.shared_factorizations`).
+    """
+    if options.method == "krylov":
+        return [float(f) for f in options.expansion_points_hz]
+    if options.method == "soaga":
+        return candidate_points(*band_hz, options.candidates_hz, options.n_candidates)
+    return []
 
 
 def method_projection(

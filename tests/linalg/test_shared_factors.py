@@ -1,0 +1,100 @@
+"""One factor per matrix within a job: :func:`pymorembs.linalg.shared_factorizations`.
+
+The factorizations are counted at the backend (``factorize``), and every shared solve is
+compared with a solve by SciPy's own sparse LU of the same matrix, written here.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from pymorembs.linalg import factorization, shared_factorizations
+from pymorembs.linalg.factorization import Factorization
+from pymorembs.linalg.shared_factors import active_shared_factors
+
+N = 200
+
+
+@pytest.fixture()
+def pencil():
+    """A stiffness (a 1-D chain fixed at one end) and a lumped mass, shape (N, N)."""
+    main = np.full(N, 2.0)
+    main[-1] = 1.0
+    stiffness = sp.diags([main, -np.ones(N - 1), -np.ones(N - 1)], [0, 1, -1], format="csr")
+    mass = sp.diags(np.linspace(1.0, 2.0, N), format="csr")
+    return 1e4 * stiffness, mass
+
+
+@pytest.fixture()
+def counted(monkeypatch):
+    """The number of backend factorizations made (a one-element list)."""
+    made = [0]
+    original = factorization.factorize
+
+    def counting(*args, **kwargs):
+        made[0] += 1
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(factorization, "factorize", counting)
+    return made
+
+
+def scipy_solve(terms, rhs):
+    matrix = sum(c * m for c, m in terms)
+    return spla.splu(sp.csc_matrix(matrix)).solve(rhs)
+
+
+def test_the_same_terms_are_factorized_once_within_the_block(pencil, counted):
+    k, m = pencil
+    rhs = np.random.default_rng(1).standard_normal((N, 2))
+    shift = [(1.0, k), (-3.0, m)]
+    with shared_factorizations(1e9) as shared:
+        first = Factorization(shift)
+        second = Factorization(list(shift))  # equal terms, another list
+        third = Factorization([(1.0, k), (-4.0, m)])  # another shift: its own factor
+        assert (first.reused, second.reused, third.reused) == (False, True, False)
+        assert second.factor is first.factor
+        assert (shared.made, shared.reused, counted[0]) == (2, 1, 2)
+        for f, terms in ((second, shift), (third, [(1.0, k), (-4.0, m)])):
+            x = f.solve(rhs)
+            assert np.allclose(x, scipy_solve(terms, rhs), rtol=1e-9, atol=0)
+    assert active_shared_factors() is None
+    Factorization(shift)  # outside the block: factorized again
+    assert counted[0] == 3
+
+
+def test_a_copy_of_a_matrix_is_another_matrix(pencil, counted):
+    k, m = pencil
+    with shared_factorizations(1e9):
+        Factorization([(1.0, k), (-3.0, m)])
+        Factorization([(1.0, k.copy()), (-3.0, m)])
+    assert counted[0] == 2
+
+
+def test_nothing_is_kept_beyond_the_budget(pencil, counted):
+    k, m = pencil
+    with shared_factorizations(0.0) as shared:
+        Factorization(k)
+        assert not Factorization(k).reused
+        assert (len(shared), shared.dropped, counted[0]) == (0, 2, 2)
+    one = Factorization(k).factor.memory_bytes
+    with shared_factorizations(1.5 * one) as shared:  # room for one: the older one goes
+        Factorization(k)
+        Factorization([(1.0, k), (-1.0, m)])
+        assert len(shared) == 1 and shared.dropped == 1
+        assert not Factorization(k).reused
+        assert Factorization(k).reused
+
+
+def test_the_real_shifts_of_a_pencil_are_found(pencil):
+    k, m = pencil
+    with shared_factorizations(1e9) as shared:
+        Factorization(k)
+        Factorization([(1.0, k), (-5.0, m)])
+        Factorization([(1.0, k), (-5.0 + 1.0j, m)])  # complex: not a real shift
+        Factorization([(1.0, m), (-5.0, k)])  # not K - tau M
+        shifts = sorted(tau for tau, _ in shared.real_shifts(k, m))
+    assert shifts == [0.0, 5.0]
