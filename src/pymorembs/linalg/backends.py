@@ -34,18 +34,21 @@ handle (the ordering of a pattern, :data:`MAX_ORDERINGS` of them, is still reuse
 
 Storage of PARDISO's factors
 ----------------------------
-``PYMOREMBS_PARDISO_STORAGE`` = ``auto`` | ``in-core`` | ``out-of-core`` | ``single`` (default
-``auto``). ``in-core`` keeps the double-precision factors in memory. ``out-of-core`` writes them
-to files (``iparm[59] = 2``) in a fresh directory under ``PYMOREMBS_PARDISO_OOC_DIR`` (default:
-the system's temporary directory), removed with the factor; memory then holds only PARDISO's
-working front. ``single`` factorizes in single precision (``iparm[27] = 1``): half the memory
-and time of the factors; the double-double refinement of
-:class:`~pymorembs.linalg.factorization.Factorization` restores the accuracy where the matrix is
-well enough conditioned (each step contracts the error by about ``cond(A) * 6e-8``). ``auto``
-is in-core while the factors fit: it hands PARDISO ``iparm[59] = 1`` with
-``MKL_PARDISO_OOC_MAX_CORE_SIZE`` set to :data:`AUTO_CORE_FRACTION` of the memory available at
-the analysis (``MemAvailable``), so PARDISO itself goes out of core for factors that would not
-fit. :attr:`PardisoFactor.out_of_core` says what PARDISO chose (``iparm[59]`` on return).
+``PYMOREMBS_PARDISO_STORAGE`` = ``auto`` | ``in-core`` | ``out-of-core`` (default ``auto``).
+``in-core`` keeps the double-precision factors in memory. ``out-of-core`` writes them to files
+(``iparm[59] = 2``) in a fresh directory under ``PYMOREMBS_PARDISO_OOC_DIR`` (default: the
+system's temporary directory), removed with the factor's handle; memory then holds only
+PARDISO's working front. ``auto`` is in-core while the factors fit: it hands PARDISO
+``iparm[59] = 1`` with ``MKL_PARDISO_OOC_MAX_CORE_SIZE`` set to :data:`AUTO_CORE_FRACTION` of
+the memory available at the analysis (``MemAvailable``), so PARDISO itself goes out of core for
+factors that would not fit. :attr:`PardisoFactor.out_of_core` says what PARDISO chose (it
+wrote factor files).
+
+Single-precision factors (``iparm[27] = 1``, half the memory) are only offered to measurements
+(``PardisoFactor(..., storage="single")``): refinement would restore double accuracy only where
+``cond(A) * 6e-8`` is well below 1, and the shifted stiffness of a solid FE model is far from
+that (``bench/two_million.py --single``); the factor measures the error of one solve with a
+known solution and refuses factors off by more than :data:`SINGLE_MAX_ERROR`.
 
 Threads: ``PYMOREMBS_SOLVER_THREADS`` (default: the cores this process may use) for the
 factorization, set thread-locally around each PARDISO call, so a ``threadpool_limits(1,
@@ -93,12 +96,15 @@ FAMILIES_ENV = "PYMOREMBS_PARDISO_FAMILIES"
 #: Environment variable: how PARDISO stores its factors (module docstring).
 STORAGE_ENV = "PYMOREMBS_PARDISO_STORAGE"
 #: Values of :data:`STORAGE_ENV`.
-STORAGES = ("auto", "in-core", "out-of-core", "single")
+STORAGES = ("auto", "in-core", "out-of-core")
 #: Environment variable: the directory under which out-of-core factors are written.
 OOC_DIR_ENV = "PYMOREMBS_PARDISO_OOC_DIR"
 #: With ``auto``, factors stay in core up to this fraction of the memory available at the
 #: analysis; larger ones go out of core (PARDISO's ``iparm[59] = 1``).
 AUTO_CORE_FRACTION = 0.5
+#: Single-precision factors whose solve of a known system is off by more than this are refused
+#: (:class:`~pymorembs.errors.NumericalError`): refinement would need many steps, or diverge.
+SINGLE_MAX_ERROR = 1e-3
 BACKENDS = ("superlu", "pardiso")
 #: With ``auto``, matrices with fewer stored nonzeros go to SuperLU even when PARDISO is there:
 #: PARDISO's fixed costs (METIS, threads) make it slower on small models (rack-beams, n = 3,942:
@@ -225,12 +231,13 @@ class PardisoFactor(SparseFactor):
     threads : int, optional
         PARDISO threads; default from :func:`solver_threads`.
     storage : {"auto", "in-core", "out-of-core", "single"}, optional
-        How the factors are stored; default from :func:`pardiso_storage` (module docstring).
+        How the factors are stored; default from :func:`pardiso_storage` (module docstring;
+        ``"single"``: single-precision factors, for measurements).
 
     Attributes
     ----------
     out_of_core : bool
-        PARDISO keeps these factors in files (``iparm[59]`` on return).
+        PARDISO keeps these factors (of its handle) in files.
     memory_report : dict of str to int
         PARDISO's own memory figures, KiB: ``analysis_peak`` (``iparm[14]``), ``permanent``
         (``iparm[15]``), ``factors_in_core`` (``iparm[16]``: factorization and solution in
@@ -248,8 +255,8 @@ class PardisoFactor(SparseFactor):
     ) -> None:
         start = time.perf_counter()
         self.storage = pardiso_storage() if storage is None else storage
-        if self.storage not in STORAGES:
-            raise ValueError(f"storage must be one of {STORAGES}, got {self.storage!r}")
+        if self.storage not in (*STORAGES, "single"):
+            raise ValueError(f"unknown storage {self.storage!r}")
         if not isinstance(matrix, sp.csr_matrix):  # (a CSR matrix is used as is: no copy)
             matrix = sp.csr_matrix(matrix)
         complex_ = np.iscomplexobj(matrix.data)
@@ -308,13 +315,33 @@ class PardisoFactor(SparseFactor):
         self.perturbed_pivots = int(self._iparm[13])
         #: Inertia (positive, negative eigenvalues) of a real symmetric matrix.
         self.inertia = (int(self._iparm[21]), int(self._iparm[22]))
-        self.out_of_core = int(self._iparm[59]) == 2
+        self.out_of_core = self._files.written()
         self.memory_report = {
             "analysis_peak": int(self._iparm[14]),
             "permanent": int(self._iparm[15]),
             "factors_in_core": int(self._iparm[16]),
             "out_of_core_minimum": int(self._iparm[62]),
         }
+        #: Relative error of one solve with these factors, measured on a known solution
+        #: (single precision only; None otherwise).
+        self.single_error = None
+        if self.storage == "single" and not self.perturbed_pivots:
+            self.single_error = self._measured_error(matrix)
+            if self.single_error > SINGLE_MAX_ERROR:
+                raise NumericalError(
+                    f"single-precision factors of the matrix are too inaccurate (a solve is "
+                    f"off by {self.single_error:.1e})"
+                )
+
+    def _measured_error(self, upper: sp.csr_matrix) -> float:
+        """Relative error of a solve for ``x = 1 + i`` (``upper``: the matrix or, symmetric,
+        its upper triangle; the product in double precision)."""
+        x = np.ones(self.shape[0], dtype=self.dtype) * (1 + 1j if self.dtype.kind == "c" else 1)
+        product = upper @ x
+        if self.symmetric:  # the strictly lower triangle is the transpose of the upper one
+            product += upper.T @ x - upper.diagonal() * x
+        error = self._solve(product) - x
+        return float(np.linalg.norm(error) / np.linalg.norm(x))
 
     @property
     def nnz_factor(self) -> int:
@@ -658,6 +685,10 @@ class _FactorFiles:
                     os.environ.pop(name, None)
                 else:
                     os.environ[name] = value
+
+    def written(self) -> bool:
+        """Whether PARDISO has written factors here (it went out of core)."""
+        return self.directory is not None and any(os.scandir(self.directory))
 
     def remove(self) -> None:
         """Delete the directory and whatever PARDISO left in it."""
