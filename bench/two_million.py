@@ -92,11 +92,27 @@ def sparse_mb(matrix) -> float:
     return (matrix.data.nbytes + matrix.indices.nbytes + matrix.indptr.nbytes) / 2**20
 
 
+def single_precision_error(matrix) -> dict:
+    """Time and error of single-precision PARDISO factors of ``matrix`` (or why refused)."""
+    from pymorembs.errors import NumericalError
+    from pymorembs.linalg.backends import PardisoFactor
+
+    tick = time.perf_counter()
+    try:
+        factor = PardisoFactor(matrix, symmetric=True, storage="single")
+    except NumericalError as exc:
+        return {"s": time.perf_counter() - tick, "refused": str(exc)}
+    return {"s": time.perf_counter() - tick, "error": factor.single_error}
+
+
 STAGES = ("build", "baseline", "soaga", "reference")
 
 
-def measure(dofs: int, checks: int, until: str = "reference") -> dict:
-    """The stages up to ``until`` in this process (module docstring); the measurements."""
+def measure(dofs: int, checks: int, until: str = "reference", single: bool = False) -> dict:
+    """The stages up to ``until`` in this process (module docstring); the measurements.
+
+    ``single``: also factorize the baseline matrix in single precision and measure the error of
+    one solve with it (a known solution; ``PardisoFactor(storage="single")``)."""
     from pymorembs.analysis.reference import reference_response
     from pymorembs.analysis.transfer import transfer_function
     from pymorembs.frequencies import frequency_grid
@@ -132,6 +148,8 @@ def measure(dofs: int, checks: int, until: str = "reference") -> dict:
                 "pardiso_kib": getattr(factor, "memory_report", None),
                 "plain_error": one.plain_error,
             }
+            if single:
+                result["single"] = single_precision_error(one.matrix)
             del one, factor
         if until == "baseline":
             return finish(result)
@@ -223,12 +241,15 @@ def main() -> None:
         "--storage",
         nargs="+",
         default=[None],
-        choices=("auto", "in-core", "out-of-core", "single"),
+        choices=("auto", "in-core", "out-of-core"),
         help="PYMOREMBS_PARDISO_STORAGE of the runs (default: as set, else auto)",
     )
     parser.add_argument("--checks", type=int, default=4, help="reference checks besides 0 Hz")
     parser.add_argument(
         "--until", choices=STAGES[1:], default="reference", help="the last stage to run"
+    )
+    parser.add_argument(
+        "--single", action="store_true", help="also measure single-precision factors"
     )
     parser.add_argument("--quick", action="store_true", help=f"{QUICK_DOFS} dofs only")
     parser.add_argument("--no-results", action="store_true", help="do not write RESULTS.md")
@@ -236,7 +257,7 @@ def main() -> None:
     args = parser.parse_args()
     dofs = QUICK_DOFS if args.quick else args.dofs
     if args.child:
-        emit(measure(dofs, args.checks, args.until))
+        emit(measure(dofs, args.checks, args.until, args.single))
         return
     rows, failed = [], False
     for storage in args.storage:
@@ -244,6 +265,7 @@ def main() -> None:
             os.environ["PYMOREMBS_PARDISO_STORAGE"] = storage
         print(f"{dofs} dofs, storage {storage or 'as set'} ...", flush=True)
         argv = ["--dofs", str(dofs), "--checks", str(args.checks), "--until", args.until]
+        argv += ["--single"] if args.single else []
         r = run_child([__file__, "--child", *argv])
         if "failed" in r:
             failed = True
