@@ -121,6 +121,32 @@ def test_single_precision_refuses_ill_conditioned_matrices() -> None:
         PardisoFactor(stiff, symmetric=True, storage="single")
 
 
+@pytest.mark.usefixtures("fresh")
+@pytest.mark.parametrize("families", ["1", "0"])
+def test_integer_overflow_retries_with_the_64_bit_interface(monkeypatch, families) -> None:
+    """PARDISO's error -8 (factors beyond 2**31 entries) makes a new handle on ``pardiso_64``,
+    which solves as the 32-bit one."""
+    monkeypatch.setenv(backends.FAMILIES_ENV, families)
+    original = backends._pardiso
+
+    def overflowing(pt, maxfct, mnum, mtype, phase, data, indptr, indices, perm, iparm, *rest):
+        if iparm.dtype == np.int32 and phase in (11, 12):
+            raise backends._PardisoError("PARDISO failed with error -8 (overflow)", -8)
+        return original(pt, maxfct, mnum, mtype, phase, data, indptr, indices, perm, iparm, *rest)
+
+    k = laplacian(10, 3)
+    a = sp.csr_matrix(k - 0.7 * sp.identity(k.shape[0]))
+    rhs = np.ones(k.shape[0])
+    expected = PardisoFactor(a, symmetric=True).solve(rhs)
+    backends._FAMILIES.clear()
+    monkeypatch.setattr(backends, "_pardiso", overflowing)
+    factor = PardisoFactor(a, symmetric=True)
+    assert factor.index64 and factor.nnz_factor > 0
+    np.testing.assert_allclose(factor.solve(rhs), expected, rtol=1e-12, atol=0)
+    second = PardisoFactor(sp.csr_matrix(k - 0.3 * sp.identity(k.shape[0])), symmetric=True)
+    assert second.index64  # the family (or the ordering) of the pattern stays 64-bit
+
+
 def test_storage_from_the_environment(monkeypatch: pytest.MonkeyPatch, tmp_path) -> None:
     monkeypatch.delenv(backends.STORAGE_ENV, raising=False)
     assert pardiso_storage() == "auto"

@@ -262,7 +262,6 @@ class PardisoFactor(SparseFactor):
         complex_ = np.iscomplexobj(matrix.data)
         dtype = np.complex128 if complex_ else np.float64
         super().__init__(matrix.shape, dtype, symmetric)
-        n = matrix.shape[0]
         key = None
         if symmetric:
             matrix, key = _upper_triangle(matrix)
@@ -282,35 +281,21 @@ class PardisoFactor(SparseFactor):
         self._maxfct, self._mnum = 1, 1
         if symmetric and key is None:
             key = _pattern_key(self._indptr, self._indices)
-        family = _family(
-            key, n, self.mtype, self._indptr, self._indices, self.threads, self.storage
-        )
-        slot = family.acquire() if family is not None else None
-        if slot is not None:
-            # the analysis of this pattern is done (shared by all shifts): numeric phase only
-            self._family, self._mnum, self._maxfct = family, slot, family.maxfct
-            self._pt, self._perm = family.pt, family.perm
-            self._indptr, self._indices = family.indptr, family.indices
-            self._files = family.files
-            self._iparm = family.iparm.copy()
-            self._finalizer = weakref.finalize(self, family.release, slot, self._data)
-            phase = 22
-        else:
-            # own handle; the fill-reducing ordering of a symmetric pattern is still reused
-            self._pt = np.zeros(64, dtype=np.int64)
-            self._iparm = _iparm(self.mtype, self.storage)
-            self._files = _FactorFiles.create(self.storage)
-            known = _ORDERINGS.get(key) if key is not None else None
-            self._perm = np.zeros(n, dtype=np.int32) if known is None else known.copy()
-            self._iparm[4] = 2 if known is None else 1  # return the ordering / use the given one
-            self._finalizer = weakref.finalize(
-                self, _release, self._pt, self.mtype, 1, self.storage, self._files
-            )
-            phase = 12
-        self._call(phase, np.zeros((n, 1), dtype=self._data.dtype, order="F"))
+        try:
+            phase = self._factorize(key, index64=False)
+        except _PardisoError as exc:
+            if exc.code != -8:
+                raise
+            # the factors have more than 2**31 entries: PARDISO's 64-bit interface, new handle
+            if getattr(self, "_finalizer", None) is not None:
+                self._finalizer()
+            _FAMILIES.pop((key, self.mtype, self.threads, self.storage), None)
+            phase = self._factorize(key, index64=True)
         self.seconds = time.perf_counter() - start
         if phase == 12 and key is not None and key not in _ORDERINGS:
             _remember_ordering(key, self._perm)
+        #: PARDISO's 64-bit integer interface (``pardiso_64``) is used: factors beyond 2**31.
+        self.index64 = self._iparm.dtype == np.int64
         #: Pivots PARDISO replaced by ``eps * |A|`` (a symptom of (near) singularity).
         self.perturbed_pivots = int(self._iparm[13])
         #: Inertia (positive, negative eigenvalues) of a real symmetric matrix.
@@ -342,6 +327,41 @@ class PardisoFactor(SparseFactor):
             product += upper.T @ x - upper.diagonal() * x
         error = self._solve(product) - x
         return float(np.linalg.norm(error) / np.linalg.norm(x))
+
+    def _factorize(self, key: str | None, index64: bool) -> int:
+        """Set up the handle (the family's, else an own one) and factorize; the phase run."""
+        n = self.shape[0]
+        family = _family(
+            key, n, self.mtype, self._indptr, self._indices, self.threads, self.storage, index64
+        )
+        slot = family.acquire() if family is not None else None
+        if slot is not None:
+            # the analysis of this pattern is done (shared by all shifts): numeric phase only
+            self._family, self._mnum, self._maxfct = family, slot, family.maxfct
+            self._pt, self._perm = family.pt, family.perm
+            self._indptr, self._indices = family.indptr, family.indices
+            self._files = family.files
+            self._iparm = family.iparm.copy()
+            self._finalizer = weakref.finalize(self, family.release, slot, self._data)
+            phase = 22
+        else:
+            # own handle; the fill-reducing ordering of a symmetric pattern is still reused
+            self._family, self._mnum, self._maxfct = None, 1, 1
+            integer = np.int64 if index64 else np.int32
+            self._indptr = self._indptr.astype(integer, copy=False)
+            self._indices = self._indices.astype(integer, copy=False)
+            self._pt = np.zeros(64, dtype=np.int64)
+            self._iparm = _iparm(self.mtype, self.storage, index64)
+            self._files = _FactorFiles.create(self.storage)
+            known = _ORDERINGS.get(key) if key is not None else None
+            self._perm = (np.zeros(n) if known is None else known).astype(integer)
+            self._iparm[4] = 2 if known is None else 1  # return the ordering / use the given one
+            self._finalizer = weakref.finalize(
+                self, _release, self._pt, self.mtype, 1, self.storage, self._files, index64
+            )
+            phase = 12
+        self._call(phase, np.zeros((n, 1), dtype=self._data.dtype, order="F"))
+        return phase
 
     @property
     def nnz_factor(self) -> int:
@@ -395,23 +415,29 @@ def _pardiso(
     threads: int,
 ) -> None:
     """One call of MKL's ``pardiso`` (handle ``pt``, factor ``mnum`` of ``maxfct``), with
-    ``threads`` MKL threads; raises :class:`NumericalError` on an error code."""
-    error = ctypes.c_int32(0)
+    ``threads`` MKL threads; raises :class:`NumericalError` on an error code.
+
+    The integer width follows ``iparm``: with an ``int64`` one (and ``int64`` index arrays) the
+    call goes to ``pardiso_64``, whose factors may exceed 2**31 entries."""
+    integer = ctypes.c_int64 if iparm.dtype == np.int64 else ctypes.c_int32
+    function = _mkl().pardiso_64 if integer is ctypes.c_int64 else _mkl().pardiso
+    index = ctypes.POINTER(integer)
+    error = integer(0)
     with _threads(threads):
-        _mkl().pardiso(
+        function(
             pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)),
-            ctypes.byref(ctypes.c_int32(maxfct)),
-            ctypes.byref(ctypes.c_int32(mnum)),
-            ctypes.byref(ctypes.c_int32(mtype)),
-            ctypes.byref(ctypes.c_int32(phase)),
-            ctypes.byref(ctypes.c_int32(indptr.size - 1)),
+            ctypes.byref(integer(maxfct)),
+            ctypes.byref(integer(mnum)),
+            ctypes.byref(integer(mtype)),
+            ctypes.byref(integer(phase)),
+            ctypes.byref(integer(indptr.size - 1)),
             data.ctypes.data_as(ctypes.c_void_p),
-            indptr.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)),
-            indices.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)),
-            None if perm is None else perm.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)),
-            ctypes.byref(ctypes.c_int32(rhs.shape[1])),  # nrhs
-            iparm.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)),
-            ctypes.byref(ctypes.c_int32(0)),  # msglvl
+            indptr.ctypes.data_as(index),
+            indices.ctypes.data_as(index),
+            None if perm is None else perm.ctypes.data_as(index),
+            ctypes.byref(integer(rhs.shape[1])),  # nrhs
+            iparm.ctypes.data_as(index),
+            ctypes.byref(integer(0)),  # msglvl
             rhs.ctypes.data_as(ctypes.c_void_p),
             x.ctypes.data_as(ctypes.c_void_p),
             ctypes.byref(error),
@@ -420,7 +446,15 @@ def _pardiso(
         what = PARDISO_ERRORS.get(error.value, "unknown error")
         if error.value in (-4, -7):
             raise NumericalError(f"the matrix is singular (PARDISO {error.value}: {what})")
-        raise NumericalError(f"PARDISO failed with error {error.value} ({what})")
+        raise _PardisoError(f"PARDISO failed with error {error.value} ({what})", error.value)
+
+
+class _PardisoError(NumericalError):
+    """A PARDISO error code other than a singular matrix (``code``: MKL's ``error``)."""
+
+    def __init__(self, message: str, code: int) -> None:
+        super().__init__(message)
+        self.code = code
 
 
 class _Family:
@@ -446,6 +480,7 @@ class _Family:
         indices: np.ndarray,
         threads: int,
         storage: str,
+        index64: bool = False,
     ) -> None:
         self.key = key
         self.mtype = mtype
@@ -453,11 +488,13 @@ class _Family:
         self.storage = storage
         self.maxfct = FACTORS_PER_FAMILY
         self.pt = np.zeros(64, dtype=np.int64)
-        self.iparm = _iparm(mtype, storage)
+        self.iparm = _iparm(mtype, storage, index64)
         self.files = _FactorFiles.create(storage)
-        self.indptr, self.indices = indptr, indices
+        integer = np.int64 if index64 else np.int32
+        self.indptr = indptr = indptr.astype(integer, copy=False)
+        self.indices = indices = indices.astype(integer, copy=False)
         known = _ORDERINGS.get(key)
-        self.perm = np.zeros(n, dtype=np.int32) if known is None else known.copy()
+        self.perm = (np.zeros(n) if known is None else known).astype(integer)
         self.iparm[4] = 2 if known is None else 1  # return the ordering / use the given one
         self.lock = threading.Lock()
         # slot 1 holds the analysis (phase 11 runs on it); freeing its numeric factor with
@@ -466,7 +503,7 @@ class _Family:
         dtype = _stored_dtype(np.complex128 if mtype in (6, 13) else np.float64, storage)
         # the analysis does not read values; kept with the handle like every array given to it
         self.values = values = np.zeros(indices.size, dtype=dtype)
-        weakref.finalize(self, _release, self.pt, mtype, self.maxfct, storage, self.files)
+        weakref.finalize(self, _release, self.pt, mtype, self.maxfct, storage, self.files, index64)
         empty = np.zeros((n, 1), dtype=dtype, order="F")
         with self.files.environment():
             _pardiso(self.pt, self.maxfct, 1, mtype, 11, values, indptr, indices, self.perm,
@@ -508,14 +545,15 @@ def _family(
     indices: np.ndarray,
     threads: int,
     storage: str,
+    index64: bool = False,
 ) -> _Family | None:
-    """The family of this symmetric pattern (created with its analysis); None if not symmetric
-    or switched off (``PYMOREMBS_PARDISO_FAMILIES=0``)."""
+    """The family of this symmetric pattern (created with its analysis, with 64-bit indices if
+    ``index64``); None if not symmetric or switched off (``PYMOREMBS_PARDISO_FAMILIES=0``)."""
     if key is None or mtype not in (-2, 6) or os.environ.get(FAMILIES_ENV, "1").strip() == "0":
         return None
     family = _FAMILIES.pop((key, mtype, threads, storage), None)
     if family is None:
-        family = _Family(key, n, mtype, indptr, indices, threads, storage)
+        family = _Family(key, n, mtype, indptr, indices, threads, storage, index64)
     _FAMILIES[(key, mtype, threads, storage)] = family  # most recent last
     while len(_FAMILIES) > MAX_FAMILIES:
         _FAMILIES.pop(next(iter(_FAMILIES)))
@@ -597,10 +635,10 @@ def _pattern_key(indptr: np.ndarray, indices: np.ndarray) -> str:
     return digest.hexdigest()
 
 
-def _iparm(mtype: int, storage: str = "in-core") -> np.ndarray:
+def _iparm(mtype: int, storage: str = "in-core", index64: bool = False) -> np.ndarray:
     """PARDISO parameters (``iparm``, zero-based here; MKL's manual counts from 1) for factors
-    stored as ``storage`` (:data:`STORAGES`)."""
-    iparm = np.zeros(64, dtype=np.int32)
+    stored as ``storage`` (:data:`STORAGES`); ``int64`` for the 64-bit interface."""
+    iparm = np.zeros(64, dtype=np.int64 if index64 else np.int32)
     iparm[0] = 1  # no defaults: all set here
     iparm[1] = 2  # METIS nested dissection ordering
     iparm[7] = 0  # iterative refinement: automatic (2 steps when pivots were perturbed)
@@ -617,15 +655,22 @@ def _iparm(mtype: int, storage: str = "in-core") -> np.ndarray:
     return iparm
 
 
-def _release(pt: np.ndarray, mtype: int, maxfct: int, storage: str, files: _FactorFiles) -> None:
+def _release(
+    pt: np.ndarray,
+    mtype: int,
+    maxfct: int,
+    storage: str,
+    files: _FactorFiles,
+    index64: bool = False,
+) -> None:
     """Free PARDISO's memory of one handle (``phase = -1``) and its out-of-core files."""
     if pt.any():
         dummy = np.zeros((1, 1))
-        index = np.zeros(2, dtype=np.int32)
+        index = np.zeros(2, dtype=np.int64 if index64 else np.int32)
         try:
             with files.environment():
                 _pardiso(pt, maxfct, 1, mtype, -1, dummy.ravel(), index, index, None,
-                         _iparm(mtype, storage), dummy, dummy.copy(), 1)  # fmt: skip
+                         _iparm(mtype, storage, index64), dummy, dummy.copy(), 1)  # fmt: skip
         except NumericalError:
             pass
         pt[:] = 0
@@ -717,6 +762,7 @@ def _mkl() -> ctypes.CDLL:
 
     library = PyPardisoSolver().libmkl
     library.pardiso.restype = None
+    library.pardiso_64.restype = None
     library.MKL_Set_Num_Threads_Local.restype = ctypes.c_int
     library.MKL_Set_Num_Threads_Local.argtypes = [ctypes.c_int]
     return library
