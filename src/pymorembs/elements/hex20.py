@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from pymorembs.elements.assembly import NodePattern
 from pymorembs.errors import UserError
 
 #: Natural coordinates (xi, eta, zeta) of the 20 nodes, in the order of Abaqus C3D20 / Ansys
@@ -154,7 +155,9 @@ def assemble_hex20(
 ) -> tuple[sp.csr_matrix, sp.csr_matrix]:
     """Global stiffness and mass matrices of a 20-node hexahedron mesh (3 dofs per node).
 
-    Elements are processed in chunks of ``chunk`` so memory stays proportional to the matrices.
+    Elements are processed in chunks of ``chunk``, added in place into matrices on the pattern
+    of the mesh (:class:`~pymorembs.elements.assembly.NodePattern`): the memory is that of the
+    final matrices and one chunk.
 
     Parameters
     ----------
@@ -172,24 +175,11 @@ def assemble_hex20(
     stiffness, mass : scipy.sparse.csr_matrix, shape (3 n_nodes, 3 n_nodes)
         Equation ``3 r + i`` is direction ``i`` (x, y, z) of the node in row ``r``.
     """
-    n = 3 * coordinates.shape[0]
-    stiffness, mass = sp.csr_matrix((n, n)), sp.csr_matrix((n, n))
-    directions = np.arange(3)
+    pattern = NodePattern(elements, coordinates.shape[0])
+    stiffness, mass = pattern.empty(blocks=True), pattern.empty(blocks=False)
     for start in range(0, elements.shape[0], chunk):
         conn = elements[start : start + chunk]
         k_e, m_e = hex20_matrices(coordinates[conn], young, poisson, density)
-        dofs = (3 * conn[:, :, None] + directions).reshape(conn.shape[0], 60)
-        stiffness = stiffness + _scatter(k_e, dofs[:, :, None], dofs[:, None, :], n)
-        rows = 3 * conn[:, :, None, None] + directions  # (n_el, 20, 1, 3)
-        cols = 3 * conn[:, None, :, None] + directions  # (n_el, 1, 20, 3)
-        mass = mass + _scatter(m_e[..., None], rows, cols, n)
+        pattern.add_blocks(stiffness, k_e, conn)
+        pattern.add_diagonal_blocks(mass, m_e, conn)
     return stiffness, mass
-
-
-def _scatter(values: np.ndarray, rows: np.ndarray, cols: np.ndarray, n: int) -> sp.csr_matrix:
-    """Sparse n x n matrix summing ``values`` at (rows, cols) (all broadcast together)."""
-    values, rows, cols = np.broadcast_arrays(values, rows, cols)
-    return sp.csr_matrix(
-        (values.ravel(), (rows.ravel().astype(np.int32), cols.ravel().astype(np.int32))),
-        shape=(n, n),
-    )

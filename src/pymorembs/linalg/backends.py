@@ -37,6 +37,24 @@ the first runs PARDISO's numeric phase only, about a third of a complete factori
 ``PYMOREMBS_PARDISO_FAMILIES=0`` gives every factor its own
 handle (the ordering of a pattern, :data:`MAX_ORDERINGS` of them, is still reused).
 
+Storage of PARDISO's factors
+----------------------------
+``PYMOREMBS_PARDISO_STORAGE`` = ``auto`` | ``in-core`` | ``out-of-core`` (default ``auto``).
+``in-core`` keeps the double-precision factors in memory. ``out-of-core`` writes them to files
+(``iparm[59] = 2``) in a fresh directory under ``PYMOREMBS_PARDISO_OOC_DIR`` (default: the
+system's temporary directory), removed with the factor's handle; memory then holds only
+PARDISO's working front. ``auto`` is in-core while the factors fit: it hands PARDISO
+``iparm[59] = 1`` with ``MKL_PARDISO_OOC_MAX_CORE_SIZE`` set to :data:`AUTO_CORE_FRACTION` of
+the memory available at the analysis (``MemAvailable``), so PARDISO itself goes out of core for
+factors that would not fit. :attr:`PardisoFactor.out_of_core` says what PARDISO chose (it
+wrote factor files).
+
+Single-precision factors (``iparm[27] = 1``, half the memory) are only offered to measurements
+(``PardisoFactor(..., storage="single")``): refinement would restore double accuracy only where
+``cond(A) * 6e-8`` is well below 1, and the shifted stiffness of a solid FE model is far from
+that (``bench/two_million.py --single``); the factor measures the error of one solve with a
+known solution and refuses factors off by more than :data:`SINGLE_MAX_ERROR`.
+
 Threads: ``PYMOREMBS_SOLVER_THREADS`` (default: the cores this process may use) for the
 factorization, set thread-locally around each PARDISO call, so a ``threadpool_limits(1,
 "blas")`` around the whole job (as the command line does) does not throttle it. Solves of a
@@ -54,11 +72,14 @@ are also three to seven times larger (measurements: ``bench/RESULTS.md``).
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import hashlib
 import os
 import platform
+import shutil
 import sys
+import tempfile
 import threading
 import time
 import weakref
@@ -71,6 +92,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from pymorembs.errors import NumericalError, UserError
+from pymorembs.parallel import available_memory_bytes
 
 #: Environment variable that selects the backend: ``superlu``, ``pardiso`` or ``auto``.
 SOLVER_ENV = "PYMOREMBS_SOLVER"
@@ -78,6 +100,18 @@ SOLVER_ENV = "PYMOREMBS_SOLVER"
 THREADS_ENV = "PYMOREMBS_SOLVER_THREADS"
 #: Environment variable: ``0`` gives every PARDISO factor its own handle (no shared analysis).
 FAMILIES_ENV = "PYMOREMBS_PARDISO_FAMILIES"
+#: Environment variable: how PARDISO stores its factors (module docstring).
+STORAGE_ENV = "PYMOREMBS_PARDISO_STORAGE"
+#: Values of :data:`STORAGE_ENV`.
+STORAGES = ("auto", "in-core", "out-of-core")
+#: Environment variable: the directory under which out-of-core factors are written.
+OOC_DIR_ENV = "PYMOREMBS_PARDISO_OOC_DIR"
+#: With ``auto``, factors stay in core up to this fraction of the memory available at the
+#: analysis; larger ones go out of core (PARDISO's ``iparm[59] = 1``).
+AUTO_CORE_FRACTION = 0.5
+#: Single-precision factors whose solve of a known system is off by more than this are refused
+#: (:class:`~pymorembs.errors.NumericalError`): refinement would need many steps, or diverge.
+SINGLE_MAX_ERROR = 1e-3
 BACKENDS = ("superlu", "pardiso")
 #: With ``auto``, matrices with fewer stored nonzeros go to SuperLU even when PARDISO is there:
 #: loading MKL costs a fraction of a second once per process, which PARDISO's faster
@@ -212,18 +246,38 @@ class PardisoFactor(SparseFactor):
         Factorize ``A`` as symmetric (``mtype`` -2 or 6) from its upper triangle.
     threads : int, optional
         PARDISO threads; default from :func:`solver_threads`.
+    storage : {"auto", "in-core", "out-of-core", "single"}, optional
+        How the factors are stored; default from :func:`pardiso_storage` (module docstring;
+        ``"single"``: single-precision factors, for measurements).
+
+    Attributes
+    ----------
+    out_of_core : bool
+        PARDISO keeps these factors (of its handle) in files.
+    memory_report : dict of str to int
+        PARDISO's own memory figures, KiB: ``analysis_peak`` (``iparm[14]``), ``permanent``
+        (``iparm[15]``), ``factors_in_core`` (``iparm[16]``: factorization and solution in
+        core) and ``out_of_core_minimum`` (``iparm[62]``).
     """
 
     backend = "pardiso"
 
-    def __init__(self, matrix: sp.spmatrix, symmetric: bool, threads: int | None = None) -> None:
+    def __init__(
+        self,
+        matrix: sp.spmatrix,
+        symmetric: bool,
+        threads: int | None = None,
+        storage: str | None = None,
+    ) -> None:
         start = time.perf_counter()
+        self.storage = pardiso_storage() if storage is None else storage
+        if self.storage not in (*STORAGES, "single"):
+            raise ValueError(f"unknown storage {self.storage!r}")
         if not isinstance(matrix, sp.csr_matrix):  # (a CSR matrix is used as is: no copy)
             matrix = sp.csr_matrix(matrix)
         complex_ = np.iscomplexobj(matrix.data)
         dtype = np.complex128 if complex_ else np.float64
         super().__init__(matrix.shape, dtype, symmetric)
-        n = matrix.shape[0]
         key = None
         if symmetric:
             matrix, key = _upper_triangle(matrix)
@@ -234,7 +288,7 @@ class PardisoFactor(SparseFactor):
             raise NumericalError("the matrix has entries that are not finite")
         if not symmetric and np.any(np.diff(matrix.indptr) == 0):
             raise NumericalError("the matrix is singular (an empty row)")
-        self._data = np.ascontiguousarray(matrix.data, dtype=dtype)
+        self._data = np.ascontiguousarray(matrix.data, dtype=_stored_dtype(dtype, self.storage))
         self._indptr = np.ascontiguousarray(matrix.indptr, dtype=np.int32)
         self._indices = np.ascontiguousarray(matrix.indices, dtype=np.int32)
         self.mtype = (6 if complex_ else -2) if symmetric else (13 if complex_ else 11)
@@ -243,33 +297,87 @@ class PardisoFactor(SparseFactor):
         self._maxfct, self._mnum = 1, 1
         if symmetric and key is None:
             key = _pattern_key(self._indptr, self._indices)
-        family = _family(key, n, self.mtype, self._indptr, self._indices, self.threads)
+        try:
+            phase = self._factorize(key, index64=False)
+        except _PardisoError as exc:
+            if exc.code != -8:
+                raise
+            # the factors have more than 2**31 entries: PARDISO's 64-bit interface, new handle
+            if getattr(self, "_finalizer", None) is not None:
+                self._finalizer()
+            _FAMILIES.pop((key, self.mtype, self.threads, self.storage), None)
+            phase = self._factorize(key, index64=True)
+        self.seconds = time.perf_counter() - start
+        if phase == 12 and key is not None and key not in _ORDERINGS:
+            _remember_ordering(key, self._perm)
+        #: PARDISO's 64-bit integer interface (``pardiso_64``) is used: factors beyond 2**31.
+        self.index64 = self._iparm.dtype == np.int64
+        #: Pivots PARDISO replaced by ``eps * |A|`` (a symptom of (near) singularity).
+        self.perturbed_pivots = int(self._iparm[13])
+        #: Inertia (positive, negative eigenvalues) of a real symmetric matrix.
+        self.inertia = (int(self._iparm[21]), int(self._iparm[22]))
+        self.out_of_core = self._files.written()
+        self.memory_report = {
+            "analysis_peak": int(self._iparm[14]),
+            "permanent": int(self._iparm[15]),
+            "factors_in_core": int(self._iparm[16]),
+            "out_of_core_minimum": int(self._iparm[62]),
+        }
+        #: Relative error of one solve with these factors, measured on a known solution
+        #: (single precision only; None otherwise).
+        self.single_error = None
+        if self.storage == "single" and not self.perturbed_pivots:
+            self.single_error = self._measured_error(matrix)
+            if self.single_error > SINGLE_MAX_ERROR:
+                raise NumericalError(
+                    f"single-precision factors of the matrix are too inaccurate (a solve is "
+                    f"off by {self.single_error:.1e})"
+                )
+
+    def _measured_error(self, upper: sp.csr_matrix) -> float:
+        """Relative error of a solve for ``x = 1 + i`` (``upper``: the matrix or, symmetric,
+        its upper triangle; the product in double precision)."""
+        x = np.ones(self.shape[0], dtype=self.dtype) * (1 + 1j if self.dtype.kind == "c" else 1)
+        product = upper @ x
+        if self.symmetric:  # the strictly lower triangle is the transpose of the upper one
+            product += upper.T @ x - upper.diagonal() * x
+        error = self._solve(product) - x
+        return float(np.linalg.norm(error) / np.linalg.norm(x))
+
+    def _factorize(self, key: str | None, index64: bool) -> int:
+        """Set up the handle (the family's, else an own one) and factorize; the phase run."""
+        n = self.shape[0]
+        family = _family(
+            key, n, self.mtype, self._indptr, self._indices, self.threads, self.storage, index64
+        )
         slot = family.acquire() if family is not None else None
         if slot is not None:
             # the analysis of this pattern is done (shared by all shifts): numeric phase only
             self._family, self._mnum, self._maxfct = family, slot, family.maxfct
             self._pt, self._perm = family.pt, family.perm
             self._indptr, self._indices = family.indptr, family.indices
+            self._files = family.files
             self._iparm = family.iparm.copy()
             self._finalizer = weakref.finalize(self, family.release, slot, self._data)
             phase = 22
         else:
             # own handle; the fill-reducing ordering of a symmetric pattern is still reused
+            self._family, self._mnum, self._maxfct = None, 1, 1
+            integer = np.int64 if index64 else np.int32
+            self._indptr = self._indptr.astype(integer, copy=False)
+            self._indices = self._indices.astype(integer, copy=False)
             self._pt = np.zeros(64, dtype=np.int64)
-            self._iparm = _iparm(self.mtype)
+            self._iparm = _iparm(self.mtype, self.storage, index64)
+            self._files = _FactorFiles.create(self.storage)
             known = _ORDERINGS.get(key) if key is not None else None
-            self._perm = np.zeros(n, dtype=np.int32) if known is None else known.copy()
+            self._perm = (np.zeros(n) if known is None else known).astype(integer)
             self._iparm[4] = 2 if known is None else 1  # return the ordering / use the given one
-            self._finalizer = weakref.finalize(self, _release, self._pt, self.mtype, 1)
+            self._finalizer = weakref.finalize(
+                self, _release, self._pt, self.mtype, 1, self.storage, self._files, index64
+            )
             phase = 12
-        self._call(phase, np.zeros((n, 1), dtype=dtype, order="F"))
-        self.seconds = time.perf_counter() - start
-        if phase == 12 and key is not None and key not in _ORDERINGS:
-            _remember_ordering(key, self._perm)
-        #: Pivots PARDISO replaced by ``eps * |A|`` (a symptom of (near) singularity).
-        self.perturbed_pivots = int(self._iparm[13])
-        #: Inertia (positive, negative eigenvalues) of a real symmetric matrix.
-        self.inertia = (int(self._iparm[21]), int(self._iparm[22]))
+        self._call(phase, np.zeros((n, 1), dtype=self._data.dtype, order="F"))
+        return phase
 
     @property
     def nnz_factor(self) -> int:
@@ -277,15 +385,19 @@ class PardisoFactor(SparseFactor):
 
     @property
     def memory_bytes(self) -> int:
-        """Permanent memory plus memory of factorization and solution, bytes (PARDISO's count)."""
-        return 1024 * int(max(self._iparm[14], self._iparm[15] + self._iparm[16]))
+        """Memory the factor holds or needs in core, bytes (PARDISO's count): permanent memory
+        plus that of factorization and solution (out of core: PARDISO's minimum working memory
+        instead of the factors)."""
+        working = self._iparm[62] if self.out_of_core else self._iparm[16]
+        return 1024 * int(max(self._iparm[14], self._iparm[15] + working))
 
     def _solve(self, rhs: np.ndarray) -> np.ndarray:
-        block = np.asfortranarray(rhs.reshape(rhs.shape[0], -1))
-        x = self._call(33, block, threads=1)
+        block = np.asfortranarray(rhs.reshape(rhs.shape[0], -1), dtype=self._data.dtype)
+        # out of core, every solve reads the factors from disk: on all the family's threads
+        x = self._call(33, block, threads=self.threads if self.out_of_core else 1)
         if not np.all(np.isfinite(x)):
             raise NumericalError("the matrix is singular (PARDISO returned non-finite values)")
-        return np.ascontiguousarray(x).reshape(rhs.shape)
+        return np.ascontiguousarray(x, dtype=self.dtype).reshape(rhs.shape)
 
     def _call(self, phase: int, rhs: np.ndarray, threads: int | None = None) -> np.ndarray:
         x = np.zeros_like(rhs, order="F")
@@ -293,12 +405,13 @@ class PardisoFactor(SparseFactor):
         if self._family is not None:
             # every call on a shared handle with the same number of threads: a solve on one
             # thread between a factorization and phase 0 on two made the next phase 22 crash
-            with self._family.lock:
+            with self._family.lock, self._files.environment():
                 _pardiso(self._pt, self._maxfct, self._mnum, self.mtype, phase, *arrays, rhs, x,
                          self._family.threads)  # fmt: skip
             return x
-        _pardiso(self._pt, self._maxfct, self._mnum, self.mtype, phase, *arrays, rhs, x,
-                 self.threads if threads is None else threads)  # fmt: skip
+        with self._files.environment():
+            _pardiso(self._pt, self._maxfct, self._mnum, self.mtype, phase, *arrays, rhs, x,
+                     self.threads if threads is None else threads)  # fmt: skip
         return x
 
 
@@ -318,23 +431,29 @@ def _pardiso(
     threads: int,
 ) -> None:
     """One call of MKL's ``pardiso`` (handle ``pt``, factor ``mnum`` of ``maxfct``), with
-    ``threads`` MKL threads; raises :class:`NumericalError` on an error code."""
-    error = ctypes.c_int32(0)
+    ``threads`` MKL threads; raises :class:`NumericalError` on an error code.
+
+    The integer width follows ``iparm``: with an ``int64`` one (and ``int64`` index arrays) the
+    call goes to ``pardiso_64``, whose factors may exceed 2**31 entries."""
+    integer = ctypes.c_int64 if iparm.dtype == np.int64 else ctypes.c_int32
+    function = _mkl().pardiso_64 if integer is ctypes.c_int64 else _mkl().pardiso
+    index = ctypes.POINTER(integer)
+    error = integer(0)
     with _threads(threads):
-        _mkl().pardiso(
+        function(
             pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)),
-            ctypes.byref(ctypes.c_int32(maxfct)),
-            ctypes.byref(ctypes.c_int32(mnum)),
-            ctypes.byref(ctypes.c_int32(mtype)),
-            ctypes.byref(ctypes.c_int32(phase)),
-            ctypes.byref(ctypes.c_int32(indptr.size - 1)),
+            ctypes.byref(integer(maxfct)),
+            ctypes.byref(integer(mnum)),
+            ctypes.byref(integer(mtype)),
+            ctypes.byref(integer(phase)),
+            ctypes.byref(integer(indptr.size - 1)),
             data.ctypes.data_as(ctypes.c_void_p),
-            indptr.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)),
-            indices.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)),
-            None if perm is None else perm.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)),
-            ctypes.byref(ctypes.c_int32(rhs.shape[1])),  # nrhs
-            iparm.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)),
-            ctypes.byref(ctypes.c_int32(0)),  # msglvl
+            indptr.ctypes.data_as(index),
+            indices.ctypes.data_as(index),
+            None if perm is None else perm.ctypes.data_as(index),
+            ctypes.byref(integer(rhs.shape[1])),  # nrhs
+            iparm.ctypes.data_as(index),
+            ctypes.byref(integer(0)),  # msglvl
             rhs.ctypes.data_as(ctypes.c_void_p),
             x.ctypes.data_as(ctypes.c_void_p),
             ctypes.byref(error),
@@ -343,7 +462,15 @@ def _pardiso(
         what = PARDISO_ERRORS.get(error.value, "unknown error")
         if error.value in (-4, -7):
             raise NumericalError(f"the matrix is singular (PARDISO {error.value}: {what})")
-        raise NumericalError(f"PARDISO failed with error {error.value} ({what})")
+        raise _PardisoError(f"PARDISO failed with error {error.value} ({what})", error.value)
+
+
+class _PardisoError(NumericalError):
+    """A PARDISO error code other than a singular matrix (``code``: MKL's ``error``)."""
+
+    def __init__(self, message: str, code: int) -> None:
+        super().__init__(message)
+        self.code = code
 
 
 class _Family:
@@ -368,28 +495,35 @@ class _Family:
         indptr: np.ndarray,
         indices: np.ndarray,
         threads: int,
+        storage: str,
+        index64: bool = False,
     ) -> None:
         self.key = key
         self.mtype = mtype
         self.threads = threads
+        self.storage = storage
         self.maxfct = FACTORS_PER_FAMILY
         self.pt = np.zeros(64, dtype=np.int64)
-        self.iparm = _iparm(mtype)
-        self.indptr, self.indices = indptr, indices
+        self.iparm = _iparm(mtype, storage, index64)
+        self.files = _FactorFiles.create(storage)
+        integer = np.int64 if index64 else np.int32
+        self.indptr = indptr = indptr.astype(integer, copy=False)
+        self.indices = indices = indices.astype(integer, copy=False)
         known = _ORDERINGS.get(key)
-        self.perm = np.zeros(n, dtype=np.int32) if known is None else known.copy()
+        self.perm = (np.zeros(n) if known is None else known).astype(integer)
         self.iparm[4] = 2 if known is None else 1  # return the ordering / use the given one
         self.lock = threading.Lock()
         # slot 1 holds the analysis (phase 11 runs on it); freeing its numeric factor with
         # phase 0 and factorizing into it again crashed MKL (35k rack-solid), so factors use 2..
         self.free = list(range(self.maxfct, 1, -1))
-        dtype = np.complex128 if mtype in (6, 13) else np.float64
+        dtype = _stored_dtype(np.complex128 if mtype in (6, 13) else np.float64, storage)
         # the analysis does not read values; kept with the handle like every array given to it
         self.values = values = np.zeros(indices.size, dtype=dtype)
-        weakref.finalize(self, _release, self.pt, mtype, self.maxfct)
+        weakref.finalize(self, _release, self.pt, mtype, self.maxfct, storage, self.files, index64)
         empty = np.zeros((n, 1), dtype=dtype, order="F")
-        _pardiso(self.pt, self.maxfct, 1, mtype, 11, values, indptr, indices, self.perm,
-                 self.iparm, empty, np.zeros_like(empty), self.threads)  # fmt: skip
+        with self.files.environment():
+            _pardiso(self.pt, self.maxfct, 1, mtype, 11, values, indptr, indices, self.perm,
+                     self.iparm, empty, np.zeros_like(empty), self.threads)  # fmt: skip
         if known is None:
             _remember_ordering(key, self.perm)
 
@@ -402,7 +536,7 @@ class _Family:
         """Free the numeric factor in slot ``mnum`` (phase 0) and the slot."""
         empty = np.zeros((self.perm.size, 1), dtype=data.dtype, order="F")
         arrays = (data, self.indptr, self.indices, self.perm, self.iparm.copy())
-        with self.lock:
+        with self.lock, self.files.environment():
             try:
                 _pardiso(self.pt, self.maxfct, mnum, self.mtype, 0, *arrays, empty, empty,
                          self.threads)  # fmt: skip
@@ -412,7 +546,7 @@ class _Family:
 
 
 #: Factor families by pattern and matrix type (:class:`_Family`), most recent last.
-_FAMILIES: dict[tuple[str, int, int], _Family] = {}
+_FAMILIES: dict[tuple[str, int, int, str], _Family] = {}
 #: At most this many families are kept (each holds one symbolic analysis).
 MAX_FAMILIES = 4
 #: Numeric factors one family holds at most (SOAGA keeps one per expansion point).
@@ -426,15 +560,17 @@ def _family(
     indptr: np.ndarray,
     indices: np.ndarray,
     threads: int,
+    storage: str,
+    index64: bool = False,
 ) -> _Family | None:
-    """The family of this symmetric pattern (created with its analysis); None if not symmetric
-    or switched off (``PYMOREMBS_PARDISO_FAMILIES=0``)."""
+    """The family of this symmetric pattern (created with its analysis, with 64-bit indices if
+    ``index64``); None if not symmetric or switched off (``PYMOREMBS_PARDISO_FAMILIES=0``)."""
     if key is None or mtype not in (-2, 6) or os.environ.get(FAMILIES_ENV, "1").strip() == "0":
         return None
-    family = _FAMILIES.pop((key, mtype, threads), None)
+    family = _FAMILIES.pop((key, mtype, threads, storage), None)
     if family is None:
-        family = _Family(key, n, mtype, indptr, indices, threads)
-    _FAMILIES[(key, mtype, threads)] = family  # most recent last
+        family = _Family(key, n, mtype, indptr, indices, threads, storage, index64)
+    _FAMILIES[(key, mtype, threads, storage)] = family  # most recent last
     while len(_FAMILIES) > MAX_FAMILIES:
         _FAMILIES.pop(next(iter(_FAMILIES)))
     return family
@@ -525,9 +661,10 @@ def _pattern_key(indptr: np.ndarray, indices: np.ndarray) -> str:
     return digest.hexdigest()
 
 
-def _iparm(mtype: int) -> np.ndarray:
-    """PARDISO parameters (``iparm``, zero-based here; MKL's manual counts from 1)."""
-    iparm = np.zeros(64, dtype=np.int32)
+def _iparm(mtype: int, storage: str = "in-core", index64: bool = False) -> np.ndarray:
+    """PARDISO parameters (``iparm``, zero-based here; MKL's manual counts from 1) for factors
+    stored as ``storage`` (:data:`STORAGES`); ``int64`` for the 64-bit interface."""
+    iparm = np.zeros(64, dtype=np.int64 if index64 else np.int32)
     iparm[0] = 1  # no defaults: all set here
     iparm[1] = 2  # METIS nested dissection ordering
     iparm[7] = 0  # iterative refinement: automatic (2 steps when pivots were perturbed)
@@ -537,22 +674,98 @@ def _iparm(mtype: int) -> np.ndarray:
     iparm[12] = 0 if symmetric else 1  # weighted matching
     iparm[17] = -1  # report the nonzeros of the factors
     iparm[20] = 1  # Bunch-Kaufman 1x1 and 2x2 pivots (symmetric indefinite)
+    iparm[27] = 1 if storage == "single" else 0  # precision of the factors (and of a, b, x)
     iparm[34] = 1  # zero-based indices
+    # 0: in core; 1: out of core when the factors exceed MKL_PARDISO_OOC_MAX_CORE_SIZE; 2: always
+    iparm[59] = {"auto": 1, "out-of-core": 2}.get(storage, 0)
     return iparm
 
 
-def _release(pt: np.ndarray, mtype: int, maxfct: int) -> None:
-    """Free PARDISO's memory of one handle (``phase = -1``)."""
-    if not pt.any():
-        return
-    dummy = np.zeros((1, 1))
-    index = np.zeros(2, dtype=np.int32)
-    try:
-        _pardiso(pt, maxfct, 1, mtype, -1, dummy.ravel(), index, index, None, _iparm(mtype),
-                 dummy, dummy.copy(), 1)  # fmt: skip
-    except NumericalError:
-        pass
-    pt[:] = 0
+def _release(
+    pt: np.ndarray,
+    mtype: int,
+    maxfct: int,
+    storage: str,
+    files: _FactorFiles,
+    index64: bool = False,
+) -> None:
+    """Free PARDISO's memory of one handle (``phase = -1``) and its out-of-core files."""
+    if pt.any():
+        dummy = np.zeros((1, 1))
+        index = np.zeros(2, dtype=np.int64 if index64 else np.int32)
+        try:
+            with files.environment():
+                _pardiso(pt, maxfct, 1, mtype, -1, dummy.ravel(), index, index, None,
+                         _iparm(mtype, storage, index64), dummy, dummy.copy(), 1)  # fmt: skip
+        except NumericalError:
+            pass
+        pt[:] = 0
+    files.remove()
+
+
+def _stored_dtype(dtype: type | np.dtype, storage: str) -> np.dtype:
+    """The dtype of the values PARDISO gets: single precision for ``storage == "single"``."""
+    dtype = np.dtype(dtype)
+    if storage != "single":
+        return dtype
+    return np.dtype(np.complex64 if dtype.kind == "c" else np.float32)
+
+
+class _FactorFiles:
+    """Where one PARDISO handle may write its factors out of core: a fresh directory (under
+    ``PYMOREMBS_PARDISO_OOC_DIR`` or the temporary directory), handed to MKL through its
+    environment variables around every call of the handle; none for in-core storage."""
+
+    def __init__(self, directory: str | None, core_mb: int) -> None:
+        self.directory = directory
+        self.core_mb = core_mb
+
+    @classmethod
+    def create(cls, storage: str) -> _FactorFiles:
+        if storage not in ("auto", "out-of-core"):
+            return cls(None, 0)
+        root = os.environ.get(OOC_DIR_ENV, "").strip() or None
+        try:
+            directory = tempfile.mkdtemp(prefix="pymorembs-pardiso-", dir=root)
+        except OSError as exc:
+            raise UserError(
+                f"{OOC_DIR_ENV}: cannot create a directory in {root!r}: {exc}"
+            ) from None
+        core = AUTO_CORE_FRACTION * available_memory_bytes()
+        core_mb = int(min(core, 2**50) / 2**20)  # (infinite where MemAvailable is not known)
+        return cls(directory, max(core_mb, 1))
+
+    @contextlib.contextmanager
+    def environment(self):
+        """MKL's out-of-core settings for one call (nothing for in-core storage)."""
+        if self.directory is None:
+            yield
+            return
+        settings = {
+            "MKL_PARDISO_OOC_PATH": self.directory,  # (a directory: MKL names the files)
+            "MKL_PARDISO_OOC_MAX_CORE_SIZE": str(self.core_mb),
+            "MKL_PARDISO_OOC_KEEP_FILE": "0",
+        }
+        previous = {name: os.environ.get(name) for name in settings}
+        os.environ.update(settings)
+        try:
+            yield
+        finally:
+            for name, value in previous.items():
+                if value is None:
+                    os.environ.pop(name, None)
+                else:
+                    os.environ[name] = value
+
+    def written(self) -> bool:
+        """Whether PARDISO has written factors here (it went out of core)."""
+        return self.directory is not None and any(os.scandir(self.directory))
+
+    def remove(self) -> None:
+        """Delete the directory and whatever PARDISO left in it."""
+        if self.directory is not None:
+            shutil.rmtree(self.directory, ignore_errors=True)
+            self.directory = None
 
 
 class _threads:
@@ -575,9 +788,18 @@ def _mkl() -> ctypes.CDLL:
 
     library = PyPardisoSolver().libmkl
     library.pardiso.restype = None
+    library.pardiso_64.restype = None
     library.MKL_Set_Num_Threads_Local.restype = ctypes.c_int
     library.MKL_Set_Num_Threads_Local.argtypes = [ctypes.c_int]
     return library
+
+
+def pardiso_storage() -> str:
+    """How PARDISO stores its factors: ``PYMOREMBS_PARDISO_STORAGE``, default ``auto``."""
+    value = os.environ.get(STORAGE_ENV, "auto").strip().lower() or "auto"
+    if value not in STORAGES:
+        raise UserError(f"{STORAGE_ENV} must be {', '.join(STORAGES)}, got {value!r}")
+    return value
 
 
 def solver_threads() -> int:
@@ -598,7 +820,8 @@ def _pardiso_works() -> bool:
     """PARDISO is installed and solves a small symmetric indefinite system correctly."""
     try:
         matrix = sp.csr_matrix(np.array([[2.0, 1.0, 0.0], [1.0, -3.0, 1.0], [0.0, 1.0, 4.0]]))
-        x = PardisoFactor(matrix, symmetric=True, threads=1).solve(np.array([3.0, -1.0, 5.0]))
+        factor = PardisoFactor(matrix, symmetric=True, threads=1, storage="in-core")
+        x = factor.solve(np.array([3.0, -1.0, 5.0]))
     except (ImportError, OSError, AttributeError, NumericalError):
         return False
     return bool(np.allclose(x, 1.0, rtol=1e-12, atol=0.0))

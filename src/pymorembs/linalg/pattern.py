@@ -57,17 +57,28 @@ class SumPattern:
             return
         if len(parts) > 52:
             raise ValueError("at most 52 matrices can be combined")
-        # the merged pattern, each entry flagged with bit i if matrix i stores it
-        union = _flagged(parts[0], 0)
+        # the merged pattern, each entry flagged with bit i if matrix i stores it (flags in the
+        # narrowest integer type: at millions of dofs every byte per entry is gigabytes)
+        flag_type = np.int8 if len(parts) < 8 else np.int64
+        union = _flagged(parts[0], 0, flag_type)
         for i, part in enumerate(parts[1:], start=1):
-            union = union + _flagged(part, i)  # positive flags: no entry cancels
+            union = union + _flagged(part, i, flag_type)  # positive flags: no entry cancels
         union.sum_duplicates()
         flags = union.data.astype(np.int64)
-        self.indptr = union.indptr.astype(np.int32)
-        self.indices = union.indices.astype(np.int32)
+        first = parts[0]
+        if union.nnz == first.nnz and first.indices.dtype == first.indptr.dtype == np.int32:
+            # the first matrix (the stiffness) stores the merged pattern: share its arrays
+            self.indptr, self.indices = first.indptr, first.indices
+        else:
+            self.indptr = union.indptr.astype(np.int32)
+            self.indices = union.indices.astype(np.int32)
+        del union
         # both patterns are sorted the same way, so the k-th entry of matrix i is the k-th
         # merged entry that carries flag i
-        self.positions = [np.flatnonzero((flags >> i) & 1) for i in range(len(parts))]
+        index_type = np.int32 if flags.size < 2**31 else np.int64
+        self.positions = [
+            np.flatnonzero((flags >> i) & 1).astype(index_type) for i in range(len(parts))
+        ]
 
     @property
     def nnz(self) -> int:
@@ -191,9 +202,9 @@ def _infinity_norm(matrix: sp.csr_matrix) -> float:
     return float(np.max(absolute @ np.ones(matrix.shape[1])))
 
 
-def _flagged(part: sp.csr_matrix, bit: int) -> sp.csr_matrix:
-    """The pattern of ``part`` with all stored values ``2**bit``."""
-    values = np.full(part.nnz, float(2**bit))
+def _flagged(part: sp.csr_matrix, bit: int, dtype: type = np.int64) -> sp.csr_matrix:
+    """The pattern of ``part`` with all stored values ``2**bit`` (of ``dtype``)."""
+    values = np.full(part.nnz, 2**bit, dtype=dtype)
     return sp.csr_matrix((values, part.indices, part.indptr), shape=part.shape)
 
 

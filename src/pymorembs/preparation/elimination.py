@@ -55,8 +55,8 @@ class Elimination:
         if matrix is None:
             return None
         reduced = sp.csr_matrix(self.transform.T @ (matrix @ self.transform))
-        reduced = 0.5 * (reduced + reduced.T)  # exact symmetry despite round-off
-        return sp.csr_matrix(reduced)
+        reduced.sum_duplicates()  # canonical: sorted columns
+        return symmetric_part(reduced)
 
     def load(self, stiffness: sp.spmatrix) -> np.ndarray:
         """``f* = -T^T K t`` (eq. 16)."""
@@ -167,3 +167,24 @@ def _cyclic_dof(g_dd: sp.csr_matrix) -> int | None:
         return None
     sizes = np.bincount(labels)
     return int(np.flatnonzero(sizes[labels] > 1)[0])
+
+
+def symmetric_part(matrix: sp.csr_matrix) -> sp.csr_matrix:
+    """``(A + A^T) / 2`` of a canonical CSR matrix: exact symmetry despite round-off.
+
+    Where the pattern is symmetric (FE matrices), the transpose stored as CSC has the same
+    ``indptr`` and ``indices`` as ``A``, so the mean is taken on the data arrays in place of a
+    sparse sum (which would hold ``A``, ``A^T`` and the sum at once: gigabytes at millions of
+    dofs); any other pattern takes the sparse sum.
+    """
+    transpose = matrix.tocsc()  # the CSR arrays of A^T
+    transpose.sort_indices()
+    if np.array_equal(transpose.indptr, matrix.indptr) and np.array_equal(
+        transpose.indices, matrix.indices
+    ):
+        data = 0.5 * (matrix.data + transpose.data)
+        del transpose
+        out = sp.csr_matrix((data, matrix.indices, matrix.indptr), shape=matrix.shape, copy=False)
+        out.has_canonical_format = True
+        return out
+    return sp.csr_matrix(0.5 * (matrix + matrix.T))
