@@ -12,8 +12,9 @@ models:
 
 * ``rack-solid``: ``build_example('rack-solid', dofs=N, interface='rigid')`` (hex20), frame at
   its interface node 2, ports at a rigid interface node on the bottom face around node 1;
-* ``bracket``: the CalculiX export of ``/work/data/bracket300k`` (tet10; read from its text
-  files), free-free, rigid interfaces at its two pin holes (frame at hole B, ports at hole A).
+* ``bracket``: the CalculiX export made by ``bench/calculix_peer.py`` (tet10, about 283k
+  dofs; read from its text files; another folder: ``BENCH_BRACKET``), free-free, rigid
+  interfaces at its two pin holes (frame at hole B, ports at hole A).
 
 Per stage: wall time (exclusive of the stages inside it), the factorizations made and their
 time, and those served from the job's shared factors (``Factorization.reused``); the
@@ -33,6 +34,7 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import tempfile
 import time
@@ -51,7 +53,11 @@ from _common import (
 from threadpoolctl import threadpool_limits
 
 TARGET = 2.0
-BRACKET = Path("/work/data/bracket300k")
+#: The bracket made and exported by ``bench/calculix_peer.py`` (its default size), or the folder
+#: named by the environment variable ``BENCH_BRACKET``.
+BRACKET = Path(
+    os.environ.get("BENCH_BRACKET", Path(__file__).resolve().parent / ".cache/calculix-peer-283000")
+)
 
 REDUCTIONS = """
 [[reduction]]
@@ -364,8 +370,8 @@ def main() -> None:
         with threadpool_limits(limits=1, user_api="blas"):
             emit(measure(args.model, dofs, args.as_before))
         return
-    if args.model == "bracket" and not (BRACKET / "READY").exists():
-        sys.exit(f"{BRACKET} is not READY")
+    if args.model == "bracket" and not (BRACKET / "bracket.sti").exists():
+        sys.exit(f"{BRACKET} holds no bracket.sti: make it with bench/calculix_peer.py")
     runs = {}
     for before in [True, False] if args.before else [False]:
         argv = [__file__, "--child", "--model", args.model, "--dofs", str(dofs or 0)]
