@@ -31,6 +31,7 @@ def eigenmodes(
     count: int,
     shift_hz: float = DEFAULT_SHIFT_HZ,
     elastic_only: bool = False,
+    shifted: Factorization | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The ``count`` lowest eigenpairs of ``(K, M)``.
 
@@ -51,6 +52,10 @@ def eigenmodes(
     elastic_only : bool
         For a free body (``system.rigid_modes`` set): skip its rigid-body modes, return the
         ``count`` lowest elastic modes.
+    shifted : Factorization, optional
+        The factorization of ``K - sigma M`` (:func:`shifted_factorization` with the same
+        ``shift_hz``), when the caller has it already: one factorization for several
+        eigen-analyses of the same matrices.
 
     Returns
     -------
@@ -76,11 +81,8 @@ def eigenmodes(
                 f"{split.n_massless} of them massless directions)"
             )
         raise UserError(f"{count} modes requested but the model has only {n} independent dofs")
-    sigma = -((2.0 * np.pi * shift_hz) ** 2)
-    # ARPACK needs no refined solves: its own tolerance governs the eigenpairs
-    shifted = Factorization(
-        [(1.0, system.stiffness), (-sigma, system.mass)], label="K - sigma M", check=False
-    ).operator()
+    sigma = shift_sigma(shift_hz)
+    shifted = (shifted or shifted_factorization(system, shift_hz)).operator()
     if free:
         # free body: the pencil restricted to the mass-orthogonal complement of its rigid-body
         # modes (Galerkin), by shift-invert with a bordered solve. Neither a shift next to the
@@ -129,6 +131,22 @@ def eigenmodes(
     # eigsh returns M-orthonormal vectors; normalise again against round-off.
     scale = np.sqrt(np.einsum("ij,ij->j", vectors, system.mass @ vectors))
     return values, vectors / scale
+
+
+def shift_sigma(shift_hz: float) -> float:
+    """The shift ``sigma = -(2 pi shift_hz)^2`` in (rad/s)^2 of a shift frequency in Hz."""
+    return -((2.0 * np.pi * shift_hz) ** 2)
+
+
+def shifted_factorization(
+    system: SecondOrderSystem, shift_hz: float = DEFAULT_SHIFT_HZ
+) -> Factorization:
+    """The factorization of ``K - sigma M`` that :func:`eigenmodes` uses (unrefined solves:
+    ARPACK's own tolerance governs the eigenpairs)."""
+    sigma = shift_sigma(shift_hz)
+    return Factorization(
+        [(1.0, system.stiffness), (-sigma, system.mass)], label="K - sigma M", check=False
+    )
 
 
 def _complement_operator(
