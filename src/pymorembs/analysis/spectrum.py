@@ -51,7 +51,7 @@ from pymorembs.reduction.modal import eigenmodes, shifted_factorization
 DENSE_LIMIT = 600
 #: At most six rigid-body modes; further zero-energy modes are mechanisms.
 RIGID_MAX = 6
-#: Eigenpairs computed beyond the requested elastic ones to count zero-energy modes.
+#: Eigenpairs the probe computes to count zero-energy modes (more while all are zero-energy).
 PROBE_EXTRA = RIGID_MAX + 2
 #: A ratio of consecutive eigenvalues from which the lower ones count as zero-energy modes
 #: (a frequency ratio of 1000).
@@ -253,7 +253,10 @@ def _rigid_body_modes(
     probe's eigen-analysis with the factorization ``shifted``, None for dense models)."""
     system = prepared.system
     stiffness, mass = system.stiffness, system.mass
-    probe = min(split.rank - (0 if dense else 1), modes + PROBE_EXTRA)
+    # the count needs the zero-energy modes and the next one only (the probe doubles while all
+    # are zero-energy); the elastic modes come from the complement (_elastic_modes), so a probe
+    # of the requested modes as well would only cost Lanczos vectors
+    probe = min(split.rank - (0 if dense else 1), PROBE_EXTRA)
     values, vectors = _probe(prepared, split, probe, dense, eps, shifted)
     spectral = _zero_energy_count(system, values, vectors, eps)
     above = (
