@@ -57,18 +57,8 @@ import sys
 import time
 from pathlib import Path
 
+import _common as common
 import numpy as np
-from _common import (
-    CACHE,
-    emit,
-    fmt_s,
-    machine_facts,
-    markdown_table,
-    peak_memory_mb,
-    reset_peak_memory,
-    run_child,
-    update_results,
-)
 
 BENCH = Path(__file__).resolve().parent
 PART_SCRIPT = BENCH / "bracket_part.py"
@@ -212,7 +202,7 @@ def info_child(sti: str, modes: int) -> None:
     if code != 0:
         raise SystemExit(code)
     facts = json.loads(output.getvalue())
-    emit(
+    common.emit(
         {
             "import_s": since_start,
             "command_s": done - imported,
@@ -248,18 +238,18 @@ def read_child(role: str, sti: str) -> None:
             ]
 
     warm_memory(int(2 * sum(f.stat().st_size for f in files)))
-    reset_peak_memory()
-    before = rss_mb()
+    common.reset_peak_memory()
+    before = common.rss_mb()
     tick, cpu = time.perf_counter(), time.process_time()
     result = call()
     seconds, cpu = time.perf_counter() - tick, time.process_time() - cpu
-    out = {"seconds": seconds, "cpu_s": cpu, "peak_mb": peak_memory_mb() - before}
+    out = {"seconds": seconds, "cpu_s": cpu, "peak_mb": common.peak_memory_mb() - before}
     if role == "read":
         out["matrix_mb"] = (
             sum(a.data.nbytes + a.indices.nbytes + a.indptr.nbytes
                 for a in (result.stiffness, result.mass)) / 2**20
         )  # fmt: skip
-    emit(out)
+    common.emit(out)
 
 
 def deck_nodes(inp: Path) -> np.ndarray:
@@ -273,13 +263,6 @@ def deck_nodes(inp: Path) -> np.ndarray:
 def files_mb(sti: Path) -> float:
     """Size of the export read (``.sti``, ``.mas``, ``.dof``, ``.inp``), MB."""
     return sum(sti.with_suffix(s).stat().st_size for s in (".sti", ".mas", ".dof", ".inp")) / 2**20
-
-
-def rss_mb() -> float:
-    for line in Path("/proc/self/status").read_text().splitlines():
-        if line.startswith("VmRSS:"):
-            return int(line.split()[1]) / 1024.0
-    return float("nan")
 
 
 # =========================================================================== driver
@@ -310,14 +293,17 @@ def main() -> None:
             read_child(role, sti)
         return
     dofs = QUICK_DOFS if args.quick else args.dofs
-    work = args.work or CACHE / f"calculix-peer-{dofs}"
+    work = args.work or common.CACHE / f"calculix-peer-{dofs}"
     part = make_part(dofs, work, gmsh_python(args.gmsh_python), args.threads)
     sti = work / "bracket.sti"
     print(f"part: {part['dofs']} dofs, {part['elements']} C3D10 ({work})", flush=True)
     calculix = run_calculix(work, args.modes, args.threads)
-    print(f"calculix: {calculix.get('failed') or fmt_s(calculix['seconds']) + ' s'}", flush=True)
+    print(
+        f"calculix: {calculix.get('failed') or common.fmt_s(calculix['seconds']) + ' s'}",
+        flush=True,
+    )
     ours = run_info(sti, args.modes, args.threads)
-    print(f"pymorembs: {ours.get('failed') or fmt_s(ours['seconds']) + ' s'}", flush=True)
+    print(f"pymorembs: {ours.get('failed') or common.fmt_s(ours['seconds']) + ' s'}", flush=True)
     failed = "failed" in calculix or "failed" in ours
     lines = [
         f"Part: L-shaped steel bracket with two pin holes (`bench/bracket_part.py`), gmsh "
@@ -345,7 +331,7 @@ def main() -> None:
         rows = [
             [
                 f"CalculiX {args.modes} modes (`*FREQUENCY`, SPOOLES + ARPACK)",
-                fmt_s(calculix["seconds"]),
+                common.fmt_s(calculix["seconds"]),
                 f"{calculix['peak_mb']:.0f}",
                 "",
                 "",
@@ -355,18 +341,18 @@ def main() -> None:
             ],
             [
                 f"`pymorembs info --modes {args.modes}`",
-                fmt_s(ours["seconds"]),
+                common.fmt_s(ours["seconds"]),
                 f"{ours['peak_mb']:.0f}",
-                fmt_s(ours["import_s"]),
-                fmt_s(ours["read_s"]),
-                fmt_s(ours["validation_s"]),
-                fmt_s(ours["modes_s"]),
-                fmt_s(rest),
+                common.fmt_s(ours["import_s"]),
+                common.fmt_s(ours["read_s"]),
+                common.fmt_s(ours["validation_s"]),
+                common.fmt_s(ours["modes_s"]),
+                common.fmt_s(rest),
             ],
         ]
         verdict = "met" if ratio <= 1 else "**not met**"
         lines += [
-            markdown_table(headers, rows),
+            common.markdown_table(headers, rows),
             "",
             f"**Ratio pymorembs / CalculiX: {ratio:.2f}** (target <= 1: {verdict}). "
             f"Frequencies: pymorembs' first {mine.size} elastic modes against CalculiX's modes "
@@ -382,7 +368,7 @@ def main() -> None:
         print("pymorembs " + " ".join(f"{f:.2f}" for f in mine))
     if not args.no_read:
         best = {
-            role: run_child([__file__, "--child", role, str(sti), "-"])
+            role: common.run_child([__file__, "--child", role, str(sti), "-"])
             for role in ("read", "baseline")
         }
         if any("failed" in r for r in best.values()):
@@ -393,7 +379,7 @@ def main() -> None:
             time_ratio = read["seconds"] / base["seconds"]
             memory_ratio = read["peak_mb"] / read["matrix_mb"]
             ok = "yes" if time_ratio <= 2 and memory_ratio <= 2 else "**no**"
-            table = markdown_table(
+            table = common.markdown_table(
                 [
                     "files [MB]",
                     "reader [s]",
@@ -408,8 +394,8 @@ def main() -> None:
                 [
                     [
                         f"{files_mb(sti):.0f}",
-                        fmt_s(read["seconds"]),
-                        fmt_s(base["seconds"]),
+                        common.fmt_s(read["seconds"]),
+                        common.fmt_s(base["seconds"]),
                         f"{time_ratio:.2f}",
                         f"{read['cpu_s'] / base['cpu_s']:.2f}",
                         f"{read['peak_mb']:.0f}",
@@ -430,7 +416,9 @@ def main() -> None:
             print(table)
     if not args.no_results and not failed:
         name = SECTION + (", quick" if args.quick else "")
-        print(f"written: {update_results(name, chr(10).join(lines), machine_facts())}")
+        print(
+            f"written: {common.update_results(name, chr(10).join(lines), common.machine_facts())}"
+        )
     sys.exit(1 if failed else 0)
 
 
