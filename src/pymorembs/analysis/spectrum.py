@@ -158,8 +158,10 @@ def model_spectrum(body: ElasticBody, prepared: PreparedModel, modes: int) -> Sp
     split = mass_split(system.mass)
     eps, rounding = relative_rounding(body.stiffness, body.mass, body.precision)
     dense = system.order <= DENSE_LIMIT
-    # one factorization of K - sigma M for the probe and the elastic modes
-    shifted = None if dense else shifted_factorization(system)
+    # one factorization of K - sigma M for the probe and the elastic modes; no other shift
+    # shares its pattern here, so it takes a handle of its own, whose one-vector solves (a
+    # hundred or so, ARPACK's) run on one thread
+    shifted = None if dense else shifted_factorization(system, share_analysis=False)
     if system.rigid_modes is not None:  # Buckens frame: removed by the frame
         rigid = RigidBodyModes(
             count=system.rigid_modes.shape[1],

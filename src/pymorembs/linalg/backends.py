@@ -196,11 +196,20 @@ class PardisoFactor(SparseFactor):
         Factorize ``A`` as symmetric (``mtype`` -2 or 6) from its upper triangle.
     threads : int, optional
         PARDISO threads; default from :func:`solver_threads`.
+    share_analysis : bool
+        Join the family of the pattern (module docstring); False: an own handle, whose solves
+        run on one thread (for many one-vector solves, as ARPACK's).
     """
 
     backend = "pardiso"
 
-    def __init__(self, matrix: sp.spmatrix, symmetric: bool, threads: int | None = None) -> None:
+    def __init__(
+        self,
+        matrix: sp.spmatrix,
+        symmetric: bool,
+        threads: int | None = None,
+        share_analysis: bool = True,
+    ) -> None:
         start = time.perf_counter()
         if not isinstance(matrix, sp.csr_matrix):  # (a CSR matrix is used as is: no copy)
             matrix = sp.csr_matrix(matrix)
@@ -227,7 +236,11 @@ class PardisoFactor(SparseFactor):
         self._maxfct, self._mnum = 1, 1
         if symmetric and key is None:
             key = _pattern_key(self._indptr, self._indices)
-        family = _family(key, n, self.mtype, self._indptr, self._indices, self.threads)
+        family = (
+            _family(key, n, self.mtype, self._indptr, self._indices, self.threads)
+            if share_analysis
+            else None
+        )
         slot = family.acquire() if family is not None else None
         if slot is not None:
             # the analysis of this pattern is done (shared by all shifts): numeric phase only
@@ -614,7 +627,9 @@ _FACTORIES: dict[str, Callable[[sp.spmatrix, bool], SparseFactor]] = {
 }
 
 
-def factorize(matrix: sp.spmatrix, symmetric: bool, backend: str | None = None) -> SparseFactor:
+def factorize(
+    matrix: sp.spmatrix, symmetric: bool, backend: str | None = None, share_analysis: bool = True
+) -> SparseFactor:
     """Factorize a sparse square matrix with the given (or the default) backend.
 
     Parameters
@@ -625,6 +640,8 @@ def factorize(matrix: sp.spmatrix, symmetric: bool, backend: str | None = None) 
         PARDISO then reads the upper triangle only.
     backend : {"superlu", "pardiso"}, optional
         Default :func:`default_backend`.
+    share_analysis : bool
+        PARDISO: in the family of the pattern (default), or an own handle (``PardisoFactor``).
 
     Returns
     -------
@@ -650,7 +667,10 @@ def factorize(matrix: sp.spmatrix, symmetric: bool, backend: str | None = None) 
         raise ValueError(f"cannot factorize a matrix of shape {matrix.shape}")
     if not np.iscomplexobj(matrix.data):
         matrix = matrix.astype(np.float64, copy=False)
-    factor = _FACTORIES[name](matrix, symmetric)
+    if name == "pardiso":
+        factor = PardisoFactor(matrix, symmetric, share_analysis=share_analysis)
+    else:
+        factor = _FACTORIES[name](matrix, symmetric)
     if getattr(factor, "perturbed_pivots", 0):
         # PARDISO's static pivoting replaced pivots below 1e-13 |A|: the matrix is singular or
         # nearly so. SuperLU's threshold pivoting factorizes it exactly or reports it singular.

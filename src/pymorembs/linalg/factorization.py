@@ -171,6 +171,10 @@ class Factorization:
     plain_enough : float
         Default :data:`PLAIN_ENOUGH`; :data:`BASIS_PLAIN_ENOUGH` for solves that only build a
         subspace.
+    share_analysis : bool
+        PARDISO: share the analysis of the sparsity pattern with the other shifts (default); or
+        an own handle, whose solves run on one thread (:func:`~pymorembs.linalg.backends.
+        factorize`): for one factorization with many one-vector solves.
 
     Attributes
     ----------
@@ -194,6 +198,7 @@ class Factorization:
         backend: str | None = None,
         refine: str = "auto",
         plain_enough: float = PLAIN_ENOUGH,
+        share_analysis: bool = True,
     ):
         if refine not in ("auto", "always"):
             raise ValueError(f"refine must be 'auto' or 'always', got {refine!r}")
@@ -211,7 +216,9 @@ class Factorization:
         self.dtype = self.matrix.dtype
         self.symmetric = all(is_symmetric(matrix) for _, matrix in self.terms)
         try:
-            self.factor: SparseFactor = factorize(self.matrix, self.symmetric, backend)
+            self.factor: SparseFactor = factorize(
+                self.matrix, self.symmetric, backend, share_analysis
+            )
         except NumericalError as exc:  # one line that names the matrix
             text = str(exc)
             named = text.replace("the matrix", label, 1)

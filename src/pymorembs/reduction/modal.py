@@ -139,13 +139,18 @@ def shift_sigma(shift_hz: float) -> float:
 
 
 def shifted_factorization(
-    system: SecondOrderSystem, shift_hz: float = DEFAULT_SHIFT_HZ
+    system: SecondOrderSystem, shift_hz: float = DEFAULT_SHIFT_HZ, share_analysis: bool = True
 ) -> Factorization:
     """The factorization of ``K - sigma M`` that :func:`eigenmodes` uses (unrefined solves:
-    ARPACK's own tolerance governs the eigenpairs)."""
+    ARPACK's own tolerance governs the eigenpairs). ``share_analysis=False``: a PARDISO handle
+    of its own, whose solves -- ARPACK's, one vector each -- run on one thread
+    (:class:`~pymorembs.linalg.factorization.Factorization`)."""
     sigma = shift_sigma(shift_hz)
     return Factorization(
-        [(1.0, system.stiffness), (-sigma, system.mass)], label="K - sigma M", check=False
+        [(1.0, system.stiffness), (-sigma, system.mass)],
+        label="K - sigma M",
+        check=False,
+        share_analysis=share_analysis,
     )
 
 
