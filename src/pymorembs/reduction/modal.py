@@ -82,7 +82,9 @@ def eigenmodes(
             )
         raise UserError(f"{count} modes requested but the model has only {n} independent dofs")
     sigma = shift_sigma(shift_hz)
-    shifted = (shifted or shifted_factorization(system, shift_hz)).operator()
+    if shifted is None:
+        shifted = shifted_factorization(system, shift_hz)
+    operator_of_shift = shifted.operator()
     if free:
         # free body: the pencil restricted to the mass-orthogonal complement of its rigid-body
         # modes (Galerkin), by shift-invert with a bordered solve. Neither a shift next to the
@@ -90,13 +92,13 @@ def eigenmodes(
         # 10-digit punch, breaks that null space and puts rigid modes at up to 1 Hz, which drag
         # the elastic ones along) nor a support-based inertia relief (which then depends on the
         # supports: 3.6 % on the first elastic mode of a free aircraft from a 10-digit punch).
-        operator = _complement_operator(shifted, system.mass, system.rigid_modes)
+        operator = _complement_operator(operator_of_shift, system.mass, system.rigid_modes)
         # every copy of a multiple eigenvalue at the edge of the wanted set must be found
         # (rack-beams, Buckens: the 5-fold 460 Hz rod bending and then 474 Hz); guard modes
         # keep such a cluster inside the computed set
         guard = min(FREE_BODY_GUARD_MODES, available - count - 1)
     else:
-        operator = shifted
+        operator = operator_of_shift
         guard = 0
     size = split.rank
     mass = system.mass
