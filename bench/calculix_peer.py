@@ -8,7 +8,7 @@ written as two CalculiX decks into ``bench/.cache/calculix-peer-<dofs>/`` and ex
 ``ccx -i bracket`` (``*FREQUENCY, SOLVER=MATRIXSTORAGE``: ``bracket.sti``, ``bracket.mas``,
 ``bracket.dof``). The cache is kept; delete it to make the part again.
 
-Measured, each in a fresh process, one after the other, with ``OMP_NUM_THREADS`` = ``--threads``
+Measured, each in a fresh process, one after the other (pymorembs first), with ``OMP_NUM_THREADS`` = ``--threads``
 (default 2) for both programs:
 
 ``calculix``
@@ -297,13 +297,10 @@ def main() -> None:
     part = make_part(dofs, work, gmsh_python(args.gmsh_python), args.threads)
     sti = work / "bracket.sti"
     print(f"part: {part['dofs']} dofs, {part['elements']} C3D10 ({work})", flush=True)
-    calculix = run_calculix(work, args.modes, args.threads)
-    print(
-        f"calculix: {calculix.get('failed') or common.fmt_s(calculix['seconds']) + ' s'}",
-        flush=True,
-    )
     ours = run_info(sti, args.modes, args.threads)
-    print(f"pymorembs: {ours.get('failed') or common.fmt_s(ours['seconds']) + ' s'}", flush=True)
+    print(f"pymorembs: {ours.get('failed') or json.dumps(ours)}", flush=True)
+    calculix = run_calculix(work, args.modes, args.threads)
+    print(f"calculix: {calculix.get('failed') or json.dumps(calculix)}", flush=True)
     failed = "failed" in calculix or "failed" in ours
     lines = [
         f"Part: L-shaped steel bracket with two pin holes (`bench/bracket_part.py`), gmsh "
