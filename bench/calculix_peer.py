@@ -8,8 +8,8 @@ written as two CalculiX decks into ``bench/.cache/calculix-peer-<dofs>/`` and ex
 ``ccx -i bracket`` (``*FREQUENCY, SOLVER=MATRIXSTORAGE``: ``bracket.sti``, ``bracket.mas``,
 ``bracket.dof``). The cache is kept; delete it to make the part again.
 
-Measured, each in a fresh process, one after the other (pymorembs first), with ``OMP_NUM_THREADS`` = ``--threads``
-(default 2) for both programs:
+Measured, each in a fresh process, one after the other (pymorembs first), with
+``OMP_NUM_THREADS`` = ``--threads`` (default 2) for both programs:
 
 ``calculix``
     ``ccx -i bracket_modes`` in a directory of its own: ``*FREQUENCY`` of ``--modes`` (20)
