@@ -299,6 +299,14 @@ def run_child(argv: list[str], timeout: float | None = None) -> dict:
     return {"failed": f"{reason}: {tail}"[:200]}
 
 
+def rss_mb() -> float:
+    """This process's resident memory now (``VmRSS``), MB."""
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024.0
+    return float("nan")
+
+
 def available_memory_bytes() -> float:
     """``MemAvailable`` of ``/proc/meminfo`` (bytes); infinite if unknown."""
     try:

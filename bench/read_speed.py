@@ -80,6 +80,7 @@ from _common import (
     markdown_table,
     peak_memory_mb,
     reset_peak_memory,
+    rss_mb,
     run_child,
     update_results,
 )
@@ -578,13 +579,6 @@ def _matrix_bytes(body) -> int:
     )
 
 
-def _rss_mb() -> float:
-    for line in Path("/proc/self/status").read_text().splitlines():
-        if line.startswith("VmRSS:"):
-            return int(line.split()[1]) / 1024.0
-    return float("nan")
-
-
 def measure(fmt: str, role: str, d: Path, memory: str) -> dict:
     """Time and peak memory of the reader or the baseline of ``fmt`` (in this process); with
     ``memory == "warm"`` right after :func:`warm_memory`, with ``"cold"`` after a pause of
@@ -595,7 +589,7 @@ def measure(fmt: str, role: str, d: Path, memory: str) -> dict:
     else:
         time.sleep(COLD_WAIT_S)
     reset_peak_memory()
-    before = _rss_mb()
+    before = rss_mb()
     tick, cpu = time.perf_counter(), time.process_time()
     result = call()
     seconds, cpu = time.perf_counter() - tick, time.process_time() - cpu

@@ -10,6 +10,7 @@ result or the same one-line error). The strict pass is obtained by switching the
 
 from __future__ import annotations
 
+import mmap
 import re
 import warnings
 from concurrent.futures import ThreadPoolExecutor
@@ -901,3 +902,22 @@ def test_compiled_parser_across_blocks(tmp_path, monkeypatch) -> None:
         rows, cols, parsed_values = fast_text.parse_coordinate_lines(path, len(head), 9, 300)
         assert np.array_equal(rows, k % 9) and np.array_equal(cols, (k * 5) % 9)
         assert np.array_equal(parsed_values, values)
+
+
+def test_line_ends_are_counted_block_by_block(tmp_path, monkeypatch):
+    """``count_line_ends`` maps a large file in blocks and unmaps each once counted (so a
+    CalculiX matrix file of 374 MB does not count in the reader's memory); the count is that of
+    the whole file, also where a block ends inside a line or on a line end."""
+    if not fast_text.compiled_checks():
+        pytest.skip("needs Numba")
+    rng = np.random.default_rng(3)
+    lines = [
+        f"{i} {j} {v!r}\n"
+        for i, j, v in zip(range(1, 4001), range(1, 4001), rng.normal(size=4000), strict=True)
+    ]
+    data = "".join(lines).encode() + b"9 9 1.0"  # the last line without its line end
+    path = tmp_path / "job.sti"
+    path.write_bytes(data)
+    monkeypatch.setattr(fast_text, "_PARSE_BLOCK", mmap.PAGESIZE)
+    assert len(data) > 10 * mmap.PAGESIZE
+    assert fast_text.count_line_ends(path) == data.count(b"\n") == 4000

@@ -40,17 +40,18 @@ import scipy.sparse as sp
 
 from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
+from pymorembs.linalg.factorization import Factorization
 from pymorembs.linalg.mass_split import MassSplit, dense_condensation, mass_split
 from pymorembs.linalg.rounding import eigenvalue_bounds, relative_rounding
 from pymorembs.preparation import PreparedModel, with_rigid_modes
 from pymorembs.preparation.rigid_modes import NAMES, admissible_rigid_fields
-from pymorembs.reduction.modal import eigenmodes
+from pymorembs.reduction.modal import eigenmodes, shifted_factorization
 
 #: Up to this many independent dofs the eigenproblem is solved densely (all eigenpairs).
 DENSE_LIMIT = 600
 #: At most six rigid-body modes; further zero-energy modes are mechanisms.
 RIGID_MAX = 6
-#: Eigenpairs computed beyond the requested elastic ones to count zero-energy modes.
+#: Eigenpairs the probe computes to count zero-energy modes (more while all are zero-energy).
 PROBE_EXTRA = RIGID_MAX + 2
 #: A ratio of consecutive eigenvalues from which the lower ones count as zero-energy modes
 #: (a frequency ratio of 1000).
@@ -157,6 +158,10 @@ def model_spectrum(body: ElasticBody, prepared: PreparedModel, modes: int) -> Sp
     split = mass_split(system.mass)
     eps, rounding = relative_rounding(body.stiffness, body.mass, body.precision)
     dense = system.order <= DENSE_LIMIT
+    # one factorization of K - sigma M for the probe and the elastic modes; no other shift
+    # shares its pattern here, so it takes a handle of its own, whose one-vector solves (a
+    # hundred or so, ARPACK's) run on one thread
+    shifted = None if dense else shifted_factorization(system, share_analysis=False)
     if system.rigid_modes is not None:  # Buckens frame: removed by the frame
         rigid = RigidBodyModes(
             count=system.rigid_modes.shape[1],
@@ -168,7 +173,7 @@ def model_spectrum(body: ElasticBody, prepared: PreparedModel, modes: int) -> Sp
             computed_hz=np.zeros(system.rigid_modes.shape[1]),
         )
     else:
-        rigid = _rigid_body_modes(prepared, split, eps, modes, dense)
+        rigid = _rigid_body_modes(prepared, split, eps, modes, dense, shifted)
     zero = rigid.count + rigid.mechanisms
     count = min(modes, split.rank - zero - (0 if dense else 1))
     if count < 1:
@@ -176,7 +181,7 @@ def model_spectrum(body: ElasticBody, prepared: PreparedModel, modes: int) -> Sp
             f"the model has no elastic mode with mass: {split.rank} massive directions, "
             f"{zero} of them zero-energy modes"
         )
-    values, vectors = _elastic_modes(system, split, rigid.motions[:, :zero], count, dense)
+    values, vectors = _elastic_modes(system, split, rigid.motions[:, :zero], count, dense, shifted)
     bounds = eigenvalue_bounds(system.stiffness, system.mass, values, vectors, eps)
     hz = _hz(values)
     bound_hz = np.where(values > 0, bounds / (8 * np.pi**2 * np.maximum(hz, 1e-300)), np.inf)
@@ -197,7 +202,12 @@ def _hz(values: np.ndarray) -> np.ndarray:
 
 
 def _probe(
-    prepared: PreparedModel, split: MassSplit, count: int, dense: bool, eps: float
+    prepared: PreparedModel,
+    split: MassSplit,
+    count: int,
+    dense: bool,
+    eps: float,
+    shifted: Factorization | None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The lowest eigenpairs of the prepared system, no assumption about rigid-body modes.
 
@@ -210,7 +220,7 @@ def _probe(
         values, z = sla.eigh(condensation.stiffness, condensation.mass)
         return values, condensation.expand(z)
     while True:
-        values, vectors = eigenmodes(system, count)
+        values, vectors = eigenmodes(system, count, shifted=shifted)
         zero = _zero_energy_count(system, values, vectors, eps)
         if zero < count or count >= split.rank - 1:
             return values, vectors
@@ -234,13 +244,22 @@ def _zero_energy_count(system, values: np.ndarray, vectors: np.ndarray, eps: flo
 
 
 def _rigid_body_modes(
-    prepared: PreparedModel, split: MassSplit, eps: float, modes: int, dense: bool
+    prepared: PreparedModel,
+    split: MassSplit,
+    eps: float,
+    modes: int,
+    dense: bool,
+    shifted: Factorization | None,
 ) -> RigidBodyModes:
-    """Count the zero-energy modes by the spectrum and, with coordinates, by geometry."""
+    """Count the zero-energy modes by the spectrum and, with coordinates, by geometry (the
+    probe's eigen-analysis with the factorization ``shifted``, None for dense models)."""
     system = prepared.system
     stiffness, mass = system.stiffness, system.mass
-    probe = min(split.rank - (0 if dense else 1), modes + PROBE_EXTRA)
-    values, vectors = _probe(prepared, split, probe, dense, eps)
+    # the count needs the zero-energy modes and the next one only (the probe doubles while all
+    # are zero-energy); the elastic modes come from the complement (_elastic_modes), so a probe
+    # of the requested modes as well would only cost Lanczos vectors
+    probe = min(split.rank - (0 if dense else 1), PROBE_EXTRA)
+    values, vectors = _probe(prepared, split, probe, dense, eps, shifted)
     spectral = _zero_energy_count(system, values, vectors, eps)
     above = (
         f"{_hz(values[spectral : spectral + 1])[0]:.4g} Hz"
@@ -349,12 +368,18 @@ def _mass_orthonormal(motions: np.ndarray, mass: sp.spmatrix | np.ndarray) -> np
 
 
 def _elastic_modes(
-    system, split: MassSplit, motions: np.ndarray, count: int, dense: bool
+    system,
+    split: MassSplit,
+    motions: np.ndarray,
+    count: int,
+    dense: bool,
+    shifted: Factorization | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The ``count`` lowest eigenpairs in the mass-orthogonal complement of ``motions``."""
+    """The ``count`` lowest eigenpairs in the mass-orthogonal complement of ``motions``
+    (sparse: Lanczos with the probe's factorization ``shifted`` of ``K - sigma M``)."""
     if not dense:
         elastic = with_rigid_modes(system, motions) if motions.shape[1] else system
-        return eigenmodes(elastic, count, elastic_only=motions.shape[1] > 0)
+        return eigenmodes(elastic, count, elastic_only=motions.shape[1] > 0, shifted=shifted)
     condensation = dense_condensation(_dense(system.stiffness), _dense(system.mass), split)
     k, b = condensation.stiffness, condensation.mass
     if motions.shape[1]:

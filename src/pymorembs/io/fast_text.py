@@ -917,10 +917,19 @@ def count_line_ends(path: str | os.PathLike[str]) -> int | None:
 
 
 def _count_mapped(kernels, mapped: mmap.mmap) -> int:
-    """Line feeds of a mapped file (:func:`count_line_ends`)."""
+    """Line feeds of a mapped file (:func:`count_line_ends`), in blocks of
+    :data:`_PARSE_BLOCK` bytes whose pages are unmapped again once counted (as the parse does):
+    the file never counts in the process's memory by more than a block."""
     data = np.frombuffer(mapped, dtype=np.uint8)
     try:
-        return _count_buffer(kernels, data)
+        total, start = 0, 0
+        while start < data.size:
+            stop = min(start + _PARSE_BLOCK, data.size)
+            total += _count_buffer(kernels, data[start:stop])
+            if _UNMAP is not None:
+                mapped.madvise(_UNMAP, start, stop - start)
+            start = stop
+        return total
     finally:
         del data  # the mapping closes only without exports of its buffer
 

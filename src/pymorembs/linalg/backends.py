@@ -249,6 +249,9 @@ class PardisoFactor(SparseFactor):
     storage : {"auto", "in-core", "out-of-core", "single"}, optional
         How the factors are stored; default from :func:`pardiso_storage` (module docstring;
         ``"single"``: single-precision factors, for measurements).
+    share_analysis : bool
+        Join the family of the pattern (module docstring); False: an own handle, whose solves
+        run on one thread (for many one-vector solves, as ARPACK's).
 
     Attributes
     ----------
@@ -268,8 +271,10 @@ class PardisoFactor(SparseFactor):
         symmetric: bool,
         threads: int | None = None,
         storage: str | None = None,
+        share_analysis: bool = True,
     ) -> None:
         start = time.perf_counter()
+        self._share_analysis = share_analysis
         self.storage = pardiso_storage() if storage is None else storage
         if self.storage not in (*STORAGES, "single"):
             raise ValueError(f"unknown storage {self.storage!r}")
@@ -347,8 +352,12 @@ class PardisoFactor(SparseFactor):
     def _factorize(self, key: str | None, index64: bool) -> int:
         """Set up the handle (the family's, else an own one) and factorize; the phase run."""
         n = self.shape[0]
-        family = _family(
-            key, n, self.mtype, self._indptr, self._indices, self.threads, self.storage, index64
+        family = (
+            _family(
+                key, n, self.mtype, self._indptr, self._indices, self.threads, self.storage, index64
+            )
+            if self._share_analysis
+            else None
         )
         slot = family.acquire() if family is not None else None
         if slot is not None:
@@ -892,7 +901,9 @@ _FACTORIES: dict[str, Factory] = {
 }
 
 
-def factorize(matrix: sp.spmatrix, symmetric: bool, backend: str | None = None) -> SparseFactor:
+def factorize(
+    matrix: sp.spmatrix, symmetric: bool, backend: str | None = None, share_analysis: bool = True
+) -> SparseFactor:
     """Factorize a sparse square matrix with the given (or the default) backend.
 
     Parameters
@@ -903,6 +914,8 @@ def factorize(matrix: sp.spmatrix, symmetric: bool, backend: str | None = None) 
         PARDISO then reads the upper triangle only.
     backend : {"superlu", "pardiso"}, optional
         Default :func:`default_backend`.
+    share_analysis : bool
+        PARDISO: in the family of the pattern (default), or an own handle (``PardisoFactor``).
 
     Returns
     -------
@@ -934,7 +947,10 @@ def factorize(matrix: sp.spmatrix, symmetric: bool, backend: str | None = None) 
         raise ValueError(f"cannot factorize a matrix of shape {matrix.shape}")
     if not complex_:
         matrix = matrix.astype(np.float64, copy=False)
-    factor = factory(matrix, symmetric)
+    if name == "pardiso":
+        factor = PardisoFactor(matrix, symmetric, share_analysis=share_analysis)
+    else:
+        factor = factory(matrix, symmetric)
     if getattr(factor, "perturbed_pivots", 0):
         # PARDISO's static pivoting replaced pivots below 1e-13 |A|: the matrix is singular or
         # nearly so. SuperLU's threshold pivoting factorizes it exactly or reports it singular.

@@ -179,6 +179,10 @@ class Factorization:
         Take and keep the factor in an open
         :func:`~pymorembs.linalg.shared_factors.shared_factorizations` cache (False: a factor
         used once, e.g. one frequency of a sweep).
+    share_analysis : bool
+        PARDISO: share the analysis of the sparsity pattern with the other shifts (default); or
+        an own handle, whose solves run on one thread (:func:`~pymorembs.linalg.backends.
+        factorize`): for one factorization with many one-vector solves.
 
     Attributes
     ----------
@@ -207,6 +211,7 @@ class Factorization:
         refine: str = "auto",
         plain_enough: float = PLAIN_ENOUGH,
         share: bool = True,
+        share_analysis: bool = True,
     ):
         if refine not in ("auto", "always"):
             raise ValueError(f"refine must be 'auto' or 'always', got {refine!r}")
@@ -230,7 +235,9 @@ class Factorization:
         self.reused = found is not None
         try:
             self.factor: SparseFactor = (
-                found if found is not None else factorize(self.matrix, self.symmetric, backend)
+                found
+                if found is not None
+                else factorize(self.matrix, self.symmetric, backend, share_analysis)
             )
         except NumericalError as exc:  # one line that names the matrix
             text = str(exc)

@@ -31,6 +31,7 @@ def eigenmodes(
     count: int,
     shift_hz: float = DEFAULT_SHIFT_HZ,
     elastic_only: bool = False,
+    shifted: Factorization | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The ``count`` lowest eigenpairs of ``(K, M)``.
 
@@ -51,6 +52,10 @@ def eigenmodes(
     elastic_only : bool
         For a free body (``system.rigid_modes`` set): skip its rigid-body modes, return the
         ``count`` lowest elastic modes.
+    shifted : Factorization, optional
+        The factorization of ``K - sigma M`` (:func:`shifted_factorization` with the same
+        ``shift_hz``), when the caller has it already: one factorization for several
+        eigen-analyses of the same matrices.
 
     Returns
     -------
@@ -76,11 +81,10 @@ def eigenmodes(
                 f"{split.n_massless} of them massless directions)"
             )
         raise UserError(f"{count} modes requested but the model has only {n} independent dofs")
-    sigma = -((2.0 * np.pi * shift_hz) ** 2)
-    # ARPACK needs no refined solves: its own tolerance governs the eigenpairs
-    shifted = Factorization(
-        [(1.0, system.stiffness), (-sigma, system.mass)], label="K - sigma M", check=False
-    ).operator()
+    sigma = shift_sigma(shift_hz)
+    if shifted is None:
+        shifted = shifted_factorization(system, shift_hz)
+    operator_of_shift = shifted.operator()
     if free:
         # free body: the pencil restricted to the mass-orthogonal complement of its rigid-body
         # modes (Galerkin), by shift-invert with a bordered solve. Neither a shift next to the
@@ -88,13 +92,13 @@ def eigenmodes(
         # 10-digit punch, breaks that null space and puts rigid modes at up to 1 Hz, which drag
         # the elastic ones along) nor a support-based inertia relief (which then depends on the
         # supports: 3.6 % on the first elastic mode of a free aircraft from a 10-digit punch).
-        operator = _complement_operator(shifted, system.mass, system.rigid_modes)
+        operator = _complement_operator(operator_of_shift, system.mass, system.rigid_modes)
         # every copy of a multiple eigenvalue at the edge of the wanted set must be found
         # (rack-beams, Buckens: the 5-fold 460 Hz rod bending and then 474 Hz); guard modes
         # keep such a cluster inside the computed set
         guard = min(FREE_BODY_GUARD_MODES, available - count - 1)
     else:
-        operator = shifted
+        operator = operator_of_shift
         guard = 0
     size = split.rank
     mass = system.mass
@@ -129,6 +133,27 @@ def eigenmodes(
     # eigsh returns M-orthonormal vectors; normalise again against round-off.
     scale = np.sqrt(np.einsum("ij,ij->j", vectors, system.mass @ vectors))
     return values, vectors / scale
+
+
+def shift_sigma(shift_hz: float) -> float:
+    """The shift ``sigma = -(2 pi shift_hz)^2`` in (rad/s)^2 of a shift frequency in Hz."""
+    return -((2.0 * np.pi * shift_hz) ** 2)
+
+
+def shifted_factorization(
+    system: SecondOrderSystem, shift_hz: float = DEFAULT_SHIFT_HZ, share_analysis: bool = True
+) -> Factorization:
+    """The factorization of ``K - sigma M`` that :func:`eigenmodes` uses (unrefined solves:
+    ARPACK's own tolerance governs the eigenpairs). ``share_analysis=False``: a PARDISO handle
+    of its own, whose solves -- ARPACK's, one vector each -- run on one thread
+    (:class:`~pymorembs.linalg.factorization.Factorization`)."""
+    sigma = shift_sigma(shift_hz)
+    return Factorization(
+        [(1.0, system.stiffness), (-sigma, system.mass)],
+        label="K - sigma M",
+        check=False,
+        share_analysis=share_analysis,
+    )
 
 
 def _complement_operator(
