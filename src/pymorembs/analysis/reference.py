@@ -71,13 +71,13 @@ SURROGATE_CANDIDATES = 12
 SETTLE_ROUNDS = 4
 #: A surrogate whose measured deviation exceeds this gets a warning in the summary.
 DEVIATION_WARNING = 1e-6
-#: Checks at f > 0 are first computed from a real factor the job holds
-#: (:mod:`~pymorembs.analysis.shifted_checks`), a complex factorization only where that
-#: answer cannot be certified; False: always a complex factorization.
-ITERATIVE_CHECKS = True
-#: ... from this order on: below it a complex factorization is as fast as the iterative solves
-#: (rack-solid at 18,699 dofs: 1.5-2.8 s either way; at 12,876 dofs the settle checks of a job
-#: took 2.4 s with three complex factorizations).
+#: Checks at f > 0 first computed from a real factor the job holds
+#: (:mod:`~pymorembs.analysis.shifted_checks`), a complex factorization only where that answer
+#: cannot be certified. Off by default: on rack-solid at 12,876, 18,699 and 31,236 dofs the
+#: iterative checks were no faster than complex factorizations (at 31k they made a job 2 s
+#: slower, bench/RESULTS.md "Job cost"); not measured at 300k yet.
+ITERATIVE_CHECKS = False
+#: ... and only from this order on (when switched on).
 ITERATIVE_MIN_ORDER = 20_000
 
 
