@@ -79,13 +79,14 @@ def test_out_of_core_files_go_with_their_handle(monkeypatch: pytest.MonkeyPatch,
 
 
 @pytest.mark.usefixtures("fresh")
-def test_out_of_core_family_holds_several_factors(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_out_of_core_factors_have_handles_of_their_own(monkeypatch: pytest.MonkeyPatch) -> None:
+    # several factors of one handle out of core gave a wrong solve in about one run of eight
     monkeypatch.setenv(backends.STORAGE_ENV, "out-of-core")
     k = laplacian(10, 3)
     rhs = np.ones(k.shape[0])
     matrices = [sp.csr_matrix(k - s * sp.identity(k.shape[0])) for s in (0.1, 0.7, 2.2)]
     factors = [backends.factorize(a, symmetric=True, backend="pardiso") for a in matrices]
-    assert len({id(f._family) for f in factors}) == 1
+    assert all(f._family is None and f.out_of_core for f in factors)
     for a, factor in zip(matrices, factors, strict=True):
         np.testing.assert_allclose(a @ factor.solve(rhs), rhs, rtol=0, atol=1e-11)
 
@@ -149,7 +150,7 @@ def test_integer_overflow_retries_with_the_64_bit_interface(monkeypatch, familie
 
 def test_storage_from_the_environment(monkeypatch: pytest.MonkeyPatch, tmp_path) -> None:
     monkeypatch.delenv(backends.STORAGE_ENV, raising=False)
-    assert pardiso_storage() == "auto"
+    assert pardiso_storage() == "in-core"
     monkeypatch.setenv(backends.STORAGE_ENV, " Out-of-Core ")
     assert pardiso_storage() == "out-of-core"
     monkeypatch.setenv(backends.STORAGE_ENV, "single")  # for measurements only

@@ -39,7 +39,7 @@ handle (the ordering of a pattern, :data:`MAX_ORDERINGS` of them, is still reuse
 
 Storage of PARDISO's factors
 ----------------------------
-``PYMOREMBS_PARDISO_STORAGE`` = ``auto`` | ``in-core`` | ``out-of-core`` (default ``auto``).
+``PYMOREMBS_PARDISO_STORAGE`` = ``auto`` | ``in-core`` | ``out-of-core`` (default ``in-core``).
 ``in-core`` keeps the double-precision factors in memory. ``out-of-core`` writes them to files
 (``iparm[59] = 2``) in a fresh directory under ``PYMOREMBS_PARDISO_OOC_DIR`` (default: the
 system's temporary directory), removed with the factor's handle; memory then holds only
@@ -47,7 +47,10 @@ PARDISO's working front. ``auto`` is in-core while the factors fit: it hands PAR
 ``iparm[59] = 1`` with ``MKL_PARDISO_OOC_MAX_CORE_SIZE`` set to :data:`AUTO_CORE_FRACTION` of
 the memory available at the analysis (``MemAvailable``), so PARDISO itself goes out of core for
 factors that would not fit. :attr:`PardisoFactor.out_of_core` says what PARDISO chose (it
-wrote factor files).
+wrote factor files). Factors that may go out of core (``auto``, ``out-of-core``) each get a handle
+of their own: several factors of one handle (``maxfct`` > 1) out of core gave a wrong solve now
+and then (one run in about eight of ``tests/linalg/test_factor_storage.py``), so only in-core
+factors share the analysis of their pattern.
 
 Single-precision factors (``iparm[27] = 1``, half the memory) are only offered to measurements
 (``PardisoFactor(..., storage="single")``): refinement would restore double accuracy only where
@@ -576,6 +579,8 @@ def _family(
     ``index64``); None if not symmetric or switched off (``PYMOREMBS_PARDISO_FAMILIES=0``)."""
     if key is None or mtype not in (-2, 6) or os.environ.get(FAMILIES_ENV, "1").strip() == "0":
         return None
+    if storage != "in-core":  # out-of-core factors: one per handle (module docstring)
+        return None
     family = _FAMILIES.pop((key, mtype, threads, storage), None)
     if family is None:
         family = _Family(key, n, mtype, indptr, indices, threads, storage, index64)
@@ -804,8 +809,8 @@ def _mkl() -> ctypes.CDLL:
 
 
 def pardiso_storage() -> str:
-    """How PARDISO stores its factors: ``PYMOREMBS_PARDISO_STORAGE``, default ``auto``."""
-    value = os.environ.get(STORAGE_ENV, "auto").strip().lower() or "auto"
+    """How PARDISO stores its factors: ``PYMOREMBS_PARDISO_STORAGE``, default ``in-core``."""
+    value = os.environ.get(STORAGE_ENV, "in-core").strip().lower() or "in-core"
     if value not in STORAGES:
         raise UserError(f"{STORAGE_ENV} must be {', '.join(STORAGES)}, got {value!r}")
     return value
