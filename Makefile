@@ -9,7 +9,7 @@ STAMP  := $(VENV)/.installed
 
 $(STAMP): pyproject.toml requirements-nodeps.txt
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[dev]'
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check --no-compile -e '.[dev]'
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check --no-deps \
 		-r requirements-nodeps.txt
 	touch $(STAMP)
@@ -57,7 +57,7 @@ SUDO ?=
 mpi: $(STAMP)
 	$(SUDO) apt-get install -y --no-install-recommends libmumps-dev=5.5.1-1 openmpi-bin \
 		libopenmpi-dev libopenblas0-serial
-	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[mpi]'
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check --no-compile -e '.[mpi]'
 
 clean:
 	rm -rf $(VENV) out build src/*.egg-info

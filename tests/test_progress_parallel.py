@@ -155,6 +155,7 @@ def test_two_jobs_on_a_local_dask_cluster(two_jobs, tmp_path, capfd):
     assert out.count("results in") == 2
 
 
+@pytest.mark.slow
 def test_several_jobs_one_after_another_quiet_and_worst_exit_code(two_jobs, tmp_path, capfd):
     """--quiet: nothing on stdout or stderr; a failing job: one line, the others still run."""
     code = main(["reduce", *map(str, two_jobs), "--quiet", "--workers", "2"])
@@ -176,6 +177,7 @@ def test_out_takes_a_single_job(two_jobs, capfd):
     assert code == 2 and "--out takes a single job" in err and err.count("\n") == 1
 
 
+@pytest.mark.slow
 def test_progress_bars_on_stderr_only_when_forced(two_jobs, tmp_path, capfd):
     code = main(["reduce", str(two_jobs[0]), "--out", str(tmp_path / "a")])
     out, err = capfd.readouterr()
@@ -259,6 +261,7 @@ def wait_until(condition, seconds: float) -> bool:
 needs_proc = pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc")
 
 
+@pytest.mark.slow
 @needs_proc
 def test_sweep_workers_end_when_the_run_is_killed(tmp_path):
     """Issue #16: a run killed with SIGKILL left its forked sweep workers asleep for hours.

@@ -95,6 +95,7 @@ def round_trip(reduced: pm.ReducedBody, path: Path) -> pm.ReducedBody:
     return loaded
 
 
+@pytest.mark.slow
 def test_a_saved_tangent_body_evaluates_and_exports_as_the_original(tangent, tmp_path):
     loaded = round_trip(tangent, tmp_path / "rack.h5")
     assert loaded.before_removal is not None

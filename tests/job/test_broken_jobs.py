@@ -222,6 +222,7 @@ def test_broken_job(name, code, pattern, corpus, capsys):
     assert {p.name for p in corpus.iterdir()} == before  # no staging folder, nothing else
 
 
+@pytest.mark.slow
 def test_the_command_itself_exits_with_the_code(corpus):
     """The installed console script, as a user runs it (one case per exit code)."""
     script = Path(sys.executable).with_name("pymorembs")

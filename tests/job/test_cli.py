@@ -79,6 +79,7 @@ def run(argv, capsys):
     return code, captured.out, captured.err
 
 
+@pytest.mark.slow
 def test_demo_job_meets_the_foundation_targets(tmp_path, capsys):
     """Issue #2: Krylov max eps <= 1e-4 with order <= 48, exact static response."""
     code, out, err = run(["reduce", DEMO, "--out", tmp_path / "demo"], capsys)
@@ -228,6 +229,7 @@ def test_job_and_tables_saved_with_a_byte_order_mark(tmp_path, lattice_files, ca
     assert summary["model"]["n_dependent"] == 3 and summary["model"]["n_nodes"] == 12
 
 
+@pytest.mark.slow
 def test_second_run_replaces_results_and_keeps_other_files(tmp_path, lattice_files, capsys):
     job = write_job(tmp_path)
     out = tmp_path / "out"

@@ -78,6 +78,7 @@ def signal_at(process: subprocess.Popen, line_starts: str, sig: int) -> tuple[st
     raise AssertionError(f"the run ended before '{line_starts}': {''.join(lines)}")
 
 
+@pytest.mark.slow
 @needs_proc
 def test_ctrl_c_during_the_sweep_of_two_workers(lattice_job, tmp_path):
     """SIGINT while two forked workers solve the frequency response: exit 130, one line, no

@@ -91,6 +91,7 @@ def test_out_of_core_factors_have_handles_of_their_own(monkeypatch: pytest.Monke
         np.testing.assert_allclose(a @ factor.solve(rhs), rhs, rtol=0, atol=1e-11)
 
 
+@pytest.mark.slow
 @pytest.mark.usefixtures("fresh")
 def test_auto_goes_out_of_core_when_the_factors_do_not_fit(monkeypatch) -> None:
     monkeypatch.setenv(backends.STORAGE_ENV, "auto")
