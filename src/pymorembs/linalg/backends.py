@@ -797,13 +797,7 @@ class _threads:
 
 @cache
 def _mkl() -> ctypes.CDLL:
-    """MKL's runtime library as pypardiso finds it (ImportError/OSError if it is not there).
-
-    MKL runs on GNU OpenMP (``MKL_THREADING_LAYER=GNU`` unless the user set it), the runtime
-    Numba's parallel kernels use: one OpenMP runtime per process. With MKL's default, Intel's
-    ``libiomp5`` beside ``libgomp``, a full test run ended in a segmentation fault at exit once.
-    """
-    os.environ.setdefault("MKL_THREADING_LAYER", "GNU")
+    """MKL's runtime library as pypardiso finds it (ImportError/OSError if it is not there)."""
     from pypardiso import PyPardisoSolver
 
     library = PyPardisoSolver().libmkl
