@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+import sys
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -164,3 +167,24 @@ def blade_job(**tables) -> dict:
         "reduction": [{"name": "m", "method": "modal", "order": 4}],
         **tables,
     }
+
+
+# --- the end of the test process -----------------------------------------------------------------
+
+_EXIT_STATUS: list[int] = []
+
+
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    _EXIT_STATUS.append(int(exitstatus))
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_unconfigure(config: pytest.Config) -> None:
+    """End the process with pytest's status, without the interpreter's teardown of the native
+    libraries: one full run passed every test and then died at exit in a segmentation fault
+    ("Value still in symbol table!", from LLVM) with llvmlite and MKL's runtimes loaded side by
+    side. The results are reported by then; only the exit code is protected."""
+    if _EXIT_STATUS:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(_EXIT_STATUS[-1])
