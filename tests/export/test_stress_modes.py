@@ -324,3 +324,18 @@ def test_a_reference_node_has_no_stress_nan_in_the_vtu_and_zero_rows_in_exudyn(t
     satellites = arrays["satelliteMeshIndices"][list(arrays["nodeIds"]).index(2)]
     assert satellites.min() >= 0 and not basis[[node, *satellites]].any()
     assert np.abs(basis).max(axis=1)[arrays["meshNodeIds"] != 2].min() > 0
+
+
+def test_bodies_of_one_prepared_model_build_the_nodal_operator_once(blade):
+    """Every reduction of a job writes its Exudyn body from the same prepared body: the nodal
+    operator of a node set is built once and is the operator ``stress_operator`` builds."""
+    body = blade.prepared.body
+    nodes = np.unique(body.mesh.connectivity)[::3]
+    first = StressModes(body, np.eye(body.n_dof)[:, :2], ["1", "2"], 2).node_operator(nodes)
+    second = StressModes(body, np.eye(body.n_dof)[:, :3], ["1", "2", "3"], 3).node_operator(nodes)
+    assert second is first
+    fresh = stress_operator(body, location="nodes", nodes=nodes)
+    np.testing.assert_array_equal(first.node_ids, fresh.node_ids)
+    assert abs(first.matrix - fresh.matrix).max() == 0.0
+    other = StressModes(body, np.eye(body.n_dof)[:, :1], ["1"], 1).node_operator(nodes[:5])
+    assert other is not first and other.n_points == 5

@@ -32,6 +32,8 @@ file without points and with the note; nothing fails for it.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+import weakref
 from collections.abc import Iterator, Mapping, Sequence
 
 import numpy as np
@@ -54,6 +56,12 @@ __all__ = [
     "stress_modes_note",
     "von_mises_at",
 ]
+
+#: Nodal operators built for a body's node sets, kept while the body lives: a job writes an
+#: Exudyn body (and a VTU) per reduction, all on the same prepared body and the same nodes.
+_NODE_OPERATORS: weakref.WeakKeyDictionary[ElasticBody, dict[tuple[str, str], StressOperator]] = (
+    weakref.WeakKeyDictionary()
+)
 
 #: Columns of the operator's order (xx yy zz xy xz yz) in Exudyn's (xx yy zz yz xz xy).
 EXUDYN_ORDER = np.array([0, 1, 2, 5, 4, 3])
@@ -145,7 +153,7 @@ class StressModes:
         ids = np.intersect1d(np.asarray(nodes, dtype=np.int64), self.mesh_nodes)
         whole = self._operators.get(("nodes", quantity))
         if whole is None:
-            return stress_operator(self.body, location="nodes", quantity=quantity, nodes=ids)
+            return nodal_operator(self.body, ids, quantity)
         points = np.flatnonzero(np.isin(whole.node_ids, ids))
         rows = (6 * points[:, None] + np.arange(6)).ravel()
         return dataclasses.replace(
@@ -177,6 +185,19 @@ class StressModes:
         """The operator applied to ``columns``: shape (len(columns), n_points, 6)."""
         part = self.columns[:, np.asarray(columns, dtype=np.int64)]
         return np.moveaxis(operator(part), 2, 0)
+
+
+def nodal_operator(
+    body: ElasticBody, nodes: np.ndarray, quantity: str = "stress"
+) -> StressOperator:
+    """The nodal operator of ``body`` on the mesh nodes ``nodes`` (sorted ids), built once per
+    body and node set (the body's later calls get the same operator; do not modify it)."""
+    ids = np.ascontiguousarray(nodes, dtype=np.int64)
+    key = (quantity, hashlib.sha1(ids.tobytes()).hexdigest())
+    built = _NODE_OPERATORS.setdefault(body, {})
+    if key not in built:
+        built[key] = stress_operator(body, location="nodes", quantity=quantity, nodes=ids)
+    return built[key]
 
 
 def strain_operator(stress: StressOperator, young: float, poisson: float) -> StressOperator:
