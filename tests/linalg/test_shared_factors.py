@@ -98,3 +98,19 @@ def test_the_real_shifts_of_a_pencil_are_found(pencil):
         Factorization([(1.0, m), (-5.0, k)])  # not K - tau M
         shifts = sorted(tau for tau, _ in shared.real_shifts(k, m))
     assert shifts == [0.0, 5.0]
+
+
+def test_over_the_budget_the_least_used_factor_goes_first(pencil, counted):
+    """K serves many steps of a job, an interior factor one: K stays when a third arrives."""
+    k, m = pencil
+    one = Factorization(k).factor.memory_bytes
+    with shared_factorizations(2.5 * one) as shared:  # room for two
+        Factorization(k)
+        assert Factorization(k).reused  # K used twice
+        Factorization([(1.0, k), (-1.0, m)])  # used once, more recently than K
+        Factorization([(1.0, k), (-2.0, m)])  # over the budget: the shift at -1 goes
+        assert len(shared) == 2 and shared.dropped == 1
+        assert Factorization(k).reused
+        assert Factorization([(1.0, k), (-2.0, m)]).reused  # the new one stayed
+        assert not Factorization([(1.0, k), (-1.0, m)]).reused
+    assert counted[0] == 5

@@ -6,8 +6,11 @@ at the expansion points of the reference model and again at the same points of a
 SOAGA reduction. While :func:`shared_factorizations` is open, every
 :class:`~pymorembs.linalg.factorization.Factorization` of the same terms (the same matrix
 objects with the same coefficients, on the same backend) takes the factor made first instead
-of factorizing again. Factors are kept, least recently used dropped first, up to a memory
-budget (bytes); a factor larger than the whole budget is not kept.
+of factorizing again. Factors are kept up to a memory budget (bytes); over it, the factor used
+least often goes first (the least recently used among equals, never the one just made): ``K``
+serves the inertia loads, the static check, every expansion point at 0 Hz and the static
+fields of the body files, while a Craig-Bampton factor of the interior is used once. A factor
+larger than the whole budget is not kept.
 
 The key of a matrix is the identity of its arrays (their addresses), and each kept entry holds
 its matrices, so an address cannot be reused by another matrix while the entry lives. A
@@ -80,6 +83,7 @@ class SharedFactors:
         self._entries: OrderedDict[Key, tuple[list[tuple[complex, Any]], SparseFactor]] = (
             OrderedDict()
         )
+        self._uses: dict[Key, int] = {}
 
     @staticmethod
     def key(terms: Sequence[tuple[complex, Any]], symmetric: bool, backend: str | None) -> Key:
@@ -102,19 +106,24 @@ class SharedFactors:
             if entry is None:
                 return None
             self._entries.move_to_end(key)
+            self._uses[key] += 1
             self.reused += 1
             return entry[1]
 
     def put(self, key: Key, terms: Sequence[tuple[complex, Any]], factor: SparseFactor) -> None:
-        """Keep a newly made factor, dropping the least recently used ones over the budget."""
+        """Keep a newly made factor, dropping the least used ones (the least recently used
+        among equals) while over the budget; the new factor itself stays."""
         with _LOCK:
             self.made += 1
             if factor.memory_bytes > self.budget_bytes:
                 self.dropped += 1
                 return
             self._entries[key] = (list(terms), factor)
+            self._uses[key] = 1
             while self.bytes_held > self.budget_bytes:
-                self._entries.popitem(last=False)
+                # entries run from least to most recently used: min keeps the first of equals
+                victim = min((k for k in self._entries if k != key), key=self._uses.__getitem__)
+                del self._entries[victim], self._uses[victim]
                 self.dropped += 1
 
     def real_shifts(self, stiffness: Any, mass: Any) -> list[tuple[float, SparseFactor]]:
@@ -135,6 +144,7 @@ class SharedFactors:
         """Drop every kept factor (their memory is freed when no solver uses them)."""
         with _LOCK:
             self._entries.clear()
+            self._uses.clear()
 
 
 def active_shared_factors() -> SharedFactors | None:
