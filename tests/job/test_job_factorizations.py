@@ -52,8 +52,8 @@ def run_counted(tmp_path, monkeypatch, name):
 
 @pytest.mark.slow
 def test_a_job_makes_fewer_factorizations_and_the_same_errors(tmp_path, monkeypatch):
-    monkeypatch.setattr(reference_module, "ITERATIVE_CHECKS", True)  # off by default
-    monkeypatch.setattr(reference_module, "ITERATIVE_MIN_ORDER", 0)  # rack-beams: 3,996 dofs
+    monkeypatch.setattr(reference_module, "ITERATIVE_CHECKS", True)
+    monkeypatch.setattr(reference_module, "ITERATIVE_MIN_ORDER", 0)  # rack-beams is below it
     now, made = run_counted(tmp_path, monkeypatch, "now")
     with monkeypatch.context() as before_patch:  # the previous way
         before_patch.setattr(run, "shared_factorizations", lambda: shared_factorizations(0.0))

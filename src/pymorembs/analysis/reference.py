@@ -73,12 +73,13 @@ SETTLE_ROUNDS = 4
 DEVIATION_WARNING = 1e-6
 #: Checks at f > 0 first computed from a real factor the job holds
 #: (:mod:`~pymorembs.analysis.shifted_checks`), a complex factorization only where that answer
-#: cannot be certified. Off by default: on rack-solid at 12,876, 18,699 and 31,236 dofs the
-#: iterative checks were no faster than complex factorizations (at 31k they made a job 2 s
-#: slower, bench/RESULTS.md "Job cost"); not measured at 300k yet.
-ITERATIVE_CHECKS = False
-#: ... and only from this order on (when switched on).
-ITERATIVE_MIN_ORDER = 20_000
+#: cannot be certified -- from :data:`ITERATIVE_MIN_ORDER` dofs on. Below it a complex
+#: factorization is cheap and the iterative solves were no faster (rack-solid at 12,876 to
+#: 31,236 dofs); on the 275k-dof tet10 bracket they replace complex factorizations of about
+#: 40 s each (bench/RESULTS.md "Job cost").
+ITERATIVE_CHECKS = True
+#: ... from this order on.
+ITERATIVE_MIN_ORDER = 100_000
 
 
 @dataclass(frozen=True, eq=False)
