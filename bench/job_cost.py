@@ -23,10 +23,11 @@ does, plus the direct ``factorize`` calls of the model checks. ``--before`` runs
 ran before the job-level sharing (no shared factors, the reference's own candidates, every
 check a direct complex factorization) for comparison; ``--checks direct|iterative`` forces how
 the reference's checks at f > 0 are computed (complex factorizations, or from the real factors
-the job holds; default: the package's choice by size). Each run is a fresh process, after the
-parent wrote once to the free memory (``_common.touch_free_memory``: the VM's first touch of a
-page would otherwise be charged to the job, which runs before the reductions alone). Target
-(issue #30, item 3): ratio <= 2.
+the job holds; default: the package's choice by size). Each run is a fresh process. On the
+2-core VM of RESULTS.md freed memory goes back to the host within seconds and its next first
+touch is slow (13 against 0.5 us per page, ``bench/floor_ratio.py``): the job, which allocates
+first, pays more of it than the reductions alone after it. Target (issue #30, item 3): ratio
+<= 2.
 
 Usage::
 
@@ -52,7 +53,6 @@ from _common import (
     markdown_table,
     peak_memory_mb,
     run_child,
-    touch_free_memory,
     update_results,
 )
 from threadpoolctl import threadpool_limits
@@ -387,7 +387,6 @@ def main() -> None:
         return
     if args.model == "bracket" and not (BRACKET / "bracket.sti").exists():
         sys.exit(f"{BRACKET} holds no bracket.sti: make it with bench/calculix_peer.py")
-    touch_free_memory()  # so that the job, which runs first, does not pay the VM's first touch
     runs = {}
     for before in [True, False] if args.before else [False]:
         argv = [__file__, "--child", "--model", args.model, "--dofs", str(dofs or 0)]
