@@ -25,7 +25,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from pymorembs.linalg.factorization import combine
+from pymorembs.linalg.factorization import combine, is_symmetric
 
 BENCH = Path(__file__).resolve().parent
 RESULTS = BENCH / "RESULTS.md"
@@ -259,6 +259,7 @@ def warm_up() -> None:
         double_double.product(small, np.ones((50, 2)))
         double_double.multiply(small, np.ones((50, 2)))
         combine([(1.0, sp.csr_matrix(small)), (-1.0, sp.identity(50, format="csr"))])
+        is_symmetric(sp.csr_matrix(small))
 
 
 # --------------------------------------------------------------------------- memory, processes
