@@ -327,30 +327,6 @@ def available_memory_bytes() -> float:
     return float("inf")
 
 
-def touch_free_memory(
-    margin_bytes: float = 3 * 2**30, cap_bytes: float = 16 * 2**30, chunk_bytes: int = 2**28
-) -> float:
-    """Write once to the memory that is free now, then free it; the bytes touched.
-
-    On a virtual machine whose host backs the guest's memory only when the guest first uses
-    it, that first touch is far slower than any later one (on the 2-core VM of RESULTS.md: 3 GB
-    in 9.7 s the first time, 0.3-0.4 s in the next processes, 13 against 0.5 us per 4 KiB
-    page). Without this, the cost lands in whichever measurement first needs that much memory:
-    a reduction, which runs before the standalone factorizations that then reuse its pages.
-    Touched in chunks of ``chunk_bytes`` while ``MemAvailable`` stays above ``margin_bytes``, at
-    most ``cap_bytes`` (the peak of this process), all freed again before returning.
-    """
-    chunks = []
-    total = 0.0
-    while total + chunk_bytes <= cap_bytes and (
-        available_memory_bytes() - chunk_bytes > margin_bytes
-    ):
-        chunks.append(np.ones(chunk_bytes // 8))
-        total += chunk_bytes
-    del chunks
-    return total
-
-
 # --------------------------------------------------------------------------- report
 
 

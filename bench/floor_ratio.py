@@ -18,11 +18,6 @@ interfaces on its end faces: ``_tet10_box.py``). The factorizations of the reduc
 by wrapping ``Factorization.__init__``. Each model, size and method runs in a fresh process.
 Target (issue #30 item 4): ratio <= 1.2 at 35k and <= 1.1 at 300k dofs.
 
-Before the children run, the parent writes once to the free memory (up to 16 GiB, leaving 3
-GiB; ``_common.touch_free_memory``): on a VM that backs guest memory on first use the first
-touch costs about 25 times a later one, and it would otherwise be charged to the reduction,
-which runs before the standalone factorizations and leaves them its pages.
-
 ``--profile`` also profiles the measured reduction (cProfile) and prints where the time outside
 the factorizations goes, by phase (``PHASES``).
 
@@ -58,7 +53,6 @@ from _common import (
     reset_peak_memory,
     run_child,
     time_backends,
-    touch_free_memory,
     update_results,
     warm_up,
 )
@@ -290,11 +284,6 @@ def main() -> None:
         emit(r)
         return
 
-    tick = time.perf_counter()
-    touched = touch_free_memory()  # so that no reduction pays the VM's first touch (_common)
-    print(
-        f"free memory touched once: {touched / 2**30:.1f} GiB in {time.perf_counter() - tick:.1f} s"
-    )
     rows, profiles, failed = [], [], False
     for model in models:
         for dofs in sizes:
@@ -349,9 +338,7 @@ def main() -> None:
         )
     if not args.no_results:
         name = f"{args.damping} damping" + (", quick" if args.quick else "")
-        facts = machine_facts()
-        facts["free memory touched once before the runs"] = f"{touched / 2**30:.1f} GiB"
-        path = update_results(f"Floor ratio ({name})", body, facts)
+        path = update_results(f"Floor ratio ({name})", body, machine_facts())
         print(f"written: {path}")
     sys.exit(1 if failed else 0)
 
