@@ -2,17 +2,23 @@
 
 from __future__ import annotations
 
-import sys
+import importlib.util
 from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
-
-from _common import FactorizationCounter, assemble, time_backends
-
 from pymorembs.linalg.factorization import Factorization
+
+# bench/_common.py by its path: bench/ itself must not go on sys.path (its distributed.py would
+# shadow the dask package for the rest of the session)
+_PATH = Path(__file__).resolve().parents[1] / "bench" / "_common.py"
+_SPEC = importlib.util.spec_from_file_location("bench_common", _PATH)
+bench_common = importlib.util.module_from_spec(_SPEC)
+_SPEC.loader.exec_module(bench_common)
+FactorizationCounter = bench_common.FactorizationCounter
+assemble = bench_common.assemble
+time_backends = bench_common.time_backends
 
 
 def _matrices(n: int = 40) -> tuple[sp.csr_matrix, sp.csr_matrix]:
