@@ -25,7 +25,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from pymorembs.linalg.factorization import combine
+from pymorembs.linalg.factorization import combine, is_symmetric
 
 BENCH = Path(__file__).resolve().parent
 RESULTS = BENCH / "RESULTS.md"
@@ -117,13 +117,15 @@ class FactorizationCounter:
     """Counts the calls of ``Factorization.__init__`` and their wall time, real and complex.
 
     Use as a context manager around a reduction; it patches the class and restores it. The
-    terms of the first real and the first complex call are kept (references, no copy) so that
-    the same matrices can be factorized again afterwards.
+    terms of every call are kept (references to the matrices and the coefficients, no copy) so
+    that the very matrices the reduction factorized can be factorized again afterwards:
+    ``terms[kind]`` lists them in call order, ``first_terms[kind]`` is the first.
     """
 
     def __init__(self) -> None:
         self.calls: list[tuple[str, float]] = []
         self.first_terms: dict[str, Any] = {}
+        self.terms: dict[str, list[Any]] = {}
 
     def __enter__(self) -> FactorizationCounter:
         from pymorembs.linalg import factorization
@@ -139,6 +141,7 @@ class FactorizationCounter:
             original(instance, *args, **kwargs)
             counter.calls.append((kind, time.perf_counter() - tick))
             counter.first_terms.setdefault(kind, terms)
+            counter.terms.setdefault(kind, []).append(terms)
 
         self._cls.__init__ = counted
         return self
@@ -153,8 +156,11 @@ class FactorizationCounter:
         return sum(t for k, t in self.calls if kind is None or k == kind)
 
 
-def time_backends(matrix: sp.csc_matrix, repeat: int = 1, splu_limit: int = 10**9) -> dict:
-    """Wall time of one factorization of ``matrix`` by every available backend (best of repeat).
+def time_backends(
+    matrix: sp.csc_matrix, repeat: int = 1, splu_limit: int = 10**9, only: str | None = None
+) -> dict:
+    """Wall time of one factorization of ``matrix`` by every available backend (best of repeat),
+    or by the backend named ``only`` (a key of the returned dict).
 
     Backends: SciPy ``splu`` with the project's SuperLU settings; ``pypardiso`` (real matrices:
     general ``mtype=11`` and symmetric indefinite ``mtype=-2`` on the upper triangle), if
@@ -197,6 +203,8 @@ def time_backends(matrix: sp.csc_matrix, repeat: int = 1, splu_limit: int = 10**
         slow = {"scipy splu (project settings)", "pymorembs superlu"}
         if set(backends) - slow:
             backends = {k: v for k, v in backends.items() if k not in slow}
+    if only is not None:
+        backends = {only: backends[only]}
     times: dict[str, Any] = {}
     for name, factorize in backends.items():
         try:
@@ -251,6 +259,7 @@ def warm_up() -> None:
         double_double.product(small, np.ones((50, 2)))
         double_double.multiply(small, np.ones((50, 2)))
         combine([(1.0, sp.csr_matrix(small)), (-1.0, sp.identity(50, format="csr"))])
+        is_symmetric(sp.csr_matrix(small))
 
 
 # --------------------------------------------------------------------------- memory, processes

@@ -327,3 +327,51 @@ def test_upper_triangle_keeps_the_entries_on_and_above_the_diagonal() -> None:
     hole.eliminate_zeros()
     upper, key = backends._upper_triangle(hole)
     assert key is None and upper.nnz == sp.triu(hole).nnz + 40
+
+
+def _dense_symmetric(a: sp.spmatrix) -> bool:
+    """The definition of ``is_symmetric`` on the dense matrix."""
+    d = a.toarray()
+    return bool(np.abs(d - d.T).max() <= 1e-14 * np.abs(d).max())
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_symmetry_check_agrees_with_the_dense_definition(seed: int) -> None:
+    from pymorembs.linalg import factorization
+
+    rng = np.random.default_rng(seed)
+    n = 60
+    base = sp.random(n, n, density=0.08, random_state=seed, format="csr")
+    symmetric = (base + base.T + sp.identity(n)).tocsr()
+    i, j = symmetric.nonzero()
+    off = np.flatnonzero(i != j)
+    k = off[rng.integers(off.size)]
+    cases = {"symmetric": symmetric}
+    for relative in (1e-10, 1e-16):  # above and below the tolerance (1e-14)
+        bumped = symmetric.copy().tolil()
+        bumped[i[k], j[k]] += relative * abs(symmetric).max()
+        cases[f"bumped {relative}"] = bumped.tocsr()
+    lonely = symmetric.copy().tolil()  # an entry whose mirror is not stored
+    empty = np.argwhere(symmetric.toarray() == 0)
+    r, c = empty[rng.integers(len(empty))]
+    lonely[r, c] = 0.5
+    cases["lonely entry"] = lonely.tocsr()
+    zero_mirror = lonely.tocsr()  # the same, with an explicit zero stored as its mirror
+    zero_mirror = (zero_mirror + sp.csr_matrix(([0.0], ([c], [r])), shape=(n, n))).tocsr()
+    cases["explicit zero mirror"] = zero_mirror
+    explicit_zeros = symmetric.copy()  # stored zeros on one side only are still symmetric
+    explicit_zeros.data[explicit_zeros.data < 0.05] = 0.0
+    cases["stored zeros"] = explicit_zeros
+    unsorted = symmetric.copy()
+    unsorted.indices = unsorted.indices.copy()
+    for row in range(n):  # reverse the column order of every row: not canonical
+        start, end = unsorted.indptr[row], unsorted.indptr[row + 1]
+        unsorted.indices[start:end] = unsorted.indices[start:end][::-1].copy()
+        unsorted.data[start:end] = unsorted.data[start:end][::-1].copy()
+    unsorted.has_sorted_indices = False
+    cases["unsorted"] = unsorted
+    for name, matrix in cases.items():
+        factorization._SYMMETRIC.clear()
+        assert is_symmetric(matrix) == _dense_symmetric(matrix), name
+    assert not _dense_symmetric(cases["bumped 1e-10"]) and _dense_symmetric(cases["bumped 1e-16"])
+    assert not _dense_symmetric(cases["lonely entry"])

@@ -124,3 +124,43 @@ def upper_positions(indptr, indices, keep, upper_indptr):  # pragma: no cover - 
                 count += 1
         upper_indptr[i + 1] = count
     return count, diagonals == indptr.size - 1
+
+
+@numba.njit(cache=True, nogil=True)
+def asymmetry(indptr, indices, data):  # pragma: no cover - compiled
+    """``max |a_ij - a_ji|`` over the off-diagonal entries of a square canonical CSR matrix (an
+    entry whose mirror is not stored counts against 0, as in ``A - A^T``), in one pass.
+
+    The mirror of a lower entry ``(i, j)`` is ``(j, i)`` in the upper part of row ``j``; rows are
+    visited in order, so the mirrors asked of row ``j`` come in ascending column order and one
+    cursor per row finds them. Upper entries a cursor passes, or never reaches, have no lower
+    mirror.
+    """
+    n = indptr.size - 1
+    cursor = np.empty(n, dtype=np.int64)
+    for i in range(n):  # the first entry right of the diagonal
+        q = indptr[i]
+        while q < indptr[i + 1] and indices[q] <= i:
+            q += 1
+        cursor[i] = q
+    worst = 0.0
+    for i in range(n):
+        for q in range(indptr[i], indptr[i + 1]):
+            j = indices[q]
+            if j >= i:
+                break
+            p = cursor[j]
+            end = indptr[j + 1]
+            while p < end and indices[p] < i:
+                worst = max(worst, abs(data[p]))
+                p += 1
+            if p < end and indices[p] == i:
+                worst = max(worst, abs(data[q] - data[p]))
+                p += 1
+            else:
+                worst = max(worst, abs(data[q]))
+            cursor[j] = p
+    for j in range(n):
+        for p in range(cursor[j], indptr[j + 1]):
+            worst = max(worst, abs(data[p]))
+    return worst

@@ -28,21 +28,25 @@ class OrthonormalBasis:
     def __init__(self, n: int, tol: float = 1e-10, dtype: type = float) -> None:
         self.n = n
         self.tol = tol
-        self._columns = np.zeros((n, 0), dtype=dtype)
+        # columns in Fortran order with room to grow: adding a block copies the block only, not
+        # the whole basis, and the first ``size`` columns are one contiguous array for BLAS
+        self._storage = np.zeros((n, 0), dtype=dtype, order="F")
+        self._size = 0
 
     @property
     def size(self) -> int:
-        return int(self._columns.shape[1])
+        return self._size
 
     @property
     def matrix(self) -> np.ndarray:
-        """The basis, shape (n, size), with orthonormal columns."""
-        return self._columns
+        """The basis, shape (n, size), with orthonormal columns (a view, Fortran order)."""
+        return self._storage[:, : self._size]
 
-    def orthogonalize(self, block: np.ndarray) -> np.ndarray:
-        """The block minus its projection on the basis (twice)."""
-        q = self._columns
-        for _ in range(2):
+    def orthogonalize(self, block: np.ndarray, passes: int = 2) -> np.ndarray:
+        """The block minus its projection on the basis, ``passes`` times (block classical
+        Gram-Schmidt, two BLAS-3 products per pass)."""
+        q = self.matrix
+        for _ in range(passes):
             # (q^H b) without copying the conjugate of the whole basis
             coefficients = (block.conj().T @ q).conj().T if np.iscomplexobj(q) else q.T @ block
             block = block - q @ coefficients
@@ -72,7 +76,21 @@ class OrthonormalBasis:
         count = int(np.count_nonzero(s > self.tol))
         if limit is not None:
             count = min(count, limit)
-        new = self.orthogonalize(u[:, :count])  # guard against loss of orthogonality
+        # guard against loss of orthogonality: ``u = rest v / s`` magnifies what is left of the
+        # basis in ``rest`` (~1e-16) by up to 1 / tol; one pass takes a unit vector that is
+        # that close to orthogonal down to round-off (it loses nothing to cancellation)
+        new = self.orthogonalize(u[:, :count], passes=1)
         new, _ = np.linalg.qr(new)
-        self._columns = np.hstack([self._columns, new])
+        self._append(new)
         return new
+
+    def _append(self, new: np.ndarray) -> None:
+        """Store the columns ``new`` (n, k) after the basis, growing the storage by half."""
+        k = new.shape[1]
+        if self._size + k > self._storage.shape[1]:
+            capacity = min(self.n, max(self._size + k, self._storage.shape[1] * 3 // 2, 8))
+            grown = np.empty((self.n, capacity), dtype=self._storage.dtype, order="F")
+            grown[:, : self._size] = self._storage[:, : self._size]
+            self._storage = grown
+        self._storage[:, self._size : self._size + k] = new
+        self._size += k

@@ -219,7 +219,7 @@ class FrobeniusBasis:
         block = block / size
         for _ in range(2):
             for previous in self.blocks:
-                block = block - np.sum(previous * block) * previous
+                block = block - np.vdot(previous, block) * previous  # <U_i, W>_F, no temporary
         remaining = _frobenius(block)
         if remaining <= self.tol:
             return None
