@@ -606,13 +606,16 @@ def _banded_triangle(rng, n: int, band: int, diagonal: bool) -> sp.csr_matrix:
 
 
 @needs_numba
-def test_two_thread_completion_equals_the_one_thread_one() -> None:
+@pytest.mark.parametrize("block", [1, 200])
+def test_two_thread_completion_equals_the_one_thread_one(monkeypatch, block) -> None:
     """The two-thread completion in blocks writes exactly the arrays of the one-thread pass: for
     band matrices of many blocks, a triangle without diagonal entries (no block fits: every
     row on one thread), a full lower triangle and a diagonal alone; the result is the dense
-    formula's."""
+    formula's. ``block``: the smallest block done on two threads (from 200 entries on, the
+    small blocks at the end go to one thread)."""
     from pymorembs.io import compiled_kernels as kernels
 
+    monkeypatch.setattr(fast_text, "_MIRROR_BLOCK", block)
     rng = np.random.default_rng(12)
     cases = [_banded_triangle(rng, n, band, diagonal) for n, band, diagonal in
              ((2000, 12, True), (3000, 40, True), (500, 30, False), (1, 0, True))]  # fmt: skip
@@ -620,13 +623,16 @@ def test_two_thread_completion_equals_the_one_thread_one() -> None:
     for stored in cases:
         stored.sort_indices()
         outcome = []
-        for complete in (kernels.mirror_lower_in_place, kernels.mirror_lower_in_place_parallel):
+        for threads in ("1", "2"):
+            monkeypatch.setenv("PYMOREMBS_SOLVER_THREADS", threads)
             room, triangle = _in_room(stored)
             counts = np.zeros(stored.shape[0] + 1, dtype=np.int64)
             kernels.mirror_counts(triangle.indptr, triangle.indices, counts)
             total = int(counts[-1])
             indptr = counts.astype(np.int32)
-            complete(triangle.indptr, room._indices, room._data, stored.nnz, indptr)
+            fast_text.complete_lower_in_place(
+                triangle.indptr, room._indices, room._data, stored.nnz, indptr
+            )
             outcome.append((room._indices[:total].copy(), room._data[:total].copy(), indptr))
         (indices, data, indptr), (indices_2, data_2, _) = outcome
         assert np.array_equal(indices, indices_2) and np.array_equal(data, data_2)
