@@ -640,7 +640,9 @@ def canonical_csr(
     )
     if plain:
         matrix = sp.csr_matrix(shape, dtype=data.dtype)
-        matrix.indptr, matrix.indices, matrix.data = indptr, indices[:nnz], data[:nnz]
+        if nnz < data.size:
+            indices, data = indices[:nnz], data[:nnz]
+        matrix.indptr, matrix.indices, matrix.data = indptr, indices, data
     else:
         matrix = sp.csr_matrix((data, indices, indptr), shape=shape, copy=False)
     matrix.has_sorted_indices = True
@@ -906,6 +908,8 @@ def _concurrently(calls: list) -> list:
 
 #: Bytes of a file parsed at a time by :func:`parse_coordinate_lines`.
 _PARSE_BLOCK = 1 << 24
+#: Bytes of a block from which a thread of its own parses (or counts) a part of it.
+_PART_BYTES = 1 << 20
 #: Bytes searched for the last line end of a block (no line of a number file is this long).
 _LINE_SEARCH = 1 << 16
 #: ``madvise`` advice that drops parsed pages of a mapped file from the process (Linux).
@@ -1030,8 +1034,10 @@ def _count_mapped(kernels, mapped: mmap.mmap) -> int:
 
 
 def _count_buffer(kernels, buffer: np.ndarray) -> int:
-    """Line feeds of ``buffer`` (bytes), in parts on the solver threads (1 MiB at least each)."""
-    bounds = np.linspace(0, buffer.size, _threads(buffer.size >> 20) + 1).astype(np.int64)
+    """Line feeds of ``buffer`` (bytes), in parts on the solver threads (at least
+    :data:`_PART_BYTES` each)."""
+    bounds = np.linspace(0, buffer.size, _threads(buffer.size // _PART_BYTES) + 1)
+    bounds = bounds.astype(np.int64)
     return sum(
         _concurrently(
             [
@@ -1109,7 +1115,8 @@ def _parse_mapped(kernels, mapped: mmap.mmap, offset: int, target: _Entries) -> 
 
 def _parse_block(kernels, buffer: np.ndarray, target: _Entries) -> int | None:
     """Lines of ``buffer`` (whole lines) parsed into ``target``'s entries from
-    ``target.stored`` on, in parts on the solver threads (1 MiB at least each), or None.
+    ``target.stored`` on, in parts on the solver threads (at least :data:`_PART_BYTES`
+    each), or None.
 
     Part ``p`` writes from the entry after the lines of the parts before it (counted first);
     with ``upper_columns``, which leaves zeros out, the parts' entries are then moved together,
@@ -1117,7 +1124,7 @@ def _parse_block(kernels, buffer: np.ndarray, target: _Entries) -> int | None:
     keys.
     """
     size = buffer.size
-    parts = _threads(size >> 20)
+    parts = _threads(size // _PART_BYTES)
     bounds = [0]
     for p in range(1, parts):
         aim = max(size * p // parts, bounds[-1])
