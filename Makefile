@@ -12,6 +12,11 @@ $(STAMP): pyproject.toml requirements-nodeps.txt
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check --no-compile -e '.[dev]'
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check --no-deps \
 		-r requirements-nodeps.txt
+	# Numba's modules byte-compiled (3 s): imported from source, as --no-compile leaves them,
+	# they cost about a second in every process that reads a large text file
+	$(BIN)/python -c "import compileall, importlib.util; \
+		compileall.compile_dir(importlib.util.find_spec('numba').submodule_search_locations[0], \
+		quiet=2, workers=0)"
 	touch $(STAMP)
 
 demo: $(STAMP)

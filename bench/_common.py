@@ -290,12 +290,18 @@ def emit(result: dict) -> None:
     print(RESULT_TAG + json.dumps(result), flush=True)
 
 
-def run_child(argv: list[str], timeout: float | None = None) -> dict:
-    """Run ``python argv`` in a fresh process; its ``RESULT`` line, or the reason it failed."""
+def run_child(
+    argv: list[str], timeout: float | None = None, env: dict[str, str] | None = None
+) -> dict:
+    """Run ``python argv`` in a fresh process (``env``: variables set on top of this process's);
+    its ``RESULT`` line, or the reason it failed."""
     command = [sys.executable, *argv]
+    environment = None if env is None else {**os.environ, **env}
     tick = time.perf_counter()
     try:
-        done = subprocess.run(command, capture_output=True, text=True, timeout=timeout)
+        done = subprocess.run(
+            command, capture_output=True, text=True, timeout=timeout, env=environment
+        )
     except subprocess.TimeoutExpired:
         return {"failed": f"timeout after {timeout:.0f} s"}
     for line in reversed(done.stdout.splitlines()):

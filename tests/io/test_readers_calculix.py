@@ -9,7 +9,9 @@ file, a ``.dof`` of another run, a shifted map, a truncated matrix) is exit 2 wi
 
 from __future__ import annotations
 
+import gzip
 import json
+import lzma
 import re
 import shutil
 from pathlib import Path
@@ -17,11 +19,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 import scipy.linalg
+import scipy.sparse
 
 import pymorembs as pm
 from info_runs import info_facts, refused
 from pymorembs.errors import UserError
-from pymorembs.io import calculix, detect_format, read_body
+from pymorembs.io import calculix, detect_format, fast_text, read_body
 from pymorembs.job.cli import main
 
 DATA = Path(__file__).parents[1] / "data" / "calculix_c3d20_block"
@@ -156,6 +159,63 @@ def test_the_compiled_parse_gives_the_same_matrices(monkeypatch):
     for a, b in ((plain.stiffness, compiled.stiffness), (plain.mass, compiled.mass)):
         assert a.shape == b.shape and (a != b).nnz == 0
         np.testing.assert_array_equal(a.indices, b.indices)
+
+
+#: Every CalculiX export committed under tests/data (directory, job).
+EXPORTS = [
+    ("calculix_c3d20_block", "fixed"),
+    ("calculix_c3d20_block", "free"),
+    ("calculix_map_check", "clamped"),
+    ("calculix_map_check", "free"),
+    *(("calculix_stress_parts", job) for job in ("bar", "bar8", "barr", "plate", "plate4")),
+]
+
+
+def plain_csr(path: Path, n: int) -> scipy.sparse.csr_matrix:
+    """A CalculiX triangle file parsed with ``np.loadtxt`` and mirrored by SciPy, without its
+    zeros: the reference the reader must equal bit for bit."""
+    rows, cols, values = np.loadtxt(path, unpack=True)
+    rows, cols = rows.astype(np.int64) - 1, cols.astype(np.int64) - 1
+    off = rows != cols
+    full = scipy.sparse.coo_matrix(
+        (np.r_[values, values[off]], (np.r_[rows, cols[off]], np.r_[cols, rows[off]])),
+        shape=(n, n),
+    ).tocsr()
+    full.eliminate_zeros()
+    full.sort_indices()
+    return full
+
+
+@pytest.mark.parametrize(("folder", "job"), EXPORTS)
+def test_the_compiled_parse_reads_every_export_bit_for_bit(tmp_path, monkeypatch, folder, job):
+    """Every committed export through the compiled kernel (zeros left out while parsing, the
+    triangle completed in its room): the matrices of a plain ``loadtxt`` parse, to the last
+    bit, with the fixed dofs' empty rows after them; the room holds no memory beyond them."""
+    if not fast_text.compiled_checks():
+        pytest.skip("needs Numba")
+    source = Path(__file__).parents[1] / "data" / folder
+    for suffix in ("sti", "mas", "dof", "inp"):  # decompressed: the kernel maps plain files
+        plain = source / f"{job}.{suffix}"
+        packed = [p for p in source.glob(f"{job}.{suffix}.*") if p.suffix in (".gz", ".xz")]
+        opener = {".gz": gzip.open, ".xz": lzma.open}
+        data = plain.read_bytes() if plain.exists() else opener[packed[0].suffix](packed[0]).read()
+        (tmp_path / f"{job}.{suffix}").write_bytes(data)
+    monkeypatch.setattr(calculix, "COMPILED_FROM_BYTES", 0)
+
+    def no_strict_pass(*args):
+        raise AssertionError("the compiled parse refused a genuine export")
+
+    monkeypatch.setattr(calculix, "_parse_strictly", no_strict_pass)
+    body = calculix.read_calculix(tmp_path / f"{job}.sti")
+    n = len((tmp_path / f"{job}.dof").read_text().split())
+    for suffix, matrix in (("sti", body.stiffness), ("mas", body.mass)):
+        expected = plain_csr(tmp_path / f"{job}.{suffix}", n)
+        nnz = expected.nnz
+        np.testing.assert_array_equal(matrix.indptr[: n + 1], expected.indptr)
+        assert np.all(matrix.indptr[n:] == nnz)  # the fixed dofs: empty rows
+        np.testing.assert_array_equal(matrix.indices, expected.indices)
+        np.testing.assert_array_equal(matrix.data.view(np.uint64), expected.data.view(np.uint64))
+        assert matrix.indices.size == matrix.data.size == nnz
 
 
 def test_a_job_names_the_export_by_its_sti_file(tmp_path, capsys):

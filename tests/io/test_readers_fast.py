@@ -606,13 +606,16 @@ def _banded_triangle(rng, n: int, band: int, diagonal: bool) -> sp.csr_matrix:
 
 
 @needs_numba
-def test_two_thread_completion_equals_the_one_thread_one() -> None:
+@pytest.mark.parametrize("block", [1, 200])
+def test_two_thread_completion_equals_the_one_thread_one(monkeypatch, block) -> None:
     """The two-thread completion in blocks writes exactly the arrays of the one-thread pass: for
     band matrices of many blocks, a triangle without diagonal entries (no block fits: every
     row on one thread), a full lower triangle and a diagonal alone; the result is the dense
-    formula's."""
+    formula's. ``block``: the smallest block done on two threads (from 200 entries on, the
+    small blocks at the end go to one thread)."""
     from pymorembs.io import compiled_kernels as kernels
 
+    monkeypatch.setattr(fast_text, "_MIRROR_BLOCK", block)
     rng = np.random.default_rng(12)
     cases = [_banded_triangle(rng, n, band, diagonal) for n, band, diagonal in
              ((2000, 12, True), (3000, 40, True), (500, 30, False), (1, 0, True))]  # fmt: skip
@@ -620,13 +623,16 @@ def test_two_thread_completion_equals_the_one_thread_one() -> None:
     for stored in cases:
         stored.sort_indices()
         outcome = []
-        for complete in (kernels.mirror_lower_in_place, kernels.mirror_lower_in_place_parallel):
+        for threads in ("1", "2"):
+            monkeypatch.setenv("PYMOREMBS_SOLVER_THREADS", threads)
             room, triangle = _in_room(stored)
             counts = np.zeros(stored.shape[0] + 1, dtype=np.int64)
             kernels.mirror_counts(triangle.indptr, triangle.indices, counts)
             total = int(counts[-1])
             indptr = counts.astype(np.int32)
-            complete(triangle.indptr, room._indices, room._data, stored.nnz, indptr)
+            fast_text.complete_lower_in_place(
+                triangle.indptr, room._indices, room._data, stored.nnz, indptr
+            )
             outcome.append((room._indices[:total].copy(), room._data[:total].copy(), indptr))
         (indices, data, indptr), (indices_2, data_2, _) = outcome
         assert np.array_equal(indices, indices_2) and np.array_equal(data, data_2)
@@ -921,3 +927,128 @@ def test_line_ends_are_counted_block_by_block(tmp_path, monkeypatch):
     monkeypatch.setattr(fast_text, "_PARSE_BLOCK", mmap.PAGESIZE)
     assert len(data) > 10 * mmap.PAGESIZE
     assert fast_text.count_line_ends(path) == data.count(b"\n") == 4000
+
+
+# ============================================================================ CalculiX's order
+def _upper_lines(rng, n: int, zeros: float) -> tuple[list[tuple[int, int, str]], np.ndarray]:
+    """Lines ``row column value`` (from 1) of a random upper triangle column by column, as
+    CalculiX writes it: every diagonal entry, a share ``zeros`` of the entries written as zero
+    (also some diagonal ones, in CalculiX's and other zero spellings), and the dense matrix."""
+    zero_forms = ["0.0000000000000e+00", "-0.0000000000000e+00", "0", "0.0", "-0.", "0e5"]
+    lines, dense = [], np.zeros((n, n))
+    for column in range(n):
+        for row in sorted({*rng.choice(column + 1, size=min(column, 4)).tolist(), column}):
+            if rng.random() < zeros:
+                text = zero_forms[int(rng.integers(len(zero_forms)))]
+            else:
+                text = f"{rng.standard_normal() * 10.0 ** rng.integers(-8, 9):.13e}"
+            lines.append((row + 1, column + 1, text))
+            dense[row, column] = dense[column, row] = float(text)
+    return lines, dense
+
+
+def _write_lines(path: Path, lines) -> Path:
+    path.write_text("".join(f"{r} {c}  {v}\n" for r, c, v in lines))
+    return path
+
+
+@needs_numba
+@pytest.mark.parametrize(("block", "part", "threads"), [(1 << 24, 1 << 20, "1"), (97, 40, "2")])
+def test_calculix_order_leaves_zeros_out(tmp_path, monkeypatch, block, part, threads) -> None:
+    """With ``upper_columns`` the entries off the diagonal that are zero are not stored, the
+    others (every diagonal entry among them, also a zero one) are, in file order; also when the
+    lines are parsed in many blocks of two parts each, whose entries are moved together."""
+    monkeypatch.setattr(fast_text, "_PARSE_BLOCK", block)
+    monkeypatch.setattr(fast_text, "_PART_BYTES", part)
+    monkeypatch.setenv("PYMOREMBS_SOLVER_THREADS", threads)
+    rng = np.random.default_rng(21)
+    n = 60
+    lines, _ = _upper_lines(rng, n, 0.6)
+    path = _write_lines(tmp_path / "job.mas", lines)
+    parsed = fast_text.parse_coordinate_lines(path, 0, n, len(lines), upper_columns=True)
+    assert parsed is not None
+    kept = [(r - 1, c - 1, float(v)) for r, c, v in lines if r == c or float(v) != 0.0]
+    assert len(kept) < len(lines)  # zeros were left out
+    rows, cols, values = parsed
+    assert rows.tolist() == [k[0] for k in kept] and cols.tolist() == [k[1] for k in kept]
+    assert np.array_equal(_bits(values), _bits([k[2] for k in kept]))
+    # without the CalculiX order every line is stored
+    everything = fast_text.parse_coordinate_lines(path, 0, n, len(lines))
+    assert everything is not None and everything[0].size == len(lines)
+
+
+@needs_numba
+@pytest.mark.parametrize(
+    "edit",
+    [
+        "zero twice",  # a position given twice (the second a zero, which is not stored)
+        "zero below",  # a zero below the diagonal
+        "zero out of order",
+        "entry below",
+        "entry out of order",
+    ],
+)
+@pytest.mark.parametrize("block", [1 << 24, 61])
+def test_calculix_order_is_checked_on_every_line(tmp_path, monkeypatch, edit, block) -> None:
+    """A line out of CalculiX's order fails the parse (the strict pass then names it), also
+    when it is a zero that is not stored and when the order breaks across blocks and parts."""
+    monkeypatch.setattr(fast_text, "_PARSE_BLOCK", block)
+    monkeypatch.setattr(fast_text, "_PART_BYTES", 30)
+    monkeypatch.setenv("PYMOREMBS_SOLVER_THREADS", "2")
+    rng = np.random.default_rng(22)
+    n = 30
+    lines, _ = _upper_lines(rng, n, 0.0)
+    at = len(lines) // 2
+    row, column, _ = lines[at]
+    if edit == "zero twice":
+        lines.insert(at + 1, (row, column, "0.0"))
+    elif edit == "zero below":
+        lines.insert(at, (column + 1, column, "0.0"))
+    elif edit == "zero out of order":
+        lines.insert(at, (1, column + 1, "0.0"))
+    elif edit == "entry below":
+        lines.insert(at, (column + 1, column, "1.5"))
+    else:
+        lines[at], lines[at + 3] = lines[at + 3], lines[at]
+    path = _write_lines(tmp_path / "job.sti", lines)
+    assert fast_text.parse_coordinate_lines(path, 0, n, len(lines), upper_columns=True) is None
+    assert fast_text.parse_coordinate_lines(path, 0, n, len(lines)) is not None
+
+
+@needs_numba
+def test_room_with_fewer_entries_is_cut_to_the_full_matrix() -> None:
+    """A triangle with fewer entries than its room (zeros left out by the parser) is completed
+    in place, and the room's arrays are cut to the full matrix: no memory beyond it is held."""
+    rng = np.random.default_rng(23)
+    stored = _banded_triangle(rng, 400, 6, True)
+    room = fast_text.SymmetricRoom(3 * stored.nnz)  # room for three times the entries
+    entries = sp.coo_matrix(stored)
+    k = stored.nnz
+    room.rows[:k], room.cols[:k], room.values[:k] = entries.row, entries.col, entries.data
+    triangle = csr_from_sorted_coo(room.rows[:k], room.cols[:k], room.values[:k], 400)
+    assert triangle.indices.ctypes.data == room.cols.ctypes.data  # no copy of the view
+    full = room.full(triangle)
+    assert full is not None
+    _check_full_of_triangle(stored, full)
+    dense = stored.toarray()
+    assert np.array_equal(full.toarray(), dense + dense.T - np.diag(np.diag(dense)))
+    assert full.indices.size == full.data.size == full.nnz
+    assert full.indices.base is None and full.data.base is None  # the room's own, cut
+
+
+def test_canonical_csr_keeps_views_and_converts_the_rest() -> None:
+    """A view of less than a half of its array stays a view (SciPy's constructor copies it);
+    arrays of two index types go through the constructor, to the same matrix."""
+    indices = np.array([0, 2, 1, 0, 1, 2, 9, 9, 9, 9], dtype=np.int32)
+    data = np.arange(10.0)
+    indptr = np.array([0, 2, 3, 4], dtype=np.int32)
+    a = fast_text.canonical_csr(data[:4], indices[:4], indptr, (3, 3))
+    assert a.indices.ctypes.data == indices.ctypes.data and a.data.ctypes.data == data.ctypes.data
+    expected = np.array([[0.0, 0.0, 1.0], [0.0, 2.0, 0.0], [3.0, 0.0, 0.0]])
+    assert np.array_equal(a.toarray(), expected)
+    b = fast_text.canonical_csr(data[:4], indices[:4], indptr.astype(np.int64), (3, 3))
+    assert np.array_equal(b.toarray(), expected) and b.has_canonical_format
+    c = fast_text.canonical_csr(data, indices, indptr, (3, 3))  # longer arrays: cut
+    assert c.nnz == 4 and c.indices.size == 4 and np.array_equal(c.toarray(), expected)
+    with pytest.raises(ValueError):
+        fast_text.canonical_csr(data[:4], indices[:4], indptr[:3], (3, 3))

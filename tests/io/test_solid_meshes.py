@@ -30,6 +30,7 @@ from pymorembs.elements.solid import (
     SOLID_KINDS,
     assemble_solid_geometric,
     assemble_solid_stiffness,
+    solid_forces,
     solid_geometric_matrices,
     solid_stiffness,
     solid_stresses,
@@ -98,6 +99,25 @@ def test_shape_functions_interpolate_and_differentiate(kind):
         numeric = (spec.shape_functions(shifted)[0] - spec.shape_functions(back)[0]) / (2 * step)
         np.testing.assert_allclose(derivatives[..., k], numeric, atol=1e-8)
     assert spec.weights.sum() == pytest.approx(REFERENCE_VOLUME[kind], rel=1e-14)
+
+
+@pytest.mark.parametrize("kind", sorted(SOLID_KINDS))
+def test_element_forces_are_the_stiffness_times_the_fields(kind):
+    """``solid_forces`` (nodal forces of the stresses, no matrix formed) equals the element
+    stiffness matrix times the fields, for distorted elements of one and of several
+    materials, and gives zero for a rigid motion."""
+    rng = np.random.default_rng(4)
+    nodes = np.concatenate([affine_element(kind, seed)[0] for seed in range(6)])
+    nodes = nodes + 0.02 * rng.standard_normal(nodes.shape)  # curved edges, not affine
+    fields = rng.standard_normal((6, SOLID_KINDS[kind].nodes, 3, 3))
+    for young, poisson in ((2.1e5, 0.3), (rng.uniform(1e3, 1e5, 6), rng.uniform(0.0, 0.45, 6))):
+        matrices = solid_stiffness(kind, nodes, young, poisson)
+        expected = matrices @ fields.reshape(6, -1, 3)
+        forces = solid_forces(kind, nodes, fields, young, poisson)
+        np.testing.assert_allclose(forces, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
+    rotation = np.cross([0.3, -0.2, 0.5], nodes) + np.array([1.0, 2.0, 3.0])  # rotation, shift
+    rigid = solid_forces(kind, nodes, rotation[..., None], 2.1e5, 0.3)
+    assert np.abs(rigid).max() < 1e-10 * np.abs(expected).max()
 
 
 @pytest.mark.parametrize("kind", sorted(SOLID_KINDS))

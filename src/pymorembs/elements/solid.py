@@ -52,6 +52,7 @@ __all__ = [
     "assemble_solid_stiffness",
     "lame_parameters",
     "part",
+    "solid_forces",
     "solid_geometric_matrices",
     "solid_geometry",
     "solid_kind",
@@ -262,6 +263,51 @@ def solid_stiffness(
     k = k + mu * trace[:, :, None, :, None] * np.eye(3)[None, None, :, None, :]
     k = k.reshape(n_el, 3 * n, 3 * n)
     return 0.5 * (k + k.transpose(0, 2, 1))
+
+
+def solid_forces(
+    kind: str,
+    nodes: np.ndarray,
+    fields: np.ndarray,
+    young: float | np.ndarray,
+    poisson: float | np.ndarray,
+) -> np.ndarray:
+    """The element stiffness matrices of :func:`solid_stiffness` times displacement fields,
+    ``K_e u``, without forming ``K_e``.
+
+    ``(K_e u)_ai = sum_q w_q sum_k G_ak sigma_ik`` with ``sigma = lambda tr(grad u) I +
+    mu (grad u + grad u^T)`` at the Gauss points: the nodal forces of the stresses of ``u``,
+    the same sum as ``K_e`` times ``u`` (to rounding) at a tenth of its operations.
+
+    Parameters
+    ----------
+    kind : str
+    nodes : ndarray, shape (n_el, n, 3)
+        Node coordinates (length unit).
+    fields : ndarray, shape (n_el, n, 3, m)
+        ``m`` nodal displacement fields of each element (length unit).
+    young, poisson : float or ndarray, shape (n_el,)
+
+    Returns
+    -------
+    ndarray, shape (n_el, 3 n, m)
+        Element dof order ``(node a, direction i) -> 3 a + i`` (force unit).
+    """
+    weights, gradients = solid_geometry(kind, nodes)
+    n_el, q, n, _ = gradients.shape
+    m = fields.shape[-1]
+    # du_i / dx_k at the Gauss points, axes (element, point, k, i, field)
+    by_point = gradients.transpose(0, 1, 3, 2).reshape(n_el, q * 3, n)
+    grad = (by_point @ fields.reshape(n_el, n, 3 * m)).reshape(n_el, q, 3, 3, m)
+    lam, mu = lame_parameters(young, poisson, 4)
+    sigma = mu * (grad + grad.transpose(0, 1, 3, 2, 4))
+    trace = grad[:, :, 0, 0] + grad[:, :, 1, 1] + grad[:, :, 2, 2]  # (element, point, field)
+    trace *= lam.reshape(-1, 1, 1)
+    for i in range(3):
+        sigma[:, :, i, i] += trace
+    sigma *= weights[:, :, None, None, None]
+    by_node = gradients.transpose(0, 2, 1, 3).reshape(n_el, n, q * 3)
+    return (by_node @ sigma.reshape(n_el, q * 3, 3 * m)).reshape(n_el, 3 * n, m)
 
 
 def solid_stresses(

@@ -54,8 +54,9 @@ dofs, so their rows carry the reactions). The one proof of the map is the consis
 the rigid-body fields on every other equation; a map they refute is refused there (exit 2).
 
 Speed: a matrix file of 16 MiB or more is parsed and checked in one compiled pass over a memory
-map (:func:`pymorembs.io.fast_text.parse_coordinate_lines`, on both cores) into arrays where
-the triangle is completed to the full matrix (:class:`pymorembs.io.fast_text.SymmetricRoom`);
+map (:func:`pymorembs.io.fast_text.parse_coordinate_lines`, on both cores; the zeros off the
+diagonal are left out as they are read) into arrays where the triangle is completed to the full
+matrix (:class:`pymorembs.io.fast_text.SymmetricRoom`);
 smaller files, and any file with a line of another form, are parsed by NumPy's ``loadtxt``
 behind the strict pass that names a bad line.
 """
@@ -558,8 +559,13 @@ def read_calculix_matrix(path: PathLike, n: int, dofs: DofFile) -> sp.csr_matrix
 
 def _parse_compiled(path: Path, n: int) -> sp.csr_matrix | None:
     """The matrix of a well-formed file by the compiled kernel, or None (no Numba, a small file,
-    a line of another form, a lower-triangle entry, an equation without diagonal: the strict
-    pass then reads the file and names the problem)."""
+    a line of another form, a line out of CalculiX's order or below the diagonal, an equation
+    without diagonal: the strict pass then reads the file and names the problem).
+
+    The entries off the diagonal that are zero are left out as they are parsed (a tet10 mass
+    matrix has two zeros for every entry: the couplings of different directions), so that the
+    room of the full matrix touches the memory of the entries kept only.
+    """
     try:
         size = path.stat().st_size
     except OSError:
@@ -574,9 +580,13 @@ def _parse_compiled(path: Path, n: int) -> sp.csr_matrix | None:
     room = SymmetricRoom(entries)
     # the file's (row <= column) entries, column by column, are the lower triangle (column,
     # row) row by row: the row numbers go to the room's columns and the reverse
-    if parse_coordinate_lines(path, 0, n, entries, (room.cols, room.rows, room.values)) is None:
+    out = (room.cols, room.rows, room.values)
+    parsed = parse_coordinate_lines(path, 0, n, entries, out, upper_columns=True)
+    if parsed is None:
         return None
-    lower = csr_from_sorted_coo(room.rows, room.cols, room.values, n)
+    stored = parsed[0].size
+    del parsed
+    lower = csr_from_sorted_coo(room.rows[:stored], room.cols[:stored], room.values[:stored], n)
     if lower is None or triangle_sides(lower)[1] or not _all_diagonals(lower):
         return None
     full = room.full(lower)

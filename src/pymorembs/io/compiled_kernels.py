@@ -9,13 +9,16 @@ accept exactly the same bytes). It holds the GIL for none of its work, so it run
 threads of the parser that reads the same bytes.
 
 :func:`mirror_counts` / :func:`mirror_rows` complete a stored triangle to the full symmetric CSR
-matrix (:func:`mirror_lower_in_place`: a lower triangle in the arrays that hold it) and
-:func:`rows_gap` finds ``max |A - A^T|``, each in one pass over the entries
-(:func:`mirror_parallel`, :func:`mirror_lower_in_place_parallel`, :func:`transpose_gap_parallel`:
-the same on several threads).
+matrix (:func:`rows_in_place`: a lower triangle in the arrays that hold it) and :func:`rows_gap`
+finds ``max |A - A^T|``, each in one pass over the entries.
 
-:func:`coordinate_lines` parses the entry lines of a Matrix Market file and :func:`count_lines`
-counts lines eight bytes at a time.
+:func:`coordinate_lines` parses the entry lines of a Matrix Market or CalculiX file and
+:func:`count_lines` counts lines eight bytes at a time.
+
+Every kernel is serial and releases the GIL (``nogil``): :mod:`pymorembs.io.fast_text` runs
+them on Python threads, a part of the work each. None uses Numba's parallel compilation, whose
+first compilation (after installing, before the cache is written) costs seconds more than the
+threads save in a read.
 """
 
 from __future__ import annotations
@@ -166,149 +169,43 @@ def mirror_rows(
 
 
 @numba.njit(cache=True, nogil=True)
-def mirror_lower_in_place(indptr, indices, data, offset, out_indptr):  # pragma: no cover - compiled
-    """Complete a lower triangle to the full symmetric CSR matrix in the arrays that hold it.
+def rows_in_place(
+    indptr, indices, data, offset, out_indptr, slots, first, last, own, mirrored
+):  # pragma: no cover - compiled
+    """Rows ``first .. last - 1`` of a lower triangle completed to the full symmetric CSR matrix
+    in the arrays that hold it.
 
     Row ``i`` of the canonical lower triangle is ``indices[offset + indptr[i] : offset +
     indptr[i + 1]]`` (and the same slice of ``data``); ``out_indptr`` is the full matrix's row
-    pointer (:func:`mirror_counts`). The full matrix is written to the front of the same arrays:
-    row ``i`` is the triangle's row ``i`` followed by the entries ``(j, i)``, ``j > i``, which are
-    placed when row ``j`` is visited (rows in increasing order, so they come out sorted).
+    pointer (:func:`mirror_counts`) and ``slots[j]`` the next place of a mirrored entry in row
+    ``j``, first ``out_indptr[j] + indptr[j + 1] - indptr[j]`` (after the row's own entries;
+    advanced here). The full matrix is written to the front of the same arrays: with ``own``
+    each entry of row ``i`` moves to its place in full row ``i``, with ``mirrored`` its mirror
+    image ``(j, i)``, off the diagonal, goes to the next slot of row ``j`` (rows in increasing
+    order, so the mirrored entries come out sorted). Both at once, for all rows in order, is
+    the one-thread completion.
 
     No write reaches an entry not yet read if ``offset`` is at least the number of entries below
     the diagonal: the full rows before row ``i`` end at ``out_indptr[i] = indptr[i] +`` (entries
     below the diagonal in the columns before ``i``) ``<= offset + indptr[i]``, where row ``i`` is
-    read, and each entry of row ``i`` moves to the front or stays.
+    read, and each entry of row ``i`` moves to the front or stays. Two threads may do ``own``
+    and ``mirrored`` of a block of rows whose full rows end before the block's first entry
+    (:func:`pymorembs.io.fast_text.complete_lower_in_place`).
     """
-    slots = _mirror_slots(indptr, out_indptr)
-    _lower_rows_in_place(indptr, indices, data, offset, out_indptr, slots, 0, indptr.size - 1)
-
-
-@numba.njit(cache=True, nogil=True)
-def _mirror_slots(indptr, out_indptr):  # pragma: no cover - compiled
-    """The place of the first mirrored entry of each row of the full matrix (after the row's
-    own entries of the lower triangle)."""
-    n = indptr.size - 1
-    slots = np.empty(n, dtype=out_indptr.dtype)
-    for i in range(n):
-        slots[i] = out_indptr[i] + indptr[i + 1] - indptr[i]
-    return slots
-
-
-@numba.njit(cache=True, nogil=True)
-def _lower_rows_in_place(
-    indptr, indices, data, offset, out_indptr, slots, first, last
-):  # pragma: no cover - compiled
-    """Rows ``first .. last - 1`` of :func:`mirror_lower_in_place`: each entry read, then
-    written to its own place and, off the diagonal, to the next mirrored place of its column's
-    row (``slots``, advanced)."""
     for i in range(first, last):
         w = out_indptr[i]
         for q in range(offset + indptr[i], offset + indptr[i + 1]):
             j = indices[q]
             v = data[q]
-            indices[w] = j
-            data[w] = v
-            w += 1
-            if j != i:
+            if own:
+                indices[w] = j
+                data[w] = v
+                w += 1
+            if mirrored and j != i:
                 p = slots[j]
                 indices[p] = i
                 data[p] = v
                 slots[j] = p + 1
-
-
-@numba.njit(cache=True, nogil=True)
-def _own_rows(indptr, indices, data, offset, out_indptr, first, last):  # pragma: no cover
-    """The lower triangle's own entries of rows ``first .. last - 1`` moved to their places."""
-    for i in range(first, last):
-        w = out_indptr[i]
-        for q in range(offset + indptr[i], offset + indptr[i + 1]):
-            indices[w] = indices[q]
-            data[w] = data[q]
-            w += 1
-
-
-@numba.njit(cache=True, nogil=True)
-def _mirrored_rows(indptr, indices, data, offset, slots, first, last):  # pragma: no cover
-    """The mirror images ``(j, i)`` of the entries off the diagonal of rows ``first .. last -
-    1``, each at the next mirrored place of row ``j`` (``slots``, advanced)."""
-    for i in range(first, last):
-        for q in range(offset + indptr[i], offset + indptr[i + 1]):
-            j = indices[q]
-            if j != i:
-                p = slots[j]
-                indices[p] = i
-                data[p] = data[q]
-                slots[j] = p + 1
-
-
-@numba.njit(cache=True, nogil=True, parallel=True)
-def mirror_lower_in_place_parallel(
-    indptr, indices, data, offset, out_indptr
-):  # pragma: no cover - compiled
-    """:func:`mirror_lower_in_place` on two of Numba's threads: one moves the triangle's own
-    entries, the other writes their mirror images.
-
-    The rows are taken in blocks ``a .. b - 1`` whose full rows end before the block's first
-    entry is read (``out_indptr[b] <= offset + indptr[a]``): then no write of the block reaches
-    an entry of the block, so both threads read all of it while they write, and between blocks
-    they wait for each other. Each write goes to its own place, so the two never write the same
-    entry. Near the end of the triangle a block holds about half as many entries as there are
-    diagonal entries (the room left between the full rows and the entries still to be read); a
-    row that fits in no block is done on one thread, as in :func:`mirror_lower_in_place`.
-    """
-    n = indptr.size - 1
-    slots = _mirror_slots(indptr, out_indptr)
-    a = 0
-    while a < n:
-        b = np.searchsorted(out_indptr, offset + indptr[a], side="right") - 1
-        if b <= a + 1:
-            _lower_rows_in_place(indptr, indices, data, offset, out_indptr, slots, a, a + 1)
-            a += 1
-            continue
-        for role in numba.prange(2):
-            if role == 0:
-                _own_rows(indptr, indices, data, offset, out_indptr, a, b)
-            else:
-                _mirrored_rows(indptr, indices, data, offset, slots, a, b)
-        a = b
-
-
-@numba.njit(cache=True, nogil=True, parallel=True)
-def mirror_parallel(
-    indptr, indices, data, out_indptr, out_indices, out_data, lower, parts
-):  # pragma: no cover - compiled
-    """:func:`mirror_rows` of all rows in ``parts`` contiguous ranges on Numba's threads."""
-    n = indptr.size - 1
-    for part in numba.prange(parts):
-        mirror_rows(
-            indptr,
-            indices,
-            data,
-            out_indptr,
-            out_indices,
-            out_data,
-            lower,
-            n * part // parts,
-            n * (part + 1) // parts,
-        )
-
-
-@numba.njit(cache=True, nogil=True, parallel=True)
-def transpose_gap_parallel(indptr, indices, data, parts):  # pragma: no cover - compiled
-    """``max |A - A^T|`` of a canonical square CSR matrix (NaN if a difference is NaN), the rows
-    shared out to Numba's threads in ``parts`` contiguous ranges (:func:`rows_gap` each)."""
-    n = indptr.size - 1
-    gaps = np.zeros(parts)
-    for part in numba.prange(parts):
-        gaps[part] = rows_gap(indptr, indices, data, n * part // parts, n * (part + 1) // parts)
-    gap = 0.0
-    for part in range(parts):
-        if gaps[part] != gaps[part]:
-            return gaps[part]
-        if gaps[part] > gap:
-            gap = gaps[part]
-    return gap
 
 
 @numba.njit(cache=True, nogil=True)
@@ -381,7 +278,7 @@ def _powers_of_five() -> np.ndarray:
 POWERS_OF_FIVE = _powers_of_five()
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@numba.njit(cache=True, nogil=True)
 def _product_128(a, b):  # pragma: no cover - compiled
     """(high, low) words of the 128-bit product of two 64-bit words."""
     a_lo, a_hi = a & _LOW32, a >> _U64(32)
@@ -447,7 +344,7 @@ _EVEN_BYTES = np.uint64(0x00FF00FF00FF00FF)
 _ONES_16 = np.uint64(0x0001000100010001)
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@numba.njit(cache=True, nogil=True)
 def _word(buffer, i):  # pragma: no cover - compiled
     """The bytes ``buffer[i : i + 8]`` as one little-endian word (one load: the unsigned index
     has no wraparound of negative values, so the byte loads combine)."""
@@ -484,7 +381,7 @@ def count_lines(buffer, first, last):  # pragma: no cover - compiled
     return count
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@numba.njit(cache=True, nogil=True)
 def _sign(buffer, i):  # pragma: no cover - compiled
     """(whether ``buffer[i]`` is a minus sign, the index after an optional sign)."""
     byte = buffer[i]
@@ -493,7 +390,7 @@ def _sign(buffer, i):  # pragma: no cover - compiled
     return False, i
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@numba.njit(cache=True, nogil=True)
 def _digits(buffer, i, w):  # pragma: no cover - compiled
     """(``w`` continued by the decimal digits from ``buffer[i]`` on (modulo ``2**64``), the
     index after them)."""
@@ -535,7 +432,7 @@ def _long_significand(buffer, start, stop):  # pragma: no cover - compiled
 
 @numba.njit(cache=True, nogil=True)
 def coordinate_lines(
-    buffer, first, last, n, rows, cols, values, bits, at, powers
+    buffer, first, last, n, rows, cols, values, bits, at, powers, upper_columns
 ):  # pragma: no cover - compiled
     """Parse the lines ``row column value`` of ``buffer[first:last]`` (whole lines, each ending
     in a line feed) into ``rows``, ``cols`` (from 0), ``values`` from index ``at`` on.
@@ -543,18 +440,38 @@ def coordinate_lines(
     A line is accepted only in the plain form ``[blanks] digits blanks digits blanks number
     [blanks] [CR] LF`` (blanks: spaces and tabs; number: ``[sign] digits [. digits]`` or
     ``[sign] . digits``, then optionally ``e|E [sign] digits``), with indices ``1 .. n`` and at
-    most 19 significant digits in the number whose value is a normal double or zero. Returns
-    the number of lines, or -1 at the first line of any other form (blank, comment, a decimal
-    comma, a Fortran ``D`` exponent, ...), which the caller leaves to its strict pass.
+    most 19 significant digits in the number whose value is a normal double or zero. Every
+    other form (blank, comment, a decimal comma, a Fortran ``D`` exponent, ...) fails the
+    parse, which the caller leaves to its strict pass; so does an entry beyond the end of
+    ``rows``.
+
+    With ``upper_columns`` the lines must be the upper triangle column by column, as CalculiX
+    writes it: ``row <= column`` and every line's ``(column, row)`` after the previous line's
+    (each position once); entries off the diagonal whose value is zero are checked but not
+    stored (the diagonal always is). The order across parts is the caller's to check, with the
+    keys returned.
 
     Values are exactly the doubles a correctly rounding parser (Python's ``float``) gives: the
     significand times an exact power of ten in one rounding where both are exact doubles
     (``w <= 2**53``, ``|q| <= 22``), else :func:`decimal_to_bits`. ``bits`` is ``values``
     viewed as ``uint64``.
+
+    Returns
+    -------
+    lines, stored, first_key, last_key : int
+        Lines parsed (-1 if one fails), entries stored, and with ``upper_columns`` the key
+        ``column * 2**32 + row`` of the first and last line (-1 without lines or without
+        ``upper_columns``).
     """
     i = first
     k = at
+    lines = 0
+    first_key = -1
+    previous = np.int64(-1)
+    capacity = rows.size
     while i < last:
+        if k >= capacity:
+            return -1, 0, -1, -1
         byte = buffer[i]
         while byte == 32 or byte == 9:
             i += 1
@@ -570,14 +487,22 @@ def coordinate_lines(
                 i += 1
                 byte = buffer[i]
             if i == start or i - start > 10 or value < 1 or value > n:
-                return -1
+                return -1, 0, -1, -1
             if byte != 32 and byte != 9:
-                return -1
+                return -1, 0, -1, -1
             while byte == 32 or byte == 9:
                 i += 1
                 byte = buffer[i]
             if field == 0:
                 index = value
+        if upper_columns:
+            key = (np.int64(value) << 32) | np.int64(index)
+            if index > value or key <= previous:
+                return -1, 0, -1, -1
+            if lines == 0:
+                first_key = key
+            previous = key
+        lines += 1
         rows[k] = index - 1
         cols[k] = value - 1
         # the number
@@ -595,11 +520,11 @@ def coordinate_lines(
             digits += i - point
             byte = buffer[i]
         if digits == 0:
-            return -1
+            return -1, 0, -1, -1
         if digits > 19:
             w, exponent, exact = _long_significand(buffer, start, i)
             if not exact:
-                return -1
+                return -1, 0, -1, -1
         if byte == 101 or byte == 69:
             minus, i = _sign(buffer, i + 1)
             byte = buffer[i]
@@ -611,7 +536,7 @@ def coordinate_lines(
                 i += 1
                 byte = buffer[i]
             if i == start:
-                return -1
+                return -1, 0, -1, -1
             exponent += -power if minus else power
         while byte == 32 or byte == 9:
             i += 1
@@ -620,9 +545,11 @@ def coordinate_lines(
             i += 1
             byte = buffer[i]
         if byte != 10:
-            return -1
+            return -1, 0, -1, -1
         i += 1
         if w == 0:
+            if upper_columns and index != value:
+                continue  # a zero off the diagonal: not stored
             values[k] = -0.0 if negative else 0.0
         elif w <= _TWO53 and -22 <= exponent <= 22:
             x = np.float64(w)
@@ -630,35 +557,10 @@ def coordinate_lines(
             values[k] = -x if negative else x
         else:
             if exponent < SMALLEST_POWER or exponent > LARGEST_POWER:
-                return -1
+                return -1, 0, -1, -1
             word = decimal_to_bits(w, exponent, powers)
             if word == 0:
-                return -1
+                return -1, 0, -1, -1
             bits[k] = word | (_TOP if negative else _U64(0))
         k += 1
-    return k - at
-
-
-@numba.njit(cache=True, nogil=True, parallel=True)
-def coordinate_lines_parallel(
-    buffer, bounds, starts, n, rows, cols, values, bits, powers
-):  # pragma: no cover - compiled
-    """:func:`coordinate_lines` of the parts ``buffer[bounds[p]:bounds[p + 1]]`` on Numba's
-    threads, part ``p`` from entry ``starts[p]`` on; the lines of each part, or -1."""
-    parts = bounds.size - 1
-    out = np.empty(parts, dtype=np.int64)
-    for p in numba.prange(parts):
-        out[p] = coordinate_lines(
-            buffer, bounds[p], bounds[p + 1], n, rows, cols, values, bits, starts[p], powers
-        )
-    return out
-
-
-@numba.njit(cache=True, nogil=True, parallel=True)
-def count_lines_parallel(buffer, bounds):  # pragma: no cover - compiled
-    """:func:`count_lines` of each part ``buffer[bounds[p]:bounds[p + 1]]`` on Numba's threads."""
-    parts = bounds.size - 1
-    out = np.empty(parts, dtype=np.int64)
-    for p in numba.prange(parts):
-        out[p] = count_lines(buffer, bounds[p], bounds[p + 1])
-    return out
+    return lines, k - at, first_key, previous if upper_columns else np.int64(-1)

@@ -16,11 +16,13 @@ from __future__ import annotations
 
 import functools
 import io
+import itertools
 import mmap
 import os
 import threading
 from collections import deque
 from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
@@ -610,9 +612,15 @@ def canonical_csr(
     """A CSR matrix on the given arrays (no copy), marked canonical: the caller built them
     sorted and without duplicates, so SciPy need not look again.
 
+    The arrays may be the start of larger ones (e.g. a :class:`SymmetricRoom`'s): SciPy's
+    constructor would copy a view of less than half of its array (its ``prune``), so arrays
+    of one index type that pass the checks of its ``check_format`` are set on an empty matrix
+    of the shape (others go through the constructor).
+
     Parameters
     ----------
     data, indices : ndarray, shape (nnz,)
+        Longer arrays are cut to ``indptr[-1]`` entries (views).
     indptr : ndarray, shape (shape[0] + 1,)
     shape : tuple of int
 
@@ -620,7 +628,23 @@ def canonical_csr(
     -------
     scipy.sparse.csr_matrix
     """
-    matrix = sp.csr_matrix((data, indices, indptr), shape=shape, copy=False)
+    nnz = int(indptr[-1]) if indptr.ndim == 1 and indptr.size else -1
+    plain = (
+        data.ndim == 1
+        and indices.shape == data.shape
+        and indptr.shape == (shape[0] + 1,)
+        and indices.dtype.kind == "i"
+        and indptr.dtype == indices.dtype
+        and indptr[0] == 0
+        and 0 <= nnz <= data.size
+    )
+    if plain:
+        matrix = sp.csr_matrix(shape, dtype=data.dtype)
+        if nnz < data.size:
+            indices, data = indices[:nnz], data[:nnz]
+        matrix.indptr, matrix.indices, matrix.data = indptr, indices, data
+    else:
+        matrix = sp.csr_matrix((data, indices, indptr), shape=shape, copy=False)
     matrix.has_sorted_indices = True
     matrix.has_canonical_format = True
     return matrix
@@ -633,7 +657,7 @@ COMPILED_FROM_ENTRIES = 1 << 23
 
 def full_from_triangle(stored: sp.csr_matrix) -> sp.csr_matrix | None:
     """The full symmetric matrix of a canonical CSR matrix holding one triangle (either), by the
-    compiled kernels (on the solver threads from the main thread): row ``i`` is row ``i`` of
+    compiled kernels (on the solver threads, :func:`_threads`): row ``i`` is row ``i`` of
     the lower triangle followed by row ``i`` of the upper one without its diagonal entry;
     explicit zeros are kept.
 
@@ -663,10 +687,12 @@ def full_from_triangle(stored: sp.csr_matrix) -> sp.csr_matrix | None:
     indices = np.empty(total, dtype=index)
     data = np.empty(total, dtype=stored.data.dtype)
     arrays = (stored.indptr, stored.indices.astype(index, copy=False), stored.data)
-    _on_threads(
-        lambda: kernels.mirror_rows(*arrays, indptr, indices, data, lower, 0, n),
-        lambda parts: kernels.mirror_parallel(*arrays, indptr, indices, data, lower, parts),
-        n,
+    bounds = np.linspace(0, n, _threads(n) + 1).astype(np.int64)
+    _concurrently(
+        [
+            functools.partial(kernels.mirror_rows, *arrays, indptr, indices, data, lower, a, b)
+            for a, b in itertools.pairwise(bounds.tolist())
+        ]
     )
     return canonical_csr(data, indices, indptr, (n, n))
 
@@ -706,14 +732,18 @@ class SymmetricRoom:
         return 0 < entries < (2**31 - 1) // 2
 
     def full(self, triangle: sp.csr_matrix) -> sp.csr_matrix | None:
-        """The full symmetric matrix of ``triangle``, completed in place (compiled kernel,
-        :func:`~pymorembs.io.compiled_kernels.mirror_lower_in_place`, on two of the solver
-        threads from the main thread); explicit zeros are kept.
+        """The full symmetric matrix of ``triangle``, completed in place (compiled kernel, in
+        blocks on two threads: :func:`complete_lower_in_place`); explicit zeros are kept.
+
+        ``triangle`` may hold fewer entries than the room has (a parser that left some out):
+        its arrays must start where :attr:`cols` and :attr:`values` start. The room's arrays
+        are then cut to the full matrix's entries (the memory after them is given back, without
+        a copy), so that the result holds no more memory than it needs.
 
         Returns None, and leaves everything as it was, without Numba, if ``triangle`` is not
         canonical, holds entries above the diagonal, or does not hold :attr:`cols` and
-        :attr:`values` as its arrays. Afterwards :attr:`rows` holds other numbers and
-        ``triangle`` must not be used.
+        :attr:`values` as its arrays. Afterwards :attr:`rows`, :attr:`cols` and :attr:`values`
+        are empty and ``triangle`` must not be used.
 
         Parameters
         ----------
@@ -722,11 +752,11 @@ class SymmetricRoom:
         Returns
         -------
         scipy.sparse.csr_matrix or None
-            Canonical, shape (n, n); its arrays are views of this room's memory.
+            Canonical, shape (n, n); its arrays are this room's memory.
         """
         entries = self.cols.size
         held = (
-            triangle.nnz == entries
+            triangle.nnz <= entries
             and triangle.indices.ctypes.data == self.cols.ctypes.data
             and triangle.data.ctypes.data == self.values.ctypes.data
             and triangle.indices.dtype == np.int32
@@ -743,13 +773,67 @@ class SymmetricRoom:
         total = int(counts[-1])
         indptr = counts.astype(np.int32)
         del counts
-        arrays = (triangle.indptr, self._indices, self._data, entries, indptr)
-        _on_threads(
-            lambda: kernels.mirror_lower_in_place(*arrays),
-            lambda parts: kernels.mirror_lower_in_place_parallel(*arrays),
-            n,
+        complete_lower_in_place(triangle.indptr, self._indices, self._data, entries, indptr)
+        if total < self._indices.size:
+            # cut in place (realloc: a large array keeps its address and gives the pages after
+            # the cut back); the views on the old arrays, the room's and the triangle's, are
+            # not used again
+            self._indices.resize(total, refcheck=False)
+            self._data.resize(total, refcheck=False)
+        self.rows = self.cols = self._indices[:0]
+        self.values = self._data[:0]
+        return canonical_csr(self._data, self._indices, indptr, (n, n))
+
+
+#: Entries of a block below which :func:`complete_lower_in_place` goes on with one thread.
+_MIRROR_BLOCK = 1 << 16
+
+
+def complete_lower_in_place(
+    indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, offset: int, out_indptr: np.ndarray
+) -> None:
+    """A lower triangle completed to the full symmetric matrix in the arrays that hold it
+    (:func:`~pymorembs.io.compiled_kernels.rows_in_place`), on two threads where there are
+    (Numba needed).
+
+    The rows are taken in blocks ``a .. b - 1`` whose full rows end before the block's first
+    entry is read (``out_indptr[b] <= offset + indptr[a]``): then no write of the block reaches
+    an entry of the block, so one thread moves the triangle's own entries while the other
+    writes their mirror images, each to places of its own. Once a block holds fewer than
+    :data:`_MIRROR_BLOCK` entries (near the end of a triangle with few diagonal entries, the
+    room left between the full rows and the entries still to be read) the rest is done on one
+    thread, as on a single core.
+
+    Parameters
+    ----------
+    indptr : ndarray of int32, shape (n + 1,)
+        Row pointer of the canonical lower triangle, whose entries start at ``offset`` in
+        ``indices`` and ``data``.
+    indices, data : ndarray (int32, float64)
+        The arrays that hold the triangle and receive the full matrix at their front.
+    offset : int
+        At least the number of entries below the diagonal.
+    out_indptr : ndarray of int32, shape (n + 1,)
+        Row pointer of the full matrix (:func:`~pymorembs.io.compiled_kernels.mirror_counts`).
+    """
+    kernels = _kernels(required=True)
+    n = indptr.size - 1
+    slots = out_indptr[:-1] + np.diff(indptr)  # after each row's own entries
+    arrays = (indptr, indices, data, offset, out_indptr, slots)
+    two = _threads(2) > 1
+    a = 0
+    while a < n:
+        b = min(int(np.searchsorted(out_indptr, offset + indptr[a], side="right")) - 1, n)
+        if not two or b <= a or indptr[b] - indptr[a] < _MIRROR_BLOCK:
+            kernels.rows_in_place(*arrays, a, n, True, True)
+            return
+        _concurrently(
+            [
+                functools.partial(kernels.rows_in_place, *arrays, a, b, True, False),
+                functools.partial(kernels.rows_in_place, *arrays, a, b, False, True),
+            ]
         )
-        return canonical_csr(self._data[:total], self._indices[:total], indptr, (n, n))
+        a = b
 
 
 def triangle_sides(matrix: sp.csr_matrix) -> tuple[bool, bool]:
@@ -774,7 +858,7 @@ def triangle_sides(matrix: sp.csr_matrix) -> tuple[bool, bool]:
 
 def transpose_gap(a: sp.csr_matrix) -> float | None:
     """``max |A - A^T|`` of a canonical square CSR matrix (NaN if it holds NaN) by the compiled
-    kernel, in one pass without forming ``A^T`` (on the solver threads from the main thread).
+    kernel, in one pass without forming ``A^T`` (on the solver threads, :func:`_threads`).
 
     None without Numba, if ``a`` is not canonical or, unless the kernels are loaded already,
     below :data:`COMPILED_FROM_ENTRIES` entries.
@@ -792,35 +876,40 @@ def transpose_gap(a: sp.csr_matrix) -> float | None:
     kernels = _kernels() if a.nnz >= COMPILED_FROM_ENTRIES or _loaded() else None
     if kernels is None:
         return None
-    arrays = (a.indptr, a.indices, a.data)
-    gap = _on_threads(
-        lambda: kernels.rows_gap(*arrays, 0, a.shape[0]),
-        lambda parts: kernels.transpose_gap_parallel(*arrays, parts),
-        a.shape[0],
+    bounds = np.linspace(0, a.shape[0], _threads(a.shape[0]) + 1).astype(np.int64).tolist()
+    gaps = _concurrently(
+        [
+            functools.partial(kernels.rows_gap, a.indptr, a.indices, a.data, first, last)
+            for first, last in itertools.pairwise(bounds)
+        ]
     )
-    return float(gap)
+    nan = [gap for gap in gaps if gap != gap]
+    return float(nan[0] if nan else max(gaps))
 
 
-def _on_threads(serial, parallel, rows: int):
-    """``parallel(parts)`` on the solver threads from the main thread, else ``serial()`` (Numba's
-    default threading layer must not be entered from two threads at once)."""
-    import numba  # installed: the kernels are
-
+def _threads(parts: int) -> int:
+    """Threads for ``parts`` parts of work: at most the solver threads
+    (``PYMOREMBS_SOLVER_THREADS``, else the cores this process may use), at least one."""
     from pymorembs.linalg.backends import solver_threads
 
-    parts = min(solver_threads(), numba.config.NUMBA_NUM_THREADS, rows)
-    if parts < 2 or threading.current_thread() is not threading.main_thread():
-        return serial()
-    previous = numba.get_num_threads()
-    numba.set_num_threads(parts)
-    try:
-        return parallel(parts)
-    finally:
-        numba.set_num_threads(previous)
+    return max(1, min(solver_threads(), parts))
+
+
+def _concurrently(calls: list) -> list:
+    """The results of ``calls`` (of compiled kernels, which release the GIL), each on a thread of
+    its own, the first on the calling thread."""
+    if len(calls) == 1:
+        return [calls[0]()]
+    with ThreadPoolExecutor(len(calls) - 1) as pool:
+        others = [pool.submit(call) for call in calls[1:]]
+        first = calls[0]()
+        return [first, *(job.result() for job in others)]
 
 
 #: Bytes of a file parsed at a time by :func:`parse_coordinate_lines`.
 _PARSE_BLOCK = 1 << 24
+#: Bytes of a block from which a thread of its own parses (or counts) a part of it.
+_PART_BYTES = 1 << 20
 #: Bytes searched for the last line end of a block (no line of a number file is this long).
 _LINE_SEARCH = 1 << 16
 #: ``madvise`` advice that drops parsed pages of a mapped file from the process (Linux).
@@ -833,6 +922,8 @@ def parse_coordinate_lines(
     n: int,
     entries: int,
     out: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+    *,
+    upper_columns: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """The entries of the coordinate lines ``row column value`` of a file from byte ``offset``
     on, parsed and checked in one pass by the compiled kernel, or None.
@@ -841,7 +932,7 @@ def parse_coordinate_lines(
     coordinate_lines` (indices ``1 .. n``), and there must be ``entries`` lines; the values are
     the correctly rounded doubles of the decimal numbers, as Python's ``float`` reads them.
     The file is mapped into memory and parsed in blocks of :data:`_PARSE_BLOCK` bytes, each in
-    parts on the solver threads (from the main thread; else on this thread).
+    parts on the solver threads (:func:`_threads`).
 
     Returns None without Numba, for any line of another form, another number of lines, a
     number that needs more than 19 significant digits or is subnormal, or a read error: the
@@ -860,12 +951,17 @@ def parse_coordinate_lines(
     out : tuple of ndarray, optional
         ``rows``, ``cols`` (int32) and ``values`` (float64) of shape (entries,) to fill, e.g.
         those of a :class:`SymmetricRoom`; by default new arrays.
+    upper_columns : bool
+        The lines must be the upper triangle column by column (``row <= column``, each
+        position after the one of the line before: CalculiX's order), else None; entries off
+        the diagonal whose value is zero are left out (fewer entries are returned).
 
     Returns
     -------
-    rows, cols : ndarray of int32, shape (entries,)
-        Indices counted from 0, in file order (``out``'s arrays if given).
-    values : ndarray of float64, shape (entries,)
+    rows, cols : ndarray of int32, shape (stored,)
+        Indices counted from 0, in file order (the start of ``out``'s arrays if given);
+        ``stored`` is ``entries`` unless ``upper_columns`` left zeros out.
+    values : ndarray of float64, shape (stored,)
     """
     kernels = _kernels()
     if kernels is None or entries <= 0 or n >= 2**31 - 1:
@@ -874,24 +970,27 @@ def parse_coordinate_lines(
         index = np.int32
         out = (np.empty(entries, dtype=index), np.empty(entries, dtype=index), np.empty(entries))
     rows, cols, values = out
-    bits = values.view(np.uint64)
+    target = _Entries(rows, cols, values, values.view(np.uint64), n, upper_columns)
     try:
         with (
             open(path, "rb") as stream,
             mmap.mmap(stream.fileno(), 0, access=mmap.ACCESS_READ) as mapped,
         ):
-            done = _parse_mapped(kernels, mapped, offset, n, rows, cols, values, bits)
+            done = _parse_mapped(kernels, mapped, offset, target)
     except (OSError, ValueError):  # unreadable, or empty (nothing to map)
         return None
     if done != entries:
         return None
-    return rows, cols, values
+    stored = target.stored
+    if stored == rows.size:
+        return rows, cols, values
+    return rows[:stored], cols[:stored], values[:stored]
 
 
 def count_line_ends(path: str | os.PathLike[str]) -> int | None:
     """Line feeds in a file, counted by the compiled kernel
     (:func:`~pymorembs.io.compiled_kernels.count_lines`) through a memory map, in parts on the
-    solver threads from the main thread.
+    solver threads.
 
     Parameters
     ----------
@@ -935,18 +1034,36 @@ def _count_mapped(kernels, mapped: mmap.mmap) -> int:
 
 
 def _count_buffer(kernels, buffer: np.ndarray) -> int:
-    """Line feeds of ``buffer`` (bytes), in parts on the solver threads from the main thread."""
-    size = buffer.size
+    """Line feeds of ``buffer`` (bytes), in parts on the solver threads (at least
+    :data:`_PART_BYTES` each)."""
+    bounds = np.linspace(0, buffer.size, _threads(buffer.size // _PART_BYTES) + 1)
+    bounds = bounds.astype(np.int64)
+    return sum(
+        _concurrently(
+            [
+                functools.partial(kernels.count_lines, buffer, first, last)
+                for first, last in itertools.pairwise(bounds.tolist())
+            ]
+        )
+    )
 
-    def count(parts: int) -> int:
-        bounds = np.linspace(0, size, parts + 1).astype(np.int64)
-        return int(kernels.count_lines_parallel(buffer, bounds).sum())
 
-    return _on_threads(lambda: int(kernels.count_lines(buffer, 0, size)), count, size >> 20)
+@dataclass
+class _Entries:
+    """The arrays :func:`parse_coordinate_lines` fills and how far it got."""
+
+    rows: np.ndarray
+    cols: np.ndarray
+    values: np.ndarray
+    bits: np.ndarray  # values viewed as uint64
+    n: int
+    upper_columns: bool
+    stored: int = 0  # entries stored so far
+    last_key: int = -1  # key of the last line parsed (upper_columns)
 
 
-def _parse_mapped(kernels, mapped: mmap.mmap, offset: int, n, rows, cols, values, bits) -> int:
-    """Entries parsed from the mapped file's bytes ``offset ..`` (see
+def _parse_mapped(kernels, mapped: mmap.mmap, offset: int, target: _Entries) -> int:
+    """Lines parsed from the mapped file's bytes ``offset ..`` into ``target`` (see
     :func:`parse_coordinate_lines`), or -1.
 
     The kernels read the page cache through the mapping, without a copy. Blocks of
@@ -976,8 +1093,7 @@ def _parse_mapped(kernels, mapped: mmap.mmap, offset: int, n, rows, cols, values
             if at < 0:
                 return -1  # no line end in the search window: not a file of number lines
             cut = stop - len(search) + at + 1
-            block = data[start:cut]
-            lines = _parse_block(kernels, block, block.size, n, rows, cols, values, bits, done)
+            lines = _parse_block(kernels, data[start:cut], target)
             if lines is None:
                 return -1
             done += lines
@@ -988,7 +1104,7 @@ def _parse_mapped(kernels, mapped: mmap.mmap, offset: int, n, rows, cols, values
                 unmapped = page
         if last_start < end:
             line = np.append(data[last_start:end], np.uint8(_NEWLINE))
-            lines = _parse_block(kernels, line, line.size, n, rows, cols, values, bits, done)
+            lines = _parse_block(kernels, line, target)
             if lines is None:
                 return -1
             done += lines
@@ -997,43 +1113,60 @@ def _parse_mapped(kernels, mapped: mmap.mmap, offset: int, n, rows, cols, values
         del data  # the mapping closes only without exports of its buffer
 
 
-def _parse_block(kernels, buffer, size, n, rows, cols, values, bits, done) -> int | None:
-    """Lines of ``buffer[:size]`` (whole lines) parsed into the entries from ``done`` on."""
-    powers = kernels.POWERS_OF_FIVE
+def _parse_block(kernels, buffer: np.ndarray, target: _Entries) -> int | None:
+    """Lines of ``buffer`` (whole lines) parsed into ``target``'s entries from
+    ``target.stored`` on, in parts on the solver threads (at least :data:`_PART_BYTES`
+    each), or None.
 
-    def parse(parts: int) -> int | None:
-        bounds = [0]
-        for p in range(1, parts):
-            target = max(size * p // parts, bounds[-1])
-            stop = min(target + _LINE_SEARCH, size)
-            at = buffer[target:stop].tobytes().find(b"\n")
-            bounds.append(bounds[-1] if at < 0 else target + at + 1)
-        bounds.append(size)
-        edges = np.array(bounds, dtype=np.int64)
-        if parts > 1:
-            counts = kernels.count_lines_parallel(buffer, edges)
-        else:
-            counts = np.array([kernels.count_lines(buffer, 0, size)])
-        starts = done + np.concatenate([[0], np.cumsum(counts)[:-1]])
-        if done + int(counts.sum()) > rows.size:
+    Part ``p`` writes from the entry after the lines of the parts before it (counted first);
+    with ``upper_columns``, which leaves zeros out, the parts' entries are then moved together,
+    and the order of the lines is checked across the parts and blocks by their first and last
+    keys.
+    """
+    size = buffer.size
+    parts = _threads(size // _PART_BYTES)
+    bounds = [0]
+    for p in range(1, parts):
+        aim = max(size * p // parts, bounds[-1])
+        stop = min(aim + _LINE_SEARCH, size)
+        at = buffer[aim:stop].tobytes().find(b"\n")
+        bounds.append(bounds[-1] if at < 0 else aim + at + 1)
+    bounds.append(size)
+    done = target.stored
+    starts = [done]
+    if parts > 1:  # the lines before each part (the last part's are not needed)
+        counts = _concurrently(
+            [
+                functools.partial(kernels.count_lines, buffer, first, last)
+                for first, last in itertools.pairwise(bounds[:-1])
+            ]
+        )
+        starts += (done + np.cumsum(counts)).tolist()
+    t = target
+    arrays = (t.n, t.rows, t.cols, t.values, t.bits)
+    tail = (kernels.POWERS_OF_FIVE, t.upper_columns)
+    results = _concurrently(
+        [
+            functools.partial(kernels.coordinate_lines, buffer, first, last, *arrays, start, *tail)
+            for first, last, start in zip(bounds[:-1], bounds[1:], starts, strict=True)
+        ]
+    )
+    total = 0
+    for (lines, stored, first_key, last_key), start, following in zip(
+        results, starts, [*starts[1:], None], strict=True
+    ):
+        if lines < 0 or (following is not None and start + lines != following):
             return None
-        if parts > 1:
-            lines = kernels.coordinate_lines_parallel(
-                buffer, edges, starts, n, rows, cols, values, bits, powers
-            )
-        else:
-            lines = np.array(
-                [
-                    kernels.coordinate_lines(
-                        buffer, 0, size, n, rows, cols, values, bits, done, powers
-                    )
-                ]
-            )
-        if np.any(lines != counts):
-            return None
-        return int(counts.sum())
-
-    return _on_threads(lambda: parse(1), parse, max(size >> 20, 1))
+        if lines and t.upper_columns:
+            if first_key <= t.last_key:
+                return None  # a position not after the one of the line before
+            t.last_key = last_key
+        if start != t.stored:
+            for array in (t.rows, t.cols, t.values):
+                array[t.stored : t.stored + stored] = array[start : start + stored]
+        t.stored += stored
+        total += lines
+    return total
 
 
 def all_distinct(keys: np.ndarray) -> bool:
