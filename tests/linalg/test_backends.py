@@ -335,9 +335,18 @@ def _dense_symmetric(a: sp.spmatrix) -> bool:
     return bool(np.abs(d - d.T).max() <= 1e-14 * np.abs(d).max())
 
 
+@pytest.mark.parametrize("compiled", [True, False])
 @pytest.mark.parametrize("seed", range(4))
-def test_symmetry_check_agrees_with_the_dense_definition(seed: int) -> None:
+def test_symmetry_check_agrees_with_the_dense_definition(seed: int, compiled: bool, monkeypatch):
+    """Both ways of ``is_symmetric``: the compiled one-pass gap of the readers
+    (``fast_text.transpose_gap``, from its size on) and ``|A - A^T|`` formed (below it)."""
+    from pymorembs.io import fast_text
     from pymorembs.linalg import factorization
+
+    if compiled and not fast_text.compiled_checks():
+        pytest.skip("Numba is not installed")
+    monkeypatch.setattr(fast_text, "COMPILED_FROM_ENTRIES", 0 if compiled else 2**62)
+    monkeypatch.setattr(fast_text, "_loaded", lambda: False)
 
     rng = np.random.default_rng(seed)
     n = 60
