@@ -687,13 +687,7 @@ def full_from_triangle(stored: sp.csr_matrix) -> sp.csr_matrix | None:
     indices = np.empty(total, dtype=index)
     data = np.empty(total, dtype=stored.data.dtype)
     arrays = (stored.indptr, stored.indices.astype(index, copy=False), stored.data)
-    bounds = np.linspace(0, n, _threads(n) + 1).astype(np.int64)
-    _concurrently(
-        [
-            functools.partial(kernels.mirror_rows, *arrays, indptr, indices, data, lower, a, b)
-            for a, b in itertools.pairwise(bounds.tolist())
-        ]
-    )
+    _over_ranges(kernels.mirror_rows, (*arrays, indptr, indices, data, lower), n, _threads(n))
     return canonical_csr(data, indices, indptr, (n, n))
 
 
@@ -876,13 +870,8 @@ def transpose_gap(a: sp.csr_matrix) -> float | None:
     kernels = _kernels() if a.nnz >= COMPILED_FROM_ENTRIES or _loaded() else None
     if kernels is None:
         return None
-    bounds = np.linspace(0, a.shape[0], _threads(a.shape[0]) + 1).astype(np.int64).tolist()
-    gaps = _concurrently(
-        [
-            functools.partial(kernels.rows_gap, a.indptr, a.indices, a.data, first, last)
-            for first, last in itertools.pairwise(bounds)
-        ]
-    )
+    n = a.shape[0]
+    gaps = _over_ranges(kernels.rows_gap, (a.indptr, a.indices, a.data), n, _threads(n))
     nan = [gap for gap in gaps if gap != gap]
     return float(nan[0] if nan else max(gaps))
 
@@ -904,6 +893,14 @@ def _concurrently(calls: list) -> list:
         others = [pool.submit(call) for call in calls[1:]]
         first = calls[0]()
         return [first, *(job.result() for job in others)]
+
+
+def _over_ranges(kernel, arrays: tuple, size: int, parts: int) -> list:
+    """``kernel(*arrays, first, last)`` for ``parts`` equal ranges ``first .. last`` of
+    ``0 .. size``, concurrently (:func:`_concurrently`); the results in range order."""
+    bounds = np.linspace(0, size, parts + 1).astype(np.int64).tolist()
+    calls = [functools.partial(kernel, *arrays, a, b) for a, b in itertools.pairwise(bounds)]
+    return _concurrently(calls)
 
 
 #: Bytes of a file parsed at a time by :func:`parse_coordinate_lines`.
@@ -1036,16 +1033,8 @@ def _count_mapped(kernels, mapped: mmap.mmap) -> int:
 def _count_buffer(kernels, buffer: np.ndarray) -> int:
     """Line feeds of ``buffer`` (bytes), in parts on the solver threads (at least
     :data:`_PART_BYTES` each)."""
-    bounds = np.linspace(0, buffer.size, _threads(buffer.size // _PART_BYTES) + 1)
-    bounds = bounds.astype(np.int64)
-    return sum(
-        _concurrently(
-            [
-                functools.partial(kernels.count_lines, buffer, first, last)
-                for first, last in itertools.pairwise(bounds.tolist())
-            ]
-        )
-    )
+    parts = _threads(buffer.size // _PART_BYTES)
+    return sum(_over_ranges(kernels.count_lines, (buffer,), buffer.size, parts))
 
 
 @dataclass
