@@ -25,7 +25,6 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from pymorembs.io.fast_text import compiled_checks
 from pymorembs.linalg.factorization import combine, is_symmetric
 
 BENCH = Path(__file__).resolve().parent
@@ -260,7 +259,6 @@ def warm_up() -> None:
         double_double.product(small, np.ones((50, 2)))
         double_double.multiply(small, np.ones((50, 2)))
         combine([(1.0, sp.csr_matrix(small)), (-1.0, sp.identity(50, format="csr"))])
-        compiled_checks()  # the readers' kernels loaded: is_symmetric's gap uses them
         is_symmetric(sp.csr_matrix(small))
 
 

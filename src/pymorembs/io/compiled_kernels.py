@@ -9,8 +9,8 @@ accept exactly the same bytes). It holds the GIL for none of its work, so it run
 threads of the parser that reads the same bytes.
 
 :func:`mirror_counts` / :func:`mirror_rows` complete a stored triangle to the full symmetric CSR
-matrix (:func:`rows_in_place`: a lower triangle in the arrays that hold it) and :func:`rows_gap`
-finds ``max |A - A^T|``, each in one pass over the entries.
+matrix (:func:`rows_in_place`: a lower triangle in the arrays that hold it), in one pass over the
+entries (``max |A - A^T|`` in one pass: :func:`pymorembs.linalg.compiled_kernels.rows_gap`).
 
 :func:`coordinate_lines` parses the entry lines of a Matrix Market or CalculiX file and
 :func:`count_lines` counts lines eight bytes at a time.
@@ -206,36 +206,6 @@ def rows_in_place(
                 indices[p] = i
                 data[p] = v
                 slots[j] = p + 1
-
-
-@numba.njit(cache=True, nogil=True)
-def rows_gap(indptr, indices, data, first, last):  # pragma: no cover - compiled
-    """``max |a_ij - a_ji|`` over the entries ``(i, j)`` of rows ``first .. last - 1``.
-
-    Entry ``(i, j)`` is compared with ``(j, i)`` (or zero where there is none). Row ``j`` is
-    searched with a cursor of its own: the rows ``i`` that look into it come in increasing
-    order, and so do the columns ``i`` sought there, so each cursor only moves forward and the
-    whole comparison is one pass over the entries.
-    """
-    cursor = indptr[:-1].copy()
-    gap = 0.0
-    for i in range(first, last):
-        for q in range(indptr[i], indptr[i + 1]):
-            j = indices[q]
-            p = cursor[j]
-            end = indptr[j + 1]
-            while p < end and indices[p] < i:
-                p += 1
-            cursor[j] = p
-            if p < end and indices[p] == i:
-                difference = abs(data[q] - data[p])
-            else:
-                difference = abs(data[q])
-            if difference != difference:
-                return difference
-            if difference > gap:
-                gap = difference
-    return gap
 
 
 # ---------------------------------------------------------------------------- coordinate lines

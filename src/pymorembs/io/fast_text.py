@@ -870,8 +870,10 @@ def transpose_gap(a: sp.csr_matrix) -> float | None:
     kernels = _kernels() if a.nnz >= COMPILED_FROM_ENTRIES or _loaded() else None
     if kernels is None:
         return None
+    from pymorembs.linalg import compiled_kernels as linalg_kernels  # Numba is installed
+
     n = a.shape[0]
-    gaps = _over_ranges(kernels.rows_gap, (a.indptr, a.indices, a.data), n, _threads(n))
+    gaps = _over_ranges(linalg_kernels.rows_gap, (a.indptr, a.indices, a.data), n, _threads(n))
     nan = [gap for gap in gaps if gap != gap]
     return float(nan[0] if nan else max(gaps))
 

@@ -124,3 +124,33 @@ def upper_positions(indptr, indices, keep, upper_indptr):  # pragma: no cover - 
                 count += 1
         upper_indptr[i + 1] = count
     return count, diagonals == indptr.size - 1
+
+
+@numba.njit(cache=True, nogil=True)
+def rows_gap(indptr, indices, data, first, last):  # pragma: no cover - compiled
+    """``max |a_ij - a_ji|`` over the entries ``(i, j)`` of rows ``first .. last - 1``.
+
+    Entry ``(i, j)`` is compared with ``(j, i)`` (or zero where there is none). Row ``j`` is
+    searched with a cursor of its own: the rows ``i`` that look into it come in increasing
+    order, and so do the columns ``i`` sought there, so each cursor only moves forward and the
+    whole comparison is one pass over the entries.
+    """
+    cursor = indptr[:-1].copy()
+    gap = 0.0
+    for i in range(first, last):
+        for q in range(indptr[i], indptr[i + 1]):
+            j = indices[q]
+            p = cursor[j]
+            end = indptr[j + 1]
+            while p < end and indices[p] < i:
+                p += 1
+            cursor[j] = p
+            if p < end and indices[p] == i:
+                difference = abs(data[q] - data[p])
+            else:
+                difference = abs(data[q])
+            if difference != difference:
+                return difference
+            if difference > gap:
+                gap = difference
+    return gap

@@ -132,14 +132,17 @@ def is_symmetric(matrix: sp.spmatrix) -> bool:
 
 def _compiled_gap(a: sp.csr_matrix) -> float | None:
     """``max |A - A^T|`` in one compiled pass, no ``A - A^T`` formed (at 300,000 dofs it took
-    gigabytes of temporaries): :func:`~pymorembs.io.fast_text.transpose_gap`, which the readers
-    use, on the canonical form of ``a``; None where it does not apply (small, no Numba)."""
-    from pymorembs.io.fast_text import transpose_gap
+    gigabytes of temporaries): :func:`~pymorembs.linalg.compiled_kernels.rows_gap`, the kernel
+    of the readers' :func:`~pymorembs.io.fast_text.transpose_gap`, on the canonical form of
+    ``a``; None without Numba."""
+    if not double_double.available():  # Numba is not installed
+        return None
+    from pymorembs.linalg import compiled_kernels
 
     if not a.has_canonical_format:
         a = a.copy()
         a.sum_duplicates()
-    return transpose_gap(a)
+    return float(compiled_kernels.rows_gap(a.indptr, a.indices, a.data, 0, a.shape[0]))
 
 
 def combine(terms: Terms, dtype: type | None = None) -> sp.csr_matrix:
