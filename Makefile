@@ -12,11 +12,12 @@ $(STAMP): pyproject.toml requirements-nodeps.txt
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check --no-compile -e '.[dev]'
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check --no-deps \
 		-r requirements-nodeps.txt
-	# Numba's modules byte-compiled (3 s): imported from source, as --no-compile leaves them,
-	# they cost about a second in every process that reads a large text file
-	$(BIN)/python -c "import compileall, importlib.util; \
-		compileall.compile_dir(importlib.util.find_spec('numba').submodule_search_locations[0], \
-		quiet=2, workers=0)"
+	# every installed module and the package byte-compiled (10 s on 2 cores): where Python
+	# writes no caches (PYTHONDONTWRITEBYTECODE, set where this project is developed) each
+	# process would compile them from source again -- a second of `pymorembs --help` alone
+	$(BIN)/python -c "import compileall, sysconfig; \
+		compileall.compile_dir(sysconfig.get_paths()['purelib'], quiet=2, workers=0); \
+		compileall.compile_dir('src', quiet=2, workers=0)"
 	touch $(STAMP)
 
 demo: $(STAMP)
