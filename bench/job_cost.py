@@ -266,6 +266,8 @@ def measure(model: str, dofs: int | None, before: bool, checks: str = "default")
     clock.wrap(run, "_reduce_one", lambda prepared, spec, *a, **k: f"reduction {spec.name}")
     clock.wrap(run, "_settled", "settle checks")
     clock.wrap(run.ReferenceResponse, "settled_all", "settle checks")
+    if hasattr(run, "_completed"):  # the weakest frequencies, checked after the reductions
+        clock.wrap(run.ReferenceResponse, "completed", "remaining checks")
     clock.wrap(run, "_judged", "errors + body files")
     clock.wrap(run, "_write_summary", "summary + plots")
     with tempfile.TemporaryDirectory(prefix="job_cost_") as folder:
@@ -338,6 +340,7 @@ STAGE_ORDER = [
     "reduction soaga",
     "reduction craig-bampton",
     "settle checks",
+    "remaining checks",
     "errors + body files",
     "summary + plots",
     "other",

@@ -132,6 +132,45 @@ def test_check_frequencies_fill_the_gaps_between_expansion_points():
     estimate = (np.array([10.0, 812.3]), np.array([1e-14, 1e-12]))
     assert check_frequencies(grid, [0.0], estimate, 1) == [812.0]
     assert check_frequencies(grid, [0.0], estimate, 0) == []
+    # frequencies checked already count and are avoided; the peak is checked whatever they are
+    assert check_frequencies(grid, [0.0, 1000.0], None, 3, magnitude, checked=[650.0]) == [
+        300.0,
+        475.0,  # 0-300-650-1000: the middle of the first of the two largest gaps
+    ]
+    assert check_frequencies(grid, [0.0, 1000.0], None, 3, magnitude, checked=[300.0, 650.0]) == [
+        475.0
+    ]
+    many = [100.0, 200.0, 400.0, 500.0]
+    assert check_frequencies(grid, [0.0], estimate, 2, magnitude, checked=many) == [812.0, 300.0]
+    assert check_frequencies(grid, [0.0], estimate, 2, magnitude, checked=[812.0, 300.0]) == []
+
+
+def test_completed_checks_the_weakest_frequencies_and_counts_earlier_checks(rack, grid, full):
+    """The job's order: the reductions' maxima first, then the estimator's maximum, the peak
+    and the largest gaps until there are ``count`` checks above 0 Hz."""
+    reference = reference_response(rack, grid, "surrogate", checks=0)
+    assert np.flatnonzero(reference.exact).tolist() == [0]  # 0 Hz only
+    up_front = reference_response(rack, grid, "surrogate", checks=4)
+    # without earlier checks: the same frequencies as the checks made up front
+    completed = reference.completed(4)
+    np.testing.assert_array_equal(completed.exact, up_front.exact)
+    # after a settle check, which counts: one full solve fewer, the weakest still checked
+    spec = ReductionSpec("m", method_options("modal", {"order": 12}))
+    modal = transfer_function(reduced_model(rack, run_reduction(rack, spec, BAND)).system, grid)
+    settled = reference.settled(modal)
+    top = grid[np.flatnonzero(settled.exact & ~reference.exact)]
+    assert top.size == 1 and top[0] not in grid[up_front.exact]
+    merged = settled.completed(4)
+    assert np.count_nonzero(merged.exact) == np.count_nonzero(up_front.exact)
+    magnitude = np.linalg.norm(reference.response, axis=(1, 2))
+    points = reference.parameters["expansion_points_hz"]
+    weakest = check_frequencies(grid, points, reference.estimate_curve, 2, magnitude)
+    assert len(set(weakest)) == 2 and set(weakest) <= set(grid[merged.exact])
+    assert np.allclose(merged.response[merged.exact], full[merged.exact], rtol=1e-13, atol=0)
+    # checking again changes nothing; a full reference has nothing to complete
+    assert merged.completed(4) is merged
+    exact = ReferenceResponse(grid, full, "full", np.ones(grid.size, bool), rack)
+    assert exact.completed(4) is exact
 
 
 def test_auto_uses_the_full_model_for_small_systems_only():

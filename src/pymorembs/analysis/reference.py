@@ -17,11 +17,18 @@ error grid: one complex sparse factorization per frequency. At 35,000 dofs that 
 
     * at 0 Hz when the grid starts there (the static error is exact; a real factorization);
     * at ``checks`` frequencies chosen where the reference model is weakest: the maximum of its
-      own estimator, then the grid frequencies farthest from every expansion point and every
-      earlier check (greedy max-min distance);
+      own estimator, the largest peak of the response, then the grid frequencies farthest from
+      every expansion point and every earlier check (greedy max-min distance);
     * for every reduction, at the frequency of its largest error, until that maximum lies on a
       checked frequency (:meth:`ReferenceResponse.settled`): the reported maximum error of each
       reduction is always measured against the full model.
+
+    A job checks the reductions' maxima first and then completes the checks
+    (:meth:`ReferenceResponse.completed`): the estimator's maximum and the peak are always
+    checked, and the frequencies already checked count towards ``checks`` and are avoided by
+    the max-min choice -- the same coverage of the band with fewer full solves (on a job with
+    three reductions typically two: each a complex factorization, or about 20 s of iterative
+    solves at 300,000 dofs).
 
     The relative deviation ``||H - H_ref|| / ||H||`` at the checks is the reference's measured
     accuracy; errors far above it are resolved (``|eps_surrogate - eps| <= deviation`` to first
@@ -52,8 +59,8 @@ from pymorembs.system import SecondOrderSystem
 
 #: What the error of eq. 27 is measured against (``[band] reference``).
 REFERENCE_KINDS = ReferenceKind.names()
-#: Frequencies where a surrogate reference is checked against the full model, besides 0 Hz and
-#: the maximum of every error curve (``[band] check_points``).
+#: Frequencies above 0 Hz where a surrogate reference is checked against the full model, at
+#: least (``[band] check_points``; a job's checks at the maxima of its error curves count).
 DEFAULT_CHECKS = 4
 
 #: ``reference = "auto"`` uses the full model up to this many (independent) dofs: a sweep of
@@ -111,6 +118,9 @@ class ReferenceResponse:
     basis : ndarray, shape (n, order) or None
         Surrogate: the reference model's basis, the coarse space of the checks computed from
         a real factor (:mod:`~pymorembs.analysis.shifted_checks`).
+    estimate_curve : (ndarray, ndarray) or None
+        Surrogate: the reference model's own error estimator, frequencies (Hz) and values,
+        where :meth:`completed` looks for its weakest frequency.
     """
 
     frequencies_hz: np.ndarray
@@ -124,6 +134,7 @@ class ReferenceResponse:
     parameters: Mapping[str, Any] = field(default_factory=dict)
     seconds: float = 0.0
     basis: np.ndarray | None = None
+    estimate_curve: tuple[np.ndarray, np.ndarray] | None = None
 
     def __post_init__(self) -> None:
         for name in ("frequencies_hz", "response", "exact"):
@@ -174,6 +185,30 @@ class ReferenceResponse:
             deviation=deviation,
             parameters=parameters,
             seconds=self.seconds + time.perf_counter() - tick,
+        )
+
+    def completed(self, count: int) -> ReferenceResponse:
+        """The reference checked where its model is weakest, at ``count`` frequencies above
+        0 Hz at least (a full reference is returned as it is).
+
+        The maximum of the reference model's estimator (``count >= 1``) and the largest peak of
+        the response (``count >= 2``) are checked unless they are already; the frequencies
+        checked before (a job's settle checks) count towards ``count``, and the rest are the
+        grid frequencies farthest from every expansion point and every checked frequency
+        (:func:`check_frequencies`).
+        """
+        return self.checked(self._weakest(count)) if self.kind == "surrogate" else self
+
+    def _weakest(self, count: int) -> list[float]:
+        """The frequencies (Hz) :meth:`completed` checks."""
+        done = self.frequencies_hz[self.exact]
+        return check_frequencies(
+            self.frequencies_hz,
+            list(self.parameters.get("expansion_points_hz", [])),
+            self.estimate_curve,
+            count,
+            np.linalg.norm(self.response, axis=(1, 2)),
+            checked=[float(f) for f in done if f > 0.0],
         )
 
     def _full_responses(self, frequencies_hz: np.ndarray) -> tuple[np.ndarray, int]:
@@ -332,7 +367,8 @@ def reference_response(
     kind : {"auto", "full", "surrogate"}
         See the module docstring; ``"auto"``: full up to :data:`FULL_MAX_ORDER` dofs.
     checks : int
-        Surrogate: frequencies checked against the full model up front (0 Hz comes on top).
+        Surrogate: frequencies checked against the full model up front (0 Hz comes on top);
+        0 to check only 0 Hz now and the rest later (:meth:`ReferenceResponse.completed`).
     workers, scheduler
         Parallel processes or Dask scheduler of the full-model sweeps
         (:func:`~pymorembs.analysis.transfer.transfer_function`).
@@ -379,16 +415,10 @@ def reference_response(
         scheduler,
         parameters=parameters,
         basis=basis,
+        estimate_curve=estimate_curve,
     )
     wanted = [0.0] if frequencies_hz[0] == 0.0 else []
-    wanted += check_frequencies(
-        frequencies_hz,
-        parameters["expansion_points_hz"],
-        estimate_curve,
-        checks,
-        np.linalg.norm(response, axis=(1, 2)),
-    )
-    reference = reference.checked(wanted)
+    reference = reference.checked(wanted + reference._weakest(checks))
     return replace(reference, seconds=time.perf_counter() - tick)
 
 
@@ -433,8 +463,10 @@ def check_frequencies(
     estimate_curve: tuple[np.ndarray, np.ndarray] | None,
     count: int,
     magnitude: np.ndarray | None = None,
+    checked: Sequence[float] = (),
 ) -> list[float]:
-    """Grid frequencies (Hz) where a Krylov reference model is weakest, ``count`` of them.
+    """Grid frequencies (Hz) where a Krylov reference model is weakest, ``count`` of them
+    with those in ``checked`` (frequencies checked already, which are not chosen again).
 
     First the maximum of the model's own error estimator (snapped to the grid); then the
     largest peak of the response magnitude ``magnitude`` (``||H_ref(f)||_F`` on the grid): at a
@@ -442,28 +474,32 @@ def check_frequencies(
     full, is least accurate (rack-solid at 10,000 dofs, with ``longdouble`` residuals: 7.6e-11
     at its 42 Hz peak, 1e-12 elsewhere, and even the refined full solves were off by 4.4e-11
     there); then greedily the grid frequency farthest (in Hz) from every expansion point
-    and every frequency chosen before: moment matching is exact at the points and weakest
-    between them.
+    and every frequency checked or chosen before: moment matching is exact at the points and
+    weakest between them. The estimator's maximum and the peak are chosen (for ``count`` of
+    at least 1 and 2) unless they are in ``checked``, however many that holds.
     """
     chosen: list[float] = []
+    checked = [float(f) for f in checked]
     if count == 0:
         return chosen
+    firsts = []
     if estimate_curve is not None and np.size(estimate_curve[1]):
         f_est, est = (np.asarray(a, dtype=float) for a in estimate_curve)
         top = f_est[int(np.nanargmax(est))]
-        chosen.append(float(frequencies_hz[int(np.argmin(np.abs(frequencies_hz - top)))]))
-    if magnitude is not None and len(chosen) < count:
-        peak = float(frequencies_hz[int(np.nanargmax(magnitude))])
-        if peak not in chosen:
-            chosen.append(peak)
-    taken = [*expansion_points_hz, *chosen]
-    while len(chosen) < min(count, frequencies_hz.size):
+        firsts.append(float(frequencies_hz[int(np.argmin(np.abs(frequencies_hz - top)))]))
+    if magnitude is not None and count > len(firsts):
+        firsts.append(float(frequencies_hz[int(np.nanargmax(magnitude))]))
+    for first in firsts:
+        if first not in chosen and first not in checked:
+            chosen.append(first)
+    taken = [*expansion_points_hz, *checked, *chosen]
+    while len(set(chosen) | set(checked)) < min(count, frequencies_hz.size):
         if taken:
             distance = np.min(np.abs(frequencies_hz[:, None] - np.asarray(taken)[None, :]), axis=1)
         else:
             distance = np.ones(frequencies_hz.size)
         pick = float(frequencies_hz[int(np.argmax(distance))])
-        if pick in chosen:
+        if pick in chosen or pick in checked:  # every grid frequency taken
             break
         chosen.append(pick)
         taken.append(pick)

@@ -658,6 +658,7 @@ def _run_in(
     reference = _reference(job, prepared, say, stage, workers, scheduler)
     nodes = export_nodes(job)
     reference, reduced_runs = _reduce_all(job, prepared, reference, stage)
+    reference = _completed(job, reference, reduced_runs, say)
     results = _judged(job, prepared, reference, reduced_runs, staging, nodes, warnings, say)
     entries, errors, estimates, decay, models = results
     if shared is not None:
@@ -768,15 +769,33 @@ def _reference(
         "reference response",
     )
     points = [f for spec in job.reductions for f in expansion_candidates(spec.options, job.band_hz)]
-    reference = reference_response(
-        system, frequencies, kind, job.check_points, workers, scheduler, points or None
-    )
+    # 0 Hz checked now; the weakest frequencies after the reductions' maxima (_completed)
+    reference = reference_response(system, frequencies, kind, 0, workers, scheduler, points or None)
     if reference.kind == "surrogate":
         say(
-            f"reference model of order {reference.parameters['order']}: largest deviation from "
-            f"the full model at {len(reference.deviation)} checked frequencies "
-            f"{reference.accuracy:.1e}"
+            f"reference model of order {reference.parameters['order']}: checked against the "
+            "full model at each reduction's largest error and where it is weakest"
         )
+    return reference
+
+
+def _completed(
+    job: Job,
+    reference: ReferenceResponse,
+    reduced_runs: list[tuple[ReducedModel, np.ndarray, float]],
+    say: Progress,
+) -> ReferenceResponse:
+    """The reference settled for every reduction and checked at ``[band] check_points``
+    frequencies at least, those of the settling counted
+    (:meth:`~pymorembs.analysis.ReferenceResponse.completed`); the largest deviation said."""
+    if reference.kind != "surrogate":
+        return reference
+    reference = reference.completed(job.check_points)
+    reference = reference.settled_all([response for _, response, _ in reduced_runs])
+    say(
+        f"reference model: largest deviation from the full model at {len(reference.deviation)} "
+        f"checked frequencies {reference.accuracy:.1e}"
+    )
     return reference
 
 
