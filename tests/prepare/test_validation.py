@@ -46,6 +46,38 @@ def test_a_good_body_passes_every_check():
     assert exact[0] * (1 - 1e-12) <= lowest <= exact[0] * (1 + 1e-6)
 
 
+def test_positive_definite_stiffness_is_factorized_once_for_the_job(monkeypatch):
+    """With PARDISO a held body's K is factorized itself (no shift) when it is positive
+    definite, and a job's later factorizations of K take that factor."""
+    from pymorembs.linalg import backends, shared_factorizations
+    from pymorembs.linalg.factorization import Factorization
+
+    if "pardiso" not in backends.available_backends():
+        pytest.skip("PARDISO is not installed")
+    monkeypatch.setenv("PYMOREMBS_SOLVER", "pardiso")
+    prepared = prepare(spring_lattice(), Frame("tangent", 10), PORT, PORT)
+    stiffness = prepared.system.stiffness
+    with shared_factorizations() as shared:
+        deep = validate_prepared(prepared)
+        assert deep.facts["sigma"] == 0.0 and shared.made == 1
+        static = Factorization(stiffness, label="K")
+        assert static.reused and shared.reused == 1
+        rhs = np.linspace(1.0, 2.0, stiffness.shape[0])
+        x = static.solve(rhs)
+    assert np.linalg.norm(stiffness @ x - rhs) <= 1e-12 * np.linalg.norm(rhs)
+    assert deep.facts["inertia"] == {"positive": prepared.system.order, "negative": 0}
+    import scipy.linalg as sla
+
+    exact = sla.eigh(stiffness.toarray(), prepared.system.mass.toarray(), eigvals_only=True)
+    lowest = deep.facts["lowest_eigenvalues"][0]
+    assert exact[0] * (1 - 1e-12) <= lowest <= exact[0] * (1 + 1e-6)
+    # a mechanism: K is singular, the shifted factorization finds and names it as before
+    loose = prepare(_loose(spring_lattice(), joined=True), Frame("tangent", 10), PORT, PORT)
+    with shared_factorizations() as shared, pytest.raises(UserError, match="3 mechanisms"):
+        validate_prepared(loose)
+    assert len(shared) == 0  # nothing kept of a matrix that failed the check
+
+
 def test_asymmetric_stiffness_names_the_worst_entry():
     body = spring_lattice(constraints=False)
     k = body.stiffness.tolil()

@@ -906,6 +906,17 @@ _FACTORIES: dict[str, Factory] = {
 }
 
 
+def chosen_backend(matrix: sp.spmatrix) -> str:
+    """The backend :func:`factorize` uses for ``matrix`` when none is given: the default
+    (:func:`default_backend`), but with ``auto`` SuperLU for matrices below
+    :data:`AUTO_MIN_NNZ` stored nonzeros (:data:`AUTO_MIN_NNZ_COMPLEX` complex), without
+    loading MKL (a fraction of a second on first use)."""
+    complex_ = np.iscomplexobj(matrix.data)
+    if _requested() == "auto" and matrix.nnz < (AUTO_MIN_NNZ_COMPLEX if complex_ else AUTO_MIN_NNZ):
+        return "superlu"
+    return default_backend()
+
+
 def factorize(
     matrix: sp.spmatrix, symmetric: bool, backend: str | None = None, share_analysis: bool = True
 ) -> SparseFactor:
@@ -936,10 +947,7 @@ def factorize(
     """
     automatic = backend is None and _requested() == "auto"
     complex_ = np.iscomplexobj(matrix.data)
-    if automatic and matrix.nnz < (AUTO_MIN_NNZ_COMPLEX if complex_ else AUTO_MIN_NNZ):
-        name = "superlu"  # without loading MKL (a fraction of a second on first use)
-    else:
-        name = default_backend() if backend is None else backend
+    name = chosen_backend(matrix) if backend is None else backend
     large = matrix.nnz >= (AUTO_MIN_NNZ_COMPLEX if complex_ else NOTE_MIN_NNZ)
     if automatic and large and not _pardiso_works():
         _write_fast_solver_note()

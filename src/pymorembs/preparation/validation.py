@@ -30,7 +30,10 @@ elimination, whose structural rigid-body check runs in :func:`~pymorembs.prepara
   - one sparse factorization of ``K + sigma M`` with ``sigma`` = :data:`SHIFT` (held body) or
     :data:`FREE_SHIFT` (free body) times ``sigma_typ = median(diag K / diag M)``, with PARDISO
     where installed: its inertia proves ``K + sigma M`` positive definite (SuperLU gives the
-    inertia only when its pivoting stayed symmetric);
+    inertia only when its pivoting stayed symmetric). Where PARDISO factorizes ``K`` of a held
+    body, ``K`` itself is tried first (``sigma = 0``): when every pivot is positive and none was
+    perturbed that proves it positive definite, and a job's later factorizations of ``K`` take
+    this factor (:func:`_definite_stiffness`); otherwise the shifted matrix is factorized;
   - four steps of block inverse iteration with that factor and a Rayleigh-Ritz step: the
     lowest eigenvalues of ``(K, M)``. A held body (tangent frame, the model's supports) must
     have none near zero (:data:`MECHANISM_TOL`), a free body (Buckens) exactly six; a
@@ -433,15 +436,20 @@ def _inertia_and_mechanisms(
     report.facts["sigma_typical"] = typical
     report.facts["sigma"] = sigma
     _mass_rayleigh_check(prepared, mass, where, report)
-    shifted = sp.csc_matrix(stiffness + sigma * mass)
-    backend = "pardiso" if "pardiso" in available_backends() else None  # it reports inertia
-    try:
-        factor = factorize(shifted, symmetric=True, backend=backend)
-    except NumericalError:
-        raise NumericalError(
-            f"{where}K + sigma M is singular (sigma = {sigma:.3g}): a mechanism without mass, "
-            "or a mass or stiffness matrix that is not positive semidefinite"
-        ) from None
+    factor = None if free_body or noise else _definite_stiffness(stiffness)
+    if factor is not None:  # K itself is positive definite: no shift needed
+        shifted, sigma = stiffness, 0.0
+        report.facts["sigma"] = sigma
+    else:
+        shifted = sp.csc_matrix(stiffness + sigma * mass)
+        backend = "pardiso" if "pardiso" in available_backends() else None  # it reports inertia
+        try:
+            factor = factorize(shifted, symmetric=True, backend=backend)
+        except NumericalError:
+            raise NumericalError(
+                f"{where}K + sigma M is singular (sigma = {sigma:.3g}): a mechanism without "
+                "mass, or a mass or stiffness matrix that is not positive semidefinite"
+            ) from None
     report.facts["factorization_backend"] = factor.backend
     report.facts["factorization_s"] = factor.seconds
     inertia = _inertia(factor)
@@ -496,6 +504,36 @@ def _inertia_and_mechanisms(
     report.checks.append(
         "six rigid-body modes, no mechanism" if free_body else "no mechanism (lowest eigenvalues)"
     )
+
+
+def _definite_stiffness(stiffness: sp.csr_matrix) -> Any:
+    """``K`` of a held body factorized by PARDISO when it is positive definite (every pivot
+    positive, none perturbed), else None (then ``K + sigma M`` is factorized).
+
+    Where PARDISO is the backend :func:`~pymorembs.linalg.backends.factorize` chooses for ``K``
+    and a job's :func:`~pymorembs.linalg.shared_factorizations` is open, the factor is kept there
+    under the key of ``K``: the static solves of the inertia loads, the reference's 0 Hz and
+    every expansion point at 0 Hz take it instead of factorizing ``K`` again (with a shift
+    ``K + 1e-12 sigma_typ M`` no other step could use it).
+    """
+    from pymorembs.linalg.backends import PardisoFactor, chosen_backend
+    from pymorembs.linalg.shared_factors import active_shared_factors
+
+    if chosen_backend(stiffness) != "pardiso":
+        return None
+    terms = [(1.0, stiffness)]
+    shared = active_shared_factors()
+    key = shared.key(terms, True, None) if shared is not None else None
+    found = shared.get(key) if shared is not None else None
+    try:
+        factor = found if found is not None else PardisoFactor(stiffness, True)
+    except NumericalError:  # singular: the shifted factorization names the problem
+        return None
+    if factor.perturbed_pivots or tuple(factor.inertia) != (stiffness.shape[0], 0):
+        return None
+    if shared is not None and found is None:
+        shared.put(key, terms, factor)
+    return factor
 
 
 def _separate_part(
