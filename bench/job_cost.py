@@ -223,6 +223,21 @@ class StageClock:
 
         backends.factorize = factorize
         self._patches.append((backends, "factorize", direct))
+        from pymorembs.preparation import validation
+
+        if hasattr(validation, "_definite_stiffness"):  # K of a held body, made by PARDISO
+            held = validation._definite_stiffness
+
+            def definite(stiffness):
+                tick = time.perf_counter()
+                factor = held(stiffness)
+                if factor is not None:
+                    record = ("real", time.perf_counter() - tick, False)
+                    clock.factorizations.setdefault(clock.current(), []).append(record)
+                return factor
+
+            validation._definite_stiffness = definite
+            self._patches.append((validation, "_definite_stiffness", held))
 
     def restore(self) -> None:
         for owner, attribute, original in reversed(self._patches):
