@@ -10,7 +10,7 @@ import scipy.sparse as sp
 
 from pymorembs.linalg import double_double
 from pymorembs.linalg.factorization import Factorization
-from pymorembs.linalg.products import extended_product, multiply
+from pymorembs.linalg.products import extended_product, long_product, multiply
 
 needs_numba = pytest.mark.skipif(not double_double.available(), reason="Numba not installed")
 
@@ -181,3 +181,30 @@ def test_plain_moments_give_the_accuracy_of_refined_ones(monkeypatch) -> None:
     # the BLAS kernels (AVX2: within 5 % of each other; AVX-512: 8.2e-10 and 1.3e-9).
     assert refined < 2e-9 and plain < 2e-9
     assert plain <= 2.0 * refined
+
+
+@pytest.mark.parametrize("kernel", ["double-double", "longdouble"])
+def test_long_product_keeps_the_extended_digits(kernel: str, monkeypatch) -> None:
+    """The mass invariants' products: on rows that cancel to 1e-16 of their terms the
+    ``longdouble`` result holds the digits a 64-bit mantissa can (the double-double kernel's
+    ``hi + lo`` rounded to it, or SciPy's ``longdouble`` product without Numba)."""
+    if kernel == "longdouble":
+        monkeypatch.setenv(double_double.EXTENDED_ENV, "longdouble")
+    elif not double_double.available():
+        pytest.skip("Numba not installed")
+    matrix, block = _cancelling_case(5)
+    exact = _exact_product(matrix, block)
+    product = long_product(matrix, block)
+    assert product.dtype == np.longdouble and product.shape == block.shape
+
+    def fraction(value: np.longdouble) -> Fraction:  # exact: 64 bits fit into two doubles
+        hi = float(value)
+        return Fraction(hi) + Fraction(float(value - np.longdouble(hi)))
+
+    errors = [
+        abs(fraction(product[i, 0]) - exact[i][0]) / abs(exact[i][0])
+        for i in range(matrix.shape[0])
+    ]
+    # 64 bits keep about 3 digits of a row that cancels to 1e-16 (double: none); the
+    # double-double kernel loses nothing before the rounding to longdouble
+    assert float(np.median(errors)) < (1e-2 if kernel == "longdouble" else 1e-12)

@@ -436,7 +436,7 @@ def _inertia_and_mechanisms(
     report.facts["sigma_typical"] = typical
     report.facts["sigma"] = sigma
     _mass_rayleigh_check(prepared, mass, where, report)
-    factor = None if free_body or noise else _definite_stiffness(stiffness)
+    factor = None if free_body else _definite_stiffness(stiffness)
     if factor is not None:  # K itself is positive definite: no shift needed
         shifted, sigma = stiffness, 0.0
         report.facts["sigma"] = sigma
