@@ -208,3 +208,41 @@ def test_long_product_keeps_the_extended_digits(kernel: str, monkeypatch) -> Non
     # 64 bits keep about 3 digits of a row that cancels to 1e-16 (double: none); the
     # double-double kernel loses nothing before the rounding to longdouble
     assert float(np.median(errors)) < (1e-2 if kernel == "longdouble" else 1e-12)
+
+
+@needs_numba
+def test_compiled_subtract_scaled_is_the_elementwise_formula_bit_for_bit() -> None:
+    """The residual's accumulation step, ``(hi + lo) - s (p_hi + p_lo)``, against Dekker's
+    two-product and Knuth's two-sum written here with NumPy, on column slices as the residual
+    passes them."""
+    from pymorembs.linalg import compiled_kernels
+
+    split = 134217729.0  # 2^27 + 1
+
+    def two_product(a, b):
+        p = a * b
+        t = split * a
+        a_hi = t - (t - a)
+        t = split * b
+        b_hi = t - (t - b)
+        return p, ((a_hi * b_hi - p) + a_hi * (b - b_hi) + (a - a_hi) * b_hi) + (a - a_hi) * (
+            b - b_hi
+        )
+
+    rng = np.random.default_rng(7)
+    block_hi = rng.standard_normal((500, 8)) * 10.0 ** rng.uniform(-8, 8, (500, 8))
+    block_lo = block_hi * 1e-17 * rng.standard_normal((500, 8))
+    hi = rng.standard_normal((500, 4)) * 1e3
+    lo = hi * 1e-17 * rng.standard_normal((500, 4))
+    for scale in (2.5, -1e-7, 3.0e11):
+        p_hi, p_lo = block_hi[:, 4:], block_lo[:, 4:]  # a strided half, as for imaginary parts
+        product, error = two_product(-scale, p_hi)
+        error = error - scale * p_lo
+        total = hi + product
+        virtual = total - hi
+        carry = (hi - (total - virtual)) + (product - virtual) + lo + error
+        expected_hi = total + carry
+        expected_lo = carry - (expected_hi - total)
+        compiled_kernels.subtract_scaled(hi, lo, scale, p_hi, p_lo)
+        np.testing.assert_array_equal(hi, expected_hi)
+        np.testing.assert_array_equal(lo, expected_lo)

@@ -55,6 +55,34 @@ def product_serial(indptr, indices, data, x, out_hi, out_lo):  # pragma: no cove
         _row(i, indptr, indices, data, x, out_hi, out_lo, s, c)
 
 
+@numba.njit(cache=True, nogil=True)
+def subtract_scaled(hi, lo, scale, p_hi, p_lo):  # pragma: no cover - compiled
+    """``(hi + lo) -= scale * (p_hi + p_lo)`` in double-double, elementwise and in place, for
+    2-D arrays: Dekker's two-product of ``-scale`` and ``p_hi``, Knuth's two-sum, then the
+    renormalisation -- the operations of NumPy's vectorised version in the same order."""
+    a = -scale
+    t = SPLITTER * a
+    a_hi = t - (t - a)
+    a_lo = a - a_hi
+    for i in range(hi.shape[0]):
+        for j in range(hi.shape[1]):
+            b = p_hi[i, j]
+            product = a * b
+            t = SPLITTER * b
+            b_hi = t - (t - b)
+            b_lo = b - b_hi
+            error = ((a_hi * b_hi - product) + a_hi * b_lo + a_lo * b_hi) + a_lo * b_lo
+            error = error - scale * p_lo[i, j]
+            h = hi[i, j]
+            total = h + product
+            virtual = total - h
+            carry = (h - (total - virtual)) + (product - virtual)
+            carry = carry + lo[i, j] + error
+            new_hi = total + carry
+            hi[i, j] = new_hi
+            lo[i, j] = carry - (new_hi - total)
+
+
 @numba.njit(cache=True, nogil=True, inline="always")
 def _plain_row(i, indptr, indices, data, x, out):  # pragma: no cover - compiled
     """Row ``i`` of ``A X`` in double precision, terms added in stored order (as SciPy)."""

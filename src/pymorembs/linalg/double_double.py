@@ -39,9 +39,6 @@ import scipy.sparse as sp
 #: default) uses the compiled double-double kernel when Numba is installed.
 EXTENDED_ENV = "PYMOREMBS_EXTENDED"
 
-#: Dekker's splitter for IEEE double: 2^27 + 1.
-_SPLITTER = 134217729.0
-
 
 def available() -> bool:
     """The compiled kernel can be used (Numba importable, not switched off)."""
@@ -170,35 +167,13 @@ def residual(
 def _subtract_scaled(
     hi: np.ndarray, lo: np.ndarray, scale: float, part: tuple[np.ndarray, np.ndarray]
 ) -> tuple[np.ndarray, np.ndarray]:
-    """``(hi + lo) - scale * (p_hi + p_lo)`` in double-double (vectorised)."""
-    if scale == 0.0:
-        return hi, lo
-    p_hi, p_lo = part
-    product, error = _two_product(-scale, p_hi)
-    error = error - scale * p_lo
-    total, carry = _two_sum(hi, product)
-    carry = carry + lo + error
-    new_hi = total + carry
-    return new_hi, carry - (new_hi - total)
-
-
-def _two_product(a: float, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``p + e = a * b`` exactly (Dekker), elementwise."""
-    p = a * b
-    t = _SPLITTER * a
-    a_hi = t - (t - a)
-    a_lo = a - a_hi
-    t = _SPLITTER * b
-    b_hi = t - (t - b)
-    b_lo = b - b_hi
-    return p, ((a_hi * b_hi - p) + a_hi * b_lo + a_lo * b_hi) + a_lo * b_lo
-
-
-def _two_sum(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``s + e = a + b`` exactly (Knuth), elementwise."""
-    s = a + b
-    virtual = s - a
-    return s, (a - (s - virtual)) + (b - virtual)
+    """``(hi + lo) - scale * (p_hi + p_lo)`` in double-double, into ``hi`` and ``lo`` (2-D, own
+    arrays): one compiled pass, no temporaries (NumPy's elementwise version made a dozen
+    arrays of the block's size per call, half the time of a residual at 300,000 dofs)."""
+    if scale != 0.0:
+        p_hi, p_lo = part
+        _kernels().subtract_scaled(hi, lo, float(scale), p_hi, p_lo)
+    return hi, lo
 
 
 def _canonical(matrix: sp.spmatrix) -> sp.csr_matrix:
