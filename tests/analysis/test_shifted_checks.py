@@ -142,3 +142,23 @@ def test_the_checks_of_a_job_need_no_complex_factorization(rack, monkeypatch):
     both = np.flatnonzero(before.exact & reference.exact)
     assert both.size >= 4
     assert relative_error(before.response[both], reference.response[both]).max() <= 1e-10
+
+
+def test_checks_of_one_basis_share_its_products(chain):
+    """``Z V`` of the coarse space: the products ``A_i V`` are made once per basis and
+    combined per frequency, to the same bits as multiplying ``Z`` out at each frequency."""
+    _, basis = low_modes(chain, 12)
+    factor = factorize(chain.stiffness, True)
+    before = len(shifted_checks._BASIS_PRODUCTS)
+    for frequency_hz in (30.0, 55.0):
+        terms, _ = chain.dynamic_terms(2j * np.pi * frequency_hz)
+        two_level = shifted_checks.TwoLevel(terms, factor, basis)
+        direct = shifted_checks.apply(terms, basis.astype(complex))
+        np.testing.assert_array_equal(two_level.z_basis, direct)
+    kept = [key for key in shifted_checks._BASIS_PRODUCTS if key[0] == id(basis)]
+    assert len(kept) == len(terms) and len(shifted_checks._BASIS_PRODUCTS) == before + len(kept)
+    del basis, kept, two_level
+    import gc
+
+    gc.collect()
+    assert len(shifted_checks._BASIS_PRODUCTS) == before  # freed with the basis
