@@ -114,3 +114,27 @@ def test_over_the_budget_the_least_used_factor_goes_first(pencil, counted):
         assert Factorization([(1.0, k), (-2.0, m)]).reused  # the new one stayed
         assert not Factorization([(1.0, k), (-1.0, m)]).reused
     assert counted[0] == 5
+
+
+def test_pardiso_factors_of_one_pattern_are_counted_each_once(pencil, monkeypatch):
+    """PARDISO keeps the shifts of one pattern in one handle, and its memory counts are the
+    handle's: the count of the third factor covers all three. The budget takes each factor's
+    own share, so three fit where three shares fit."""
+    from pymorembs.linalg import backends
+
+    if "pardiso" not in backends.available_backends():
+        pytest.skip("PARDISO is not installed")
+    monkeypatch.setenv("PYMOREMBS_SOLVER", "pardiso")
+    k, m = pencil
+    shifts = [[(1.0, k)], [(1.0, k), (-1.0, m)], [(1.0, k), (-2.0, m)]]
+    factors = [Factorization(terms, share=False).factor for terms in shifts]
+    assert all(f.backend == "pardiso" for f in factors)
+    counts = [f.memory_bytes for f in factors]
+    assert counts[0] < counts[1] < counts[2]  # the handle's total, growing
+    own = [f.held_bytes for f in factors]
+    assert own[0] == own[1] == own[2] == factors[0].nnz_factor * 12  # float64 + index
+    with shared_factorizations(3.5 * own[0]) as shared:
+        for terms in shifts:
+            Factorization(terms)
+        assert len(shared) == 3 and shared.dropped == 0
+        assert all(Factorization(terms).reused for terms in shifts)

@@ -63,7 +63,7 @@ class SharedFactors:
     ----------
     budget_bytes : float
         Most memory the kept factors may hold (their
-        :attr:`~pymorembs.linalg.backends.SparseFactor.memory_bytes`), bytes.
+        :attr:`~pymorembs.linalg.backends.SparseFactor.held_bytes`), bytes.
 
     Attributes
     ----------
@@ -94,7 +94,7 @@ class SharedFactors:
     @property
     def bytes_held(self) -> int:
         """Memory of the factors kept now, bytes."""
-        return sum(factor.memory_bytes for _, factor in self._entries.values())
+        return sum(factor.held_bytes for _, factor in self._entries.values())
 
     def __len__(self) -> int:
         return len(self._entries)
@@ -115,7 +115,7 @@ class SharedFactors:
         among equals) while over the budget; the new factor itself stays."""
         with _LOCK:
             self.made += 1
-            if factor.memory_bytes > self.budget_bytes:
+            if factor.held_bytes > self.budget_bytes:
                 self.dropped += 1
                 return
             self._entries[key] = (list(terms), factor)
