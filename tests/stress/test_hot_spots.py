@@ -232,8 +232,10 @@ def test_saved_body_keeps_its_stress_outputs(found, tmp_path):
 
 def test_targeted_two_sided_krylov_keeps_the_ports_output_space(found):
     """Two-sided Krylov (0 and 1000 Hz, order 12) with targeted stresses: ``W`` from the ports'
-    outputs alone, as untargeted. With ``W`` from the 60 stress rows too, ``W^T K V`` had
-    complex eigenvalues: a pole in the right half-plane (refused, NumericalError)."""
+    outputs alone, as untargeted. With ``W`` from the 60 stress rows too the model is another
+    one: on one host ``W^T K V`` had complex eigenvalues (a pole in the right half-plane, refused
+    with a NumericalError), on another (AVX-512) the bending pairs split (2588.3 and 2594.4 Hz
+    for the pair at 2593.9 Hz)."""
     system = found.reduction_system
     options = method_options(
         "krylov", {"expansion_points_hz": [0.0, 1000.0], "order": 12, "two_sided": True}
@@ -242,8 +244,13 @@ def test_targeted_two_sided_krylov_keeps_the_ports_output_space(found):
     aimed = replace(system, stress_targeted=True)
     targeted = reduced_model(system, method_projection(aimed, options, BAND))
     np.testing.assert_allclose(targeted.eigenfrequencies_hz, plain.eigenfrequencies_hz, rtol=1e-9)
-    with pytest.raises(NumericalError, match="right half-plane"):
-        reduced_model(system, method_projection(aimed.targeted(), options, BAND))
+    try:
+        other = reduced_model(system, method_projection(aimed.targeted(), options, BAND))
+    except NumericalError as exc:
+        assert "right half-plane" in str(exc)
+    else:
+        split = np.abs(other.eigenfrequencies_hz[:4] / plain.eigenfrequencies_hz[:4] - 1)
+        assert split.max() > 1e-4
 
 
 def krylov_union_errors(found, frequencies):
