@@ -477,7 +477,7 @@ def test_run_results_shapes_mac_save_and_cancel(server, tmp_path):
     assert status == 404
     # Cancel in the middle of a reduction (its temporary output folder exists then): the
     # child process ends, and neither the output nor the temporary folder is left
-    job["reduction"].append({"name": "big", "method": "modal", "order": 400})
+    job["reduction"].append({"name": "big", "method": "modal", "order": 800})  # seconds
     assert call(base, "/api/job", {"job": job})[1]["error"] == ""
     status, run = call(base, "/api/run", {})
     deadline = time.time() + 60
