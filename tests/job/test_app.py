@@ -522,12 +522,12 @@ def test_the_progress_counts_each_stage_once(tmp_path):
 @pytest.fixture
 def stubborn_child(tmp_path, monkeypatch):
     """``python -m pymorembs.job.cli reduce JOB --out OUT`` replaced by a child that makes the
-    job layer's temporary folder next to OUT, prints its first stage and ignores SIGINT (a run
-    that does not end within the grace time)."""
+    job layer's temporary folder next to OUT, prints its first stage and ignores SIGTERM and
+    SIGINT (a run that does not end within the grace time)."""
     script = tmp_path / "stubborn-python"
     script.write_text(
         "#!/bin/sh\n"
-        "trap '' INT\n"
+        "trap '' INT TERM\n"
         'mkdir -p "$(dirname "$6")/.$(basename "$6").staging"\n'
         'echo "[   0.01 s] loading the model"\n'
         "exec sleep 60\n",
@@ -572,7 +572,7 @@ def test_no_second_run_while_a_cancelled_one_is_ending(stubborn_child, tmp_path)
     first = app.start()
     stubborn_child.append(app.runs.run)
     assert first["state"] == "running"
-    wait_for(lambda: app.runs.run.stage == "loading the model")  # SIGINT ignored from here on
+    wait_for(lambda: app.runs.run.stage == "loading the model")  # SIGTERM ignored from here on
     assert app.runs.cancel()["state"] == "cancelled" and app.runs.run.alive
     with pytest.raises(UserError, match="the cancelled run is still ending"):
         app.start()

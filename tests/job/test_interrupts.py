@@ -50,7 +50,9 @@ def staging_left(folder: Path, name: str = "out") -> list[str]:
 
 
 def command(*argv: str) -> subprocess.Popen:
-    """``pymorembs`` of this checkout in a child process (its stdout and stderr piped)."""
+    """``pymorembs`` of this checkout in a child process (its stdout and stderr piped), with
+    SIGINT at its default whatever this process inherited (a shell script's background job
+    starts with SIGINT ignored, and so would the child: the SIGINT tests failed there)."""
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join(
         p for p in (str(ROOT / "src"), str(ROOT / "tests"), env.get("PYTHONPATH", "")) if p
@@ -61,6 +63,7 @@ def command(*argv: str) -> subprocess.Popen:
         stderr=subprocess.PIPE,
         text=True,
         env=env,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
 
 

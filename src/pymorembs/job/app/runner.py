@@ -107,15 +107,17 @@ class Run:
     def cancel(self, grace_s: float = 10.0) -> None:
         """End the child process and its workers (a cancelled run writes nothing).
 
-        SIGINT first, so that the job layer removes its temporary folder on the way out; what
-        still runs after ``grace_s`` seconds is killed.
+        SIGTERM first, so that the job layer removes its temporary folder on the way out; what
+        still runs after ``grace_s`` seconds is killed. (Not SIGINT: a child started by an app
+        that was itself started in the background of a shell script or by ``nohup`` inherits
+        SIGINT ignored, and a cancel by SIGINT did nothing until the kill.)
         """
         process = self.process
         with self.lock:
             if self.state != "running" or process is None or process.poll() is not None:
                 return
             self.state = "cancelled"
-        _signal_group(process.pid, signal.SIGINT)
+        _signal_group(process.pid, signal.SIGTERM)
         timer = threading.Timer(grace_s, _kill_if_alive, args=(process,))
         timer.daemon = True
         timer.start()
