@@ -39,7 +39,9 @@ import numpy as np
 from _common import fmt_s, machine_facts, markdown_table, update_results
 from job_cost import BRACKET, job_text
 
+from pymorembs.analysis import transfer_function
 from pymorembs.export.sid import read_sid
+from pymorembs.system import SecondOrderSystem
 
 ROOT = Path(__file__).resolve().parents[1]
 CLI = ROOT / ".venv" / "bin" / "pymorembs"
@@ -61,35 +63,30 @@ def run(command: list[str], env: dict[str, str], cwd: Path, log: str) -> dict:
     return {"seconds": seconds, "peak_gb": usage.ru_maxrss / 1e6}
 
 
-def response(body: np.lib.npyio.NpzFile, dofs: np.ndarray, frequencies_hz: np.ndarray):
-    """The body's response at ``dofs`` to forces there, shape (n_f, k, k)."""
-    phi = body["modeBasis"][dofs]
-    out = []
-    for f in frequencies_hz:
-        w = 2 * np.pi * f
-        z = (
-            body["stiffnessMatrixReduced"]
-            - w * w * body["massMatrixReduced"]
-            + 1j * w * body["dampingMatrixReduced"]
-        )
-        out.append(phi @ np.linalg.solve(z, phi.T))
-    return np.array(out)
+def response(
+    points: np.ndarray, mass: np.ndarray, stiffness: np.ndarray, damping: np.ndarray, frequencies_hz
+) -> np.ndarray:
+    """``P (K - w^2 M + i w D)^-1 P^T`` of a reduced body with the rows ``P`` at some points
+    (:func:`pymorembs.analysis.transfer_function`), shape (n_f, k, k)."""
+    system = SecondOrderSystem(mass, stiffness, damping, points.T, points)
+    return transfer_function(system, np.asarray(frequencies_hz))
+
+
+def mesh_response(body: np.lib.npyio.NpzFile, dofs: np.ndarray, frequencies_hz) -> np.ndarray:
+    """The Exudyn body's response at ``dofs`` to forces there, shape (n_f, k, k)."""
+    matrices = (body[f"{name}MatrixReduced"] for name in ("mass", "stiffness", "damping"))
+    return response(body["modeBasis"][dofs], *matrices, frequencies_hz)
 
 
 def port_response(sid_file: Path, frequencies_hz: np.ndarray) -> np.ndarray:
     """The SID body's response at its frame nodes (translations and rotations) to forces and
-    moments there, ``P (Ke - w^2 Me + i w De)^-1 P^T``, shape (n_f, 6 n, 6 n)."""
+    moments there, shape (n_f, 6 n, 6 n)."""
     sid = read_sid(sid_file)
     rows = []
     for objects in sid.nodes.values():
         rows += [objects[name].m0 for name in ("phi", "psi") if name in objects]
-    p = np.vstack(rows)
-    me, ke, de = (sid.objects[name].m0 for name in ("Me", "Ke", "De"))
-    out = []
-    for f in frequencies_hz:
-        w = 2 * np.pi * f
-        out.append(p @ np.linalg.solve(ke - w * w * me + 1j * w * de, p.T))
-    return np.array(out)
+    matrices = (sid.objects[name].m0 for name in ("Me", "Ke", "De"))
+    return response(np.vstack(rows), *matrices, frequencies_hz)
 
 
 def relative_difference(a: np.ndarray, b: np.ndarray) -> float:
@@ -107,7 +104,7 @@ def compare(default: Path, distributed: Path, band_hz: tuple[float, float]) -> l
         name = a["name"]
         bodies = [np.load(d / name / f"{name}_exudyn.npz") for d in (default, distributed)]
         dofs = np.sort(rng.choice(bodies[0]["modeBasis"].shape[0], SAMPLE, replace=False))
-        h_a, h_b = (response(body, dofs, frequencies) for body in bodies)
+        h_a, h_b = (mesh_response(body, dofs, frequencies) for body in bodies)
         p_a, p_b = (
             port_response(d / name / f"{name}.SID_FEM", frequencies) for d in (default, distributed)
         )
