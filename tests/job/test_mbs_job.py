@@ -13,10 +13,14 @@ import numpy as np
 import pytest
 import scipy.io
 
+from pymorembs.analysis import transfer_function
 from pymorembs.examples import build_example
 from pymorembs.export.exudyn_body import load_exudyn_body
 from pymorembs.export.sid import check_sid, read_sid, sid_invariants
 from pymorembs.job.cli import main
+from pymorembs.job.run import prepare_job
+from pymorembs.job.schema import load_job
+from pymorembs.system import SecondOrderSystem
 
 JOB = """
 title = "rack-beams as a multibody body"
@@ -133,6 +137,26 @@ def test_sid_has_the_mass_properties_of_the_fe_model(mbs_run):
     text = (out / "krylov" / "krylov.SID_FEM").read_text().splitlines()
     assert re.match(r"^\s*\d+\s+\d+\s+:No\. nodes, No\. modes:", text[0])
     assert all("E+" not in line and "E-" not in line for line in text)  # D exponents
+
+
+@whole_job
+def test_sid_body_responds_as_the_full_model_within_the_jobs_error(mbs_run):
+    """The body as a multibody code gets it -- the SID file read back, its ``Me``, ``Ke``,
+    ``De`` and the mode rows of the port nodes -- against the full prepared model, computed here
+    by the sparse sweep: within the job's own maximum error over the ports (eq. 27). The job's
+    damping is Rayleigh, so ``De`` is the projected ``D`` and both sides are the same model."""
+    out, summary = mbs_run
+    sid = read_sid(out / "krylov" / "krylov.SID_FEM")
+    rows = np.vstack([sid.nodes[1]["phi"].m0, sid.nodes[2]["phi"].m0, sid.nodes[2]["psi"].m0])
+    me, ke, de = (sid.objects[name].m0 for name in ("Me", "Ke", "De"))
+    _, prepared = prepare_job(load_job(out.parent / "job.toml"))
+    frequencies = np.array([0.0, 137.0, 480.0, 755.0, 1000.0])
+    full = transfer_function(prepared.system, frequencies)
+    body = transfer_function(SecondOrderSystem(me, ke, de, rows.T, rows), frequencies)
+    error = np.linalg.norm(body - full, axis=(1, 2)) / np.linalg.norm(full, axis=(1, 2))
+    (entry,) = summary["reductions"]
+    assert entry["accuracy"]["max"] < 1e-6
+    assert error.max() <= 1.5 * entry["accuracy"]["max"] + 1e-12, error
 
 
 @whole_job
