@@ -591,7 +591,13 @@ def _max_order_message(system: SecondOrderSystem, max_order: int) -> str:
 
 def _room_for_a_factorization(processes: list[GlobalSecondOrderArnoldi]) -> bool:
     """Whether another factorization like the largest of ``processes`` fits into the memory
-    available now (:data:`MEMORY_MARGIN`)."""
+    available now (:data:`MEMORY_MARGIN`).
+
+    A factor's size is the backend's memory count (``memory_bytes``). For the points of one
+    sparsity pattern PARDISO counts the whole family (their shared analysis and every factor so
+    far), so from the second point on this asks for more than one factor needs: conservative,
+    and kept so until the choice of points weighs what a factorization costs against a few
+    more solves at an open point (docs/performance.md, "SOAGA memory")."""
     largest = 0
     for process in processes:
         solver = process.factorization
