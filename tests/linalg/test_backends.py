@@ -9,9 +9,11 @@ import pytest
 import scipy.sparse as sp
 
 from pymorembs.errors import NumericalError, UserError
+from pymorembs.examples import build_example
 from pymorembs.linalg import backends
 from pymorembs.linalg.backends import available_backends, default_backend, factorize
 from pymorembs.linalg.factorization import Factorization, is_symmetric
+from pymorembs.preparation import Frame, Port, prepare
 
 BACKENDS = available_backends()
 N = 60
@@ -383,3 +385,32 @@ def test_symmetry_check_agrees_with_the_dense_definition(seed: int, compiled: bo
         assert is_symmetric(matrix) == _dense_symmetric(matrix), name
     assert not _dense_symmetric(cases["bumped 1e-10"]) and _dense_symmetric(cases["bumped 1e-16"])
     assert not _dense_symmetric(cases["lonely entry"])
+
+
+def test_a_matrix_made_symmetric_is_known_without_a_comparison(monkeypatch) -> None:
+    """The elimination's ``(A + A^T) / 2`` is recorded as symmetric: no transpose gap is computed
+    for it, or for the prepared model's matrices, while a new matrix still is compared, and
+    found asymmetric when it is."""
+    from pymorembs.linalg import factorization
+    from pymorembs.preparation.elimination import symmetric_part
+
+    rng = np.random.default_rng(3)
+    base = sp.random(50, 50, density=0.1, random_state=3, format="csr") + sp.identity(50)
+    base = sp.csr_matrix(base + 1e-3 * sp.random(50, 50, density=0.1, random_state=4))
+    base.sum_duplicates()
+    made = symmetric_part(base)
+    compared = []
+
+    def gap(a):
+        compared.append(a.shape)
+        return float(abs(a - a.T).max())
+
+    monkeypatch.setattr(factorization, "_compiled_gap", gap)
+    assert is_symmetric(made) and not compared
+    assert np.array_equal(made.toarray(), made.toarray().T)
+    prepared = prepare(build_example("rack-beams"), Frame("tangent", 2), [Port.parse(1, "uz")])
+    system = prepared.system
+    assert is_symmetric(system.stiffness) and is_symmetric(system.mass) and not compared
+    bumped = made.copy()
+    bumped.data[rng.integers(bumped.nnz)] *= 1 + 1e-8
+    assert not is_symmetric(bumped) and compared == [(50, 50)]

@@ -105,13 +105,25 @@ __all__ = [
     "basis_plain_enough",
     "combine",
     "is_symmetric",
+    "known_symmetric",
 ]
 
 _SYMMETRIC: dict[int, bool] = {}
 
 
+def known_symmetric(matrix: sp.spmatrix) -> sp.spmatrix:
+    """Record that ``matrix`` is exactly symmetric (it was made so, e.g. ``(A + A^T) / 2``), so
+    that :func:`is_symmetric` need not compare it with its transpose; returns ``matrix``."""
+    key = id(matrix)
+    if key not in _SYMMETRIC:
+        _SYMMETRIC[key] = True
+        weakref.finalize(matrix, _SYMMETRIC.pop, key, None)
+    return matrix
+
+
 def is_symmetric(matrix: sp.spmatrix) -> bool:
-    """``A = A^T`` up to :data:`SYMMETRY_TOL`; cached while ``matrix`` lives (O(nnz) once)."""
+    """``A = A^T`` up to :data:`SYMMETRY_TOL`; cached while ``matrix`` lives: O(nnz) once, and
+    nothing for a matrix made symmetric (:func:`known_symmetric`)."""
     key = id(matrix)
     known = _SYMMETRIC.get(key)
     if known is None:

@@ -20,6 +20,7 @@ from scipy.sparse.csgraph import connected_components
 
 from pymorembs.body import ElasticBody
 from pymorembs.errors import UserError
+from pymorembs.linalg.factorization import known_symmetric
 
 
 @dataclass(frozen=True, eq=False)
@@ -186,5 +187,5 @@ def symmetric_part(matrix: sp.csr_matrix) -> sp.csr_matrix:
         del transpose
         out = sp.csr_matrix((data, matrix.indices, matrix.indptr), shape=matrix.shape, copy=False)
         out.has_canonical_format = True
-        return out
-    return sp.csr_matrix(0.5 * (matrix + matrix.T))
+        return known_symmetric(out)
+    return known_symmetric(sp.csr_matrix(0.5 * (matrix + matrix.T)))

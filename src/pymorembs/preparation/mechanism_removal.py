@@ -77,7 +77,10 @@ class MechanismRemoval:
         return int(self.fixed.size)
 
     def restrict(self, matrix: sp.spmatrix) -> sp.csr_matrix:
-        """A matrix of the independent dofs before the removal, on those that stay."""
+        """A matrix of the independent dofs before the removal, on those that stay (the matrix
+        itself when nothing was removed: no copy)."""
+        if self.count == 0 and isinstance(matrix, sp.csr_matrix):
+            return matrix
         matrix = sp.csr_matrix(matrix)
         return matrix if self.count == 0 else sp.csr_matrix(matrix[self.kept][:, self.kept])
 
