@@ -369,3 +369,31 @@ def test_sid_invariants_needs_the_objects(lumped_file):
     del sid.objects["J"]
     with pytest.raises(UserError, match="lacks J"):
         sid_invariants(sid)
+
+
+def test_preparation_and_invariants_leave_the_callers_matrices_as_they_were():
+    """Neither the preparation (the mass split of the massless-mechanism search) nor the body
+    invariants change a matrix they were given: ``csr_matrix(A)`` shares ``A``'s arrays, and
+    dropping small or stored-zero entries in place once left the body's mass with fewer entries
+    than its arrays hold (a later merged pattern of it then failed). The solid rack has stored
+    zeros in M and no beams, so both paths run."""
+    body = build_example("rack-solid", dofs=7400)  # its eliminated M stores 216 zeros
+    snapshot = [a.copy() for a in (body.mass.data, body.mass.indices, body.mass.indptr)]
+    ports = [Port.parse(1, "ux uy uz")]
+    with threadpool_limits(1):
+        prepared = prepare(body, Frame("tangent", 2), ports, ports)
+        mass = prepared.system.mass
+        assert mass.nnz == mass.data.size and not np.all(mass.data)  # stored zeros kept
+        frame_body = prepared.body
+        framed = [a.copy() for a in (frame_body.mass.data, frame_body.mass.indptr)]
+        model = reduced_model(prepared.system, modal_reduction(prepared.system, 6))
+        compute_invariants(
+            frame_body, prepared.expand(model.projection.V), model.system.mass,
+            model.system.stiffness, model.damping_matrix, [1, 2], model.eigenfrequencies_hz,
+        )  # fmt: skip
+    now = (body.mass.data, body.mass.indices, body.mass.indptr)
+    for before, after in zip(snapshot, now, strict=True):
+        assert np.array_equal(before, after)
+    assert np.array_equal(framed[0], frame_body.mass.data)
+    assert np.array_equal(framed[1], frame_body.mass.indptr)
+    assert frame_body.mass.nnz == frame_body.mass.data.size

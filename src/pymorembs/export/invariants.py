@@ -334,6 +334,8 @@ def compute_invariants(
     if rigid is not None:
         parts.append(rigid)
         m_rest = sp.csr_matrix(m_rest - rigid.matrix)
+    if m_rest is m_full:  # shares its arrays with the body's mass, which stays as it is
+        m_rest = m_full.copy()
     m_rest.data[np.abs(m_rest.data) <= KRONECKER_TOL * abs(m_full).max()] = 0.0
     m_rest.eliminate_zeros()
     blocks = _translational_blocks(m_rest, rows, directions, body.n_nodes)

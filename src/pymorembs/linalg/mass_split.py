@@ -140,8 +140,10 @@ def mass_split(mass: sp.spmatrix | np.ndarray) -> MassSplit:
         ``-NEGATIVE_TOL`` times its largest) or a dof of a large block with a non-positive
         diagonal entry.
     """
-    m = sp.csr_matrix(mass, dtype=float)
-    m.eliminate_zeros()
+    m = sp.csr_matrix(mass, dtype=float)  # (a CSR matrix's own arrays)
+    if not np.all(m.data[: m.nnz]):  # stored zeros: dropped from a copy, not from ``mass``
+        m = m.copy()
+        m.eliminate_zeros()
     n = m.shape[0]
     row_nnz = np.diff(m.indptr)
     zero_rows = np.flatnonzero(row_nnz == 0)
