@@ -640,8 +640,9 @@ class ElasticBody:
                 total = np.sum(matrix.data)  # finite only if every entry is (no temporary)
             if not np.isfinite(total) and not np.all(np.isfinite(matrix.data)):
                 raise UserError(f"{label} matrix has NaN or infinite entries")
-            matrix.sum_duplicates()
-            matrix.sort_indices()
+            if not matrix.has_canonical_format:  # on a copy: the caller's arrays stay as given
+                matrix = matrix.copy()
+                matrix.sum_duplicates()
             object.__setattr__(self, label if label != "damping" else "damping_matrix", matrix)
         constraints = self.constraints or ConstraintEquations.empty(n)
         if constraints.matrix.shape[1] != n:
