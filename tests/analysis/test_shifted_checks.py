@@ -72,6 +72,28 @@ def test_a_check_from_a_nearby_real_factor_is_the_full_response(chain, frequency
     assert facts["backward_error"] <= shifted_checks.BACKWARD_TOL
 
 
+def test_each_gmres_step_costs_one_solve_with_the_factor(chain):
+    """The preconditioned blocks of the GMRES steps are kept: the correction is their
+    combination, so a check makes one solve with the real factor per step and none more."""
+    _, basis = low_modes(chain, 16)
+    tau = (2 * np.pi * 40.0) ** 2
+    factor = factorize(sp.csc_matrix(chain.stiffness - tau * chain.mass), symmetric=True)
+    solves = []
+    solve = factor.solve
+
+    def counted(rhs):
+        solves.append(rhs.shape)
+        return solve(rhs)
+
+    factor.solve = counted
+    terms, scale = chain.dynamic_terms(2j * np.pi * 30.0)
+    x, facts = shifted_response(terms, chain.input_matrix, factor, basis)
+    assert x is not None and facts["refinements"] >= 1
+    assert len(solves) == facts["gmres_steps"]
+    expected = dense_response(chain, 30.0)
+    assert np.linalg.norm(x / scale - expected) <= 1e-11 * np.linalg.norm(expected)
+
+
 def test_an_answer_that_cannot_be_certified_is_refused(chain, monkeypatch):
     """160 Hz lies among ~40 modes that neither the basis nor the factor at 40 Hz resolve."""
     monkeypatch.setattr(shifted_checks, "MAX_REFINEMENTS", 2)

@@ -130,15 +130,23 @@ def gmres_block(
 ) -> tuple[np.ndarray, int, float]:
     """An approximate solution of ``Z e = r`` (n, k) by right-preconditioned GMRES, the ``k``
     columns run side by side (each step one preconditioner solve of the whole block); the
-    number of steps and the largest relative residual ``|r - Z e| / |r|`` of a column."""
+    number of steps and the largest relative residual ``|r - Z e| / |r|`` of a column.
+
+    The preconditioned blocks ``P^{-1} v_j`` of the steps are kept (as flexible GMRES keeps
+    them), so that the solution ``P^{-1} (sum_j v_j y_j) = sum_j (P^{-1} v_j) y_j`` costs no
+    further solve: one preconditioner solve per step instead of one more per run (a check that
+    converges in one step per refinement needs half the solves). They take as much memory as
+    the Krylov blocks ``v_j`` themselves."""
     k = r.shape[1]
     beta = np.linalg.norm(r, axis=0)
     beta = np.where(beta > 0, beta, 1.0)
     basis = [r / beta]
+    preconditioned = []
     hessenberg = np.zeros((GMRES_STEPS + 1, GMRES_STEPS, k), dtype=complex)
     steps = 0
     for j in range(GMRES_STEPS):
-        w = apply(terms, precondition(basis[j]))
+        preconditioned.append(precondition(basis[j]))
+        w = apply(terms, preconditioned[j])
         for i in range(j + 1):  # modified Gram-Schmidt, column by column
             h = np.einsum("nk,nk->k", basis[i].conj(), w)
             hessenberg[i, j] = h
@@ -151,8 +159,8 @@ def gmres_block(
             break
         basis.append(w / np.where(norm > 0, norm, 1.0))
     y, residuals = _least_squares(hessenberg[: steps + 1, :steps], beta)
-    combined = sum(basis[i] * y[i] for i in range(steps))
-    return precondition(combined), steps, float(np.max(residuals))
+    correction = sum(preconditioned[i] * y[i] for i in range(steps))
+    return correction, steps, float(np.max(residuals))
 
 
 def _least_squares(h: np.ndarray, beta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
