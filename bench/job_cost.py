@@ -262,6 +262,8 @@ def measure(model: str, dofs: int | None, before: bool, checks: str = "default")
             reference_module.ITERATIVE_CHECKS = False
     if checks != "default":
         reference_module.ITERATIVE_CHECKS = checks == "iterative"
+        if checks == "iterative":  # at every size
+            reference_module.ITERATIVE_MIN_ORDER = 0
     clock = StageClock()
     clock.count_factorizations()
     prepared_box: list = []

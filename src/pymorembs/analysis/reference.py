@@ -81,12 +81,13 @@ DEVIATION_WARNING = 1e-6
 #: Checks at f > 0 first computed from a real factor the job holds
 #: (:mod:`~pymorembs.analysis.shifted_checks`), a complex factorization only where that answer
 #: cannot be certified -- from :data:`ITERATIVE_MIN_ORDER` dofs on. Below it a complex
-#: factorization is cheap and the iterative solves were no faster (rack-solid at 12,876 to
-#: 31,236 dofs); on the 275k-dof tet10 bracket they replace complex factorizations of about
-#: 40 s each (bench/RESULTS.md "Job cost").
+#: factorization is cheap and the iterative solves are no faster (rack-solid at 6,066 dofs);
+#: from about 12,000 dofs on they are (docs/performance.md, "Checks without a complex
+#: factorization"), and on the 275k-dof tet10 bracket they replace complex factorizations of
+#: about 40 s each.
 ITERATIVE_CHECKS = True
 #: ... from this order on.
-ITERATIVE_MIN_ORDER = 100_000
+ITERATIVE_MIN_ORDER = 10_000
 
 
 @dataclass(frozen=True, eq=False)
