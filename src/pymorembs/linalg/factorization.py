@@ -111,13 +111,18 @@ __all__ = [
 _SYMMETRIC: dict[int, bool] = {}
 
 
+def _remember_symmetry(matrix: sp.spmatrix, symmetric: bool) -> None:
+    """Keep whether ``matrix`` is symmetric while it lives (by identity)."""
+    key = id(matrix)
+    if key not in _SYMMETRIC:
+        _SYMMETRIC[key] = symmetric
+        weakref.finalize(matrix, _SYMMETRIC.pop, key, None)
+
+
 def known_symmetric(matrix: sp.spmatrix) -> sp.spmatrix:
     """Record that ``matrix`` is exactly symmetric (it was made so, e.g. ``(A + A^T) / 2``), so
     that :func:`is_symmetric` need not compare it with its transpose; returns ``matrix``."""
-    key = id(matrix)
-    if key not in _SYMMETRIC:
-        _SYMMETRIC[key] = True
-        weakref.finalize(matrix, _SYMMETRIC.pop, key, None)
+    _remember_symmetry(matrix, True)
     return matrix
 
 
@@ -137,8 +142,7 @@ def is_symmetric(matrix: sp.spmatrix) -> bool:
                 difference = abs(a - a.T)
                 gap = difference.max() if difference.nnz else 0.0
             known = gap <= SYMMETRY_TOL * largest
-        _SYMMETRIC[key] = bool(known)
-        weakref.finalize(matrix, _SYMMETRIC.pop, key, None)
+        _remember_symmetry(matrix, bool(known))
     return known
 
 

@@ -79,10 +79,9 @@ class MechanismRemoval:
     def restrict(self, matrix: sp.spmatrix) -> sp.csr_matrix:
         """A matrix of the independent dofs before the removal, on those that stay (the matrix
         itself when nothing was removed: no copy)."""
-        if self.count == 0 and isinstance(matrix, sp.csr_matrix):
-            return matrix
-        matrix = sp.csr_matrix(matrix)
-        return matrix if self.count == 0 else sp.csr_matrix(matrix[self.kept][:, self.kept])
+        if self.count == 0:
+            return matrix if isinstance(matrix, sp.csr_matrix) else sp.csr_matrix(matrix)
+        return sp.csr_matrix(sp.csr_matrix(matrix)[self.kept][:, self.kept])
 
 
 def remove_massless_mechanisms(
