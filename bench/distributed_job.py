@@ -74,8 +74,8 @@ def response(
     loss factor ``eta = 2 xi`` (:data:`LOSS_FACTOR`), on which its errors are measured. The
     bodies' viscous modal damping ``diag(2 xi omega_i)`` (paper eq. 25, the files' ``De``) is
     not compared: it depends on each body's own eigenfrequencies, also on the stiff directions
-    far above the band that the two solvers' bases hold differently (two Krylov bodies of the
-    bracket, both within 8.8e-12 of the full model, differed by 4.7e-9 with it)."""
+    far above the band that the two solvers' bases hold differently (docs/performance.md, "A
+    whole job under mpiexec")."""
     system = SecondOrderSystem(mass, stiffness, None, points.T, points, loss_factor=LOSS_FACTOR)
     return transfer_function(system, np.asarray(frequencies_hz))
 

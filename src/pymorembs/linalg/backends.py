@@ -413,10 +413,9 @@ class PardisoFactor(SparseFactor):
     @property
     def held_bytes(self) -> int:
         """Memory this factor alone holds, bytes. In a family PARDISO's counts are those of
-        the whole handle, every factor stored in it so far (at 31k dofs the in-core count grew
-        by 0.11 GB with each shift: 0.19, 0.30, 0.41 GB for one, two, three factors); a member
-        holds its own numeric factor, estimated as ``nnz_factor`` entries of the stored type
-        plus a 4-byte index each (0.14 GB there). An own handle: :attr:`memory_bytes`."""
+        the whole handle, every factor stored in it so far (docs/performance.md, "Memory"); a
+        member holds its own numeric factor, estimated as ``nnz_factor`` entries of the stored
+        type plus a 4-byte index each. An own handle: :attr:`memory_bytes`."""
         if self._family is None:
             return self.memory_bytes
         return self.nnz_factor * (self._data.dtype.itemsize + 4)
